@@ -1,0 +1,54 @@
+"""Registration of SSS Lab's Blender classes.
+
+Each module lists its classes in one ``classes`` tuple; they are registered in the order of
+``_MODULES`` and unregistered in reverse. Errors are not swallowed: a class that fails to
+register is a bug to see, and the classes registered before it are unregistered again.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+#: Modules (relative to the package root) whose ``classes`` tuples are registered, in order.
+_MODULES = (
+    ".addon.properties",
+    ".operators.scan",
+    ".addon.panels",
+)
+
+_registered: list = []
+
+
+def _modules():
+    root = __package__.rpartition(".")[0]
+    return [importlib.import_module(name, root) for name in _MODULES]
+
+
+def register():
+    import bpy
+
+    from . import compat, properties
+
+    if not compat.is_supported():
+        raise RuntimeError(
+            f"SSS Lab needs Blender {'.'.join(map(str, compat.MIN_VERSION))} or newer, this is {bpy.app.version_string}"
+        )
+    try:
+        for module in _modules():
+            for cls in module.classes:
+                bpy.utils.register_class(cls)
+                _registered.append(cls)
+        properties.attach()
+    except Exception:
+        unregister()
+        raise
+
+
+def unregister():
+    import bpy
+
+    from . import properties
+
+    properties.detach()
+    while _registered:
+        bpy.utils.unregister_class(_registered.pop())

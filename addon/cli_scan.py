@@ -1,0 +1,39 @@
+"""``python -m sss_lab scan SCENE.blend``: list the scene's subsurface materials."""
+
+from __future__ import annotations
+
+import os
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("scan", help="list the subsurface materials of a .blend scene (needs bpy)")
+    p.add_argument("blend", help="the .blend file to read (never written)")
+    p.add_argument("--scene", help="scene name (default: the file's active scene)")
+    p.set_defaults(run=run)
+
+
+def open_blend(path: str, scene_name: str | None = None):
+    """Open ``path`` read-only in bpy and return the chosen scene; clear errors for bad input."""
+    from .cli import CommandError, require_bpy
+
+    bpy = require_bpy()
+    if not os.path.isfile(path):
+        raise CommandError(f"{path!r} does not exist or is not a file (expected a .blend file)")
+    if not path.endswith(".blend"):
+        raise CommandError(f"{path!r} is not a .blend file")
+    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
+    if scene_name is None:
+        return bpy.context.scene
+    scene = bpy.data.scenes.get(scene_name)
+    if scene is None:
+        raise CommandError(f"no scene {scene_name!r} in {path!r}; it has: {', '.join(s.name for s in bpy.data.scenes)}")
+    return scene
+
+
+def run(args) -> int:
+    scene = open_blend(args.blend, args.scene)
+    from ..operators.scan import scan_report
+
+    for line in scan_report(scene):
+        print(line)
+    return 0

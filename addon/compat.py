@@ -1,0 +1,74 @@
+"""The one place that knows how Blender versions differ.
+
+SSS Lab targets Blender 5.2 LTS; Blender 4.5 LTS is next. Every call whose spelling changed
+between them goes through a function here, so that supporting another version means editing
+this module alone. Only bpy-facing code imports it (core never does).
+"""
+
+from __future__ import annotations
+
+import bpy
+
+#: Oldest Blender this module knows how to drive (blender_manifest.toml says the same).
+MIN_VERSION = (5, 2, 0)
+
+
+def blender_version() -> tuple[int, int, int]:
+    return tuple(bpy.app.version)
+
+
+def is_supported() -> bool:
+    return blender_version() >= MIN_VERSION
+
+
+def set_multilayer_exr(image_settings, *, color_depth: str = "32") -> None:
+    """Configure ``image_settings`` for a float32 multilayer EXR.
+
+    5.x needs ``media_type`` set before ``file_format`` (the other order raises); 4.5 has no
+    ``media_type``.
+    """
+    if hasattr(image_settings, "media_type"):
+        image_settings.media_type = "MULTI_LAYER_IMAGE"
+    image_settings.file_format = "OPEN_EXR_MULTILAYER"
+    image_settings.color_depth = color_depth
+    image_settings.exr_codec = "ZIP"
+
+
+def set_single_image(image_settings, file_format: str, *, color_depth: str | None = None) -> None:
+    """Configure ``image_settings`` for a single-layer image (PNG, EXR)."""
+    if hasattr(image_settings, "media_type"):
+        image_settings.media_type = "IMAGE"
+    image_settings.file_format = file_format
+    if color_depth is not None:
+        image_settings.color_depth = color_depth
+
+
+def compositor_tree(scene, *, create: bool = False):
+    """The scene's compositor node tree, or None.
+
+    5.x keeps it in ``scene.compositing_node_group`` (a CompositorNodeTree data-block);
+    4.5 uses ``scene.node_tree`` behind ``scene.use_nodes``.
+    """
+    if hasattr(scene, "compositing_node_group"):
+        tree = scene.compositing_node_group
+        if tree is None and create:
+            tree = bpy.data.node_groups.new(f"{scene.name} Compositor", "CompositorNodeTree")
+            scene.compositing_node_group = tree
+        return tree
+    if create:
+        scene.use_nodes = True
+    return scene.node_tree
+
+
+def uses_nodes(idblock) -> bool:
+    """Whether a material or world shades with its node tree (always in 5.x, where
+    ``use_nodes`` is deprecated; a flag in 4.5)."""
+    if bpy.app.version >= (5, 0, 0):
+        return idblock.node_tree is not None
+    return bool(idblock.use_nodes)
+
+
+def ensure_node_tree(idblock) -> None:
+    """Give a material or world its node tree (5.x creates it; 4.5 needs ``use_nodes``)."""
+    if bpy.app.version < (5, 0, 0) or idblock.node_tree is None:
+        idblock.use_nodes = True

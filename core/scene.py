@@ -1,0 +1,319 @@
+"""Scene description: the plain data that travels with the render passes.
+
+The passes alone do not say where the camera is, which lights shine, or which material
+scatters how far. This module holds that as frozen dataclasses that round-trip through JSON,
+so that the NumPy passes run on any machine with Python and NumPy (a render-farm node without
+Blender included). ``operators/render_passes.py`` fills it from a Blender scene; ``core``
+reads it.
+
+Conventions (DESIGN.md): lengths in scene units, colours linear, matrices row-major 4x4
+object-to-world as Blender's ``matrix_world`` (a camera looks down its local -Z, a sun or spot
+light shines down its local -Z).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+#: Version of the JSON layout; bump on any incompatible change.
+SCENE_DESCRIPTION_VERSION = 1
+
+CAMERA_TYPES = ("PERSP", "ORTHO")
+SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
+LIGHT_TYPES = ("SUN", "POINT", "SPOT", "AREA")
+#: Blender 5.2's Principled BSDF subsurface methods (REFERENCES.md section 2).
+SUBSURFACE_METHODS = ("BURLEY", "RANDOM_WALK", "RANDOM_WALK_SKIN", "RANDOM_WALK_LEGACY")
+
+_IDENTITY = (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+
+
+def _matrix(values, what: str) -> np.ndarray:
+    m = np.asarray(values, dtype=np.float64)
+    if m.shape == (16,):
+        m = m.reshape(4, 4)
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise ValueError(f"{what}: expected 16 finite numbers (a row-major 4x4 matrix), got {values!r}")
+    return m
+
+
+def _choice(value: str, allowed: tuple[str, ...], what: str) -> None:
+    if value not in allowed:
+        raise ValueError(f"{what}: {value!r} is not one of {', '.join(allowed)}")
+
+
+def _positive(value: float, what: str) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{what}: expected a finite number > 0, got {value!r}")
+
+
+def _rgb(values, what: str) -> tuple[float, float, float]:
+    try:
+        t = tuple(float(v) for v in values)
+    except TypeError:
+        raise ValueError(f"{what}: expected three numbers (R, G, B), got {values!r}") from None
+    if len(t) != 3 or not all(math.isfinite(v) for v in t):
+        raise ValueError(f"{what}: expected three finite numbers (R, G, B), got {values!r}")
+    return t
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A Blender camera as far as the passes need it.
+
+    ``width_px``/``height_px`` are the rendered resolution (after the percentage scale).
+    Sensor fit follows Blender: with ``AUTO`` the sensor width (and the orthographic scale)
+    spans the larger image dimension.
+    """
+
+    type: str = "PERSP"
+    width_px: int = 1920
+    height_px: int = 1080
+    lens_mm: float = 50.0
+    sensor_width_mm: float = 36.0
+    sensor_height_mm: float = 24.0
+    sensor_fit: str = "AUTO"
+    ortho_scale: float = 6.0
+    clip_start: float = 0.1
+    clip_end: float = 1000.0
+    shift_x: float = 0.0
+    shift_y: float = 0.0
+    matrix_world: tuple = _IDENTITY
+
+    def __post_init__(self):
+        _choice(self.type, CAMERA_TYPES, "camera type")
+        _choice(self.sensor_fit, SENSOR_FITS, "camera sensor_fit")
+        for name in ("width_px", "height_px"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise ValueError(f"camera {name}: expected an integer >= 1, got {v!r}")
+        for name in ("lens_mm", "sensor_width_mm", "sensor_height_mm", "ortho_scale", "clip_start", "clip_end"):
+            _positive(getattr(self, name), f"camera {name}")
+        object.__setattr__(self, "matrix_world", tuple(_matrix(self.matrix_world, "camera matrix_world").ravel()))
+
+    def _fit_is_horizontal(self) -> bool:
+        if self.sensor_fit == "AUTO":
+            return self.width_px >= self.height_px
+        return self.sensor_fit == "HORIZONTAL"
+
+    def _fit_extent(self) -> tuple[float, int]:
+        """(sensor size in mm along the fitted axis, pixels along that axis)."""
+        if self.sensor_fit == "AUTO":
+            return self.sensor_width_mm, max(self.width_px, self.height_px)
+        if self.sensor_fit == "HORIZONTAL":
+            return self.sensor_width_mm, self.width_px
+        return self.sensor_height_mm, self.height_px
+
+    @property
+    def focal_px(self) -> float:
+        """Perspective focal length in pixels: pixels per scene unit at view depth 1."""
+        sensor_mm, pixels = self._fit_extent()
+        return self.lens_mm / sensor_mm * pixels
+
+    @property
+    def ortho_px_per_unit(self) -> float:
+        """Orthographic pixels per scene unit (constant over the image)."""
+        _, pixels = self._fit_extent()
+        return pixels / self.ortho_scale
+
+    @property
+    def position(self) -> np.ndarray:
+        return _matrix(self.matrix_world, "camera matrix_world")[:3, 3].copy()
+
+    @property
+    def forward(self) -> np.ndarray:
+        """Unit view direction in world space (the camera's local -Z)."""
+        m = _matrix(self.matrix_world, "camera matrix_world")
+        f = -m[:3, 2]
+        return f / max(np.linalg.norm(f), 1e-30)
+
+    def pixels_per_unit(self, depth: np.ndarray) -> np.ndarray:
+        """Screen footprint: pixels per scene unit at each pixel, from planar view depth.
+
+        ``depth`` is (H, W) planar view z as Blender's Depth pass writes it (1e10 for
+        background). Perspective: focal_px / z (REFERENCES.md section 1, "Screen footprint").
+        Orthographic: constant. Returns float32 (H, W); 0 where depth is not finite or <= 0.
+        """
+        z = np.asarray(depth, dtype=np.float32)
+        if self.type == "ORTHO":
+            out = np.full(z.shape, self.ortho_px_per_unit, dtype=np.float32)
+            out[~np.isfinite(z)] = 0.0
+            return out
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = np.float32(self.focal_px) / z
+        out[~np.isfinite(out) | (z <= 0)] = 0.0
+        return out.astype(np.float32, copy=False)
+
+    def view_vectors(self, position: np.ndarray) -> np.ndarray:
+        """Unit vectors from each surface point toward the viewer, float32 (H, W, 3).
+
+        ``position`` is the world-space Position pass (H, W, 3). Orthographic cameras have the
+        same vector everywhere (minus the view direction).
+        """
+        p = np.asarray(position, dtype=np.float32)
+        if p.ndim != 3 or p.shape[2] != 3:
+            raise ValueError(f"position: expected shape (H, W, 3), got {p.shape}")
+        if self.type == "ORTHO":
+            return np.broadcast_to((-self.forward).astype(np.float32), p.shape).copy()
+        v = self.position.astype(np.float32) - p
+        n = np.linalg.norm(v, axis=2, keepdims=True)
+        return (v / np.maximum(n, np.float32(1e-20))).astype(np.float32, copy=False)
+
+
+@dataclass(frozen=True)
+class Light:
+    """A Blender light. ``energy`` is Blender's Power (W) for point, spot and area lights and
+    Strength (W/m^2, irradiance) for a sun. ``radius`` is the light's Radius (point, spot),
+    ``size``/``size_y`` the area light's extent, ``angle`` the sun's angular diameter (rad).
+    ``spot_size`` is the full cone angle (rad) and ``spot_blend`` Blender's Blend (0..1).
+    """
+
+    type: str
+    name: str = ""
+    color: tuple = (1.0, 1.0, 1.0)
+    energy: float = 10.0
+    matrix_world: tuple = _IDENTITY
+    radius: float = 0.0
+    size: float = 0.0
+    size_y: float = 0.0
+    angle: float = 0.0
+    spot_size: float = math.radians(45.0)
+    spot_blend: float = 0.15
+
+    def __post_init__(self):
+        _choice(self.type, LIGHT_TYPES, f"light {self.name!r} type")
+        object.__setattr__(self, "color", _rgb(self.color, f"light {self.name!r} color"))
+        if not (math.isfinite(self.energy) and self.energy >= 0):
+            raise ValueError(f"light {self.name!r} energy: expected a finite number >= 0, got {self.energy!r}")
+        if not (0 < self.spot_size <= math.pi + 1e-6):
+            raise ValueError(f"light {self.name!r} spot_size: expected 0 < angle <= pi rad, got {self.spot_size!r}")
+        if not (0 <= self.spot_blend <= 1):
+            raise ValueError(f"light {self.name!r} spot_blend: expected 0..1, got {self.spot_blend!r}")
+        object.__setattr__(
+            self, "matrix_world", tuple(_matrix(self.matrix_world, f"light {self.name!r} matrix_world").ravel())
+        )
+
+    @property
+    def position(self) -> np.ndarray:
+        return _matrix(self.matrix_world, "light matrix_world")[:3, 3].copy()
+
+    @property
+    def direction(self) -> np.ndarray:
+        """Unit direction the light shines in (its local -Z), world space."""
+        m = _matrix(self.matrix_world, "light matrix_world")
+        d = -m[:3, 2]
+        return d / max(np.linalg.norm(d), 1e-30)
+
+
+@dataclass(frozen=True)
+class MaterialSSS:
+    """A material's subsurface inputs as the Principled BSDF holds them (REFERENCES.md section 2).
+
+    ``index`` is the material's Pass Index, the value of the Material Index pass on its pixels.
+    """
+
+    index: int
+    name: str = ""
+    method: str = "RANDOM_WALK"
+    base_color: tuple = (0.8, 0.8, 0.8)
+    subsurface_weight: float = 1.0
+    subsurface_radius: tuple = (1.0, 0.2, 0.1)
+    subsurface_scale: float = 0.005
+    subsurface_ior: float = 1.4
+    subsurface_anisotropy: float = 0.0
+
+    def __post_init__(self):
+        if not isinstance(self.index, int) or isinstance(self.index, bool) or self.index < 1:
+            raise ValueError(
+                f"material {self.name!r} index: expected a pass index >= 1 (0 is the background), got {self.index!r}"
+            )
+        _choice(self.method, SUBSURFACE_METHODS, f"material {self.name!r} subsurface method")
+        object.__setattr__(self, "base_color", _rgb(self.base_color, f"material {self.name!r} base_color"))
+        radius = _rgb(self.subsurface_radius, f"material {self.name!r} subsurface_radius")
+        if min(radius) < 0:
+            raise ValueError(f"material {self.name!r} subsurface_radius: expected values >= 0, got {radius!r}")
+        object.__setattr__(self, "subsurface_radius", radius)
+        for name in ("subsurface_weight", "subsurface_scale"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"material {self.name!r} {name}: expected a finite number >= 0, got {v!r}")
+
+    @property
+    def scatters(self) -> bool:
+        """True when the material has any subsurface scattering to model."""
+        return self.subsurface_weight > 0 and self.subsurface_scale > 0 and max(self.subsurface_radius) > 0
+
+    @property
+    def radius(self) -> tuple[float, float, float]:
+        """Subsurface Radius x Subsurface Scale, per channel, in scene units."""
+        return tuple(r * self.subsurface_scale for r in self.subsurface_radius)
+
+
+@dataclass(frozen=True)
+class SceneDescription:
+    """Everything besides the pixels that a technique needs for one frame."""
+
+    camera: Camera
+    lights: tuple = ()
+    materials: tuple = ()
+    frame: int = 1
+    #: Name of the thickness AOV in the passes, and its convention ("translucency": 1 = thin).
+    thickness_aov: str = "Thickness"
+    thickness_convention: str = "translucency"
+    #: Free-form provenance (Blender version, file, samples); never read by the techniques.
+    meta: dict = field(default_factory=dict)
+    version: int = SCENE_DESCRIPTION_VERSION
+
+    def __post_init__(self):
+        if self.thickness_convention not in ("translucency", "thickness"):
+            raise ValueError(
+                f"thickness_convention: {self.thickness_convention!r} is not one of translucency, thickness"
+            )
+        indices = [m.index for m in self.materials]
+        dupes = sorted({i for i in indices if indices.count(i) > 1})
+        if dupes:
+            raise ValueError(f"materials: pass index used twice: {dupes}")
+
+    def material(self, index: int) -> MaterialSSS:
+        for m in self.materials:
+            if m.index == index:
+                return m
+        raise KeyError(f"no material with pass index {index}; known: {[m.index for m in self.materials]}")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["camera"]["matrix_world"] = list(self.camera.matrix_world)
+        return d
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2, sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> SceneDescription:
+        if not isinstance(data, dict):
+            raise ValueError(f"scene description: expected a JSON object, got {type(data).__name__}")
+        version = data.get("version")
+        if version != SCENE_DESCRIPTION_VERSION:
+            raise ValueError(
+                f"scene description version: expected {SCENE_DESCRIPTION_VERSION}, got {version!r}"
+                " (written by another SSS Lab version)"
+            )
+        try:
+            camera = Camera(**data["camera"])
+            lights = tuple(Light(**light) for light in data.get("lights", ()))
+            materials = tuple(MaterialSSS(**m) for m in data.get("materials", ()))
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"scene description: malformed entry ({exc})") from None
+        rest = {k: v for k, v in data.items() if k not in ("camera", "lights", "materials", "version")}
+        return cls(camera=camera, lights=lights, materials=materials, **rest)
+
+    @classmethod
+    def from_json(cls, text: str) -> SceneDescription:
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"scene description: not valid JSON ({exc})") from None
+        return cls.from_dict(data)
