@@ -11,24 +11,29 @@ STAMP="$VENV/.sss_lab-installed"
 
 fail() { echo "bootstrap: error: $*" >&2; exit 1; }
 
+is_py313() {
+  # A pyenv shim is on PATH even when its version is not active: run the candidate to be sure.
+  [ -n "$1" ] && [ -x "$1" ] && "$1" -c "import sys; sys.exit(sys.version_info[:2] != (3, 13))" >/dev/null 2>&1
+}
+
 find_python() {
   local cand
   for cand in "${PYTHON313:-}" "$(command -v python$WANT || true)"; do
-    [ -n "$cand" ] && [ -x "$cand" ] && { echo "$cand"; return 0; }
+    is_py313 "$cand" && { echo "$cand"; return 0; }
   done
   if command -v pyenv >/dev/null 2>&1; then
-    for cand in $(pyenv root)/versions/$WANT*/bin/python$WANT; do
-      [ -x "$cand" ] && { echo "$cand"; return 0; }
+    for cand in "$(pyenv root)"/versions/$WANT*/bin/python$WANT; do
+      is_py313 "$cand" && { echo "$cand"; return 0; }
     done
   fi
-  for cand in "$HOME"/.pyenv/versions/$WANT*/bin/python$WANT /root/.pyenv/versions/$WANT*/bin/python$WANT; do
-    [ -x "$cand" ] && { echo "$cand"; return 0; }
+  for cand in "$HOME"/.pyenv/versions/$WANT*/bin/python$WANT; do
+    is_py313 "$cand" && { echo "$cand"; return 0; }
   done
   return 1
 }
 
 venv_ok() {
-  [ -x "$VENV/bin/python" ] && "$VENV/bin/python" -c "import sys; sys.exit(sys.version_info[:2] != (3, 13))" 2>/dev/null
+  is_py313 "$VENV/bin/python"
 }
 
 if [ -d "$VENV" ] && ! venv_ok; then
