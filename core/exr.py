@@ -1,0 +1,518 @@
+"""Reading and writing Blender's multilayer OpenEXR files (OpenEXR 3.5 Python API).
+
+Layouts read (REFERENCES.md section 7, and a probe render with bpy 5.2.3):
+
+- Blender 5.2 writes one part per pass. The part is named ``<view layer>.<pass>`` (for example
+  ``ViewLayer.Diffuse Direct``) and its channels are ``<view layer>.<pass>.<channel>``: colour
+  passes ``R G B`` (``A`` for Combined and colour AOVs), Depth and Mist ``Z``, Normal and
+  Position ``X Y Z``, Vector ``X Y Z W``, UV ``U V A``, Object/Material Index and value AOVs
+  ``X``. Data passes (depth, normal, position, indices, value AOVs) are float32 even when the
+  file is saved as half; colour passes follow the chosen colour depth.
+- Blender 4.5 writes a single part holding every channel, with the short pass names of
+  Blender 4.x (``ViewLayer.DiffDir.R``, ``ViewLayer.IndexMA.X``); see ``SHORT_PASS_NAMES``.
+
+Channel names split as Blender splits them: the text after the last dot is the channel, the
+text between the last two dots the pass, the rest the view layer (which may hold dots, so the
+layers this project adds, ``SSSLab.burley.Image``, read back as view layer ``SSSLab.burley``).
+
+Every array handed out is float32 (half and uint channels are converted on read, so that no
+arithmetic ever happens in half precision, REFERENCES.md section 5), rows run top to bottom
+(image row 0 is the top of the picture; Blender's ``Image.pixels`` run bottom to top), and
+pixels are never clamped. Files are written in float32 only, atomically, and never over an
+input.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Blender 4.x short pass names (``RE_PASSNAME_*`` in Blender's ``DNA_scene_types.h`` and the
+#: Cycles pass names of ``blender/sync.cpp``) -> the names Blender 5.x writes. AOVs, light
+#: groups and Cryptomatte layers keep their own names.
+SHORT_PASS_NAMES: dict[str, str] = {
+    "Emit": "Emission",
+    "Env": "Environment",
+    "AO": "Ambient Occlusion",
+    "IndexOB": "Object Index",
+    "IndexMA": "Material Index",
+    "DiffDir": "Diffuse Direct",
+    "DiffInd": "Diffuse Indirect",
+    "DiffCol": "Diffuse Color",
+    "GlossDir": "Glossy Direct",
+    "GlossInd": "Glossy Indirect",
+    "GlossCol": "Glossy Color",
+    "TransDir": "Transmission Direct",
+    "TransInd": "Transmission Indirect",
+    "TransCol": "Transmission Color",
+    "SubsurfaceDir": "Subsurface Direct",
+    "SubsurfaceInd": "Subsurface Indirect",
+    "SubsurfaceCol": "Subsurface Color",
+    "VolumeDir": "Volume Direct",
+    "VolumeInd": "Volume Indirect",
+    "Transp": "Transparent",
+}
+
+#: Channel letters Blender 5.2 writes for the passes whose letters are not R G B (A).
+PASS_CHANNELS: dict[str, str] = {
+    "Combined": "RGBA",
+    "Depth": "Z",
+    "Mist": "Z",
+    "Normal": "XYZ",
+    "Position": "XYZ",
+    "Vector": "XYZW",
+    "UV": "UVA",
+    "Object Index": "X",
+    "Material Index": "X",
+}
+
+#: Where each pass is switched on in Blender 5.2 (Cycles), for error messages.
+_PANEL = "View Layer Properties > Passes"
+PASS_HINTS: dict[str, str] = {
+    "Combined": f"{_PANEL} > Data > Combined (view_layer.use_pass_combined)",
+    "Depth": f"{_PANEL} > Data > Depth (view_layer.use_pass_z)",
+    "Mist": f"{_PANEL} > Data > Mist (view_layer.use_pass_mist)",
+    "Position": f"{_PANEL} > Data > Position (view_layer.use_pass_position)",
+    "Normal": f"{_PANEL} > Data > Normal (view_layer.use_pass_normal)",
+    "Vector": f"{_PANEL} > Data > Vector (view_layer.use_pass_vector)",
+    "UV": f"{_PANEL} > Data > UV (view_layer.use_pass_uv)",
+    "Object Index": f"{_PANEL} > Data > Indexes > Object Index (view_layer.use_pass_object_index), "
+    "and give each object a Pass Index in Object Properties > Relations",
+    "Material Index": f"{_PANEL} > Data > Indexes > Material Index (view_layer.use_pass_material_index), "
+    "and give each material a Pass Index in Material Properties > Settings",
+    "Diffuse Direct": f"{_PANEL} > Light > Diffuse > Direct (view_layer.use_pass_diffuse_direct)",
+    "Diffuse Indirect": f"{_PANEL} > Light > Diffuse > Indirect (view_layer.use_pass_diffuse_indirect)",
+    "Diffuse Color": f"{_PANEL} > Light > Diffuse > Color (view_layer.use_pass_diffuse_color)",
+    "Glossy Direct": f"{_PANEL} > Light > Glossy > Direct (view_layer.use_pass_glossy_direct)",
+    "Glossy Indirect": f"{_PANEL} > Light > Glossy > Indirect (view_layer.use_pass_glossy_indirect)",
+    "Glossy Color": f"{_PANEL} > Light > Glossy > Color (view_layer.use_pass_glossy_color)",
+    "Transmission Direct": f"{_PANEL} > Light > Transmission > Direct (view_layer.use_pass_transmission_direct)",
+    "Transmission Indirect": f"{_PANEL} > Light > Transmission > Indirect (view_layer.use_pass_transmission_indirect)",
+    "Transmission Color": f"{_PANEL} > Light > Transmission > Color (view_layer.use_pass_transmission_color)",
+    "Volume Direct": f"{_PANEL} > Light > Volume > Direct (view_layer.cycles.use_pass_volume_direct)",
+    "Volume Indirect": f"{_PANEL} > Light > Volume > Indirect (view_layer.cycles.use_pass_volume_indirect)",
+    "Emission": f"{_PANEL} > Light > Other > Emission (view_layer.use_pass_emit)",
+    "Environment": f"{_PANEL} > Light > Other > Environment (view_layer.use_pass_environment)",
+    "Ambient Occlusion": f"{_PANEL} > Light > Other > Ambient Occlusion (view_layer.use_pass_ambient_occlusion)",
+}
+
+#: Prefix of the layers SSS Lab adds to an output file; never chosen as the input view layer.
+OUTPUT_PREFIX = "SSSLab"
+
+# Header attributes that describe the file's structure: OpenEXR writes them itself.
+_STRUCTURAL = frozenset(
+    {
+        "channels",
+        "chunkCount",
+        "compression",
+        "dataWindow",
+        "displayWindow",
+        "lineOrder",
+        "name",
+        "pixelAspectRatio",
+        "screenWindowCenter",
+        "screenWindowWidth",
+        "tiles",
+        "type",
+        "version",
+        "maxSamplesPerPixel",
+        # Per part in Blender 5.2 files (colour passes lin_rec709_scene, data passes "data"): not
+        # something to copy from the first part onto whichever layer comes first in the output.
+        "colorInteropID",
+    }
+)
+
+# Channel orders Blender uses; a set of letters that is a subset of one is sorted by it.
+_ORDERS = ("RGBA", "XYZW", "UVA")
+
+
+def _import_openexr():
+    try:
+        import OpenEXR
+    except ImportError:
+        raise ImportError(
+            "reading and writing EXR files needs the OpenEXR module: pip install 'OpenEXR>=3.5,<3.6'"
+        ) from None
+    return OpenEXR
+
+
+def pass_hint(name: str) -> str:
+    """How to enable pass ``name`` in Blender; AOVs and unknown names get the Shader AOV advice."""
+    if name in PASS_HINTS:
+        return PASS_HINTS[name]
+    return (
+        f"{_PANEL} > Shader AOV > + (name {name!r}), fed in the materials by an AOV Output node "
+        f"named {name!r} (view_layer.aovs.add())"
+    )
+
+
+def split_channel(full: str) -> tuple[str, str]:
+    """``'ViewLayer.Diffuse Direct.R'`` -> ``('ViewLayer.Diffuse Direct', 'R')``; no dot -> ``('', full)``."""
+    layer, dot, channel = full.rpartition(".")
+    return (layer, channel) if dot else ("", full)
+
+
+def split_layer(layer: str) -> tuple[str, str]:
+    """``'ViewLayer.Diffuse Direct'`` -> ``('ViewLayer', 'Diffuse Direct')``; no dot -> ``('', layer)``."""
+    view_layer, dot, pass_name = layer.rpartition(".")
+    return (view_layer, pass_name) if dot else ("", layer)
+
+
+def _order_channels(letters: Iterable[str]) -> tuple[str, ...]:
+    letters = list(letters)
+    for order in _ORDERS:
+        if set(letters) <= set(order):
+            return tuple(sorted(letters, key=order.index))
+    return tuple(sorted(letters))
+
+
+def default_channels(layer: str, n: int) -> str:
+    """Channel letters for a layer of ``n`` channels, as Blender 5.2 names them.
+
+    Known data passes (by the pass part of ``layer``) get their own letters (``Depth`` -> Z,
+    ``Normal`` -> XYZ, ...); other layers get R G B (A) for 3 or 4 channels and X (Y Z W) else.
+    """
+    pass_name = SHORT_PASS_NAMES.get(split_layer(layer)[1], split_layer(layer)[1])
+    known = PASS_CHANNELS.get(pass_name)
+    if known is not None and len(known) == n:
+        return known
+    if n in (3, 4):
+        return "RGBA"[:n]
+    if 1 <= n <= 4:
+        return "XYZW"[:n]
+    raise ValueError(f"layer {layer!r}: {n} channels; expected 1 to 4 (give the channel letters explicitly)")
+
+
+def _user_header(header: Mapping) -> dict:
+    """The descriptive attributes of an OpenEXR header (strings and numbers), structure removed."""
+    out = {}
+    for key, value in header.items():
+        if key in _STRUCTURAL:
+            continue
+        if isinstance(value, (str, int, float)) and not isinstance(value, bool):
+            out[key] = value
+    return out
+
+
+@dataclass
+class ExrContents:
+    """Every layer of an EXR file, as read by ``read_layers``.
+
+    ``layers`` maps the full layer name (``'ViewLayer.Diffuse Direct'``) to float32 pixels,
+    (H, W) for one channel or (H, W, C); ``channels`` maps it to its channel letters in
+    array order; ``half`` holds the layers that were stored as half floats; ``header`` the
+    descriptive attributes of the first part (Blender puts its metadata there).
+    """
+
+    path: str
+    layers: dict[str, np.ndarray]
+    channels: dict[str, tuple[str, ...]]
+    header: dict
+    parts: int
+    half: set[str] = field(default_factory=set)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        first = next(iter(self.layers.values()))
+        return first.shape[:2]
+
+    @property
+    def view_layers(self) -> list[str]:
+        """View layer names in file order (including SSS Lab output layers)."""
+        seen: dict[str, None] = {}
+        for layer in self.layers:
+            seen.setdefault(split_layer(layer)[0], None)
+        return list(seen)
+
+
+def read_layers(path: str | os.PathLike) -> ExrContents:
+    """Read every channel of an EXR file (any number of parts) into float32 layers.
+
+    Raises FileNotFoundError for a missing file and ValueError for a file OpenEXR cannot read
+    or whose parts differ in size or use subsampled channels.
+    """
+    OpenEXR = _import_openexr()
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"{path}: no such EXR file")
+    try:
+        exr = OpenEXR.File(path, separate_channels=True)
+    except RuntimeError as exc:
+        raise ValueError(f"{path}: not a readable OpenEXR file ({exc})") from None
+    grouped: dict[str, dict[str, np.ndarray]] = {}
+    half: set[str] = set()
+    shape = None
+    header: dict = {}
+    n_parts = len(exr.parts)
+    for index in range(n_parts):
+        part_header = exr.header(index)
+        if index == 0:
+            header = _user_header(part_header)
+        for full, channel in exr.channels(index).items():
+            if (channel.xSampling, channel.ySampling) != (1, 1):
+                raise ValueError(f"{path}: channel {full!r} is subsampled; SSS Lab reads full-resolution channels only")
+            pixels = channel.pixels
+            if pixels.ndim != 2:
+                raise ValueError(f"{path}: channel {full!r} has shape {pixels.shape}; expected (height, width)")
+            if shape is None:
+                shape = pixels.shape
+            elif pixels.shape != shape:
+                raise ValueError(f"{path}: channel {full!r} is {pixels.shape}, other channels are {shape}")
+            layer, letter = split_channel(full)
+            if pixels.dtype == np.float16:
+                half.add(layer)
+            grouped.setdefault(layer, {})[letter] = pixels
+    if not grouped:
+        raise ValueError(f"{path}: the file holds no channels")
+    layers: dict[str, np.ndarray] = {}
+    channels: dict[str, tuple[str, ...]] = {}
+    for layer, by_letter in grouped.items():
+        order = _order_channels(by_letter)
+        if len(order) == 1:
+            arr = np.ascontiguousarray(by_letter[order[0]], dtype=np.float32)
+        else:
+            arr = np.stack([np.asarray(by_letter[c], dtype=np.float32) for c in order], axis=-1)
+        arr.flags.writeable = False
+        layers[layer] = arr
+        channels[layer] = order
+    return ExrContents(path=path, layers=layers, channels=channels, header=header, parts=n_parts, half=half)
+
+
+class MissingPassError(KeyError):
+    """A pass a computation needs is not in the file; the message says how to enable it."""
+
+    def __str__(self) -> str:  # KeyError would print the repr of the message
+        return str(self.args[0]) if self.args else ""
+
+
+class Passes(Mapping):
+    """The passes of one view layer: canonical (Blender 5.x) pass name -> float32 array.
+
+    Arrays are (H, W) for one channel, (H, W, C) otherwise, rows top to bottom, read-only
+    (techniques must not mutate their inputs). Build one from arrays directly (tests, the
+    Blender operator) or with ``read_passes``.
+    """
+
+    def __init__(
+        self,
+        arrays: Mapping[str, np.ndarray],
+        *,
+        header: Mapping | None = None,
+        view_layer: str = "ViewLayer",
+        source: str = "",
+        layout: str = "",
+        half: Iterable[str] = (),
+    ):
+        if not arrays:
+            raise ValueError(f"{source or 'passes'}: no passes in view layer {view_layer!r}")
+        self._arrays: dict[str, np.ndarray] = {}
+        shape = None
+        for name, value in arrays.items():
+            arr = np.asarray(value)
+            if arr.ndim not in (2, 3):
+                raise ValueError(f"pass {name!r}: expected shape (H, W) or (H, W, C), got {arr.shape}")
+            if shape is None:
+                shape = arr.shape[:2]
+            elif arr.shape[:2] != shape:
+                raise ValueError(f"pass {name!r}: size {arr.shape[:2]} differs from the other passes' {shape}")
+            if arr.dtype != np.float32 or arr.flags.writeable:
+                arr = np.array(arr, dtype=np.float32)  # a private float32 copy, even of half input
+                arr.flags.writeable = False
+            self._arrays[name] = arr
+        self._shape = shape
+        self.header = dict(header or {})
+        self.view_layer = view_layer
+        self.source = source
+        self.layout = layout
+        #: Canonical names of passes that were stored as half floats in the file.
+        self.half = frozenset(half)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self._arrays[name]
+        except KeyError:
+            raise MissingPassError(self._missing_message(name, None)) from None
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._arrays)
+
+    def __len__(self) -> int:
+        return len(self._arrays)
+
+    def __repr__(self) -> str:
+        return f"Passes({self.source or '<arrays>'}, view layer {self.view_layer!r}, {self._shape}, {list(self.names)})"
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self._arrays)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(height, width) in pixels."""
+        return self._shape
+
+    def _missing_message(self, name: str, why: str | None) -> str:
+        where = f"{self.source}: " if self.source else ""
+        need = f" ({why} needs it)" if why else ""
+        return (
+            f"{where}the pass {name!r} is missing from view layer {self.view_layer!r}{need}. "
+            f"Enable it in Blender: {pass_hint(name)}, then render again. "
+            f"Passes present: {', '.join(self.names)}"
+        )
+
+    def require(self, name: str, why: str) -> np.ndarray:
+        """The pass ``name``, or MissingPassError naming it, what needs it and how to enable it."""
+        if name not in self._arrays:
+            raise MissingPassError(self._missing_message(name, why))
+        return self._arrays[name]
+
+
+def passes_from_contents(contents: ExrContents, view_layer: str | None = None) -> Passes:
+    """The ``Passes`` of one view layer of a file read by ``read_layers``.
+
+    ``view_layer`` None picks the first view layer in the file that is not an SSS Lab output.
+    Blender 4.x short pass names are renamed to the 5.x names unless the 5.x name is also
+    present; a channel without any layer name (a plain RGBA image) is the Combined pass.
+    """
+    names = contents.view_layers
+    if view_layer is None:
+        inputs = [v for v in names if v != OUTPUT_PREFIX and not v.startswith(OUTPUT_PREFIX + ".")]
+        if not inputs:
+            raise ValueError(f"{contents.path}: only SSS Lab output layers in the file ({', '.join(names)})")
+        view_layer = inputs[0]
+    elif view_layer not in names:
+        raise ValueError(f"{contents.path}: no view layer {view_layer!r}; the file has: {', '.join(names)}")
+    raw = {}
+    half = set()
+    for layer, arr in contents.layers.items():
+        vl, pass_name = split_layer(layer)
+        if vl == view_layer:
+            raw[pass_name or "Combined"] = (arr, layer in contents.half)
+    arrays = {}
+    for name, (arr, was_half) in raw.items():
+        canonical = SHORT_PASS_NAMES.get(name, name)
+        if canonical != name and canonical in raw:
+            canonical = name
+        arrays[canonical] = arr
+        if was_half:
+            half.add(canonical)
+    layout = (
+        f"multi-part, one part per pass ({contents.parts} parts, Blender 5.x)"
+        if contents.parts > 1
+        else "single part (Blender 4.x)"
+    )
+    return Passes(arrays, header=contents.header, view_layer=view_layer, source=contents.path, layout=layout, half=half)
+
+
+def read_passes(path: str | os.PathLike, view_layer: str | None = None) -> Passes:
+    """Read the passes of one view layer of a Blender multilayer EXR (5.2 or 4.5 layout).
+
+    Returns ``Passes``: canonical pass name -> float32 (H, W) or (H, W, C), rows top to bottom.
+    """
+    return passes_from_contents(read_layers(path), view_layer)
+
+
+def _same_file(a: str, b: str) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.abspath(a) == os.path.abspath(b)
+
+
+def _move_no_clobber(tmp: str, path: str) -> None:
+    """Move ``tmp`` to ``path`` atomically, failing if ``path`` appeared meanwhile.
+
+    A hard link fails with FileExistsError when the target exists, which ``os.replace`` would
+    silently overwrite; where the file system has no hard links, fall back to ``os.replace``.
+    """
+    try:
+        os.link(tmp, path)
+    except FileExistsError:
+        raise FileExistsError(f"{path} already exists; refusing to overwrite it (choose another output name)") from None
+    except OSError:
+        os.replace(tmp, path)
+        return
+    os.remove(tmp)
+
+
+def write_layers(
+    path: str | os.PathLike,
+    layers: Mapping[str, np.ndarray],
+    header: Mapping | None = None,
+    *,
+    channels: Mapping[str, Iterable[str]] | None = None,
+    overwrite: bool = False,
+    inputs: Iterable[str | os.PathLike] = (),
+) -> str:
+    """Write ``layers`` as a multilayer EXR, one part per layer as Blender 5.2 does.
+
+    ``layers`` maps full layer names (``'ViewLayer.Diffuse Direct'``, ``'SSSLab.burley.Image'``)
+    to arrays (H, W) or (H, W, C) with rows top to bottom; all the same size. Channel letters
+    come from ``channels[name]`` or ``default_channels``. Pixels are written as float32 whatever
+    their dtype (half input is widened; values are never clamped). ``header`` holds descriptive
+    attributes (str, int, float) written to the first part; structural keys are ignored.
+
+    The file is written to a temporary file in the same folder and moved into place with
+    ``os.replace``, so readers never see a partial file. An existing ``path`` raises
+    FileExistsError unless ``overwrite``; a ``path`` that is one of ``inputs`` is never
+    replaced, even with ``overwrite``. Returns the path written.
+    """
+    OpenEXR = _import_openexr()
+    path = os.fspath(path)
+    for source in inputs:
+        if os.path.exists(path) and _same_file(path, os.fspath(source)):
+            raise FileExistsError(f"{path} is an input of this computation; refusing to overwrite it")
+    if os.path.exists(path) and not overwrite:
+        raise FileExistsError(f"{path} already exists; refusing to overwrite it (choose another output name)")
+    if not layers:
+        raise ValueError(f"{path}: no layers to write")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise FileNotFoundError(f"{path}: the folder {folder} does not exist")
+    channels = dict(channels or {})
+    shape = None
+    parts = []
+    for index, (name, value) in enumerate(layers.items()):
+        if not isinstance(name, str) or not name or name.endswith("."):
+            raise ValueError(f"layer name {name!r}: expected a non-empty name like 'ViewLayer.Combined'")
+        arr = np.asarray(value)
+        if arr.ndim == 2:
+            arr = arr[:, :, None]
+        if arr.ndim != 3 or arr.shape[0] < 1 or arr.shape[1] < 1:
+            raise ValueError(f"layer {name!r}: expected shape (H, W) or (H, W, C), got {np.shape(value)}")
+        if shape is None:
+            shape = arr.shape[:2]
+        elif arr.shape[:2] != shape:
+            raise ValueError(f"layer {name!r}: size {arr.shape[:2]} differs from the other layers' {shape}")
+        if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+            raise ValueError(f"layer {name!r}: expected numbers, got dtype {arr.dtype}")
+        letters = tuple(channels.get(name) or default_channels(name, arr.shape[2]))
+        if len(letters) != arr.shape[2] or len(set(letters)) != len(letters):
+            raise ValueError(f"layer {name!r}: channel letters {letters} do not fit {arr.shape[2]} channels")
+        pixels = {
+            f"{name}.{letter}": np.ascontiguousarray(arr[:, :, c], dtype=np.float32) for c, letter in enumerate(letters)
+        }
+        part_header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+        if index == 0 and header:
+            part_header.update(_user_header(header))
+        parts.append(OpenEXR.Part(part_header, pixels, name))
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + os.path.basename(path) + ".", suffix=".tmp")
+    os.close(fd)
+    try:
+        OpenEXR.File(parts).write(tmp)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual permissions
+        if overwrite:
+            os.replace(tmp, path)
+        else:
+            _move_no_clobber(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+    return path
