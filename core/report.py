@@ -1,0 +1,313 @@
+"""The comparison report: metrics as JSON, a Markdown and an HTML page, pictures.
+
+``write_report`` takes the measured data (plain dicts) and the linear images, and writes into
+one folder:
+
+- ``metrics.json``: everything measured; the pages are rendered from this same dict, so their
+  numbers are the JSON's numbers;
+- ``report.md`` and ``report.html`` (the HTML embeds the error-versus-time plot as SVG);
+- ``images/*.png``: each image tone mapped, and its error map against the reference;
+- ``grid.png``: no SSS / each technique / reference on the top rows, error heat maps below;
+- ``pareto.svg``: relative RMSE against time, the Pareto front joined.
+
+Nothing here renders or computes a technique: the caller (``operators/compare.py``) does.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+import os
+import tempfile
+
+import numpy as np
+
+from . import metrics as _metrics
+from . import png
+
+REPORT_VERSION = 1
+
+METRIC_DEFINITIONS = {
+    "rmse": "root mean square difference to the reference over the SSS pixels and RGB, linear radiance"
+    " (after box x box mean downsampling of both images when box > 1)",
+    "rel_rmse": "rmse divided by the mean reference value over the same pixels",
+    "ssim": "mean SSIM (Wang et al. 2004, 7x7 Gaussian window) of tone-mapped luminance over the SSS pixels;"
+    " 1 = identical",
+    "time_s": "wall-clock seconds on this machine: for a technique, the passes render plus the NumPy apply;"
+    " for Cycles, its render",
+}
+
+
+def pareto_front(entries: list[dict], *, error_key: str = "rel_rmse") -> list[str]:
+    """Names of the entries that no other entry beats on both time and error."""
+    pts = [
+        (e["time_s"]["total"], e["metrics"][error_key], e["name"])
+        for e in entries
+        if e.get("metrics", {}).get(error_key) is not None and e.get("time_s", {}).get("total") is not None
+    ]
+    pts.sort()
+    front, best = [], math.inf
+    for _, err, name in pts:
+        if err < best:
+            front.append(name)
+            best = err
+    return front
+
+
+def _atomic_write(path: str, text: str) -> None:
+    folder = os.path.dirname(os.path.abspath(path))
+    os.makedirs(folder, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+
+
+def _fmt(value, digits: int = 4) -> str:
+    if value is None:
+        return "—"
+    if isinstance(value, float):
+        return f"{value:.{digits}g}"
+    return str(value)
+
+
+def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, height: int = 400) -> str:
+    """Relative RMSE (y) against total time (x, log scale) as an SVG document."""
+    pts = [e for e in entries if e["metrics"].get("rel_rmse") is not None and e["time_s"].get("total")]
+    left, right, top, bottom = 70, 20, 20, 50
+    if not pts:
+        return f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}"></svg>'
+    times = [max(e["time_s"]["total"], 1e-6) for e in pts]
+    errs = [e["metrics"]["rel_rmse"] for e in pts]
+    lx0, lx1 = math.log10(min(times)) - 0.1, math.log10(max(times)) + 0.1
+    y1 = max(errs) * 1.1 or 1.0
+
+    def sx(t):
+        return left + (math.log10(max(t, 1e-6)) - lx0) / (lx1 - lx0) * (width - left - right)
+
+    def sy(v):
+        return height - bottom - v / y1 * (height - top - bottom)
+
+    colours = {"technique": "#1f77b4", "cycles": "#d62728", "baseline": "#7f7f7f"}
+    out = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" font-family="sans-serif"'
+        ' font-size="11">',
+        f'<rect x="0" y="0" width="{width}" height="{height}" fill="white"/>',
+        f'<line x1="{left}" y1="{height - bottom}" x2="{width - right}" y2="{height - bottom}" stroke="black"/>',
+        f'<line x1="{left}" y1="{top}" x2="{left}" y2="{height - bottom}" stroke="black"/>',
+        f'<text x="{(left + width - right) / 2}" y="{height - 12}" text-anchor="middle">time, seconds (log)</text>',
+        f'<text x="14" y="{(top + height - bottom) / 2}" text-anchor="middle" '
+        f'transform="rotate(-90 14 {(top + height - bottom) / 2})">relative RMSE</text>',
+    ]
+    for k in range(math.floor(lx0), math.ceil(lx1) + 1):
+        for m in (1, 2, 5):
+            t = m * 10.0**k
+            if lx0 <= math.log10(t) <= lx1:
+                x = sx(t)
+                out.append(
+                    f'<line x1="{x:.1f}" y1="{height - bottom}" x2="{x:.1f}" y2="{height - bottom + 4}" '
+                    'stroke="black"/>'
+                )
+                out.append(f'<text x="{x:.1f}" y="{height - bottom + 16}" text-anchor="middle">{t:g}</text>')
+    for i in range(5):
+        v = y1 * i / 4
+        out.append(f'<text x="{left - 6}" y="{sy(v) + 4:.1f}" text-anchor="end">{v:.3g}</text>')
+        out.append(f'<line x1="{left}" y1="{sy(v):.1f}" x2="{width - right}" y2="{sy(v):.1f}" stroke="#eee"/>')
+    by_name = {e["name"]: e for e in pts}
+    chain = [by_name[n] for n in front if n in by_name]
+    if len(chain) > 1:
+        path = " ".join(f"{sx(e['time_s']['total']):.1f},{sy(e['metrics']['rel_rmse']):.1f}" for e in chain)
+        out.append(f'<polyline points="{path}" fill="none" stroke="#2ca02c" stroke-width="1.5"/>')
+    for e in pts:
+        x, y = sx(e["time_s"]["total"]), sy(e["metrics"]["rel_rmse"])
+        colour = colours.get(e.get("kind"), "black")
+        out.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{colour}"/>')
+        out.append(f'<text x="{x + 6:.1f}" y="{y - 6:.1f}">{html.escape(e["name"])}</text>')
+    out.append("</svg>")
+    return "\n".join(out)
+
+
+def _markdown(data: dict) -> str:
+    s = data.get("settings", {})
+    lines = [
+        f"# SSS Lab comparison: {data.get('scene', {}).get('name', '')}",
+        "",
+        "Each technique's image against Cycles' random-walk reference, over the pixels of the subsurface materials.",
+        "",
+    ]
+    if not data.get("complete", False):
+        lines += ["**This report is incomplete:** " + "; ".join(data.get("notes", [])), ""]
+    lines += [
+        f"- Reference: Cycles {s.get('reference_method', 'RANDOM_WALK')}, {s.get('reference_samples')} samples,"
+        f" seed {s.get('seed')}, adaptive sampling off; resolution {s.get('resolution')}.",
+        f"- Passes for the techniques: {s.get('pass_samples')} samples, subsurface weight 0.",
+        f"- Metric box downsampling: {s.get('box')} x {s.get('box')}.",
+    ]
+    nf = data.get("noise_floor")
+    if nf:
+        lines.append(
+            f"- Noise floor (reference against a second seed): rel. RMSE {_fmt(nf.get('rel_rmse'))},"
+            f" SSIM {_fmt(nf.get('ssim'))}. Differences below it are not meaningful."
+        )
+    lines += [
+        "",
+        "## Error and time",
+        "",
+        "| image | kind | rel. RMSE | RMSE | SSIM | time s | apply s | Pareto |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    front = set(data.get("pareto", []))
+    for e in data.get("entries", []):
+        m, t = e["metrics"], e["time_s"]
+        lines.append(
+            f"| {e['name']} | {e['kind']} | {_fmt(m.get('rel_rmse'))} | {_fmt(m.get('rmse'))} | {_fmt(m.get('ssim'))}"
+            f" | {_fmt(t.get('total'), 3)} | {_fmt(t.get('apply'), 3)} | {'yes' if e['name'] in front else ''} |"
+        )
+    lines += ["", "![error against time](pareto.svg)", "", "![images](grid.png)", ""]
+    fid = data.get("fidelity")
+    if fid:
+        lines += [
+            "## Visual fidelity, measured",
+            "",
+            fid.get("definition", ""),
+            "",
+            "| technique | non-local diffusion: 90 % radius (R / G / B), scene units | colour bleeding:"
+            " R/B spread ratio | energy out / in (R / G / B) |",
+            "|---|---|---|---|",
+        ]
+        for name, row in fid.get("rows", {}).items():
+            r90 = " / ".join(_fmt(v, 3) for v in row["r90_su"])
+            energy = " / ".join(_fmt(v, 4) for v in row["energy_ratio"])
+            lines.append(f"| {name} | {r90} | {_fmt(row['bleeding_ratio'], 3)} | {energy} |")
+        lines.append("")
+    cal = data.get("calibration")
+    if cal:
+        lines += [
+            "## Material mapping calibration",
+            "",
+            cal.get("definition", ""),
+            "",
+            "| method | technique | mapping | rel. RMSE | chosen |",
+            "|---|---|---|---|---|",
+        ]
+        for row in cal.get("rows", []):
+            lines.append(
+                f"| {row['method']} | {row['technique']} | {row['mapping']} | {_fmt(row['rel_rmse'])} |"
+                f" {'yes' if row.get('chosen') else ''} |"
+            )
+        lines.append("")
+    lines += ["## Definitions", ""] + [f"- **{k}**: {v}" for k, v in METRIC_DEFINITIONS.items()] + [""]
+    return "\n".join(lines)
+
+
+def _html(data: dict, svg: str) -> str:
+    # The Markdown is the single source of the text; the HTML shows it as tables plus the pictures.
+    rows = []
+    for line in _markdown(data).splitlines():
+        if line.startswith("# "):
+            rows.append(f"<h1>{html.escape(line[2:])}</h1>")
+        elif line.startswith("## "):
+            rows.append(f"<h2>{html.escape(line[3:])}</h2>")
+        elif line.startswith("|---"):
+            continue
+        elif line.startswith("| "):
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            rows.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
+        elif line.startswith("![error"):
+            rows.append(svg)
+        elif line.startswith("![images]"):
+            rows.append('<p><img src="grid.png" alt="images" style="image-rendering: pixelated; max-width: 100%"></p>')
+        elif line.startswith("- "):
+            rows.append(f"<li>{html.escape(line[2:])}</li>")
+        elif line.strip():
+            rows.append(f"<p>{html.escape(line)}</p>")
+    body, in_table = [], False
+    for r in rows:
+        if r.startswith("<tr>") and not in_table:
+            body.append("<table>")
+            in_table = True
+        if not r.startswith("<tr>") and in_table:
+            body.append("</table>")
+            in_table = False
+        body.append(r)
+    if in_table:
+        body.append("</table>")
+    style = (
+        "body{font-family:sans-serif;max-width:1100px;margin:2em auto}table{border-collapse:collapse}"
+        "td{border:1px solid #ccc;padding:2px 8px;text-align:right}td:first-child{text-align:left}"
+    )
+    return (
+        f"<!doctype html><html><head><meta charset='utf-8'><title>SSS Lab report</title><style>{style}</style>"
+        f"</head><body>{''.join(body)}</body></html>\n"
+    )
+
+
+def write_report(
+    out_dir: str,
+    data: dict,
+    images: dict[str, np.ndarray],
+    *,
+    reference: str,
+    mask: np.ndarray | None = None,
+    order: list[str] | None = None,
+    exposure: float = 1.0,
+) -> dict:
+    """Write the report folder; returns ``data`` completed with ``pareto`` and image paths.
+
+    ``images`` maps entry names (and the reference's name ``reference``) to linear RGB(A)
+    arrays of one size. Error maps are relative luminance error against the reference, the
+    heat ramp's white at ``2 x`` the largest median error.
+    """
+    if reference not in images:
+        raise ValueError(f"reference image {reference!r} is not among the images: {sorted(images)}")
+    data = dict(data)
+    data["version"] = REPORT_VERSION
+    data["metric_definitions"] = METRIC_DEFINITIONS
+    data["pareto"] = pareto_front(data.get("entries", []))
+    img_dir = os.path.join(out_dir, "images")
+    ref = images[reference]
+    names = order or list(images)
+    err_maps = {n: _metrics.error_map(images[n], ref) for n in names if n != reference}
+    vmax = 2.0 * max(
+        [
+            float(np.median(e[mask])) if mask is not None and mask.any() else float(np.median(e))
+            for e in err_maps.values()
+        ]
+        + [1e-3]
+    )
+    tops, bottoms = [], []
+    for n in names:
+        slug = "".join(c if c.isalnum() else "_" for c in n).strip("_")
+        disp = png.to_display(images[n], exposure=exposure)
+        png.write_png(os.path.join(img_dir, f"{slug}.png"), disp)
+        tops.append(disp)
+        if n in err_maps:
+            heat = png.heat(err_maps[n], vmax=vmax)
+            png.write_png(os.path.join(img_dir, f"{slug}_error.png"), heat)
+            bottoms.append(heat)
+        else:
+            bottoms.append(np.zeros_like(disp))
+        for e in data.get("entries", []):
+            if e["name"] == n:
+                e["image"] = f"images/{slug}.png"
+                if n in err_maps:
+                    e["error_image"] = f"images/{slug}_error.png"
+    png.write_png(os.path.join(out_dir, "grid.png"), png.grid(tops + bottoms, columns=len(names)))
+    data["grid"] = {
+        "file": "grid.png",
+        "columns": names,
+        "error_scale_white": vmax,
+        "rows": ["tone-mapped image", "relative luminance error (black 0, white at error_scale_white)"],
+    }
+    svg = pareto_svg(data.get("entries", []), data["pareto"])
+    _atomic_write(os.path.join(out_dir, "pareto.svg"), svg)
+    _atomic_write(os.path.join(out_dir, "metrics.json"), json.dumps(data, indent=2, sort_keys=True))
+    _atomic_write(os.path.join(out_dir, "report.md"), _markdown(data))
+    _atomic_write(os.path.join(out_dir, "report.html"), _html(data, svg))
+    return data

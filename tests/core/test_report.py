@@ -1,0 +1,55 @@
+"""The report: Pareto front, and pages whose numbers are the JSON's numbers."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from sss_lab.core.report import pareto_front, write_report
+
+
+def _entry(name, t, err, kind="technique"):
+    return {"name": name, "kind": kind, "time_s": {"total": t, "apply": t / 2}, "metrics": {"rel_rmse": err}}
+
+
+def test_pareto_front_keeps_only_undominated_entries():
+    entries = [_entry("a", 1.0, 0.5), _entry("b", 2.0, 0.6), _entry("c", 3.0, 0.1), _entry("d", 0.5, 0.9)]
+    # b is slower and worse than a; the others each win on time or error.
+    assert pareto_front(entries) == ["d", "a", "c"]
+
+
+def test_pareto_front_skips_entries_without_numbers():
+    assert pareto_front([_entry("a", 1.0, None), _entry("b", 1.0, 0.2)]) == ["b"]
+
+
+def test_report_pages_carry_the_json_numbers(tmp_path):
+    rng = np.random.default_rng(0)
+    ref = rng.random((8, 8, 3)).astype(np.float32)
+    images = {"Cycles reference": ref, "burley n=32": ref * 1.05, "no SSS": ref * 0.8}
+    entries = [_entry("burley n=32", 0.4, 0.0512345), _entry("no SSS", 0.2, 0.2012345, kind="baseline")]
+    data = {"scene": {"name": "t"}, "settings": {"box": 1}, "entries": entries, "complete": True}
+    out = write_report(str(tmp_path), data, images, reference="Cycles reference", mask=np.ones((8, 8), bool))
+    saved = json.loads((tmp_path / "metrics.json").read_text())
+    assert saved["pareto"] == out["pareto"] == ["no SSS", "burley n=32"]
+    md = (tmp_path / "report.md").read_text()
+    html = (tmp_path / "report.html").read_text()
+    for e in saved["entries"]:
+        shown = f"{e['metrics']['rel_rmse']:.4g}"
+        assert shown in md and shown in html
+        assert os.path.isfile(tmp_path / e["image"]) and os.path.isfile(tmp_path / e["error_image"])
+    assert "<svg" in html and (tmp_path / "grid.png").read_bytes()[:4] == b"\x89PNG"
+    assert "incomplete" not in md
+
+
+def test_incomplete_report_says_so(tmp_path):
+    ref = np.ones((4, 4, 3), np.float32)
+    data = {"entries": [], "complete": False, "notes": ["scene has no camera"]}
+    write_report(str(tmp_path), data, {"ref": ref}, reference="ref")
+    assert "incomplete" in (tmp_path / "report.md").read_text()
+    assert "scene has no camera" in (tmp_path / "report.html").read_text()
+
+
+def test_missing_reference_image_is_named(tmp_path):
+    with pytest.raises(ValueError, match="Cycles"):
+        write_report(str(tmp_path), {}, {"a": np.ones((2, 2, 3))}, reference="Cycles")
