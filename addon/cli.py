@@ -15,6 +15,7 @@ import sys
 COMMANDS = (
     ".cli_scan",
     ".cli_demo",
+    ".cli_apply",
 )
 
 

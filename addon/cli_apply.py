@@ -1,0 +1,129 @@
+"""``python -m sss_lab apply PASSES.exr --method ...``: apply techniques to rendered passes.
+
+Needs only NumPy and OpenEXR (a render-farm node without Blender). Parses and reports; the
+work is ``core.apply.apply_file``. Prints one ``Saved: PATH`` line per written file (render
+farms read it), progress per frame on stdout, and errors on stderr. Exit status: 0 done,
+1 some frames failed (the others are written), 2 bad arguments or input, 3 no material of
+the scene scatters light (nothing written).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import traceback
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "apply",
+        help="apply SSS techniques to rendered passes (NumPy and OpenEXR only, no Blender needed)",
+        description=(
+            "Apply subsurface-scattering techniques to a multilayer EXR of render passes (Blender 5.2 or "
+            "4.5 layout) and write a new EXR with the input layers plus SSSLab.<method>.Image and "
+            "SSSLab.<method>.SSS. Never overwrites its input. Exit status: 0 done, 1 some frames failed, "
+            "2 bad arguments or input, 3 no material scatters light (nothing written)."
+        ),
+    )
+    p.add_argument("passes", help="the passes EXR; a frame pattern like passes_####.exr for a sequence")
+    p.add_argument(
+        "--method",
+        required=True,
+        help="technique: sta, ssss, burley, a comma-separated list, or all (those whose passes are present)",
+    )
+    p.add_argument("--out", help="output EXR (with #### for a sequence); default: <input stem>.sss.exr")
+    p.add_argument("--explain", action="store_true", help="print the plan (materials, kernels, samples) and stop")
+    p.add_argument("--scene", help="scene description JSON (#### allowed); default: the .json beside each EXR")
+    p.add_argument(
+        "--albedo-mode",
+        default="post",
+        help="post (albedo after scattering, the default) or pre-post (square root before and after)",
+    )
+    p.add_argument("--frames", help="frames of a #### pattern, e.g. 1-10 or 1-3,7 (default: every existing file)")
+    p.add_argument("--view-layer", help="view layer to read (default: the first one in the file)")
+    p.add_argument("--overwrite", action="store_true", help="replace existing output files (never the input)")
+    p.set_defaults(run=run)
+
+
+def _outputs(args, frames):
+    """Output path per (frame, input path); ValueError when a sequence would share one output."""
+    from ..core.apply import default_output, frame_path, is_sequence
+
+    if args.out is None:
+        return [default_output(path) for _, path in frames]
+    if len(frames) > 1 and not is_sequence(args.out):
+        raise ValueError(f"--out {args.out!r}: several frames need a # frame pattern in the output name")
+    return [frame_path(args.out, f) if f is not None else args.out for f, _ in frames]
+
+
+def run(args) -> int:
+    from ..core.apply import (
+        EXIT_NOTHING_TO_DO,
+        apply_file,
+        frame_path,
+        parse_frames,
+        parse_methods,
+        sequence_frames,
+    )
+
+    techniques = parse_methods(args.method)
+    from ..core.apply import ALBEDO_MODES
+
+    if args.albedo_mode not in ALBEDO_MODES:
+        raise ValueError(f"--albedo-mode: {args.albedo_mode!r} is not one of {', '.join(ALBEDO_MODES)}")
+    frames = sequence_frames(args.passes, parse_frames(args.frames) if args.frames else None)
+    outputs = _outputs(args, frames)
+    for (_, path), out in zip(frames, outputs, strict=True):
+        if os.path.exists(path) and os.path.exists(out) and os.path.samefile(path, out):
+            raise FileExistsError(f"the output {out} is the input; refusing to overwrite it")
+
+    failed = nothing = 0
+    total = len(frames)
+    for number, ((frame, path), out) in enumerate(zip(frames, outputs, strict=True), 1):
+        label = f"[{number}/{total}] " + (f"frame {frame}: " if frame is not None else "") + path
+        print(label, flush=True)
+        scene_path = frame_path(args.scene, frame) if args.scene and frame is not None else args.scene
+        try:
+            result = apply_file(
+                path,
+                techniques,
+                out_path=out,
+                scene_path=scene_path,
+                albedo_mode=args.albedo_mode,
+                explain=args.explain,
+                overwrite=args.overwrite,
+                skip_missing=args.method.strip() == "all",
+                view_layer=args.view_layer,
+            )
+        except (OSError, ValueError, KeyError) as exc:
+            failed += 1
+            message = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+            print(f"sss_lab apply: error: {path}: {message}", file=sys.stderr, flush=True)
+            continue
+        except Exception:  # a bug: report it with its traceback, and go on with the other frames
+            failed += 1
+            print(f"sss_lab apply: internal error on {path}:", file=sys.stderr)
+            traceback.print_exc()
+            continue
+        for technique, reason in result.skipped.items():
+            print(f"  {technique}: skipped: {reason}")
+        if result.nothing_to_do:
+            nothing += 1
+            print("  no material in the scene description scatters light (Subsurface Weight > 0): nothing written")
+            continue
+        for p in result.plans.values():
+            if args.explain:
+                print("\n".join("  " + line for line in p.explain().splitlines()))
+            else:
+                applied = p.applied
+                names = ", ".join(m.material.name or str(m.material.index) for m in applied) or "none on screen"
+                extra = f"; {p.nonfinite_pixels} NaN/Inf pixels left as they are" if p.nonfinite_pixels else ""
+                print(f"  {p.technique}: {len(applied)} material(s) computed ({names}){extra}")
+        if result.written:
+            print(f"Saved: {os.path.abspath(result.out_path)}", flush=True)
+    if failed:
+        print(f"sss_lab apply: {failed} of {total} file(s) failed", file=sys.stderr)
+        return 1
+    if nothing:
+        return EXIT_NOTHING_TO_DO
+    return 0
