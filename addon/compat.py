@@ -72,3 +72,37 @@ def ensure_node_tree(idblock) -> None:
     """Give a material or world its node tree (5.x creates it; 4.5 needs ``use_nodes``)."""
     if bpy.app.version < (5, 0, 0) or idblock.node_tree is None:
         idblock.use_nodes = True
+
+
+def run_bake(*, target: str, margin: int | None = None, uv_layer: str = "") -> set:
+    """Cycles' Emit bake of the selected objects into ``target`` (``VERTEX_COLORS``: the active
+    colour attribute; ``IMAGE_TEXTURES``: the active Image Texture node of each material).
+
+    Every option is passed to the operator, so the scene's bake settings are not consulted.
+    Raises RuntimeError with Blender's message when the bake fails.
+    """
+    kwargs = {
+        "type": "EMIT",
+        "target": target,
+        "save_mode": "INTERNAL",
+        "use_clear": True,
+        "use_selected_to_active": False,
+        "use_cage": False,
+        "use_split_materials": False,
+    }
+    if margin is not None:
+        kwargs.update(margin=margin, margin_type="ADJACENT_FACES")
+    if uv_layer:
+        kwargs["uv_layer"] = uv_layer
+    return bpy.ops.object.bake(**kwargs)
+
+
+def save_float_image(image, filepath: str, file_format: str) -> None:
+    """Write a float image to ``filepath``: ``OPEN_EXR`` as float32 (not half), ``PNG`` as 16
+    bits per channel (what 5.x writes for a float buffer). The image's colour space is kept, so
+    a Non-Color image is written linear."""
+    image.file_format = file_format
+    if file_format == "OPEN_EXR":
+        image.use_half_precision = False
+    image.filepath_raw = filepath
+    image.save()
