@@ -13,7 +13,9 @@ import importlib
 _MODULES = (
     ".addon.properties",
     ".operators.scan",
+    ".operators.bake",
     ".addon.panels",
+    ".addon.panel_bake",
 )
 
 _registered: list = []

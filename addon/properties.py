@@ -5,6 +5,7 @@ from __future__ import annotations
 import bpy
 
 from ..core.techniques import TECHNIQUES
+from .bake_settings import SSSLabBakeSettings
 
 # Blender keeps a reference to the items of a dynamic enum; a static list avoids that trap.
 _TECHNIQUE_ITEMS = [(name, label, desc) for name, (_, _, label, desc) in TECHNIQUES.items()]
@@ -17,9 +18,10 @@ class SSSLabSettings(bpy.types.PropertyGroup):
         items=_TECHNIQUE_ITEMS,
         default="burley",
     )
+    bake: bpy.props.PointerProperty(type=SSSLabBakeSettings, name="Thickness Bake")
 
 
-classes = (SSSLabSettings,)
+classes = (SSSLabBakeSettings, SSSLabSettings)
 
 
 def attach():

@@ -1,0 +1,887 @@
+"""Bake thickness maps: inverted-normal ambient occlusion per mesh, with Cycles.
+
+``bake_thickness(context, objects, settings)`` is the plain function (scripts call it); the
+operator ``bpy.ops.sss_lab.bake_thickness`` wraps it, modal in the UI (one object per timer
+step, Esc cancels between objects, Blender's progress API) and blocking headless.
+
+How: a temporary material — Ambient Occlusion node (Inside, Only Local per setting) into an
+Emission shader, inverted for the translucency convention (``core/thickness.py`` explains the
+values) — replaces the object's materials while Cycles bakes the Emit pass; then everything is
+put back (``SceneState``): render engine, samples, film exposure, bake settings, materials,
+visibility, selection and active object, also when a bake fails or the batch is cancelled.
+
+What is baked is the mesh as Cycles renders it: modifiers applied with their render settings.
+Targets:
+
+- ``attribute``: a float colour attribute (point domain) on the object's own mesh. Blender
+  maps the evaluated mesh's corners back to the original vertices, so each original vertex gets
+  the value at the place the modifiers moved it to; vertices that the modifiers delete get 0,
+  and vertices that modifiers add (subdivision, solidify shell) have no place in the original
+  mesh — the render interpolates between the original vertices. No other mesh data changes;
+  the attribute is written only when the bake succeeded.
+- ``image``: an image over the active UV map of the evaluated mesh, saved (float32 OpenEXR or
+  16-bit PNG, linear, Non-Color) atomically into the chosen folder, with a JSON file beside it.
+
+A mesh used by several objects is baked once, with the first of them (transform, modifiers and
+surroundings of that object); the others report that they share it. The settings and the
+convention are stored with the result: ``mesh["sss_lab_thickness"][attribute name]`` or
+``image["sss_lab_thickness"]`` (read them back with ``thickness_metadata``).
+
+With ``link_materials`` the result is added to the object's materials: an Attribute or UV Map +
+Image Texture node feeding a Shader AOV output named ``aov_name`` ("Thickness", the AOV the
+render passes read), so the map can be used right away. Nodes SSS Lab adds carry names that
+start with "SSS Lab Thickness" and are updated, not duplicated, by the next bake.
+
+Undo: the operator registers an undo step (attributes, images, material nodes); the image files
+written to disk stay.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, dataclass, field
+
+import bpy
+import numpy as np
+
+from ..addon import compat
+from ..core.thickness import IMAGE_FORMATS, BakeSettings, auto_distance_su, split_samples
+from .state import SceneState
+
+#: Custom property holding the bake settings, on the mesh (per attribute) or on the image.
+META_KEY = "sss_lab_thickness"
+#: Names of the nodes SSS Lab adds to materials.
+NODE_NAME = "SSS Lab Thickness"
+NODE_UV = "SSS Lab Thickness UV"
+NODE_AOV = "SSS Lab Thickness AOV"
+_TMP_ATTRIBUTE = "SSSLab_thickness_bake"
+_TMP_MATERIAL = "SSS Lab thickness bake (temporary)"
+
+STATUSES = ("baked", "shared", "skipped", "failed", "cancelled")
+
+
+class BakeError(ValueError):
+    """Nothing was baked: the input cannot be baked as asked (the message says why and what to do)."""
+
+
+@dataclass
+class BakeResult:
+    """What happened to one object. ``seconds`` covers the bake, saving and material linking."""
+
+    object: str
+    status: str
+    message: str = ""
+    target: str = ""
+    mesh: str = ""
+    data: str = ""  # attribute or image name
+    filepath: str = ""  # the image file, absolute
+    distance_su: float = 0.0
+    distance_auto: bool = False
+    samples: int = 0  # AO rays per vertex or texel
+    seconds: float = 0.0
+    vertices: int = 0  # of the evaluated mesh
+    warnings: list = field(default_factory=list)
+
+    def __str__(self) -> str:
+        text = f"{self.object}: {self.message}"
+        return text + "".join(f"; {w}" for w in self.warnings)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class _Item:
+    obj: object
+    mesh: object
+    distance_su: float
+    distance_auto: bool
+    vertices: int
+    uv_map: str = ""
+    sharers: list = field(default_factory=list)  # (object, warning or "")
+
+
+def thickness_metadata(idblock, attribute: str | None = None) -> dict | None:
+    """The settings stored with a baked map: ``image`` or (``mesh``, attribute name); None if
+    SSS Lab did not bake it."""
+    meta = idblock.get(META_KEY)
+    if meta is None:
+        return None
+    meta = meta.to_dict() if hasattr(meta, "to_dict") else dict(meta)
+    if attribute is not None:
+        meta = meta.get(attribute)
+    return dict(meta) if meta is not None else None
+
+
+def settings_from_scene(scene) -> BakeSettings:
+    """The bake settings of the SSS Lab panel (``scene.sss_lab.bake``), or the defaults when
+    the add-on's properties are not registered."""
+    props = getattr(getattr(scene, "sss_lab", None), "bake", None)
+    return props.to_settings() if props is not None else BakeSettings()
+
+
+def _context_parts(context):
+    if isinstance(context, bpy.types.Scene):
+        if context != bpy.context.scene:
+            raise BakeError(
+                f"scene {context.name!r} is not the active scene ({bpy.context.scene.name!r}); Blender bakes the "
+                "active scene: make it active first (window.scene = ...)"
+            )
+        context = bpy.context
+    if context.scene is None or context.view_layer is None:
+        raise BakeError("no active scene and view layer to bake in")
+    return context, context.scene, context.view_layer
+
+
+def _world_corners(obj_eval) -> np.ndarray:
+    corners = np.array([tuple(c) for c in obj_eval.bound_box], dtype=np.float64)
+    m = np.array(obj_eval.matrix_world, dtype=np.float64)
+    return corners @ m[:3, :3].T + m[:3, 3]
+
+
+def _world_area(obj_eval) -> float:
+    mesh = obj_eval.data
+    mesh.calc_loop_triangles()
+    n_tri = len(mesh.loop_triangles)
+    if n_tri == 0:
+        return 0.0
+    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", co)
+    m = np.array(obj_eval.matrix_world, dtype=np.float64)
+    co = co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T
+    tris = np.empty(n_tri * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", tris)
+    a, b, c = (co[tris.reshape(-1, 3)[:, k]] for k in range(3))
+    return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+
+
+def _describe_kind(obj) -> str:
+    hint = " (convert it to a mesh first)" if obj.type in ("CURVE", "SURFACE", "META", "FONT", "CURVES") else ""
+    return f"skipped: not a mesh ({obj.type}){hint}"
+
+
+class ThicknessBake:
+    """One batch: ``start()``, then ``step()`` until it returns False (one object per step), or
+    ``cancel()``; ``finish()`` restores the scene (``cancel`` calls it; calling it twice is fine).
+
+    Validation happens in the constructor: a BakeError lists every object that cannot be baked
+    (nothing has changed then).
+    """
+
+    def __init__(
+        self,
+        context,
+        objects: Iterable | None = None,
+        settings: BakeSettings | None = None,
+        *,
+        log: Callable[[str], None] | None = print,
+    ):
+        self.context, self.scene, self.view_layer = _context_parts(context)
+        self.settings = settings if settings is not None else settings_from_scene(self.scene)
+        if not isinstance(self.settings, BakeSettings):
+            raise TypeError(f"settings: expected a BakeSettings, got {type(self.settings).__name__}")
+        self.log = log
+        self._results: dict[str, BakeResult] = {}
+        self._order: list[str] = []
+        self._queue: list[_Item] = []
+        self._state: SceneState | None = None
+        self._material = None
+        self._material_images: dict[str, str] = {}
+        self._image_folder = ""
+        self._started = self._finished = False
+        #: The result of the object the last ``step`` baked.
+        self.last: BakeResult | None = None
+        self._plan(self._resolve(objects))
+        self.total = len(self._queue)
+        self.done = 0
+
+    # -- planning ---------------------------------------------------------------------------
+    def _resolve(self, objects) -> list:
+        if objects is None:
+            objects = list(self.context.selected_objects or ())
+        resolved, missing = [], []
+        for item in objects:
+            if isinstance(item, str):
+                obj = self.scene.objects.get(item)
+                if obj is None:
+                    missing.append(item)
+                    continue
+                item = obj
+            if item not in resolved:
+                resolved.append(item)
+        if missing:
+            raise BakeError(f"no object named {', '.join(map(repr, missing))} in scene {self.scene.name!r}")
+        if not resolved:
+            raise BakeError(
+                "nothing to bake: no objects selected (select mesh objects in the 3D Viewport, or name them: "
+                "bpy.ops.sss_lab.bake_thickness(objects=[{'name': 'Cube'}]))"
+            )
+        return resolved
+
+    def _plan(self, objects) -> None:
+        s = self.settings
+        depsgraph = self.context.evaluated_depsgraph_get()
+        in_layer = set(self.view_layer.objects)
+        errors, by_mesh = [], {}
+        for obj in objects:
+            self._order.append(obj.name)
+            if obj.type != "MESH":
+                self._results[obj.name] = BakeResult(obj.name, "skipped", _describe_kind(obj))
+                continue
+            mesh = obj.data
+            if obj.library is not None or mesh.library is not None:
+                lib = obj.library or mesh.library
+                what = "object" if obj.library is not None else f"its mesh {mesh.name!r}"
+                errors.append(
+                    f"{obj.name!r}: {what} is linked from the library {lib.filepath!r} and cannot be changed; "
+                    "make it local (Object > Relations > Make Local) or bake in the library file"
+                )
+                continue
+            if not (obj.is_editable and mesh.is_editable):
+                errors.append(f"{obj.name!r}: not editable (a library override); make it local first")
+                continue
+            if obj not in in_layer:
+                errors.append(
+                    f"{obj.name!r}: not in the view layer {self.view_layer.name!r} (its collection is excluded)"
+                )
+                continue
+            if obj.mode != "OBJECT":
+                errors.append(f"{obj.name!r}: in {obj.mode.replace('_', ' ').title()} mode; switch to Object Mode")
+                continue
+            if not obj.visible_get(view_layer=self.view_layer) and not (obj.hide_get() or obj.hide_viewport):
+                errors.append(f"{obj.name!r}: hidden by its collection; show the collection in the Outliner")
+                continue
+            key = mesh.name_full
+            if key in by_mesh:
+                first = by_mesh[key]
+                warning = ""
+                if _bake_signature(obj) != _bake_signature(first.obj):
+                    name = first.obj.name
+                    warning = f"its modifiers or scale differ from {name!r}'s: the map is {name!r}'s"
+                first.sharers.append((obj, warning))
+                continue
+            obj_eval = obj.evaluated_get(depsgraph)
+            mesh_eval = obj_eval.data
+            if _world_area(obj_eval) <= 0.0:
+                self._results[obj.name] = BakeResult(
+                    obj.name,
+                    "skipped",
+                    f"skipped: mesh {mesh.name!r} has no surface area (no faces, or only degenerate ones): "
+                    "nothing to bake",
+                    mesh=mesh.name,
+                )
+                continue
+            uv_map = ""
+            if s.target == "image":
+                if mesh_eval.uv_layers.active is None:
+                    errors.append(
+                        f"{obj.name!r}: mesh {mesh.name!r} has no UV map, which the image target needs; add one "
+                        "(UV > Smart UV Project) or bake to a colour attribute"
+                    )
+                    continue
+                uv_map = mesh_eval.uv_layers.active.name
+            else:
+                existing = mesh.attributes.get(s.attribute_name)
+                ours = thickness_metadata(mesh, s.attribute_name) is not None
+                if existing is not None and not ours:
+                    errors.append(
+                        f"{obj.name!r}: mesh {mesh.name!r} already has an attribute {s.attribute_name!r} that SSS Lab "
+                        "did not bake; choose another attribute name"
+                    )
+                    continue
+            if s.distance_su > 0:
+                distance, auto = float(s.distance_su), False
+            else:
+                distance, auto = auto_distance_su(_world_corners(obj_eval)), True
+            by_mesh[key] = _Item(obj, mesh, distance, auto, len(mesh_eval.vertices), uv_map)
+            self._queue.append(by_mesh[key])
+        if s.target == "image" and self._queue:
+            folder = s.image_folder
+            if folder.startswith("//") and not bpy.data.filepath:
+                errors.append(
+                    f"image folder {folder!r} is relative to the .blend file, which is not saved yet; save it or "
+                    "choose an absolute folder"
+                )
+            else:
+                self._image_folder = os.path.abspath(bpy.path.abspath(folder))
+                if os.path.exists(self._image_folder) and not os.path.isdir(self._image_folder):
+                    errors.append(f"image folder {self._image_folder!r} exists and is not a folder")
+        if errors:
+            raise BakeError("cannot bake thickness:\n  - " + "\n  - ".join(errors))
+        if not self._queue and all(r.status == "skipped" and not r.mesh for r in self._results.values()):
+            kinds = ", ".join(f"{name!r} ({self.scene.objects[name].type})" for name in self._order)
+            raise BakeError(f"nothing to bake: none of the objects is a mesh: {kinds}")
+
+    # -- running ----------------------------------------------------------------------------
+    @property
+    def results(self) -> list[BakeResult]:
+        """One result per object asked for, in the order asked; objects not reached yet are
+        listed as cancelled once the batch is finished."""
+        out = []
+        for name in self._order:
+            r = self._results.get(name)
+            if r is None:
+                r = BakeResult(name, "cancelled", "cancelled before it was baked")
+            out.append(r)
+        return out
+
+    @property
+    def remaining(self) -> int:
+        return len(self._queue)
+
+    def start(self) -> None:
+        if self._started:
+            return
+        self._started = True
+        s, scene = self.settings, self.scene
+        st = self._state = SceneState()
+        try:
+            vl = self.view_layer
+            selected = [o for o in vl.objects if o.select_get(view_layer=vl)]
+            active = vl.objects.active
+
+            def restore_selection():
+                for o in vl.objects:
+                    if o.select_get(view_layer=vl):
+                        o.select_set(False, view_layer=vl)
+                for o in selected:
+                    o.select_set(True, view_layer=vl)
+                vl.objects.active = active
+
+            st.on_restore(restore_selection)
+            render_samples, node_samples = split_samples(s.samples)
+            st.set(scene.render, "engine", "CYCLES")
+            cycles = scene.cycles
+            st.set(cycles, "samples", render_samples)
+            st.set(cycles, "use_adaptive_sampling", False)
+            st.set(cycles, "time_limit", 0.0)
+            st.set(cycles, "film_exposure", 1.0)  # Cycles scales baked emission by it
+            st.set(cycles, "bake_type", "EMIT")
+            bake = scene.render.bake
+            for attr, value in (
+                ("target", "VERTEX_COLORS" if s.target == "attribute" else "IMAGE_TEXTURES"),
+                ("use_multires", False),
+                ("use_selected_to_active", False),
+                ("use_cage", False),
+                ("use_clear", True),
+                ("use_split_materials", False),
+                ("save_mode", "INTERNAL"),
+                ("margin", s.margin_px),
+                ("margin_type", "ADJACENT_FACES"),
+                ("view_from", "ABOVE_SURFACE"),
+            ):
+                st.set(bake, attr, value)
+            self._material = _bake_material(s, node_samples)
+            material = self._material
+            st.on_restore(lambda: bpy.data.materials.remove(material))
+            if s.target == "image":
+                os.makedirs(self._image_folder, exist_ok=True)
+        except BaseException:
+            self.finish()
+            raise
+
+    def step(self) -> bool:
+        """Bake the next object; returns whether objects remain."""
+        if not self._started:
+            self.start()
+        if not self._queue:
+            return False
+        item = self._queue.pop(0)
+        self.done += 1
+        t0 = time.perf_counter()
+        result = BakeResult(
+            item.obj.name,
+            "failed",
+            target=self.settings.target,
+            mesh=item.mesh.name,
+            distance_su=item.distance_su,
+            distance_auto=item.distance_auto,
+            samples=self.settings.samples,
+            vertices=item.vertices,
+        )
+        try:
+            self._bake_item(item, result)
+            result.status = "baked"
+        except Exception as exc:  # one object failing does not stop the batch; the scene is restored
+            message = str(exc).removeprefix("Error: ").strip()
+            result.message = f"failed: {message}" if isinstance(exc, RuntimeError) else f"failed: {exc!r}"
+        result.seconds = time.perf_counter() - t0
+        if result.status == "baked":
+            result.message = self._describe(item, result)
+        self._results[item.obj.name] = result
+        self.last = result
+        for obj, warning in item.sharers:
+            self._results[obj.name] = self._sharer_result(obj, warning, result)
+        if self.log is not None:
+            for name in [item.obj.name] + [o.name for o, _ in item.sharers]:
+                self.log(f"[{self.done}/{self.total}] {self._results[name]}")
+        return bool(self._queue)
+
+    def cancel(self) -> None:
+        """Stop before the next object; objects baked so far keep their maps."""
+        self._queue.clear()
+        self.finish()
+
+    def finish(self) -> None:
+        if self._finished:
+            return
+        self._finished = True
+        self._queue.clear()
+        if self._state is not None:
+            self._state.restore()
+
+    # -- one object -------------------------------------------------------------------------
+    def _bake_item(self, item: _Item, result: BakeResult) -> None:
+        s = self.settings
+        obj, mesh, vl = item.obj, item.mesh, self.view_layer
+        image = created = None
+        try:
+            with SceneState() as st:
+                if obj.hide_get(view_layer=vl):
+                    obj.hide_set(False, view_layer=vl)
+                    st.on_restore(lambda: obj.hide_set(True, view_layer=vl))
+                for attr in ("hide_viewport", "hide_render", "hide_select"):
+                    if getattr(obj, attr):
+                        st.set(obj, attr, False)
+                for o in vl.objects:
+                    if o.select_get(view_layer=vl):
+                        o.select_set(False, view_layer=vl)
+                obj.select_set(True, view_layer=vl)
+                vl.objects.active = obj
+                _use_material(st, obj, self._material)
+                nodes = self._material.node_tree.nodes
+                nodes["AO"].inputs["Distance"].default_value = item.distance_su
+                if s.target == "attribute":
+                    self._bake_attribute(st, item)
+                else:
+                    image, created = _result_image(mesh, s)
+                    nodes["Image"].image = image
+                    self._material.node_tree.nodes.active = nodes["Image"]
+                    compat.run_bake(target="IMAGE_TEXTURES", margin=s.margin_px, uv_layer=item.uv_map)
+        except BaseException:
+            if created is not None:
+                bpy.data.images.remove(created)
+            raise
+        meta = self._meta(item)
+        if s.target == "attribute":
+            stored = thickness_metadata(mesh) or {}
+            stored[s.attribute_name] = meta
+            mesh[META_KEY] = stored
+            result.data = s.attribute_name
+        else:
+            result.filepath = self._save_image(image, item, meta)
+            result.data = image.name
+        if s.link_materials:
+            result.warnings.extend(self._link_materials(item, image))
+
+    def _bake_attribute(self, st: SceneState, item: _Item) -> None:
+        name = self.settings.attribute_name
+        mesh = item.mesh
+        colors = mesh.color_attributes
+        old_active, old_default = colors.active_color_name, colors.default_color_name
+        old_attr = mesh.attributes.active.name if mesh.attributes.active is not None else ""
+
+        def restore_names():
+            # The baked attribute may take the name of an old one, so restore by name.
+            colors.active_color_name = old_active if old_active in mesh.attributes else ""
+            colors.default_color_name = old_default if old_default in mesh.attributes else ""
+            if old_attr and old_attr in mesh.attributes:
+                mesh.attributes.active = mesh.attributes[old_attr]
+
+        st.on_restore(restore_names)
+        if _TMP_ATTRIBUTE in mesh.attributes:
+            mesh.attributes.remove(mesh.attributes[_TMP_ATTRIBUTE])
+        colors.new(_TMP_ATTRIBUTE, "FLOAT_COLOR", "POINT")
+
+        def drop_tmp():
+            if _TMP_ATTRIBUTE in mesh.attributes:
+                mesh.attributes.remove(mesh.attributes[_TMP_ATTRIBUTE])
+
+        st.on_restore(drop_tmp)
+        colors.active_color_name = _TMP_ATTRIBUTE
+        compat.run_bake(target="VERTEX_COLORS")
+        # Only now replace the previous result: a failed bake leaves it untouched.
+        if name in mesh.attributes:
+            mesh.attributes.remove(mesh.attributes[name])
+        mesh.attributes[_TMP_ATTRIBUTE].name = name
+
+    def _meta(self, item: _Item) -> dict:
+        s = self.settings
+        render_samples, node_samples = split_samples(s.samples)
+        meta = {
+            "convention": s.convention,
+            "meaning": s.meaning,
+            "source": "Cycles Ambient Occlusion node, Inside" + (", Only Local" if s.only_local else ""),
+            "samples": s.samples,
+            "render_samples": render_samples,
+            "node_samples": node_samples,
+            "distance_su": item.distance_su,
+            "distance_auto": item.distance_auto,
+            "only_local": s.only_local,
+            "target": s.target,
+            "object": item.obj.name,
+            "mesh": item.mesh.name,
+            "modifiers": [m.name for m in item.obj.modifiers if m.show_render],
+            "blender": bpy.app.version_string,
+        }
+        if s.target == "image":
+            meta.update(uv_map=item.uv_map, resolution_px=s.resolution_px, margin_px=s.margin_px)
+        else:
+            meta.update(attribute=s.attribute_name, domain="POINT")
+        return meta
+
+    def _save_image(self, image, item: _Item, meta: dict) -> str:
+        s = self.settings
+        ext = IMAGE_FORMATS[s.image_format]
+        filename = bpy.path.clean_name(item.mesh.name) + "_thickness" + ext
+        path = os.path.join(self._image_folder, filename)
+        tmp = os.path.join(self._image_folder, f".{filename}.{os.getpid()}.tmp")
+        compat.save_float_image(image, tmp, s.image_format)
+        os.replace(tmp, path)
+        image.filepath_raw = _stored_path(s.image_folder, filename, path)
+        meta = dict(meta, file=filename, format=s.image_format, bit_depth=32 if s.image_format == "OPEN_EXR" else 16)
+        image[META_KEY] = meta
+        sidecar = path + ".json"
+        with open(sidecar + ".tmp", "w", encoding="utf-8") as f:
+            json.dump(meta, f, indent=2, sort_keys=True)
+        os.replace(sidecar + ".tmp", sidecar)
+        return path
+
+    def _link_materials(self, item: _Item, image) -> list[str]:
+        """Add the map to the object's materials; returns warnings."""
+        warnings, seen = [], set()
+        materials = [slot.material for slot in item.obj.material_slots if slot.material is not None]
+        if not materials:
+            return ["no material to add the map to"]
+        for mat in materials:
+            if mat.name_full in seen:
+                continue
+            seen.add(mat.name_full)
+            if mat.library is not None or not mat.is_editable:
+                warnings.append(f"material {mat.name!r} is linked from a library: the map was not added to it")
+                continue
+            if image is not None:
+                previous = self._material_images.get(mat.name_full)
+                if previous is not None and previous != image.name:
+                    warnings.append(
+                        f"material {mat.name!r} is shared with a mesh baked to {previous!r}: "
+                        f"it now shows {image.name!r}"
+                    )
+                self._material_images[mat.name_full] = image.name
+            warning = _add_map_nodes(mat, self.settings, image, item.uv_map)
+            if warning:
+                warnings.append(warning)
+        return warnings
+
+    def _describe(self, item: _Item, result: BakeResult) -> str:
+        s = self.settings
+        how = "auto: half the bounding-box diagonal" if item.distance_auto else "set"
+        occluders = "only local" if s.only_local else "all objects occlude"
+        if s.target == "attribute":
+            what = f"attribute {s.attribute_name!r} on mesh {item.mesh.name!r} ({item.vertices} vertices evaluated)"
+        else:
+            size = f"{s.resolution_px}x{s.resolution_px}"
+            what = f"image {result.data!r} {size} over UV map {item.uv_map!r} -> {result.filepath}"
+        return (
+            f"baked {s.convention} {what}; {s.samples} rays, distance {item.distance_su:.4g} ({how}), {occluders}; "
+            f"{result.seconds:.2f} s"
+        )
+
+    def _sharer_result(self, obj, warning: str, source: BakeResult) -> BakeResult:
+        r = BakeResult(
+            obj.name,
+            source.status,
+            target=source.target,
+            mesh=source.mesh,
+            data=source.data,
+            filepath=source.filepath,
+            distance_su=source.distance_su,
+            distance_auto=source.distance_auto,
+            samples=source.samples,
+        )
+        if source.status == "baked":
+            r.status = "shared"
+            r.message = f"shares mesh {source.mesh!r} with {source.object!r}, baked once ({source.data!r})"
+            if self.settings.link_materials:
+                image = bpy.data.images.get(source.data) if source.target == "image" else None
+                uv = thickness_metadata(image).get("uv_map", "") if image is not None else ""
+                r.warnings.extend(self._link_materials(_Item(obj, obj.data, 0.0, False, 0, uv), image))
+        else:
+            r.message = f"{source.status}: shares mesh {source.mesh!r} with {source.object!r}"
+        if warning:
+            r.warnings.append(warning)
+        return r
+
+
+def _bake_signature(obj) -> tuple:
+    scale = tuple(round(v, 6) for v in obj.matrix_world.to_scale())
+    return scale, tuple((m.type, m.show_render) for m in obj.modifiers)
+
+
+def _stored_path(folder: str, filename: str, absolute: str) -> str:
+    """Keep the folder as the user gave it (``//`` relative paths stay relative)."""
+    return folder.rstrip("/\\") + "/" + filename if folder.startswith("//") else absolute
+
+
+def _bake_material(s: BakeSettings, node_samples: int):
+    mat = bpy.data.materials.new(_TMP_MATERIAL)
+    compat.ensure_node_tree(mat)
+    tree = mat.node_tree
+    tree.nodes.clear()
+    ao = tree.nodes.new("ShaderNodeAmbientOcclusion")
+    ao.name = "AO"
+    ao.inside = True
+    ao.only_local = s.only_local
+    ao.samples = node_samples
+    emit = tree.nodes.new("ShaderNodeEmission")
+    emit.inputs["Strength"].default_value = 1.0
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    value = ao.outputs["AO"]
+    if s.convention == "translucency":
+        invert = tree.nodes.new("ShaderNodeMath")
+        invert.operation = "SUBTRACT"
+        invert.inputs[0].default_value = 1.0
+        tree.links.new(value, invert.inputs[1])
+        value = invert.outputs[0]
+    tree.links.new(value, emit.inputs["Color"])
+    tree.links.new(emit.outputs["Emission"], out.inputs["Surface"])
+    image_node = tree.nodes.new("ShaderNodeTexImage")
+    image_node.name = "Image"
+    return mat
+
+
+def _use_material(st: SceneState, obj, material) -> None:
+    """Give every face of ``obj`` the bake material, for the duration of ``st``."""
+    if len(obj.material_slots) == 0:
+        mesh = obj.data
+        mesh.materials.append(material)
+        st.on_restore(lambda: mesh.materials.pop(index=len(mesh.materials) - 1))
+        return
+    for slot in obj.material_slots:
+        st.set(slot, "material", material)
+
+
+def _result_image(mesh, s: BakeSettings):
+    """(image, created): the image the previous bake of this mesh made, emptied and resized, or
+    a new float image (linear, Non-Color)."""
+    name = f"{mesh.name}_thickness"
+    image = bpy.data.images.get(name)
+    created = None
+    if image is not None and image.library is None and thickness_metadata(image) is not None:
+        image.source = "GENERATED"
+        image.generated_type = "BLANK"
+        image.use_generated_float = True
+        image.generated_width = image.generated_height = s.resolution_px
+        image.generated_color = (0.0, 0.0, 0.0, 1.0)
+    else:
+        image = created = bpy.data.images.new(name, s.resolution_px, s.resolution_px, alpha=False, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    return image, created
+
+
+def _node(tree, name: str, bl_idname: str, location):
+    node = tree.nodes.get(name)
+    if node is not None and node.bl_idname != bl_idname:
+        tree.nodes.remove(node)
+        node = None
+    if node is None:
+        node = tree.nodes.new(bl_idname)
+        node.name = name
+        node.location = location
+    node.label = name
+    return node
+
+
+def _add_map_nodes(mat, s: BakeSettings, image, uv_map: str) -> str:
+    """Add (or update) the nodes that read the map and feed the thickness AOV; returns a
+    warning or ''."""
+    compat.ensure_node_tree(mat)
+    tree = mat.node_tree
+    output = tree.get_output_node("CYCLES") or tree.get_output_node("ALL")
+    x, y = (output.location.x, output.location.y - 320.0) if output is not None else (0.0, -320.0)
+    if s.target == "attribute":
+        old_uv = tree.nodes.get(NODE_UV)
+        if old_uv is not None:
+            tree.nodes.remove(old_uv)
+        src = _node(tree, NODE_NAME, "ShaderNodeAttribute", (x - 400, y))
+        src.attribute_type = "GEOMETRY"
+        src.attribute_name = s.attribute_name
+        socket = src.outputs["Fac"]
+    else:
+        uv = _node(tree, NODE_UV, "ShaderNodeUVMap", (x - 640, y))
+        uv.uv_map = uv_map
+        src = _node(tree, NODE_NAME, "ShaderNodeTexImage", (x - 400, y))
+        src.image = image
+        src.interpolation = "Linear"
+        tree.links.new(uv.outputs["UV"], src.inputs["Vector"])
+        socket = src.outputs["Color"]
+    src.label = f"{NODE_NAME} ({s.convention})"
+    foreign = [
+        n
+        for n in tree.nodes
+        if n.bl_idname == "ShaderNodeOutputAOV" and n.name != NODE_AOV and n.aov_name == s.aov_name
+    ]
+    if foreign:
+        old = tree.nodes.get(NODE_AOV)
+        if old is not None:
+            tree.nodes.remove(old)
+        return f"material {mat.name!r} already writes the AOV {s.aov_name!r}: the map was added but not connected"
+    aov = _node(tree, NODE_AOV, "ShaderNodeOutputAOV", (x - 160, y))
+    aov.aov_name = s.aov_name
+    tree.links.new(socket, aov.inputs["Value"])
+    return ""
+
+
+def bake_thickness(
+    context=None,
+    objects: Iterable | None = None,
+    settings: BakeSettings | None = None,
+    *,
+    cancel: Callable[[], bool] | None = None,
+    progress: Callable[[int, int, BakeResult], None] | None = None,
+    log: Callable[[str], None] | None = print,
+) -> list[BakeResult]:
+    """Bake a thickness map for each mesh of ``objects``; one BakeResult per object.
+
+    ``context``: a bpy Context (``bpy.context`` when None) or the active Scene. ``objects``:
+    objects or names; None = the selected objects. ``settings``: BakeSettings; None = the SSS
+    Lab panel's. ``cancel()`` is asked before each object: True stops the batch (objects baked
+    so far keep their maps, the rest are reported as cancelled). ``progress(done, total,
+    result)`` is called after each object; ``log`` gets one line per object (stdout by
+    default). Raises BakeError (a ValueError) before changing anything when the input cannot be
+    baked (nothing selected, no mesh, linked library data, no UV map for the image target...).
+    The scene is restored whatever happens.
+    """
+    job = ThicknessBake(context if context is not None else bpy.context, objects, settings, log=log)
+    try:
+        job.start()
+        while job.remaining:
+            if cancel is not None and cancel():
+                job.cancel()
+                if log is not None:
+                    log(f"cancelled after {job.done} of {job.total} bakes")
+                break
+            job.step()
+            if progress is not None:
+                progress(job.done, job.total, job.last)
+    finally:
+        job.finish()
+    return job.results
+
+
+class SSSLabObjectName(bpy.types.PropertyGroup):
+    """One object name (``name``) for the operator's ``objects`` list."""
+
+
+class SSS_LAB_OT_bake_thickness(bpy.types.Operator):
+    """Bake a thickness map (inverted-normal ambient occlusion) for the selected meshes.
+    Undo removes the baked attributes, images and material nodes, not image files on disk"""
+
+    bl_idname = "sss_lab.bake_thickness"
+    bl_label = "Bake Thickness"
+    bl_options = {"REGISTER", "UNDO"}
+
+    objects: bpy.props.CollectionProperty(
+        type=SSSLabObjectName,
+        name="Objects",
+        description="Objects to bake, by name (empty: the selected objects)",
+        options={"SKIP_SAVE", "HIDDEN"},
+    )
+
+    _job = None
+    _timer = None
+
+    @classmethod
+    def poll(cls, context):
+        if context.mode != "OBJECT":
+            cls.poll_message_set("Switch to Object Mode to bake thickness")
+            return False
+        return context.scene is not None
+
+    def _new_job(self, context):
+        names = [item.name for item in self.objects] or None
+        return ThicknessBake(context, names, settings_from_scene(context.scene))
+
+    def execute(self, context):
+        names = [item.name for item in self.objects] or None
+        try:
+            results = bake_thickness(context, names, settings_from_scene(context.scene))
+        except BakeError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        return self._report(results)
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        try:
+            self._job = self._new_job(context)
+            self._job.start()
+        except BakeError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        wm = context.window_manager
+        wm.progress_begin(0, max(self._job.total, 1))
+        self._timer = wm.event_timer_add(0.01, window=context.window)
+        wm.modal_handler_add(self)
+        self._status(context)
+        return {"RUNNING_MODAL"}
+
+    def _status(self, context, text: str | None = None):
+        if context.workspace is None:
+            return
+        if text is None and self._job is not None:
+            text = f"Baking thickness {self._job.done + 1}/{self._job.total} (Esc: cancel after this object)"
+        context.workspace.status_text_set(text)
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._job.cancel()
+            return self._end(context, cancelled=True)
+        if event.type == "TIMER":
+            try:
+                more = self._job.step()
+            except BaseException:
+                self._end(context)
+                raise
+            context.window_manager.progress_update(self._job.done)
+            if not more:
+                return self._end(context)
+            self._status(context)
+        # Other input is held back: the batch changes the selection between steps.
+        return {"RUNNING_MODAL"}
+
+    def cancel(self, context):  # Blender ends the modal operator (file load, window closed)
+        if self._job is not None:
+            self._job.cancel()
+            self._end(context, cancelled=True)
+
+    def _end(self, context, cancelled: bool = False):
+        wm = context.window_manager
+        try:
+            self._job.finish()
+        finally:
+            if self._timer is not None:
+                wm.event_timer_remove(self._timer)
+                self._timer = None
+            wm.progress_end()
+            if context.workspace is not None:
+                context.workspace.status_text_set(None)
+        results = self._job.results
+        self._job = None
+        if cancelled:
+            self.report({"WARNING"}, "Thickness bake cancelled")
+        return self._report(results)
+
+    def _report(self, results: list[BakeResult]):
+        for r in results:
+            level = {"failed": "ERROR", "skipped": "WARNING", "cancelled": "WARNING"}.get(r.status, "INFO")
+            self.report({level}, str(r))
+        baked = [r for r in results if r.status in ("baked", "shared")]
+        return {"FINISHED"} if baked else {"CANCELLED"}
+
+
+classes = (SSSLabObjectName, SSS_LAB_OT_bake_thickness)
