@@ -16,6 +16,7 @@ COMMANDS = (
     ".cli_scan",
     ".cli_demo",
     ".cli_apply",
+    ".cli_bake",
 )
 
 

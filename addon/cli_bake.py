@@ -1,0 +1,132 @@
+"""``python -m sss_lab bake-thickness SCENE.blend --out OUT.blend``: bake thickness maps headless.
+
+Reads SCENE.blend, bakes the named objects (default: every local mesh object the scene
+renders) and writes the result to OUT.blend. OUT may not be an existing file — the input
+least of all — unless ``--overwrite`` says so. Images go to ``--image-dir`` (default:
+``OUT_thickness/`` beside OUT), referenced relative to OUT.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+from ..core.thickness import CONVENTIONS, TARGETS, BakeSettings
+
+_FORMATS = {"exr": "OPEN_EXR", "png": "PNG"}
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "bake-thickness",
+        help="bake thickness maps (inverted-normal AO) of a .blend scene into a new .blend (needs bpy)",
+        description=__doc__.split("\n\n", 1)[1],
+    )
+    p.add_argument("blend", help="the .blend file to read (not written unless it is OUT and --overwrite is given)")
+    p.add_argument("--out", required=True, help="the .blend file to write")
+    p.add_argument("--overwrite", action="store_true", help="allow OUT to be an existing file, the input included")
+    p.add_argument("--scene", help="scene name (default: the file's active scene)")
+    p.add_argument(
+        "--objects", nargs="+", metavar="NAME", help="objects to bake (default: every local mesh object that renders)"
+    )
+    p.add_argument("--target", choices=TARGETS, default="attribute", help="default: %(default)s")
+    p.add_argument("--convention", choices=tuple(CONVENTIONS), default="translucency", help="default: %(default)s")
+    p.add_argument("--samples", type=int, default=32, help="AO rays per vertex or texel (default: %(default)s)")
+    p.add_argument(
+        "--distance",
+        type=float,
+        default=0.0,
+        help="AO distance, scene units (0, the default: half the bounding-box diagonal)",
+    )
+    p.add_argument(
+        "--only-local",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="only the object itself occludes (default); --no-only-local: every rendered object does",
+    )
+    p.add_argument("--attribute", default="Thickness", help="attribute name (default: %(default)s)")
+    p.add_argument("--resolution", type=int, default=1024, help="image size in pixels (default: %(default)s)")
+    p.add_argument("--margin", type=int, default=16, help="image margin in pixels (default: %(default)s)")
+    p.add_argument("--format", choices=tuple(_FORMATS), default="exr", help="exr: float32; png: 16-bit")
+    p.add_argument("--image-dir", help="folder for the images (default: OUT_thickness beside OUT)")
+    p.add_argument("--no-materials", action="store_true", help="do not add the maps to the objects' materials")
+    p.set_defaults(run=run)
+
+
+def _check_out(blend: str, out: str, overwrite: bool) -> str:
+    from .cli import CommandError
+
+    if not out.endswith(".blend"):
+        raise CommandError(f"--out {out!r}: expected a .blend file name")
+    out_abs = os.path.abspath(out)
+    if os.path.exists(out_abs) and not overwrite:
+        same = os.path.exists(blend) and os.path.samefile(blend, out_abs)
+        what = "is the input file" if same else "exists"
+        raise CommandError(f"--out {out!r} {what}; refusing to overwrite it (pass --overwrite to allow it)")
+    if os.path.isdir(out_abs):
+        raise CommandError(f"--out {out!r} is a folder; expected a .blend file name")
+    return out_abs
+
+
+def _default_objects(bpy, scene) -> list[str]:
+    layer = set(bpy.context.view_layer.objects)
+    return [
+        o.name
+        for o in scene.objects
+        if o.type == "MESH" and not o.hide_render and o.library is None and o.data.library is None and o in layer
+    ]
+
+
+def run(args) -> int:
+    from .cli import CommandError
+    from .cli_scan import open_blend
+
+    out = _check_out(args.blend, args.out, args.overwrite)
+    image_dir = os.path.abspath(args.image_dir or os.path.splitext(out)[0] + "_thickness")
+    settings = BakeSettings(
+        target=args.target,
+        convention=args.convention,
+        samples=args.samples,
+        distance_su=args.distance,
+        only_local=args.only_local,
+        attribute_name=args.attribute,
+        resolution_px=args.resolution,
+        margin_px=args.margin,
+        image_format=_FORMATS[args.format],
+        image_folder=image_dir,
+        link_materials=not args.no_materials,
+    )
+    scene = open_blend(args.blend, args.scene)
+    import bpy
+
+    if scene != bpy.context.scene:
+        window = bpy.context.window or next(iter(bpy.context.window_manager.windows), None)
+        if window is None:
+            raise CommandError(f"cannot make scene {scene.name!r} active to bake it (no window); save it as active")
+        window.scene = scene
+    from ..operators.bake import bake_thickness
+
+    names = args.objects or _default_objects(bpy, scene)
+    if not names:
+        raise CommandError(f"scene {scene.name!r} has no local mesh object that renders; name objects with --objects")
+    t0 = time.perf_counter()
+
+    def log(line):
+        print(f"bake-thickness: {line}", flush=True)
+
+    results = bake_thickness(bpy.context, names, settings, log=log)
+    counts = {s: sum(r.status == s for r in results) for s in ("baked", "shared", "skipped", "failed", "cancelled")}
+    base = os.path.dirname(bpy.data.filepath)
+    for r in results:
+        image = bpy.data.images.get(r.data) if r.status == "baked" and r.target == "image" else None
+        if image is not None:
+            try:  # relative to the input here; Blender remaps it relative to OUT when saving
+                image.filepath_raw = bpy.path.relpath(r.filepath, start=base)
+            except ValueError:  # another drive: keep the absolute path
+                pass
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=out, copy=True, check_existing=False, relative_remap=True)
+    summary = ", ".join(f"{n} {s}" for s, n in counts.items() if n)
+    print(f"bake-thickness: wrote {out} ({summary}) in {time.perf_counter() - t0:.2f} s")
+    return 1 if counts["failed"] else 0
