@@ -98,7 +98,9 @@ def run(args) -> int:
         except (OSError, ValueError, KeyError) as exc:
             failed += 1
             message = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
-            print(f"sss_lab apply: error: {path}: {message}", file=sys.stderr, flush=True)
+            if not message.startswith(path):
+                message = f"{path}: {message}"
+            print(f"sss_lab apply: error: {message}", file=sys.stderr, flush=True)
             continue
         except Exception:  # a bug: report it with its traceback, and go on with the other frames
             failed += 1
