@@ -106,3 +106,12 @@ def save_float_image(image, filepath: str, file_format: str) -> None:
         image.use_half_precision = False
     image.filepath_raw = filepath
     image.save()
+
+
+def remove_last_material_slot(obj) -> None:
+    """Remove ``obj``'s last material slot from the object and its data (and so from every
+    object sharing the data). Popping ``obj.data.materials`` alone leaves the object's own slot
+    count behind, an empty slot; the operator removes both."""
+    obj.active_material_index = len(obj.material_slots) - 1
+    with bpy.context.temp_override(object=obj):
+        bpy.ops.object.material_slot_remove()
