@@ -39,7 +39,7 @@ class SSSLabBakeSettings(bpy.types.PropertyGroup):
     distance: bpy.props.FloatProperty(
         name="Distance",
         description="Longest ray: parts thicker than this count as fully thick. "
-        "0 = automatic (half the diagonal of each object's bounding box)",
+        "0 = automatic (a quarter of the diagonal of each object's bounding box)",
         default=_DEFAULTS.distance_su,
         min=0.0,
         soft_max=10.0,

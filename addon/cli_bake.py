@@ -37,7 +37,7 @@ def add_parser(subparsers):
         "--distance",
         type=float,
         default=0.0,
-        help="AO distance, scene units (0, the default: half the bounding-box diagonal)",
+        help="AO distance, scene units (default 0: a quarter of the bounding-box diagonal)",
     )
     p.add_argument(
         "--only-local",

@@ -578,7 +578,7 @@ class ThicknessBake:
 
     def _describe(self, item: _Item, result: BakeResult) -> str:
         s = self.settings
-        how = "auto: half the bounding-box diagonal" if item.distance_auto else "set"
+        how = "auto: a quarter of the bounding-box diagonal" if item.distance_auto else "set"
         occluders = "only local" if s.only_local else "all objects occlude"
         if s.target == "attribute":
             what = f"attribute {s.attribute_name!r} on mesh {item.mesh.name!r} ({item.vertices} vertices evaluated)"
@@ -656,9 +656,8 @@ def _bake_material(s: BakeSettings, node_samples: int):
 def _use_material(st: SceneState, obj, material) -> None:
     """Give every face of ``obj`` the bake material, for the duration of ``st``."""
     if len(obj.material_slots) == 0:
-        mesh = obj.data
-        mesh.materials.append(material)
-        st.on_restore(lambda: mesh.materials.pop(index=len(mesh.materials) - 1))
+        obj.data.materials.append(material)
+        st.on_restore(lambda: compat.remove_last_material_slot(obj))
         return
     for slot in obj.material_slots:
         st.set(slot, "material", material)

@@ -82,9 +82,9 @@ def test_split_samples_examples():
     assert split_samples(12) == (1, 12)
 
 
-def test_auto_distance_is_half_the_diagonal():
+def test_auto_distance_is_a_quarter_of_the_diagonal():
     corners = [(x, y, z) for x in (0, 3) for y in (0, 4) for z in (0, 12)]
-    assert auto_distance_su(corners) == 6.5  # diagonal sqrt(9 + 16 + 144) = 13
+    assert auto_distance_su(corners) == 3.25  # diagonal sqrt(9 + 16 + 144) = 13
     assert auto_distance_su([(1, 1, 1)]) == 0.0
     with pytest.raises(ValueError, match="corners_su"):
         auto_distance_su([(0, 0)])
