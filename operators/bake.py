@@ -15,10 +15,11 @@ Targets:
 
 - ``attribute``: a float colour attribute (point domain) on the object's own mesh. Blender
   maps the evaluated mesh's corners back to the original vertices, so each original vertex gets
-  the value at the place the modifiers moved it to; vertices that the modifiers delete get 0,
-  and vertices that modifiers add (subdivision, solidify shell) have no place in the original
-  mesh — the render interpolates between the original vertices. No other mesh data changes;
-  the attribute is written only when the bake succeeded.
+  the value baked where the modifiers put it; vertices that the modifiers delete get 0.
+  Vertices that modifiers add have no place in the original mesh: when rendering, the
+  modifiers carry the attribute to them as they carry any attribute (interpolated by
+  subdivision, copied by solidify or mirror). No other mesh data changes; the attribute is
+  written only when the bake succeeded.
 - ``image``: an image over the active UV map of the evaluated mesh, saved (float32 OpenEXR or
   16-bit PNG, linear, Non-Color) atomically into the chosen folder, with a JSON file beside it.
 
@@ -461,19 +462,22 @@ class ThicknessBake:
                     nodes["Image"].image = image
                     self._material.node_tree.nodes.active = nodes["Image"]
                     compat.run_bake(target="IMAGE_TEXTURES", margin=s.margin_px, uv_layer=item.uv_map)
+            meta = self._meta(item)
+            if s.target == "attribute":
+                stored = thickness_metadata(mesh) or {}
+                stored[s.attribute_name] = meta
+                mesh[META_KEY] = stored
+                result.data = s.attribute_name
+            else:
+                result.filepath = self._save_image(image, item, meta)
+                result.data = image.name
         except BaseException:
             if created is not None:
                 bpy.data.images.remove(created)
+            elif image is not None and image.filepath_raw:  # a re-bake: back to the previous file
+                image.source = "FILE"
+                image.reload()
             raise
-        meta = self._meta(item)
-        if s.target == "attribute":
-            stored = thickness_metadata(mesh) or {}
-            stored[s.attribute_name] = meta
-            mesh[META_KEY] = stored
-            result.data = s.attribute_name
-        else:
-            result.filepath = self._save_image(image, item, meta)
-            result.data = image.name
         if s.link_materials:
             result.warnings.extend(self._link_materials(item, image))
 
@@ -539,15 +543,23 @@ class ThicknessBake:
         filename = bpy.path.clean_name(item.mesh.name) + "_thickness" + ext
         path = os.path.join(self._image_folder, filename)
         tmp = os.path.join(self._image_folder, f".{filename}.{os.getpid()}.tmp")
-        compat.save_float_image(image, tmp, s.image_format)
-        os.replace(tmp, path)
-        image.filepath_raw = _stored_path(s.image_folder, filename, path)
-        meta = dict(meta, file=filename, format=s.image_format, bit_depth=32 if s.image_format == "OPEN_EXR" else 16)
-        image[META_KEY] = meta
         sidecar = path + ".json"
-        with open(sidecar + ".tmp", "w", encoding="utf-8") as f:
-            json.dump(meta, f, indent=2, sort_keys=True)
-        os.replace(sidecar + ".tmp", sidecar)
+        meta = dict(meta, file=filename, format=s.image_format, bit_depth=32 if s.image_format == "OPEN_EXR" else 16)
+        previous = image.filepath_raw
+        try:
+            compat.save_float_image(image, tmp, s.image_format)
+            with open(sidecar + ".tmp", "w", encoding="utf-8") as f:
+                json.dump(meta, f, indent=2, sort_keys=True)
+            os.replace(tmp, path)
+            os.replace(sidecar + ".tmp", sidecar)
+        except BaseException:
+            image.filepath_raw = previous
+            for leftover in (tmp, sidecar + ".tmp"):
+                if os.path.exists(leftover):
+                    os.remove(leftover)
+            raise
+        image.filepath_raw = _stored_path(s.image_folder, filename, path)
+        image[META_KEY] = meta
         return path
 
     def _link_materials(self, item: _Item, image) -> list[str]:
@@ -808,7 +820,7 @@ class SSS_LAB_OT_bake_thickness(bpy.types.Operator):
         names = [item.name for item in self.objects] or None
         try:
             results = bake_thickness(context, names, settings_from_scene(context.scene))
-        except BakeError as exc:
+        except ValueError as exc:  # BakeError, or a panel value out of range
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         return self._report(results)
@@ -819,7 +831,7 @@ class SSS_LAB_OT_bake_thickness(bpy.types.Operator):
         try:
             self._job = self._new_job(context)
             self._job.start()
-        except BakeError as exc:
+        except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         wm = context.window_manager

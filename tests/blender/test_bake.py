@@ -20,6 +20,7 @@ import struct
 import subprocess
 import sys
 import zlib
+from types import SimpleNamespace
 
 import bmesh
 import bpy
@@ -29,7 +30,15 @@ import pytest
 from sss_lab.addon import compat
 from sss_lab.core.thickness import BakeSettings, binomial_sigma, slab_unoccluded_fraction
 from sss_lab.operators import bake as bake_mod
-from sss_lab.operators.bake import META_KEY, NODE_AOV, NODE_NAME, BakeError, bake_thickness, thickness_metadata
+from sss_lab.operators.bake import (
+    META_KEY,
+    NODE_AOV,
+    NODE_NAME,
+    BakeError,
+    ThicknessBake,
+    bake_thickness,
+    thickness_metadata,
+)
 
 D = 0.5  # AO distance of the analytic tests, scene units
 
@@ -165,7 +174,15 @@ def test_slabs_match_the_cosine_weighted_expectation():
         for i, t in enumerate(thicknesses)
     ]
     rays = 256
-    results = bake_thickness(bpy.context, objects, _settings(samples=rays, distance_su=D), log=_quiet)
+    progress = []
+    results = bake_thickness(
+        bpy.context,
+        objects,
+        _settings(samples=rays, distance_su=D),
+        progress=lambda done, total, r: progress.append((done, total, r.object)),
+        log=_quiet,
+    )
+    assert progress == [(i + 1, 5, o.name) for i, o in enumerate(objects)]
     assert [r.status for r in results] == ["baked"] * len(thicknesses)
     assert all(r.distance_su == D and not r.distance_auto and r.samples == rays for r in results)
     for i, (obj, t) in enumerate(zip(objects, thicknesses, strict=True)):
@@ -258,6 +275,16 @@ def test_attribute_target_bakes_the_mesh_with_its_modifiers_and_leaves_the_data_
     p = float(slab_unoccluded_fraction(0.25, D))
     sigma = float(binomial_sigma(p, rays))
     assert abs(float(v.mean()) - (1.0 - p)) <= 5 * sigma / math.sqrt(v.size)
+    # Vertices a modifier deletes have nothing baked: 0 (documented in operators/bake.py).
+    group = obj.vertex_groups.new(name="Keep")
+    group.add([i for i, c in enumerate(co) if c[0] < 0.1], 1.0, "REPLACE")
+    mask = obj.modifiers.new("Mask", "MASK")
+    mask.vertex_group = "Keep"
+    bake_thickness(bpy.context, [obj], _settings(samples=rays, distance_su=D), log=_quiet)
+    v = _values(mesh, "Thickness")
+    assert np.all(v[co[:, 0] > 0.1] == 0.0)
+    kept = interior & (co[:, 0] < -0.1)
+    assert abs(float(v[kept].mean()) - (1.0 - p)) <= 5 * sigma / math.sqrt(kept.sum())
 
 
 def test_image_target_exr_with_modifiers_saved_linked_and_described(tmp_path):
@@ -353,6 +380,22 @@ def test_image_target_png_is_16_bit_linear(tmp_path):
     # 16-bit quantisation: within half a step (1/65535 / 2), plus float32 rounding.
     np.testing.assert_allclose(stored, px, atol=0.5 / 65535 + 1e-7)
     assert thickness_metadata(bpy.data.images[r.data])["bit_depth"] == 16
+
+
+def test_failure_while_saving_an_image_leaves_no_image_behind(tmp_path, monkeypatch):
+    obj = _link("Block", _box("Block"))
+
+    def full_disk(image, filepath, file_format):
+        open(filepath, "wb").close()  # a partial file, as a failed write leaves
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(compat, "save_float_image", full_disk)
+    before = _snapshot()
+    settings = _settings(target="image", resolution_px=8, image_folder=str(tmp_path))
+    (r,) = bake_thickness(bpy.context, [obj], settings, log=_quiet)
+    assert r.status == "failed" and "No space left on device" in r.message
+    assert len(bpy.data.images) == 0 and list(tmp_path.iterdir()) == []
+    assert _snapshot() == before
 
 
 def test_rebake_reuses_its_image_and_attribute(tmp_path):
@@ -555,6 +598,73 @@ def test_operator_bakes_named_objects_with_the_panel_settings(addon):
     assert thickness_metadata(cube.data, "Thick")["convention"] == "thickness"
     assert "Thick" not in bpy.data.objects["Other"].data.attributes
     assert "UNDO" in bpy.types.SSS_LAB_OT_bake_thickness.bl_options
+
+
+class _WindowManager:
+    def __init__(self):
+        self.calls = []
+
+    def progress_update(self, value):
+        self.calls.append(("update", value))
+
+    def progress_end(self):
+        self.calls.append(("end",))
+
+    def event_timer_remove(self, timer):
+        self.calls.append(("timer_remove", timer))
+
+
+def _modal_stand_in(job):
+    """The operator's modal methods on a stand-in object: a background Blender has no event
+    loop, so the timer and Esc events are sent by hand (invoke sets up the same state)."""
+    op = bake_mod.SSS_LAB_OT_bake_thickness
+
+    class StandIn:
+        modal, _end, _status, _report = op.modal, op._end, op._status, op._report
+
+        def __init__(self):
+            self._job, self._timer, self.reports = job, "timer", []
+
+        def report(self, level, message):
+            self.reports.append((next(iter(level)), message))
+
+    return StandIn()
+
+
+def test_modal_operator_steps_on_timer_and_esc_cancels_with_the_scene_restored():
+    objs = _busy_scene()
+    before = _snapshot()
+    job = ThicknessBake(bpy.context, objs, _settings(samples=4), log=_quiet)
+    job.start()
+    op, wm = _modal_stand_in(job), _WindowManager()
+    context = SimpleNamespace(window_manager=wm, workspace=None)
+    assert op.modal(context, SimpleNamespace(type="MOUSEMOVE")) == {"RUNNING_MODAL"}  # held back
+    assert job.done == 0
+    assert op.modal(context, SimpleNamespace(type="TIMER")) == {"RUNNING_MODAL"}
+    assert job.done == 1 and wm.calls == [("update", 1)]
+    assert op.modal(context, SimpleNamespace(type="ESC")) == {"FINISHED"}  # one object was baked
+    assert wm.calls[1:] == [("timer_remove", "timer"), ("end",)]
+    assert _snapshot() == before
+    assert [level for level, _ in op.reports] == ["WARNING", "INFO", "WARNING", "WARNING"]
+    assert "cancelled" in op.reports[-1][1]
+    # Run to the end: one TIMER event per object.
+    job = ThicknessBake(bpy.context, objs[1:], _settings(samples=4), log=_quiet)
+    job.start()
+    op = _modal_stand_in(job)
+    assert op.modal(context, SimpleNamespace(type="TIMER")) == {"RUNNING_MODAL"}
+    assert op.modal(context, SimpleNamespace(type="TIMER")) == {"FINISHED"}
+    assert _snapshot() == before and all("Thickness" in o.data.color_attributes for o in objs)
+
+
+def test_operator_invoked_headless_runs_blocking(addon):
+    cube = _link("Cube", _box("Cube"))
+    _select(cube, active=cube)
+    bpy.context.scene.sss_lab.bake.samples = 4
+    assert bpy.ops.sss_lab.bake_thickness("INVOKE_DEFAULT") == {"FINISHED"}
+    assert "Thickness" in cube.data.color_attributes
+    bpy.context.scene.sss_lab.bake.attribute_name = ""
+    with pytest.raises(RuntimeError, match="attribute_name"):
+        bpy.ops.sss_lab.bake_thickness()
 
 
 def _run_cli(*args):
