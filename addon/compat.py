@@ -34,6 +34,24 @@ def set_multilayer_exr(image_settings, *, color_depth: str = "32") -> None:
     image_settings.exr_codec = "ZIP"
 
 
+#: Image-format settings that ``set_multilayer_exr`` changes, in the order they must be restored.
+_IMAGE_FORMAT_ATTRS = ("media_type", "file_format", "color_depth", "exr_codec")
+
+
+def image_format_state(image_settings) -> dict:
+    """The image-format settings ``set_multilayer_exr`` and ``set_single_image`` change, to put
+    back with ``restore_image_format``."""
+    return {a: getattr(image_settings, a) for a in _IMAGE_FORMAT_ATTRS if hasattr(image_settings, a)}
+
+
+def restore_image_format(image_settings, state: dict) -> None:
+    """Put back what ``image_format_state`` recorded. 5.x: ``media_type`` first, since changing
+    it resets ``file_format`` (and a multilayer media type refuses any other file format)."""
+    for attr in _IMAGE_FORMAT_ATTRS:
+        if attr in state and getattr(image_settings, attr) != state[attr]:
+            setattr(image_settings, attr, state[attr])
+
+
 def set_single_image(image_settings, file_format: str, *, color_depth: str | None = None) -> None:
     """Configure ``image_settings`` for a single-layer image (PNG, EXR)."""
     if hasattr(image_settings, "media_type"):
