@@ -1,0 +1,513 @@
+"""Render the passes the techniques need: one multilayer EXR per frame plus its scene description.
+
+``render_passes(scene, out_dir, techniques=...)`` is the plain function (scripts and the command
+line call it); the operator ``bpy.ops.sss_lab.render_passes`` wraps it for the panel.
+
+What it does, per call, through ``SceneState`` (everything is put back afterwards, also when a
+render or a save fails):
+
+- Cycles, the given samples, adaptive sampling off (a fixed sample count, REFERENCES.md section
+  8), the given seed, no denoising (Combined must hold the same noise as the diffuse passes the
+  techniques subtract from it), no time limit, optionally a WxH resolution at 100 %.
+- Only the chosen view layer renders, with exactly the passes of
+  ``core.apply.required_passes`` for the techniques switched on and every other pass, shader
+  AOV and light group switched off (so a file holds what the techniques read, nothing else).
+- Every Principled BSDF of the scene's materials renders as plain diffuse: Subsurface Weight 0
+  (its links cut), the way a real-time engine sees the material (REFERENCES.md section 7: the
+  subsurface light would otherwise be inside the Diffuse passes).
+- Material Pass Index = the index ``describe.sss_materials`` gives each subsurface material
+  (1, 2, ... in name order), 0 for every other material, so the Material Index pass matches
+  the scene description written beside the EXR. For Burley, mesh objects whose Pass Index is 0
+  get a free one, so that every object has its own Object Index.
+- STA reads the thickness AOV (``SceneDescription.thickness_aov``, the panel's bake AOV name,
+  "Thickness" by default) that ``operators/bake.py`` wires into the materials. When STA is asked
+  for and no subsurface material has it, ``render_passes`` raises ValueError before rendering
+  anything: bake thickness first, or leave STA out. (It does not skip STA silently: a
+  render-farm job asked for STA passes should fail loudly rather than deliver files STA cannot
+  use.) Subsurface materials without it are listed in the log; their thickness reads 0.
+
+Each frame's file is written under a temporary name and renamed when complete, read back with
+``core.exr.read_passes`` and checked (every needed pass present, nothing else, Material Index
+values known to the scene description).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Iterable
+
+import bpy
+import numpy as np
+
+from ..addon import compat
+from ..core.apply import frame_path, required_passes, sidecar_path
+from ..core.techniques import TECHNIQUES, check_technique
+from ..core.thickness import CONVENTIONS
+from .describe import describe_scene, scene_materials, sss_materials
+from .state import SceneState
+
+#: File name of the passes of one frame; ``####`` is the frame number.
+FILE_PATTERN = "passes_####.exr"
+
+#: Pass name -> the view layer flag that switches it on (Cycles, Blender 5.x).
+PASS_FLAGS: dict[str, str] = {
+    "Combined": "use_pass_combined",
+    "Depth": "use_pass_z",
+    "Normal": "use_pass_normal",
+    "Position": "use_pass_position",
+    "Material Index": "use_pass_material_index",
+    "Object Index": "use_pass_object_index",
+    "Diffuse Direct": "use_pass_diffuse_direct",
+    "Diffuse Indirect": "use_pass_diffuse_indirect",
+    "Diffuse Color": "use_pass_diffuse_color",
+}
+
+# Flags that are options of a pass rather than passes: left as they are.
+_NOT_PASSES = frozenset({"use_pass_cryptomatte_accurate"})
+# Cycles' own view-layer flags that add passes besides the ``use_pass_*`` ones.
+_CYCLES_EXTRA_PASSES = ("denoising_store_passes", "pass_debug_sample_count", "pass_render_time")
+
+_PRINCIPLED = "ShaderNodeBsdfPrincipled"
+
+
+class NoSubsurfaceError(ValueError):
+    """The scene has no material with subsurface scattering: there is nothing to render."""
+
+
+def parse_resolution(text) -> tuple[int, int]:
+    """``"640x480"`` or ``(640, 480)`` -> (640, 480); ValueError naming the bad value."""
+    if isinstance(text, str):
+        parts = text.lower().replace(" ", "").split("x")
+    else:
+        try:
+            parts = list(text)
+        except TypeError:
+            parts = [text]
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        w, h = (int(p) for p in parts)
+    except (TypeError, ValueError):
+        raise ValueError(f"resolution: expected WIDTHxHEIGHT like 640x480, got {text!r}") from None
+    if w < 1 or h < 1 or w > 65536 or h > 65536:
+        raise ValueError(f"resolution: expected 1..65536 pixels per side, got {text!r}")
+    return w, h
+
+
+def _check_techniques(techniques) -> list[str]:
+    if isinstance(techniques, str):
+        techniques = [techniques]
+    out = []
+    for t in techniques:
+        if check_technique(t) not in out:
+            out.append(t)
+    if not out:
+        raise ValueError(f"techniques: expected at least one of {', '.join(TECHNIQUES)}")
+    return out
+
+
+def needed_passes(techniques: Iterable[str], thickness_aov: str = "Thickness") -> list[str]:
+    """The union of the passes ``techniques`` read, in a stable order."""
+    names: list[str] = []
+    for t in techniques:
+        for name in required_passes(t, thickness_aov):
+            if name not in names:
+                names.append(name)
+    return names
+
+
+def thickness_aov_name(scene) -> str:
+    """The thickness AOV: the panel's bake setting, or "Thickness" without the add-on."""
+    bake = getattr(getattr(scene, "sss_lab", None), "bake", None)
+    return (getattr(bake, "aov_name", "") or "Thickness").strip() or "Thickness"
+
+
+def _walk_trees(tree, seen: set):
+    """``tree`` and the node groups inside it, each once."""
+    if tree is None or tree.as_pointer() in seen:
+        return
+    seen.add(tree.as_pointer())
+    yield tree
+    for node in tree.nodes:
+        if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:
+            yield from _walk_trees(node.node_tree, seen)
+
+
+def _thickness_source(material, aov_name: str):
+    """The node that feeds ``material``'s thickness AOV, or None when nothing does."""
+    if material.node_tree is None:
+        return None
+    for node in material.node_tree.nodes:
+        if node.bl_idname == "ShaderNodeOutputAOV" and node.aov_name == aov_name and not node.mute:
+            for socket in (node.inputs.get("Value"), node.inputs.get("Color")):
+                if socket is not None and socket.is_linked:
+                    return socket.links[0].from_node
+    return None
+
+
+def _source_convention(scene, material, source) -> str | None:
+    """The convention stored with the baked map ``source`` reads, if SSS Lab baked it."""
+    from .bake import thickness_metadata
+
+    if source.bl_idname == "ShaderNodeTexImage" and source.image is not None:
+        meta = thickness_metadata(source.image)
+        return meta.get("convention") if meta else None
+    if source.bl_idname == "ShaderNodeAttribute":
+        for obj in scene.objects:
+            if obj.type == "MESH" and material.name in {s.material.name for s in obj.material_slots if s.material}:
+                meta = thickness_metadata(obj.data, source.attribute_name)
+                if meta:
+                    return meta.get("convention")
+    return None
+
+
+def thickness_setup(scene, materials: list, aov_name: str) -> tuple[str, list[str]]:
+    """(convention, names of subsurface materials without a thickness map) for STA.
+
+    ValueError when no subsurface material feeds the thickness AOV, or the maps disagree on
+    their convention.
+    """
+    by_name = {m.name: m for m in scene_materials(scene)}
+    conventions: dict[str, list[str]] = {}
+    missing = []
+    for info in materials:
+        mat = by_name[info.name]
+        source = _thickness_source(mat, aov_name)
+        if source is None:
+            missing.append(mat.name)
+            continue
+        conv = _source_convention(scene, mat, source) or "translucency"
+        conventions.setdefault(conv, []).append(mat.name)
+    if len(missing) == len(materials):
+        names = ", ".join(repr(n) for n in missing)
+        raise ValueError(
+            f"STA needs a baked thickness map, but no subsurface material ({names}) feeds the shader AOV "
+            f"{aov_name!r}: bake thickness first (Render tab > SSS Lab > Thickness Bake > Bake Thickness, "
+            "or python -m sss_lab bake-thickness), or render without STA (--methods ssss,burley)"
+        )
+    if len(conventions) > 1:
+        detail = "; ".join(f"{c}: {', '.join(names)}" for c, names in conventions.items())
+        raise ValueError(
+            f"the thickness maps use different conventions ({detail}); STA reads one convention per scene: "
+            "bake them again with the same convention"
+        )
+    return next(iter(conventions)), missing
+
+
+def _zero_subsurface(st: SceneState, scene) -> list[str]:
+    """Render every Principled BSDF of the scene's materials with Subsurface Weight 0."""
+    seen: set = set()
+    other_sss = []
+    for mat in scene_materials(scene):
+        for tree in _walk_trees(mat.node_tree, seen):
+            for node in tree.nodes:
+                if node.bl_idname == "ShaderNodeSubsurfaceScattering" and not node.mute:
+                    other_sss.append(mat.name)
+                if node.bl_idname != _PRINCIPLED:
+                    continue
+                socket = node.inputs.get("Subsurface Weight")
+                if socket is None:
+                    continue
+                for link in list(socket.links):
+                    from_socket, to_socket = link.from_socket, link.to_socket
+
+                    def relink(tree=tree, a=from_socket, b=to_socket):
+                        tree.links.new(a, b)
+
+                    tree.links.remove(link)
+                    st.on_restore(relink)
+                if socket.default_value != 0.0:
+                    st.set_input(node, "Subsurface Weight", 0.0)
+    return sorted(set(other_sss))
+
+
+def _material_indices(st: SceneState, scene, materials: list) -> None:
+    """Pass Index = the scene description's index for subsurface materials, 0 for the others."""
+    wanted = {m.name: m.index for m in materials}
+    errors = []
+    for mat in bpy.data.materials:
+        target = wanted.get(mat.name, 0)
+        if mat.pass_index == target:
+            continue
+        if not mat.is_editable:
+            if mat.name in wanted:
+                errors.append(
+                    f"subsurface material {mat.name!r} is linked from a library and its Pass Index cannot be set"
+                )
+            elif mat.pass_index in wanted.values():
+                errors.append(
+                    f"material {mat.name!r} is linked from a library and has Pass Index {mat.pass_index}, "
+                    "which SSS Lab needs for a subsurface material"
+                )
+            continue
+        st.set(mat, "pass_index", target)
+    if errors:
+        raise ValueError("cannot set the material pass indices: " + "; ".join(errors) + " (make the material local)")
+
+
+def _object_indices(st: SceneState, scene) -> dict[str, int]:
+    """Give every rendered mesh object with Pass Index 0 a free index (Burley's Object Index)."""
+    objects = [o for o in scene.objects if o.type == "MESH" and not o.hide_render]
+    used = {o.pass_index for o in objects}
+    nxt = max(used | {0}) + 1
+    assigned = {}
+    for obj in sorted(objects, key=lambda o: o.name):
+        if obj.pass_index == 0 and obj.is_editable:
+            st.set(obj, "pass_index", nxt)
+            assigned[obj.name] = nxt
+            nxt += 1
+    return assigned
+
+
+def _set_passes(st: SceneState, scene, layer, names: list[str], aov_name: str | None) -> None:
+    """Exactly ``names`` on ``layer``: every other pass flag, AOV and light group off."""
+    flags = {PASS_FLAGS[n] for n in names if n in PASS_FLAGS}
+    for owner in (layer, getattr(layer, "cycles", None)):
+        if owner is None:
+            continue
+        for prop in owner.bl_rna.properties:
+            ident = prop.identifier
+            if prop.type != "BOOLEAN" or prop.is_readonly or ident in _NOT_PASSES:
+                continue
+            if not (ident.startswith("use_pass_") or ident in _CYCLES_EXTRA_PASSES):
+                continue
+            want = ident in flags
+            if getattr(owner, ident) != want:
+                st.set(owner, ident, want)
+    missing_flags = flags - {p.identifier for p in layer.bl_rna.properties}
+    if missing_flags:  # a Blender without one of them: say so rather than render without it
+        raise RuntimeError(f"view layer has no pass flag(s) {', '.join(sorted(missing_flags))}")
+
+    # Shader AOVs: keep only the thickness AOV (as a value AOV), put the others back after.
+    aovs = [(a.name, a.type) for a in layer.aovs]
+    active = layer.active_aov_index if hasattr(layer, "active_aov_index") else None
+    if any(name != aov_name or kind != "VALUE" for name, kind in aovs) or (aov_name and not aovs):
+
+        def restore_aovs():
+            while len(layer.aovs):
+                layer.aovs.remove(layer.aovs[0])
+            for name, kind in aovs:
+                a = layer.aovs.add()
+                a.name, a.type = name, kind
+            if active is not None and aovs:
+                layer.active_aov_index = min(active, len(aovs) - 1)
+
+        st.on_restore(restore_aovs)
+        while len(layer.aovs):
+            layer.aovs.remove(layer.aovs[0])
+        if aov_name:
+            a = layer.aovs.add()
+            a.name, a.type = aov_name, "VALUE"
+
+    groups = [g.name for g in getattr(layer, "lightgroups", ())]
+    if groups:
+
+        def restore_groups():
+            for name in groups:
+                if layer.lightgroups.get(name) is None:
+                    layer.lightgroups.add(name=name)
+
+        st.on_restore(restore_groups)
+        while len(layer.lightgroups):
+            layer.lightgroups.remove(layer.lightgroups[0])
+
+
+def _pick_layer(scene, view_layer):
+    if view_layer is None:
+        ctx = bpy.context
+        if ctx.scene == scene and ctx.view_layer is not None:
+            return ctx.view_layer
+        return scene.view_layers[0]
+    if isinstance(view_layer, str):
+        layer = scene.view_layers.get(view_layer)
+        if layer is None:
+            have = ", ".join(v.name for v in scene.view_layers)
+            raise ValueError(f"view layer {view_layer!r} is not in scene {scene.name!r}; it has: {have}")
+        return layer
+    return view_layer
+
+
+def _write_json(path: str, text: str) -> None:
+    tmp = f"{path}.tmp-{os.getpid()}"
+    with open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(text)
+    os.replace(tmp, path)
+
+
+def verify_passes(path: str, names: list[str], view_layer: str, indices: Iterable[int]) -> None:
+    """Read ``path`` back: exactly the passes ``names``, and only known Material Index values."""
+    from ..core.exr import read_passes
+
+    p = read_passes(path, view_layer)
+    missing = [n for n in names if n not in p]
+    extra = [n for n in p.names if n not in names]
+    if missing or extra:
+        raise RuntimeError(
+            f"{path}: the render wrote the passes {', '.join(p.names)}; expected {', '.join(names)}"
+            + (f" (missing {', '.join(missing)})" if missing else "")
+            + (f" (unexpected {', '.join(extra)})" if extra else "")
+        )
+    mi = p["Material Index"]
+    seen = {int(v) for v in np.unique(mi[np.isfinite(mi)])}
+    unknown = seen - set(indices) - {0}
+    if unknown:
+        raise RuntimeError(f"{path}: Material Index values {sorted(unknown)} are not in the scene description")
+
+
+def render_passes(
+    scene,
+    out_dir: str,
+    *,
+    techniques: Iterable[str] = tuple(TECHNIQUES),
+    frames: Iterable[int] | None = None,
+    samples: int | None = None,
+    resolution=None,
+    seed: int | None = None,
+    view_layer=None,
+    overwrite: bool = False,
+    log: Callable[[str], None] | None = print,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[str]:
+    """Render the passes ``techniques`` need for each frame into ``out_dir``.
+
+    Writes ``passes_####.exr`` (multilayer, float32) and ``passes_####.json`` (the scene
+    description, ``core.apply.sidecar_path``) per frame and returns the paths written, EXR then
+    JSON per frame. ``frames``: frame numbers (default: the current frame). ``samples``,
+    ``seed``: Cycles samples and seed (default: the scene's). ``resolution``: ``"WxH"`` or
+    (W, H) rendered at 100 % (default: the scene's). ``view_layer``: name or ViewLayer
+    (default: the active one). Existing files are not replaced unless ``overwrite``.
+
+    Raises NoSubsurfaceError (a ValueError) when no material scatters, ValueError for bad
+    arguments or a scene it cannot render as asked (no camera, STA without a thickness map),
+    FileExistsError before rendering when a file exists. The scene is restored in every case.
+    """
+    techniques = _check_techniques(techniques)
+    if samples is not None and (not isinstance(samples, int) or isinstance(samples, bool) or samples < 1):
+        raise ValueError(f"samples: expected an integer >= 1, got {samples!r}")
+    if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool) or seed < 0):
+        raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
+    res = parse_resolution(resolution) if resolution is not None else None
+    frames = [scene.frame_current] if frames is None else [int(f) for f in frames]
+    if not frames:
+        raise ValueError("frames: expected at least one frame")
+    if scene.camera is None:
+        raise ValueError(f"scene {scene.name!r} has no active camera; set one in Scene Properties > Camera")
+    layer = _pick_layer(scene, view_layer)
+    say = log or (lambda _line: None)
+
+    materials = sss_materials(scene)
+    if not materials:
+        raise NoSubsurfaceError(
+            f"scene {scene.name!r} has no material with subsurface scattering (Subsurface Weight > 0, "
+            "a Subsurface Radius and Scale above 0): nothing to render"
+        )
+    aov_name = thickness_aov_name(scene)
+    convention = "translucency"
+    if "sta" in techniques:
+        convention, without = thickness_setup(scene, materials, aov_name)
+        if without:
+            say(f"no thickness map in {', '.join(repr(n) for n in without)}: STA reads thickness 0 there")
+    assert convention in CONVENTIONS
+    names = needed_passes(techniques, aov_name)
+
+    out_dir = os.path.abspath(os.fspath(out_dir))
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise ValueError(f"output folder {out_dir!r} exists and is not a folder")
+    targets = [(f, os.path.join(out_dir, frame_path(FILE_PATTERN, f))) for f in frames]
+    if not overwrite:
+        existing = [p for _, exr in targets for p in (exr, sidecar_path(exr)) if os.path.exists(p)]
+        if existing:
+            raise FileExistsError(
+                f"{existing[0]} already exists; refusing to overwrite it (choose another folder, or overwrite)"
+            )
+    os.makedirs(out_dir, exist_ok=True)
+
+    written: list[str] = []
+    render = scene.render
+    cycles = scene.cycles
+    with SceneState() as st:
+        old_frame, old_subframe = scene.frame_current, scene.frame_subframe
+        st.on_restore(lambda: scene.frame_set(old_frame, subframe=old_subframe))
+        st.set(render, "engine", "CYCLES")
+        if samples is not None:
+            st.set(cycles, "samples", samples)
+        if seed is not None:
+            st.set(cycles, "seed", seed)
+        for attr, value in (("use_adaptive_sampling", False), ("use_denoising", False), ("time_limit", 0.0)):
+            if getattr(cycles, attr) != value:
+                st.set(cycles, attr, value)
+        if res is not None:
+            st.set(render, "resolution_x", res[0])
+            st.set(render, "resolution_y", res[1])
+            st.set(render, "resolution_percentage", 100)
+        for attr in ("use_compositing", "use_sequencer", "use_single_layer"):
+            if getattr(render, attr):
+                st.set(render, attr, False)
+        for vl in scene.view_layers:
+            if vl.use != (vl == layer):
+                st.set(vl, "use", vl == layer)
+        _set_passes(st, scene, layer, names, aov_name if "sta" in techniques else None)
+        other_sss = _zero_subsurface(st, scene)
+        if other_sss:
+            say(
+                f"material(s) {', '.join(map(repr, other_sss))} use a Subsurface Scattering node, which SSS Lab "
+                "does not model: it still scatters in these passes"
+            )
+        _material_indices(st, scene, materials)
+        assigned = _object_indices(st, scene) if "Object Index" in names else {}
+        if assigned:
+            say(f"objects without a Pass Index got one for the Object Index pass: {assigned}")
+        image_settings = render.image_settings
+        fmt = compat.image_format_state(image_settings)
+        st.on_restore(lambda: compat.restore_image_format(image_settings, fmt))
+        compat.set_multilayer_exr(image_settings)
+
+        meta = {
+            "techniques": list(techniques),
+            "passes": names,
+            "samples": int(cycles.samples),
+            "seed": int(cycles.seed),
+            "view_layer": layer.name,
+            "object_pass_index_assigned": assigned,
+        }
+        for number, (frame, exr) in enumerate(targets, 1):
+            scene.frame_set(frame)
+            description = describe_scene(
+                scene,
+                materials,
+                thickness_aov=aov_name,
+                thickness_convention=convention,
+                meta=dict(meta),
+            )
+            say(
+                f"[{number}/{len(targets)}] frame {frame}: rendering {', '.join(names)} "
+                f"({render.resolution_x * render.resolution_percentage // 100}x"
+                f"{render.resolution_y * render.resolution_percentage // 100}, {cycles.samples} samples)"
+            )
+            t0 = time.perf_counter()
+            bpy.ops.render.render(write_still=False, scene=scene.name)
+            result = bpy.data.images.get("Render Result")
+            if result is None:
+                raise RuntimeError(f"frame {frame}: Blender produced no Render Result")
+            stem, ext = os.path.splitext(exr)
+            tmp = f"{stem}.tmp-{os.getpid()}{ext}"
+            try:
+                result.save_render(filepath=tmp, scene=scene)
+                if not os.path.isfile(tmp):
+                    raise RuntimeError(f"frame {frame}: Blender did not write {tmp}")
+                verify_passes(tmp, names, layer.name, [m.index for m in materials])
+                os.replace(tmp, exr)
+            finally:
+                if os.path.exists(tmp):
+                    os.remove(tmp)
+            written.append(exr)
+            say(f"Saved: {exr}")
+            json_path = sidecar_path(exr)
+            _write_json(json_path, description.to_json())
+            written.append(json_path)
+            say(f"Saved: {json_path}")
+            say(f"frame {frame} done in {time.perf_counter() - t0:.2f} s")
+            if progress is not None:
+                progress(number, len(targets))
+    return written
