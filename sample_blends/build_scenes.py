@@ -4,6 +4,32 @@ This script is the source of the sample scenes: the .blend files are generated f
 (``python sample_blends/build_scenes.py [NAME ...] --out DIR``, or through
 ``sss_lab.sample_blends`` from the project's commands). Every scene uses Principled BSDF
 materials with Blender 5.2's Random Walk subsurface method and realistic scales (metres).
+
+The scenes (``SCENES``), each meant for some of the techniques:
+
+- ``head_frontlit``: a head-sized shape lit from the side by a small sun, with a sharp shadow
+  edge across the face (diffusion: SSSS, Burley).
+- ``backlit_thin``: an ear-like lobe and a thin curved leaf in front of a strong back light; the
+  camera sees their unlit side (translucency: STA).
+- ``wax_marble``: a wax candle and a marble ball with a long mean free path (up to 2 cm) and
+  strongly different per-channel radii, a sharp shadow line across both (colour bleeding).
+- ``depth_leak``: SSS and non-SSS objects at different depths overlapping on screen (light that
+  screen-space techniques leak across depth discontinuities).
+
+Conventions shared by all scenes:
+
+- Lengths in metres; objects 5-30 cm; Subsurface Radius x Subsurface Scale (the mean free path
+  per channel) from a few millimetres to 2 cm, i.e. one to several pixels at 128x128.
+- Every subsurface input of every material is set explicitly (Subsurface IOR too, although the
+  Random Walk method reads the IOR input instead; a material without SSS has Weight 0).
+- SSS materials get pass indices 1, 2, ... in name order (the order in which
+  ``operators.describe.sss_materials`` numbers them), other materials 0; mesh objects get
+  object pass indices 1, 2, ... in name order.
+- Cycles on the CPU, 32 samples, fixed seed, adaptive sampling and denoising off, 128x128 (scale
+  ``render.resolution_percentage`` or the resolution up for larger pictures).
+- The SSS meshes carry a baked thickness attribute "Thickness" (``operators/bake.py``,
+  translucency convention, attribute target, few rays) wired into their materials as the Shader
+  AOV "Thickness", and the view layer declares that AOV, so STA can run on the file as saved.
 """
 
 from __future__ import annotations
@@ -13,6 +39,12 @@ import math
 import os
 import sys
 
+#: Rays per vertex for the thickness bake of the sample scenes: enough for a smooth map on
+#: these meshes (the bake's own noise is a binomial of this many rays, sigma <= 0.5/sqrt(64)).
+THICKNESS_SAMPLES = 64
+#: The thickness AOV the techniques read (core/apply.py THICKNESS).
+THICKNESS_AOV = "Thickness"
+
 
 def _nodes(idblock):
     from sss_lab.addon import compat
@@ -20,7 +52,7 @@ def _nodes(idblock):
     compat.ensure_node_tree(idblock)
 
 
-def _reset():
+def _reset(world_color=(0.02, 0.02, 0.025)):
     import bpy
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -30,19 +62,43 @@ def _reset():
     scene.cycles.samples = 32
     scene.cycles.use_adaptive_sampling = False
     scene.cycles.seed = 0
+    scene.cycles.use_animated_seed = False
     scene.cycles.use_denoising = False
     scene.render.resolution_x = 128
     scene.render.resolution_y = 128
     scene.render.resolution_percentage = 100
     scene.render.film_transparent = False
+    scene.unit_settings.system = "METRIC"
+    scene.unit_settings.scale_length = 1.0
     world = bpy.data.worlds.new("World")
     _nodes(world)
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.02, 0.02, 0.025, 1.0)
+    background = world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = (*world_color, 1.0)
+    background.inputs["Strength"].default_value = 1.0
     scene.world = world
     return scene
 
 
-def _material(name, base_color, *, radius=(1.0, 0.2, 0.1), scale=0.005, weight=1.0, method="RANDOM_WALK"):
+def _socket(node, identifier):
+    """An input by identifier: Blender 5.2 hides unavailable inputs (Subsurface IOR outside the
+    Skin method) from lookups by name."""
+    return next(s for s in node.inputs if s.identifier == identifier)
+
+
+def _material(
+    name,
+    base_color,
+    *,
+    radius=(1.0, 0.2, 0.1),
+    scale=0.005,
+    weight=1.0,
+    method="RANDOM_WALK",
+    ior=1.4,
+    anisotropy=0.0,
+    roughness=0.5,
+):
+    """A Principled BSDF material with every subsurface input set. ``radius`` x ``scale`` is
+    the mean free path per channel, in metres; ``weight`` 0 makes a material without SSS."""
     import bpy
 
     mat = bpy.data.materials.new(name)
@@ -50,12 +106,99 @@ def _material(name, base_color, *, radius=(1.0, 0.2, 0.1), scale=0.005, weight=1
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.subsurface_method = method
     bsdf.inputs["Base Color"].default_value = (*base_color, 1.0)
-    bsdf.inputs["Roughness"].default_value = 0.5
+    bsdf.inputs["Roughness"].default_value = roughness
+    bsdf.inputs["IOR"].default_value = ior  # Random Walk's boundary IOR
+    bsdf.inputs["Thin Wall"].default_value = False
     bsdf.inputs["Subsurface Weight"].default_value = weight
     bsdf.inputs["Subsurface Radius"].default_value = radius
     bsdf.inputs["Subsurface Scale"].default_value = scale
-    bsdf.inputs["Subsurface Anisotropy"].default_value = 0.0
+    bsdf.inputs["Subsurface Anisotropy"].default_value = anisotropy
+    _socket(bsdf, "Subsurface IOR").default_value = ior  # read by the Skin method only
+    mat.diffuse_color = (*base_color, 1.0)  # viewport colour
     return mat
+
+
+def _plain(name, base_color, roughness=0.5):
+    """A material without subsurface scattering (Subsurface Weight 0)."""
+    return _material(name, base_color, weight=0.0, roughness=roughness, ior=1.5)
+
+
+def _object(scene, name, mesh, location=(0.0, 0.0, 0.0), rotation=(0.0, 0.0, 0.0), material=None, smooth=True):
+    import bpy
+
+    obj = bpy.data.objects.new(name, mesh)
+    scene.collection.objects.link(obj)
+    obj.location = location
+    obj.rotation_euler = rotation
+    if smooth:
+        mesh.shade_smooth()
+    if material is not None:
+        mesh.materials.append(material)
+    return obj
+
+
+def _mesh(name, build):
+    """A mesh from a bmesh builder ``build(bm)``."""
+    import bmesh
+    import bpy
+
+    bm = bmesh.new()
+    build(bm)
+    mesh = bpy.data.meshes.new(name)
+    bm.to_mesh(mesh)
+    bm.free()
+    return mesh
+
+
+def _uv_sphere(name, radius, scale=(1.0, 1.0, 1.0), segments=32, rings=16):
+    import bmesh
+
+    def build(bm):
+        bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
+        bmesh.ops.scale(bm, vec=scale, verts=bm.verts)
+
+    return _mesh(name, build)
+
+
+def _box(name, size):
+    import bmesh
+
+    def build(bm):
+        bmesh.ops.create_cube(bm, size=1.0)
+        bmesh.ops.scale(bm, vec=size, verts=bm.verts)
+
+    return _mesh(name, build)
+
+
+def _plane(name, size_x, size_y):
+    import bmesh
+
+    def build(bm):
+        bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=0.5)
+        bmesh.ops.scale(bm, vec=(size_x, size_y, 1.0), verts=bm.verts)
+
+    return _mesh(name, build)
+
+
+def _cylinder(name, radius, depth, segments=32, rings=8):
+    """A capped cylinder standing on z = 0, cut into ``rings`` bands."""
+    import bmesh
+
+    def build(bm):
+        bmesh.ops.create_cone(
+            bm, cap_ends=True, cap_tris=False, segments=segments, radius1=radius, radius2=radius, depth=depth
+        )
+        bmesh.ops.translate(bm, vec=(0.0, 0.0, depth / 2), verts=bm.verts)
+        side = [e for e in bm.edges if abs(e.verts[0].co.z - e.verts[1].co.z) > depth / 2]
+        bmesh.ops.subdivide_edges(bm, edges=side, cuts=rings - 1, use_grid_fill=True)
+
+    return _mesh(name, build)
+
+
+def _subsurf(obj, levels=2):
+    mod = obj.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels = mod.render_levels = levels
+    return mod
 
 
 def _camera(scene, location, target, lens=50.0):
@@ -66,6 +209,9 @@ def _camera(scene, location, target, lens=50.0):
     scene.collection.objects.link(cam)
     cam.location = location
     cam.data.lens = lens
+    cam.data.sensor_fit = "AUTO"
+    cam.data.clip_start = 0.01
+    cam.data.clip_end = 20.0
     direction = Vector(target) - Vector(location)
     cam.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
     scene.camera = cam
@@ -85,33 +231,65 @@ def _light(scene, name, kind, location, target, energy, color=(1.0, 1.0, 1.0), *
     scene.collection.objects.link(obj)
     obj.location = location
     obj.rotation_euler = (Vector(target) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
+    obj.visible_camera = False  # lights light the scene; they are not part of the picture
     return obj
 
 
-def build_head_frontlit():
-    """A head-sized shape (subdivided Suzanne, ~0.2 m) lit from the front-left by a sun, so
-    that a sharp shadow edge crosses it: the case for diffusion (SSSS, Burley)."""
-    import bpy
+def _head_mesh(name, size=(0.16, 0.19, 0.22)):
+    """A closed, manifold head-like shape facing -Y: an ellipsoid (``size`` = width, depth,
+    height in metres) with a nose, brow ridge, eye sockets, cheeks and a chin, displaced along
+    the radius by smooth bumps. One closed surface, so that random walks and the thickness bake
+    see a proper volume (no overlapping parts)."""
+    import bmesh
+    from mathutils import Vector
 
+    bumps = (  # (centre on the unit sphere, width, height as a fraction of the radius)
+        ((0.0, -0.93, -0.1), (0.07, 0.1, 0.2), 0.45),  # nose
+        ((0.0, -0.97, -0.32), (0.11, 0.12, 0.06), 0.12),  # nose tip and nostrils
+        ((0.0, -0.8, 0.25), (0.45, 0.2, 0.07), 0.08),  # brow ridge
+        ((0.33, -0.85, 0.08), (0.12, 0.2, 0.09), -0.14),  # eye sockets
+        ((-0.33, -0.85, 0.08), (0.12, 0.2, 0.09), -0.14),
+        ((0.45, -0.75, -0.2), (0.2, 0.2, 0.15), 0.05),  # cheeks
+        ((-0.45, -0.75, -0.2), (0.2, 0.2, 0.15), 0.05),
+        ((0.0, -0.75, -0.62), (0.22, 0.2, 0.12), 0.08),  # chin
+        ((0.0, -0.9, -0.48), (0.2, 0.12, 0.04), -0.04),  # mouth line
+    )
+
+    def build(bm):
+        bmesh.ops.create_uvsphere(bm, u_segments=48, v_segments=32, radius=1.0)
+        for v in bm.verts:
+            d = v.co.normalized()
+            r = 1.0
+            for centre, width, height in bumps:
+                q = sum(((d[i] - centre[i]) / width[i]) ** 2 for i in range(3))
+                r += height * math.exp(-0.5 * q)
+            v.co = Vector(d * r)
+        bmesh.ops.scale(bm, vec=(size[0] / 2, size[1] / 2, size[2] / 2), verts=bm.verts)
+
+    return _mesh(name, build)
+
+
+def build_head_frontlit():
+    """A head-sized shape (~16 x 19 x 22 cm, skin, red mean free path 1.2 cm) lit from the
+    front-left by a small sun (1 degree), so that the terminator and the nose's shadow draw sharp
+    shadow edges across the face: the case for diffusion (SSSS, Burley)."""
     scene = _reset()
-    bpy.ops.mesh.primitive_monkey_add(size=0.2, location=(0.0, 0.0, 0.0))
-    head = bpy.context.active_object
-    head.name = "Head"
-    mod = head.modifiers.new("Subdivision", "SUBSURF")
-    mod.levels = mod.render_levels = 2
-    bpy.ops.object.shade_smooth()
-    skin = _material("Skin", (0.8, 0.55, 0.45), radius=(1.0, 0.35, 0.2), scale=0.01)
-    head.data.materials.append(skin)
-    bpy.ops.mesh.primitive_plane_add(size=2.0, location=(0.0, 0.25, -0.0))
-    wall = bpy.context.active_object
-    wall.name = "Backdrop"
-    wall.rotation_euler = (math.radians(90), 0.0, 0.0)
-    plain = bpy.data.materials.new("Backdrop")
-    _nodes(plain)
-    plain.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1.0)
-    wall.data.materials.append(plain)
-    _camera(scene, (0.0, -0.75, 0.02), (0.0, 0.0, 0.0), lens=60.0)
-    _light(scene, "Key", "SUN", (-1.0, -1.0, 0.6), (0.0, 0.0, 0.0), 3.0, angle=math.radians(2.0))
+    skin = _material("Skin", (0.8, 0.52, 0.42), radius=(1.0, 0.35, 0.2), scale=0.012, roughness=0.45)
+    head = _object(scene, "Head", _head_mesh("Head"), material=skin)
+    _subsurf(head, 1)
+    wall = _object(
+        scene,
+        "Backdrop",
+        _plane("Backdrop", 2.0, 2.0),
+        location=(0.0, 0.3, 0.0),
+        rotation=(math.radians(90), 0.0, 0.0),
+        material=_plain("Backdrop", (0.2, 0.2, 0.2)),
+        smooth=False,
+    )
+    wall.visible_shadow = True
+    _camera(scene, (0.0, -0.62, 0.03), (0.0, 0.0, 0.0), lens=60.0)
+    _light(scene, "Key", "SUN", (-1.0, -0.45, 0.3), (0.0, 0.0, 0.0), 3.0, angle=math.radians(1.0))
+    _light(scene, "Fill", "AREA", (0.6, -0.6, 0.1), (0.0, 0.0, 0.0), 0.3, size=0.4)
     return scene
 
 
@@ -123,13 +301,60 @@ SCENES = {
 DEFAULT_SCENE = "head_frontlit"
 
 
+def sss_objects(scene) -> list:
+    """Mesh objects of ``scene`` with at least one material that scatters (Subsurface Weight
+    > 0), in name order."""
+    result = []
+    for obj in sorted(scene.objects, key=lambda o: o.name):
+        if obj.type == "MESH" and any(_scatters(slot.material) for slot in obj.material_slots):
+            result.append(obj)
+    return result
+
+
+def _scatters(mat) -> bool:
+    if mat is None or mat.node_tree is None:
+        return False
+    bsdf = next((n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"), None)
+    return bsdf is not None and bsdf.inputs["Subsurface Weight"].default_value > 0.0
+
+
+def _finish(scene) -> None:
+    """Pass indices, the thickness AOV and the baked thickness of the SSS meshes."""
+    from sss_lab.core.thickness import BakeSettings
+    from sss_lab.operators.bake import bake_thickness
+
+    materials = {slot.material.name: slot.material for o in scene.objects for slot in o.material_slots if slot.material}
+    index = 0
+    for name in sorted(materials):
+        mat = materials[name]
+        if _scatters(mat):
+            index += 1
+            mat.pass_index = index
+        else:
+            mat.pass_index = 0
+    meshes = sorted((o for o in scene.objects if o.type == "MESH"), key=lambda o: o.name)
+    for i, obj in enumerate(meshes, start=1):
+        obj.pass_index = i
+    layer = scene.view_layers[0]
+    if THICKNESS_AOV not in layer.aovs:
+        aov = layer.aovs.add()
+        aov.name, aov.type = THICKNESS_AOV, "VALUE"
+    targets = sss_objects(scene)
+    settings = BakeSettings(target="attribute", samples=THICKNESS_SAMPLES, attribute_name=THICKNESS_AOV)
+    results = bake_thickness(scene, targets, settings, log=None)
+    failed = [str(r) for r in results if r.status != "baked" or r.warnings]
+    if failed:
+        raise RuntimeError("thickness bake of the sample scene failed: " + "; ".join(failed))
+
+
 def build(name: str, path: str) -> str:
     """Build the sample scene ``name`` and save it to ``path`` (parent folders created)."""
     import bpy
 
     if name not in SCENES:
         raise ValueError(f"unknown sample scene {name!r}; expected one of: {', '.join(SCENES)}")
-    SCENES[name]()
+    scene = SCENES[name]()
+    _finish(scene)
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(path), compress=True)
     return path
