@@ -293,8 +293,78 @@ def build_head_frontlit():
     return scene
 
 
+def _ear_mesh(name, size=(0.07, 0.018, 0.12), cup=0.012):
+    """An ear-like lobe facing -Y: a flattened ellipsoid (``size`` = width, thickness, height),
+    thick in the middle and thin towards the rim, bent into a shallow cup (``cup`` metres deep
+    at the rim)."""
+    import bmesh
+
+    def build(bm):
+        bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=24, radius=0.5)
+        bmesh.ops.scale(bm, vec=size, verts=bm.verts)
+        for v in bm.verts:
+            u, w = v.co.x / (size[0] / 2), v.co.z / (size[2] / 2)
+            v.co.y += cup * (u * u + 0.5 * w * w)
+
+    return _mesh(name, build)
+
+
+def _leaf_sheet(name, length=0.13, width=0.065, curl=0.012, arch=0.01):
+    """A leaf outline as a single sheet in the XZ plane (to be solidified): pointed at both ends,
+    curled across (``curl``) and arched along (``arch``), both towards +Y."""
+    import bmesh
+
+    def build(bm):
+        bmesh.ops.create_grid(bm, x_segments=10, y_segments=20, size=0.5)
+        for v in bm.verts:
+            u, t = v.co.x, v.co.y  # both in [-0.5, 0.5]
+            half = 0.5 * width * math.sin(math.pi * (t + 0.5)) ** 0.8
+            x, z = 2.0 * u * half, t * length
+            y = curl * (2.0 * u) ** 2 + arch * (1.0 - (2.0 * t) ** 2)
+            v.co = (x, y, z)
+
+    return _mesh(name, build)
+
+
+def build_backlit_thin():
+    """Back-lit thin features: an ear-like skin lobe (7 x 12 cm, 1.8 cm thick in the middle, thin
+    at the rim, red mean free path 1.2 cm) and a leaf (6.5 x 13 cm, 2.5 mm thick, green mean
+    free path 4 mm) in front of a strong sun from behind; the camera sees their unlit side, so
+    what it sees is the light that went through: the case for translucency (STA)."""
+    scene = _reset(world_color=(0.015, 0.015, 0.02))
+    skin = _material("Ear Skin", (0.8, 0.5, 0.4), radius=(1.0, 0.35, 0.2), scale=0.012, roughness=0.45)
+    ear = _object(
+        scene,
+        "Ear",
+        _ear_mesh("Ear"),
+        location=(-0.055, 0.0, 0.0),
+        rotation=(0.0, 0.0, math.radians(12)),
+        material=skin,
+    )
+    _subsurf(ear, 1)
+    green = _material("Leaf", (0.3, 0.55, 0.1), radius=(0.5, 1.0, 0.3), scale=0.004, roughness=0.4)
+    leaf = _object(
+        scene,
+        "Leaf",
+        _leaf_sheet("Leaf"),
+        location=(0.06, 0.01, 0.0),
+        rotation=(0.0, math.radians(-20), math.radians(-10)),
+        material=green,
+    )
+    solid = leaf.modifiers.new("Solidify", "SOLIDIFY")
+    solid.thickness = 0.0025
+    solid.offset = 0.0
+    solid.use_even_offset = True
+    _subsurf(leaf, 1)
+    _camera(scene, (0.0, -0.36, 0.01), (0.0, 0.0, 0.0), lens=50.0)
+    _light(scene, "Back", "SUN", (0.3, 1.0, 0.35), (0.0, 0.0, 0.0), 4.0, angle=math.radians(1.0))
+    _light(scene, "Fill", "AREA", (-0.4, -0.5, 0.2), (0.0, 0.0, 0.0), 0.15, size=0.3)
+    return scene
+
+
 SCENES = {
     "head_frontlit": build_head_frontlit,
+    "backlit_thin": build_backlit_thin,
 }
 
 #: The scene `make demo` runs on.
