@@ -362,9 +362,41 @@ def build_backlit_thin():
     return scene
 
 
+def build_wax_marble():
+    """A wax candle (8 cm across, 14 cm tall; mean free path 15 mm red, 7 mm green, 3 mm blue)
+    and a marble ball (8 cm; 8.5 / 5.6 / 4 mm) on a grey floor, lit by a small spot light from
+    the front-left; a thin horizontal bar between the light and them (not seen by the camera)
+    draws a sharp shadow line across both: long mean free path and strong colour bleeding
+    (reddened light far into the shadow and the unlit side)."""
+    scene = _reset()
+    wax = _material("Wax", (0.92, 0.62, 0.32), radius=(1.0, 0.45, 0.2), scale=0.015, ior=1.45, roughness=0.35)
+    candle = _object(scene, "Candle", _cylinder("Candle", 0.04, 0.14, rings=10), location=(-0.045, 0.0, 0.0))
+    candle.data.materials.append(wax)
+    _subsurf(candle, 1)
+    marble = _material(
+        "Marble", (0.88, 0.86, 0.82), radius=(0.85, 0.56, 0.4), scale=0.01, ior=1.5, anisotropy=0.0, roughness=0.25
+    )
+    _object(scene, "Ball", _uv_sphere("Ball", 0.04), location=(0.075, 0.03, 0.04), material=marble)
+    _object(scene, "Floor", _plane("Floor", 1.5, 1.5), material=_plain("Floor", (0.3, 0.3, 0.3)), smooth=False)
+    bar = _object(
+        scene,
+        "Shadow Bar",
+        _box("Shadow Bar", (0.5, 0.006, 0.006)),
+        location=(0.0, -0.16, 0.16),
+        material=_plain("Shadow Bar", (0.05, 0.05, 0.05)),
+        smooth=False,
+    )
+    bar.visible_camera = False  # it is there for its shadow only
+    _camera(scene, (0.0, -0.5, 0.16), (0.015, 0.0, 0.055), lens=60.0)
+    _light(scene, "Key", "SPOT", (-0.3, -0.35, 0.3), (0.0, 0.0, 0.06), 8.0, shadow_soft_size=0.002, spot_size=1.2)
+    _light(scene, "Fill", "AREA", (0.5, -0.3, 0.3), (0.0, 0.0, 0.05), 0.5, size=0.5)
+    return scene
+
+
 SCENES = {
     "head_frontlit": build_head_frontlit,
     "backlit_thin": build_backlit_thin,
+    "wax_marble": build_wax_marble,
 }
 
 #: The scene `make demo` runs on.
