@@ -1,0 +1,109 @@
+"""Input checks and the block-parallel loop shared by the techniques (no Blender)."""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+#: Depth at or beyond this is background (Cycles writes 1e10 there, REFERENCES.md section 2).
+BACKGROUND_DEPTH = 1e9
+
+
+def image(x, name: str, channels: int | None = 3) -> np.ndarray:
+    """``x`` as float32 (H, W, C) (or (H, W) when ``channels`` is None); ValueError otherwise.
+
+    float16 and float64 inputs are converted (computing in half floats would overflow at 65504,
+    REFERENCES.md section 5); the caller's array is never written to.
+    """
+    a = np.asarray(x)
+    if a.dtype.kind not in "fiub":
+        raise ValueError(f"{name}: expected a numeric array, got dtype {a.dtype}")
+    if channels is None:
+        if a.ndim == 3 and a.shape[2] == 1:
+            a = a[..., 0]
+        if a.ndim != 2:
+            raise ValueError(f"{name}: expected shape (H, W), got {a.shape}")
+    else:
+        if a.ndim != 3 or a.shape[2] < channels:
+            raise ValueError(f"{name}: expected shape (H, W, {channels}), got {a.shape}")
+        a = a[..., :channels]
+    if a.shape[0] < 1 or a.shape[1] < 1:
+        raise ValueError(f"{name}: expected at least one pixel, got shape {a.shape}")
+    return a.astype(np.float32, copy=False)
+
+
+def same_size(shape: tuple[int, int], **arrays) -> None:
+    for name, a in arrays.items():
+        if a is not None and a.shape[:2] != shape:
+            raise ValueError(f"{name}: shape {a.shape[:2]} does not match the image's {shape}")
+
+
+def mask_array(mask, shape: tuple[int, int]) -> np.ndarray:
+    """The pixels a technique runs on, as bool (H, W)."""
+    if mask is None:
+        raise ValueError("mask: expected a boolean (H, W) array of the pixels to process, got None")
+    m = np.asarray(mask)
+    if m.ndim == 3 and m.shape[2] == 1:
+        m = m[..., 0]
+    if m.shape != shape:
+        raise ValueError(f"mask: expected shape {shape}, got {m.shape}")
+    if m.dtype != bool:
+        m = m > 0.5
+    return m
+
+
+def finite_pixels(*arrays: np.ndarray) -> np.ndarray:
+    """True where every array is finite over all its channels."""
+    ok = None
+    for a in arrays:
+        f = np.isfinite(a)
+        if f.ndim == 3:
+            f = f.all(axis=2)
+        ok = f if ok is None else ok & f
+    return ok
+
+
+def positive_finite(value, name: str, *, allow_zero: bool = True) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a number, got {value!r}") from None
+    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        raise ValueError(f"{name}: expected a finite number {'>=' if allow_zero else '>'} 0, got {value!r}")
+    return v
+
+
+def rgb_lengths(value, name: str) -> np.ndarray:
+    """Three finite lengths >= 0 (one number is used for all three channels)."""
+    if value is None:
+        raise ValueError(f"{name}: expected three lengths (R, G, B) in scene units, got None")
+    a = np.asarray(value, dtype=np.float64)
+    if a.ndim == 0:
+        a = np.repeat(a, 3)
+    if a.shape != (3,) or not np.all(np.isfinite(a)) or np.any(a < 0):
+        raise ValueError(f"{name}: expected three finite lengths >= 0 (R, G, B), got {value!r}")
+    return a
+
+
+_WORKERS = max(1, min(4, os.cpu_count() or 1))
+_POOL: ThreadPoolExecutor | None = None
+
+
+def for_blocks(count: int, block: int, func) -> None:
+    """Call ``func(start, stop)`` over [0, count) in blocks, on a few threads.
+
+    NumPy releases the GIL in its array loops, so the blocks run in parallel; each block writes
+    its own slice of the output, so no locking is needed. Small blocks also stay in the cache.
+    """
+    global _POOL
+    starts = range(0, count, block)
+    if count <= block or _WORKERS == 1:
+        for s in starts:
+            func(s, min(s + block, count))
+        return
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=_WORKERS, thread_name_prefix="sss_lab")
+    # list() re-raises the first error of any block.
+    list(_POOL.map(lambda s: func(s, min(s + block, count)), starts))

@@ -1,0 +1,181 @@
+"""Christensen-Burley normalized diffusion gathered along a golden-angle spiral, in NumPy.
+
+Christensen & Burley, Pixar memo 15-04 (2015); Golubev, SIGGRAPH 2018 course, and the
+estimator shared by HDRP, EEVEE Next and Unreal (REFERENCES.md section 1). For each pixel of
+the mask, n samples:
+
+- radius r_i = P^{-1}(u_i) d_max with u_i = (i + 0.5) / n (stratified: never 0 or 1) and the
+  closed-form inverse CDF of the widest channel, truncated at 16 d_max;
+- angle i x pi (3 - sqrt 5), plus an optional per-pixel rotation (noise instead of banding);
+- the sample point, r_i pixels-per-unit away on screen, is point-sampled (interpolated depth
+  leaks light across edges);
+- weight per channel w_ic = R_c(r'_i) / pdf(r_i), with r'_i = sqrt(r_i^2 + dz^2) the 3-D
+  distance (depth jumps) and pdf the area density of the widest channel's profile;
+- samples off the image, off the mask, from another object (object id) or background get no
+  weight; out_c = A_c sum_i w_ic E_ic / sum_i w_ic (self-normalized per channel, so rejected
+  samples renormalize instead of darkening; the sum is guarded).
+
+A pixel whose footprint (16 d_max in pixels) is at most one pixel is left as it is, as EEVEE
+Next does; so is each channel whose own footprint is (a channel far narrower than a pixel).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import _arrays
+from .profiles import TRUNCATION, burley_icdf
+from .scene import Camera
+
+ALBEDO_MODES = ("post", "pre-post")
+GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
+MAX_SAMPLES = 4096
+
+_BLOCK_ELEMENTS = 1 << 16
+
+
+def spiral(n_samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(unit radii r_i / d, angles, r_i / pdf ratio factor) of the stratified golden-angle spiral.
+
+    The third array is r / (e^{-r} + e^{-r/3}) at d = 1: the sample's inverse area pdf up to a
+    constant (pdf_area(r) = (e^{-r} + e^{-r/3}) / (8 pi r)), which cancels in the normalization.
+    """
+    u = (np.arange(n_samples) + 0.5) / n_samples * _TRUNCATION_CDF
+    r = burley_icdf(u, 1.0)
+    angles = np.arange(n_samples) * GOLDEN_ANGLE
+    inv_pdf = r / (np.exp(-r) + np.exp(-r / 3.0))
+    return r, angles, inv_pdf
+
+
+_TRUNCATION_CDF = 1.0 - 0.25 * math.exp(-TRUNCATION) - 0.75 * math.exp(-TRUNCATION / 3.0)
+
+
+def _rotation(idx: np.ndarray, seed: int) -> np.ndarray:
+    """A per-pixel angle in [0, 2 pi) from an integer hash of the pixel index and the seed."""
+    x = (idx.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)) ^ np.uint64(seed & 0xFFFFFFFF)
+    x ^= x >> np.uint64(31)
+    x *= np.uint64(0xBF58476D1CE4E5B9)
+    x ^= x >> np.uint64(29)
+    return (x >> np.uint64(40)).astype(np.float32) * np.float32(2.0 * math.pi / (1 << 24))
+
+
+def burley(
+    *,
+    diffuse,
+    albedo,
+    depth,
+    mask,
+    camera: Camera,
+    d_su,
+    object_id=None,
+    n_samples: int = 32,
+    random_rotation: bool = False,
+    seed: int = 0,
+    albedo_mode: str = "post",
+) -> np.ndarray:
+    """Burley normalized diffusion of the diffuse light, with the albedo applied.
+
+    ``diffuse`` (H, W, 3) diffuse light without the BSDF colour; ``albedo`` (H, W, 3);
+    ``depth`` (H, W) planar view depth (1e10 background); ``mask`` (H, W) bool; ``d_su`` the
+    profile's d per channel (R, G, B) in scene units (``core.mapping.burley_d``); ``object_id``
+    (H, W) optional: samples from another id are rejected. ``n_samples`` 1..4096.
+    Returns float32 (H, W, 3): albedo x scattered light on the mask, albedo x diffuse elsewhere.
+    """
+    if not isinstance(camera, Camera):
+        raise ValueError(f"camera: expected a core.scene.Camera, got {type(camera).__name__}")
+    if albedo_mode not in ALBEDO_MODES:
+        raise ValueError(f"albedo_mode: {albedo_mode!r} is not one of {', '.join(ALBEDO_MODES)}")
+    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or not 1 <= n_samples <= MAX_SAMPLES:
+        raise ValueError(f"n_samples: expected an integer in 1..{MAX_SAMPLES}, got {n_samples!r}")
+    d = _arrays.rgb_lengths(d_su, "d_su")
+    e = _arrays.image(diffuse, "diffuse")
+    shape = e.shape[:2]
+    a = _arrays.image(albedo, "albedo")
+    z = _arrays.image(depth, "depth", None)
+    ids = None if object_id is None else _arrays.image(object_id, "object_id", None)
+    _arrays.same_size(shape, albedo=a, depth=z, object_id=ids)
+    m = _arrays.mask_array(mask, shape)
+
+    base = a * e
+    dmax = float(d.max())
+    ok = m & _arrays.finite_pixels(e, a, z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)
+    if ids is not None:
+        ok &= np.isfinite(ids)
+    if dmax <= 0 or not ok.any():
+        return base
+    scale = camera.pixels_per_unit(z)
+    # Footprint of at most one pixel: nothing to gather (EEVEE Next skips these pixels).
+    ok &= TRUNCATION * dmax * scale > 1.0
+    if not ok.any():
+        return base
+    if albedo_mode == "pre-post":
+        root = np.sqrt(np.maximum(a, 0.0))
+        light, post = root * e, root
+    else:
+        light, post = e, a
+    h, w = shape
+    # Pixels that take no part give no light (a NaN times a zero weight would still be NaN).
+    light = np.where(ok[..., None], light, np.float32(0.0))
+    planes = [np.ascontiguousarray(light[..., c], dtype=np.float32).ravel() for c in range(3)]
+    zkey = np.where(ok, z, np.float32(np.inf)).astype(np.float32).ravel()
+    idflat = None if ids is None else np.rint(ids).astype(np.int64).ravel()
+    sflat = scale.ravel()
+    r_unit, angles, inv_pdf = spiral(int(n_samples))
+    r_su = (r_unit * dmax).astype(np.float32)
+    r2 = r_su * r_su
+    cos_a = np.cos(angles).astype(np.float32)
+    sin_a = np.sin(angles).astype(np.float32)
+    inv_pdf = inv_pdf.astype(np.float32)
+    # exp(-r'/(3 d_c)); a channel with d_c = 0 keeps its light (handled by its footprint below).
+    inv3d = np.array([1.0 / (3.0 * v) if v > 0 else 0.0 for v in d], np.float32)
+    idx_all = np.flatnonzero(ok)
+    count = idx_all.size
+    result = np.empty((count, 3), np.float32)
+    n = r_su.size
+    block = max(128, _BLOCK_ELEMENTS // n)
+
+    def run(start, stop):
+        idx = idx_all[start:stop]
+        x0 = (idx % w).astype(np.float32)
+        y0 = (idx // w).astype(np.float32)
+        s = sflat[idx]
+        rad_px = s[:, None] * r_su[None, :]
+        if random_rotation:
+            phi = _rotation(idx, seed)[:, None]
+            ca = np.cos(phi) * cos_a - np.sin(phi) * sin_a
+            sa = np.sin(phi) * cos_a + np.cos(phi) * sin_a
+        else:
+            ca, sa = cos_a[None, :], sin_a[None, :]
+        xs = np.rint(x0[:, None] + rad_px * ca)
+        ys = np.rint(y0[:, None] + rad_px * sa)
+        inside = (xs >= 0) & (xs <= w - 1) & (ys >= 0) & (ys <= h - 1)
+        j = np.where(inside, ys * w + xs, 0).astype(np.int64)
+        zs = zkey[j]
+        zc = zkey[idx][:, None]
+        valid = inside & np.isfinite(zs)
+        if idflat is not None:
+            valid &= idflat[j] == idflat[idx][:, None]
+        dz = np.where(valid, zs - zc, 0.0)
+        rp = np.sqrt(r2[None, :] + dz * dz)
+        # R_c(r') / pdf(r) up to constants: (e^{-r'/d} + e^{-r'/3d}) (r / r') / pdf_unit(r).
+        ratio = np.where(valid, inv_pdf[None, :] * (r_su[None, :] / np.maximum(rp, np.float32(1e-30))) / dmax, 0.0)
+        for c in range(3):
+            centre = planes[c][idx]
+            if inv3d[c] == 0:
+                result[start:stop, c] = centre
+                continue
+            e3 = np.exp(-rp * inv3d[c])
+            wgt = (e3 * e3 * e3 + e3) * ratio
+            den = wgt.sum(axis=1)
+            num = (wgt * planes[c][j]).sum(axis=1)
+            small = (TRUNCATION / (3.0 * inv3d[c])) * s <= 1.0  # this channel's footprint <= 1 px
+            keep = small | (den <= np.float32(1e-30))
+            result[start:stop, c] = np.where(keep, centre, num / np.where(keep, 1.0, den))
+
+    _arrays.for_blocks(count, block, run)
+    out = base.copy()
+    flat = out.reshape(-1, 3)
+    flat[idx_all] = post.reshape(-1, 3)[idx_all] * result
+    return out

@@ -1,0 +1,142 @@
+"""From a Principled BSDF's subsurface inputs to each technique's parameters.
+
+So that the passes are driven by the same material that Cycles renders, every technique reads
+its scattering distance from the material's Subsurface Radius x Subsurface Scale, Base Color
+and (for the Skin method) Subsurface IOR, through the convention of the material's subsurface
+method in Cycles (Blender 5.2; Cycles ``kernel/closure/bssrdf.h``, REFERENCES.md section 2):
+
+- BURLEY: Cycles' ``bssrdf_setup_radius`` scales the radius by 1 / (4 pi) and uses the result as
+  the profile's d, with no albedo fit (the ``bssrdf_burley_fitting`` function is no longer
+  called). Default mapping ``none``: d = radius / (4 pi).
+- RANDOM_WALK_LEGACY (Cycles' fixed-radius random walk): mean free path l = radius / (4 pi).
+- RANDOM_WALK (the 5.2 default): l = radius.
+- RANDOM_WALK_SKIN: l = radius x sqrt(3 (1 - alpha')), alpha' from the dipole fit that uses the
+  Subsurface IOR (Cycles' ``bssrdf_dipole_compute_alpha_prime``).
+
+A random walk is a volume, not a profile: the Burley d that best matches it is uncertain, so it
+is a documented choice among the albedo scalings of Christensen & Burley (d = l / s(A),
+``profiles.ALBEDO_SCALINGS``) or none (d = l). ``MAPPINGS`` lists the choices per method, the
+default first; the comparison (``operators/compare.py``) measures each against Cycles.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .profiles import ALBEDO_SCALINGS, MIN_RADIUS, TRUNCATION, albedo_scaling
+from .scene import SUBSURFACE_METHODS, MaterialSSS
+from .techniques import check_technique
+
+#: Subsurface method -> mapping names, the default first. A name is an albedo scaling of
+#: ``profiles.ALBEDO_SCALINGS`` (d = l / s(A)) or "none" (d = l).
+MAPPINGS: dict[str, tuple[str, ...]] = {
+    "BURLEY": ("none", "diffuse_transmission", "searchlight"),
+    "RANDOM_WALK": ("diffuse_transmission", "searchlight", "dmfp", "none"),
+    "RANDOM_WALK_SKIN": ("diffuse_transmission", "searchlight", "dmfp", "none"),
+    "RANDOM_WALK_LEGACY": ("diffuse_transmission", "searchlight", "dmfp", "none"),
+}
+assert set(MAPPINGS) == set(SUBSURFACE_METHODS)
+
+#: STA's parameters (Barre-Brisebois & Bouchard 2011; three.js defaults for distortion, power and
+#: ambient, REFERENCES.md section 4). Scale 1 makes the translucency as bright as a Lambertian
+#: surface facing the light; STA has no physical scale, the comparison calibrates it.
+STA_DEFAULTS = {"distortion": 0.1, "power": 2.0, "scale": 1.0, "ambient": 0.0}
+#: SSSS: 17 taps is Unreal's medium quality (REFERENCES.md section 3).
+SSSS_DEFAULTS = {"kernel_type": "preintegrated", "n_taps": 17}
+#: Burley: 32 samples (EEVEE Next uses 16 per temporal sample, HDRP 20/40/80; section 1).
+BURLEY_DEFAULTS = {"n_samples": 32}
+
+
+def _dipole_rd(alpha_prime, fourthird_a):
+    s = np.sqrt(3.0 * (1.0 - alpha_prime))
+    return 0.5 * alpha_prime * (1.0 + np.exp(-fourthird_a * s)) * np.exp(-s)
+
+
+def skin_radius_factor(albedo, ior: float) -> np.ndarray:
+    """sqrt(3 (1 - alpha')) per channel: how Cycles' Skin method rescales the radius.
+
+    alpha' solves Rd(alpha') = albedo for the dipole diffuse reflectance with Jensen's F_dr(eta)
+    (Cycles ``bssrdf_dipole_compute_alpha_prime``; bisection, solved here to 1e-12 instead of its
+    12 steps). Albedo below 1e-4 gives alpha' = 0, at or above 0.995 gives 0.999999, as there.
+    """
+    if not (math.isfinite(ior) and ior > 0):
+        raise ValueError(f"subsurface_ior: expected a finite number > 0, got {ior!r}")
+    a = np.clip(np.asarray(albedo, dtype=np.float64), 0.0, 1.0)
+    inv = 1.0 / ior
+    f_dr = inv * (-1.440 * inv + 0.710) + 0.668 + 0.0636 * ior
+    fourthird_a = (4.0 / 3.0) * (1.0 + f_dr) / (1.0 - f_dr)
+    lo, hi = np.zeros_like(a), np.ones_like(a)
+    for _ in range(45):
+        mid = 0.5 * (lo + hi)
+        below = _dipole_rd(mid, fourthird_a) < a
+        lo = np.where(below, mid, lo)
+        hi = np.where(below, hi, mid)
+    alpha = 0.5 * (lo + hi)
+    alpha = np.where(a < 1e-4, 0.0, np.where(a >= 0.995, 0.999999, alpha))
+    return np.sqrt(3.0 * (1.0 - alpha))
+
+
+def mean_free_path(material: MaterialSSS) -> np.ndarray:
+    """The per-channel length Cycles gives the material's subsurface method (scene units)."""
+    radius = np.asarray(material.radius, dtype=np.float64)
+    method = material.method
+    if method in ("BURLEY", "RANDOM_WALK_LEGACY"):
+        return radius / (4.0 * math.pi)
+    if method == "RANDOM_WALK":
+        return radius
+    if method == "RANDOM_WALK_SKIN":
+        return radius * skin_radius_factor(material.base_color, material.subsurface_ior)
+    raise ValueError(f"unknown subsurface method {method!r}; expected one of: {', '.join(SUBSURFACE_METHODS)}")
+
+
+def mapping_name(method: str, mapping=None) -> str:
+    """The mapping used for ``method``: ``mapping`` may be None (the default), one name for every
+    method, or a dict method -> name. Unknown names raise ValueError listing the known ones."""
+    if method not in MAPPINGS:
+        raise ValueError(f"unknown subsurface method {method!r}; expected one of: {', '.join(MAPPINGS)}")
+    if mapping is None:
+        return MAPPINGS[method][0]
+    if isinstance(mapping, dict):
+        unknown = sorted(set(mapping) - set(MAPPINGS))
+        if unknown:
+            raise ValueError(f"mapping: unknown subsurface method(s) {unknown}; expected: {', '.join(MAPPINGS)}")
+        name = mapping.get(method, MAPPINGS[method][0])
+    else:
+        name = mapping
+    if name not in MAPPINGS[method]:
+        raise ValueError(
+            f"unknown mapping {name!r} for subsurface method {method}; expected one of: {', '.join(MAPPINGS[method])}"
+        )
+    return name
+
+
+def burley_d(material: MaterialSSS, *, mapping=None) -> tuple[float, float, float]:
+    """Burley's d per channel (scene units) for the material under the chosen mapping."""
+    ell = mean_free_path(material)
+    name = mapping_name(material.method, mapping)
+    if name == "none":
+        d = ell
+    else:
+        assert name in ALBEDO_SCALINGS
+        d = ell / albedo_scaling(material.base_color, name)
+    d = np.where(d < MIN_RADIUS, 0.0, d)
+    return tuple(float(v) for v in d)
+
+
+def technique_params(material: MaterialSSS, technique: str, *, mapping=None) -> dict:
+    """Keyword parameters of ``technique`` for ``material`` (without the passes).
+
+    Burley and SSSS get ``d_su``, the profile's d per channel in scene units; SSSS builds its
+    kernel from it (``core.kernels``). ``kernel_radius_su`` says how far each channel gathers
+    (16 d, the truncation shared with Cycles); the techniques ignore it.
+    """
+    check_technique(technique)
+    if technique == "sta":
+        return dict(STA_DEFAULTS)
+    d = burley_d(material, mapping=mapping)
+    radius = tuple(TRUNCATION * v for v in d)
+    if technique == "ssss":
+        return {**SSSS_DEFAULTS, "d_su": d, "kernel_radius_su": radius}
+    return {**BURLEY_DEFAULTS, "d_su": d, "kernel_radius_su": radius}

@@ -1,0 +1,193 @@
+"""``python -m sss_lab apply`` as a render farm runs it: a subprocess in which importing bpy
+fails, on passes written by core.exr from the analytic scene of core/synthetic.py."""
+
+import dataclasses
+import hashlib
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import OpenEXR
+import pytest
+
+from sss_lab.core.exr import read_layers, read_passes
+from sss_lab.core.scene import SceneDescription
+from sss_lab.core.synthetic import sphere_scene, write_scene
+
+_RUN_WITHOUT_BPY = """
+import runpy, sys
+class Block:
+    def find_spec(self, name, path=None, target=None):
+        if name.split('.')[0] in ('bpy', 'mathutils', 'bmesh', '_bpy'):
+            raise ImportError(f'blocked import of {name}')
+        return None
+sys.meta_path.insert(0, Block())
+sys.argv = ['sss_lab'] + sys.argv[1:]
+runpy.run_module('sss_lab', run_name='__main__', alter_sys=True)
+"""
+
+
+def run_apply(*args, cwd=None):
+    return subprocess.run(
+        [sys.executable, "-c", _RUN_WITHOUT_BPY, "apply", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=300,
+    )
+
+
+def saved_lines(stdout):
+    return re.findall(r"^Saved: (.+)$", stdout, flags=re.MULTILINE)
+
+
+def digest(path):
+    return hashlib.sha256(open(path, "rb").read()).hexdigest()
+
+
+@pytest.fixture
+def passes_file(tmp_path):
+    arrays, scene = sphere_scene()
+    path = str(tmp_path / "passes.exr")
+    write_scene(path, arrays, scene)
+    return path, arrays, scene
+
+
+def test_the_blocker_blocks_bpy(tmp_path):
+    # Guards the tests below against a blocker that blocks nothing.
+    code = _RUN_WITHOUT_BPY.replace("runpy.run_module('sss_lab', run_name='__main__', alter_sys=True)", "import bpy")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode != 0 and "blocked import of bpy" in proc.stderr
+
+
+def test_round_trip_all_methods_without_bpy(passes_file):
+    path, arrays, scene = passes_file
+    before = digest(path)
+    proc = run_apply(path, "--method", "all")
+    assert proc.returncode == 0, proc.stderr
+    out = os.path.join(os.path.dirname(path), "passes.sss.exr")
+    assert saved_lines(proc.stdout) == [out]
+    assert digest(path) == before  # the input is untouched
+    contents = read_layers(out)
+    # The input layers are kept, and each technique adds its image and its SSS term.
+    for name in arrays:
+        np.testing.assert_array_equal(contents.layers[f"ViewLayer.{name}"], arrays[name])
+    for technique in ("sta", "ssss", "burley"):
+        image = contents.layers[f"SSSLab.{technique}.Image"]
+        sss = contents.layers[f"SSSLab.{technique}.SSS"]
+        assert image.shape == arrays["Combined"].shape and sss.shape == arrays["Diffuse Color"].shape
+        plain = arrays["Material Index"] < 2  # the plane and the background do not scatter
+        np.testing.assert_array_equal(image[plain], arrays["Combined"][plain])
+        assert np.isfinite(image).all() and (sss[plain] == 0).all()
+        assert np.abs(sss[~plain]).max() > 0, technique  # the spheres do change
+    assert SceneDescription.from_json(contents.header["sss_lab.scene"]) == scene
+    assert contents.half == set()  # float32 only
+    # Blender's 5.2 reader sees the input view layer first, SSS Lab's layers apart.
+    assert read_passes(out).view_layer == "ViewLayer"
+
+
+def test_explain_prints_the_plan_and_writes_nothing(passes_file):
+    path, _, _ = passes_file
+    proc = run_apply(path, "--method", "burley", "--explain")
+    assert proc.returncode == 0, proc.stderr
+    assert "'Skin'" in proc.stdout and "'Wax'" in proc.stdout and "Subsurface Weight is 0" in proc.stdout
+    assert "pixels at the median depth" in proc.stdout
+    assert saved_lines(proc.stdout) == []
+    assert sorted(os.listdir(os.path.dirname(path))) == ["passes.exr", "passes.json"]
+
+
+def test_frame_range_with_a_broken_frame(tmp_path):
+    arrays, scene = sphere_scene(width=32, height=24)
+    for frame in (1, 2, 3):
+        write_scene(str(tmp_path / f"passes_{frame:04d}.exr"), arrays, dataclasses.replace(scene, frame=frame))
+    (tmp_path / "passes_0002.exr").write_bytes(b"truncated by a crashed render node")
+    proc = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--frames", "1-3")
+    assert proc.returncode == 1
+    assert saved_lines(proc.stdout) == [str(tmp_path / "passes_0001.sss.exr"), str(tmp_path / "passes_0003.sss.exr")]
+    assert "[1/3] frame 1" in proc.stdout and "[3/3] frame 3" in proc.stdout
+    assert "passes_0002.exr" in proc.stderr and "not a readable OpenEXR file" in proc.stderr
+    assert "1 of 3 file(s) failed" in proc.stderr
+    assert not (tmp_path / "passes_0002.sss.exr").exists()
+    # Without --frames, the existing frames are found; written outputs are not overwritten.
+    proc = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--out", tmp_path / "again_####.exr")
+    assert proc.returncode == 1 and len(saved_lines(proc.stdout)) == 2
+    assert (tmp_path / "again_0003.exr").exists()
+
+
+def test_never_overwrites_the_input_or_an_existing_output(passes_file):
+    path, _, _ = passes_file
+    before = digest(path)
+    proc = run_apply(path, "--method", "burley", "--out", path)
+    assert proc.returncode != 0 and "refusing to overwrite" in proc.stderr
+    proc = run_apply(path, "--method", "burley", "--out", path, "--overwrite")
+    assert proc.returncode != 0 and "refusing to overwrite" in proc.stderr
+    assert digest(path) == before
+    assert run_apply(path, "--method", "burley").returncode == 0
+    proc = run_apply(path, "--method", "burley")
+    assert proc.returncode != 0 and "already exists" in proc.stderr
+    proc = run_apply(path, "--method", "burley", "--overwrite")
+    assert proc.returncode == 0 and len(saved_lines(proc.stdout)) == 1
+
+
+def test_scene_without_sss_material_writes_nothing(tmp_path):
+    arrays, scene = sphere_scene(width=32, height=24)
+    plain = tuple(dataclasses.replace(m, subsurface_weight=0.0) for m in scene.materials)
+    path = str(tmp_path / "plain.exr")
+    write_scene(path, arrays, dataclasses.replace(scene, materials=plain))
+    proc = run_apply(path, "--method", "all")
+    assert proc.returncode == 3, proc.stderr
+    assert "no material in the scene description scatters light" in proc.stdout
+    assert saved_lines(proc.stdout) == []
+    assert sorted(os.listdir(tmp_path)) == ["plain.exr", "plain.json"]
+
+
+def test_unknown_method_lists_the_known_ones(passes_file):
+    path, _, _ = passes_file
+    proc = run_apply(path, "--method", "gaussian")
+    assert proc.returncode == 2
+    assert "unknown method 'gaussian'" in proc.stderr and "sta, ssss, burley" in proc.stderr
+
+
+def test_scene_from_option_and_missing_sidecar(passes_file, tmp_path):
+    path, _, scene = passes_file
+    moved = tmp_path / "elsewhere.json"
+    os.replace(os.path.splitext(path)[0] + ".json", moved)
+    proc = run_apply(path, "--method", "burley")
+    assert proc.returncode == 1 and "passes.json: no scene description" in proc.stderr
+    proc = run_apply(path, "--method", "burley", "--scene", moved, "--out", tmp_path / "o.exr")
+    assert proc.returncode == 0, proc.stderr
+    assert SceneDescription.from_json(read_layers(tmp_path / "o.exr").header["sss_lab.scene"]) == scene
+
+
+def test_blender45_single_part_input(tmp_path):
+    # The short names Blender 4.x writes, in one part, colour passes in half.
+    arrays, scene = sphere_scene(width=32, height=24)
+    short = {
+        "Combined": "Combined",
+        "Depth": "Depth",
+        "Object Index": "IndexOB",
+        "Material Index": "IndexMA",
+        "Diffuse Direct": "DiffDir",
+        "Diffuse Indirect": "DiffInd",
+        "Diffuse Color": "DiffCol",
+    }
+    letters = {"Combined": "RGBA", "Depth": "Z", "Object Index": "X", "Material Index": "X"}
+    channels = {}
+    for name, s in short.items():
+        arr = arrays[name]
+        half = name.startswith("Diffuse") or name == "Combined"
+        for c, letter in enumerate(letters.get(name, "RGB")):
+            plane = arr if arr.ndim == 2 else arr[..., c]
+            channels[f"ViewLayer.{s}.{letter}"] = plane.astype(np.float16 if half else np.float32)
+    path = tmp_path / "passes45.exr"
+    OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, channels).write(str(path))
+    (tmp_path / "passes45.json").write_text(scene.to_json())
+    proc = run_apply(path, "--method", "burley")
+    assert proc.returncode == 0, proc.stderr
+    out = read_layers(tmp_path / "passes45.sss.exr")
+    assert "ViewLayer.DiffDir" in out.layers  # input layers kept under their own names
+    image = out.layers["SSSLab.burley.Image"]
+    plain = arrays["Material Index"] < 2
+    np.testing.assert_array_equal(image[plain], arrays["Combined"][plain].astype(np.float16).astype(np.float32))
