@@ -393,10 +393,69 @@ def build_wax_marble():
     return scene
 
 
+def build_depth_leak():
+    """SSS and non-SSS objects at different depths, overlapping on screen: a jade ball (8 cm) in
+    front, a small wax block (5 cm) front-right, a plastic box (9 cm, no SSS) in the middle, a
+    skin head-like shape (12 x 14 x 17 cm) behind them and a wall (no SSS) at the back, lit by
+    a small key light that casts sharp shadows from the front objects onto the ones behind. The
+    reference keeps each object's light to itself; screen-space techniques blur it across the
+    depth edges (light leaking between objects)."""
+    scene = _reset()
+    jade = _material("Jade", (0.35, 0.7, 0.45), radius=(0.4, 1.0, 0.6), scale=0.01, ior=1.6, roughness=0.2)
+    _object(scene, "Jade Ball", _uv_sphere("Jade Ball", 0.04), location=(-0.045, -0.1, -0.02), material=jade)
+    wax = _material("Soap", (0.9, 0.75, 0.55), radius=(1.0, 0.6, 0.35), scale=0.008, ior=1.45, roughness=0.35)
+    block = _object(
+        scene,
+        "Soap Block",
+        _box("Soap Block", (0.05, 0.035, 0.05)),
+        location=(0.065, -0.17, -0.035),
+        rotation=(0.0, 0.0, math.radians(-25)),
+        material=wax,
+    )
+    bevel = block.modifiers.new("Bevel", "BEVEL")
+    bevel.width, bevel.segments = 0.006, 3
+    box = _object(
+        scene,
+        "Plastic Box",
+        _box("Plastic Box", (0.09, 0.09, 0.09)),
+        location=(0.035, 0.0, -0.015),
+        rotation=(0.0, 0.0, math.radians(30)),
+        material=_plain("Plastic", (0.12, 0.2, 0.55), roughness=0.3),
+        smooth=False,
+    )
+    box_bevel = box.modifiers.new("Bevel", "BEVEL")
+    box_bevel.width, box_bevel.segments = 0.003, 2
+    skin = _material("Skin", (0.8, 0.52, 0.42), radius=(1.0, 0.35, 0.2), scale=0.012, roughness=0.45)
+    head = _object(scene, "Head", _head_mesh("Head", (0.12, 0.14, 0.17)), location=(-0.005, 0.15, 0.025), material=skin)
+    _subsurf(head, 1)
+    _object(
+        scene,
+        "Floor",
+        _plane("Floor", 1.5, 1.5),
+        location=(0.0, 0.0, -0.06),
+        material=_plain("Floor", (0.3, 0.3, 0.3)),
+        smooth=False,
+    )
+    _object(
+        scene,
+        "Wall",
+        _plane("Wall", 1.5, 1.0),
+        location=(0.0, 0.4, 0.4),
+        rotation=(math.radians(90), 0.0, 0.0),
+        material=_plain("Wall", (0.25, 0.25, 0.25)),
+        smooth=False,
+    )
+    _camera(scene, (0.0, -0.6, 0.07), (0.0, 0.0, 0.0), lens=70.0)
+    _light(scene, "Key", "AREA", (-0.35, -0.4, 0.35), (0.0, 0.0, 0.0), 5.0, size=0.03)
+    _light(scene, "Rim", "SUN", (0.5, 0.6, 0.5), (0.0, 0.0, 0.0), 1.0, angle=math.radians(2.0))
+    return scene
+
+
 SCENES = {
     "head_frontlit": build_head_frontlit,
     "backlit_thin": build_backlit_thin,
     "wax_marble": build_wax_marble,
+    "depth_leak": build_depth_leak,
 }
 
 #: The scene `make demo` runs on.
