@@ -14,6 +14,9 @@ _MODULES = (
     ".addon.properties",
     ".operators.scan",
     ".operators.bake",
+    ".operators.render_passes",
+    ".operators.apply",
+    ".operators.presets",
     ".addon.panels",
     ".addon.panel_bake",
 )

@@ -17,6 +17,7 @@ COMMANDS = (
     ".cli_demo",
     ".cli_apply",
     ".cli_bake",
+    ".cli_render",
 )
 
 

@@ -5,6 +5,24 @@ from __future__ import annotations
 import bpy
 
 
+def draw_technique_parameters(layout, settings) -> None:
+    """The chosen technique's parameters (their defaults come from ``core/mapping.py``)."""
+    col = layout.column(align=True)
+    if settings.technique == "sta":
+        col.prop(settings, "sta_distortion")
+        col.prop(settings, "sta_power")
+        col.prop(settings, "sta_scale")
+        col.prop(settings, "sta_ambient")
+    elif settings.technique == "ssss":
+        layout.prop(settings, "ssss_taps", expand=True)
+        layout.prop(settings, "ssss_kernel")
+    else:
+        col.prop(settings, "burley_samples")
+        col.prop(settings, "burley_random_rotation")
+    if settings.technique != "sta":
+        layout.prop(settings, "albedo_mode")
+
+
 class SSS_LAB_PT_main(bpy.types.Panel):
     bl_label = "SSS Lab"
     bl_idname = "SSS_LAB_PT_main"
@@ -18,6 +36,26 @@ class SSS_LAB_PT_main(bpy.types.Panel):
         settings = context.scene.sss_lab
         layout.prop(settings, "technique")
         layout.operator("sss_lab.scan_scene", icon="VIEWZOOM")
+
+        box = layout.box()
+        box.use_property_split = True
+        box.use_property_decorate = False
+        draw_technique_parameters(box, settings)
+
+        col = layout.column(align=True)
+        col.operator("sss_lab.bake_thickness", icon="MOD_THICKNESS")
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(settings, "output_dir")
+        row = layout.row(align=True)
+        row.prop(settings, "render_samples")
+        row.prop(settings, "render_all", toggle=True)
+        layout.operator("sss_lab.render_passes", icon="RENDER_STILL")
+        layout.prop(settings, "passes_file")
+        layout.operator("sss_lab.apply", icon="IMAGE_DATA")
+
+        layout.separator()
+        layout.operator_menu_enum("sss_lab.apply_preset", "preset", text="Material Preset", icon="MATERIAL")
 
 
 classes = (SSS_LAB_PT_main,)

@@ -328,6 +328,11 @@ def _pick_layer(scene, view_layer):
     return view_layer
 
 
+def _render(scene) -> None:
+    """One still render of ``scene`` into the Render Result (a seam the tests wrap)."""
+    bpy.ops.render.render(write_still=False, scene=scene.name)
+
+
 def _write_json(path: str, text: str) -> None:
     tmp = f"{path}.tmp-{os.getpid()}"
     with open(tmp, "w", encoding="utf-8") as fh:
@@ -486,7 +491,7 @@ def render_passes(
                 f"{render.resolution_y * render.resolution_percentage // 100}, {cycles.samples} samples)"
             )
             t0 = time.perf_counter()
-            bpy.ops.render.render(write_still=False, scene=scene.name)
+            _render(scene)
             result = bpy.data.images.get("Render Result")
             if result is None:
                 raise RuntimeError(f"frame {frame}: Blender produced no Render Result")
@@ -511,3 +516,115 @@ def render_passes(
             if progress is not None:
                 progress(number, len(targets))
     return written
+
+
+def resolve_folder(path: str) -> str:
+    """An absolute folder from a Blender path (``//`` = beside the .blend file)."""
+    if not path:
+        raise ValueError("output folder: empty; choose a folder for the passes")
+    if path.startswith("//") and not bpy.data.filepath:
+        raise ValueError(
+            f"output folder {path!r} is relative to the .blend file, which is not saved yet; save it or choose "
+            "an absolute folder"
+        )
+    return os.path.abspath(bpy.path.abspath(path))
+
+
+_TECHNIQUE_FLAGS = [(name, label, desc) for name, (_, _, label, desc) in TECHNIQUES.items()]
+
+
+class SSS_LAB_OT_render_passes(bpy.types.Operator):
+    """Render the passes the chosen techniques need (SSS materials as plain diffuse) into a
+    multilayer EXR per frame, with the scene description beside it. The scene is left as it was"""
+
+    bl_idname = "sss_lab.render_passes"
+    bl_label = "Render Passes"
+    bl_options = {"REGISTER"}
+
+    directory: bpy.props.StringProperty(
+        name="Output Folder",
+        description="Folder for passes_####.exr and .json (empty: the panel's Output folder)",
+        default="",
+        subtype="DIR_PATH",
+        options={"SKIP_SAVE"},
+    )
+    techniques: bpy.props.EnumProperty(
+        name="Techniques",
+        description="Techniques whose passes to render (none: the panel's choice)",
+        items=_TECHNIQUE_FLAGS,
+        options={"ENUM_FLAG", "SKIP_SAVE"},
+        default=set(),
+    )
+    samples: bpy.props.IntProperty(
+        name="Samples",
+        description="Cycles samples (-1: the panel's; 0: the scene's)",
+        default=-1,
+        min=-1,
+        options={"SKIP_SAVE"},
+    )
+    use_frame_range: bpy.props.BoolProperty(
+        name="Frame Range",
+        description="Render every frame of the scene's frame range (else the current frame)",
+        default=False,
+        options={"SKIP_SAVE"},
+    )
+    overwrite: bpy.props.BoolProperty(
+        name="Overwrite",
+        description="Replace passes files already in the folder",
+        default=True,
+        options={"SKIP_SAVE"},
+    )
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def execute(self, context):
+        scene = context.scene
+        settings = getattr(scene, "sss_lab", None)
+        techniques = sorted(self.techniques, key=list(TECHNIQUES).index) or (
+            settings.render_techniques() if settings is not None else list(TECHNIQUES)
+        )
+        samples = self.samples if self.samples >= 0 else (settings.render_samples if settings is not None else 0)
+        frames = list(range(scene.frame_start, scene.frame_end + 1)) if self.use_frame_range else None
+        wm = context.window_manager
+        notes = []
+
+        def log(line: str):
+            print(f"render-passes: {line}", flush=True)
+            if not line.startswith("[") and not line.startswith("frame "):
+                notes.append(line)
+
+        try:
+            folder = resolve_folder(self.directory or (settings.output_dir if settings is not None else ""))
+            wm.progress_begin(0, len(frames) if frames else 1)
+            try:
+                paths = render_passes(
+                    scene,
+                    folder,
+                    techniques=techniques,
+                    frames=frames,
+                    samples=samples or None,
+                    overwrite=self.overwrite,
+                    log=log,
+                    progress=lambda done, _total: wm.progress_update(done),
+                )
+            finally:
+                wm.progress_end()
+        except NoSubsurfaceError as exc:  # nothing to do: said, not an error
+            self.report({"WARNING"}, str(exc))
+            return {"CANCELLED"}
+        except (ValueError, FileExistsError, RuntimeError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        for line in notes:
+            warn = "thickness 0" in line or "does not model" in line
+            self.report({"WARNING"} if warn else {"INFO"}, line)
+        exrs = [p for p in paths if p.endswith(".exr")]
+        if settings is not None and exrs:
+            settings.passes_file = exrs[-1]
+        self.report({"INFO"}, f"Rendered the {', '.join(techniques)} passes of {len(exrs)} frame(s) into {folder}")
+        return {"FINISHED"}
+
+
+classes = (SSS_LAB_OT_render_passes,)

@@ -1,0 +1,138 @@
+"""Apply a technique to a passes EXR from inside Blender and look at the result.
+
+``apply_passes(path, technique, ...)`` is the plain function: ``core.apply.apply_file`` (NumPy,
+the same code as ``python -m sss_lab apply``) writes ``<stem>.sss.exr`` beside the passes (the
+input layers plus ``SSSLab.<technique>.Image`` and ``.SSS``), and the result is loaded as a
+Blender image. The operator ``bpy.ops.sss_lab.apply`` takes the technique, its parameters and
+the albedo mode from the SSS Lab panel (``scene.sss_lab``) and, by default, the file the last
+Render Passes wrote. The scene is not changed (the image is a new data-block, or the same one
+reloaded when applied again).
+"""
+
+from __future__ import annotations
+
+import os
+
+import bpy
+
+from ..core.apply import apply_file, default_output, layer_names
+from ..core.techniques import check_technique
+
+
+def load_result_image(path: str):
+    """The image data-block of ``path``: loaded, or reloaded when it is already there."""
+    path = os.path.abspath(path)
+    for image in bpy.data.images:
+        if image.filepath and os.path.abspath(bpy.path.abspath(image.filepath)) == path:
+            image.reload()
+            return image
+    return bpy.data.images.load(path, check_existing=False)
+
+
+def _show(context, image) -> bool:
+    """Show ``image`` in an Image Editor of the current screen, if there is one."""
+    screen = getattr(context, "screen", None)
+    for area in getattr(screen, "areas", ()):
+        if area.type == "IMAGE_EDITOR":
+            area.spaces.active.image = image
+            area.tag_redraw()
+            return True
+    return False
+
+
+def apply_passes(
+    path: str,
+    technique: str,
+    *,
+    out_path: str | None = None,
+    albedo_mode: str = "post",
+    overwrite: bool = True,
+    load: bool = True,
+    **options,
+):
+    """Apply ``technique`` to the passes file ``path``; returns (FileResult, image or None).
+
+    ``out_path`` defaults to ``<stem>.sss.exr`` beside the input, which is never overwritten.
+    Raises FileNotFoundError, ValueError or MissingPassError (a KeyError) with a clear message.
+    """
+    check_technique(technique)
+    path = os.path.abspath(bpy.path.abspath(path)) if path else ""
+    if not path:
+        raise ValueError("no passes file: render the passes first (Render Passes) or choose an EXR")
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"{path}: no such passes file (render the passes first, or choose an EXR)")
+    result = apply_file(
+        path,
+        [technique],
+        out_path=out_path or default_output(path),
+        albedo_mode=albedo_mode,
+        overwrite=overwrite,
+        **options,
+    )
+    image = load_result_image(result.out_path) if (load and result.written) else None
+    return result, image
+
+
+class SSS_LAB_OT_apply(bpy.types.Operator):
+    """Apply the chosen technique to rendered passes (NumPy) and load the result as an image.
+    The scene is not changed"""
+
+    bl_idname = "sss_lab.apply"
+    bl_label = "Apply"
+    bl_options = {"REGISTER"}
+
+    filepath: bpy.props.StringProperty(
+        name="Passes",
+        description="Passes EXR (empty: the panel's Passes file, which Render Passes sets)",
+        default="",
+        subtype="FILE_PATH",
+        options={"SKIP_SAVE"},
+    )
+    technique: bpy.props.StringProperty(
+        name="Technique",
+        description="Technique to apply (empty: the panel's)",
+        default="",
+        options={"SKIP_SAVE"},
+    )
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None and getattr(context.scene, "sss_lab", None) is not None
+
+    def execute(self, context):
+        settings = context.scene.sss_lab
+        technique = self.technique or settings.technique
+        path = self.filepath or settings.passes_file
+        try:
+            options = settings.technique_options(check_technique(technique))
+            result, image = apply_passes(path, technique, albedo_mode=settings.albedo_mode, **options)
+        except (ValueError, OSError, KeyError, ImportError) as exc:
+            message = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+            self.report({"ERROR"}, message)
+            return {"CANCELLED"}
+        if result.nothing_to_do:
+            self.report(
+                {"WARNING"},
+                f"{result.path}: no material in the scene description scatters light (Subsurface Weight > 0): "
+                "nothing written",
+            )
+            return {"CANCELLED"}
+        plan = result.plans[technique]
+        for line in plan.explain().splitlines():
+            print(f"apply: {line}")
+        applied = plan.applied
+        names = ", ".join(m.material.name or str(m.material.index) for m in applied) or "none on screen"
+        self.report({"INFO"}, f"{technique}: {len(applied)} material(s) computed ({names})")
+        if plan.nonfinite_pixels:
+            self.report({"WARNING"}, f"{plan.nonfinite_pixels} pixels with NaN/Inf inputs left as they are")
+        shown = _show(context, image) if image is not None else False
+        where = "shown in the Image Editor" if shown else "open it in an Image Editor"
+        self.report(
+            {"INFO"},
+            f"Saved: {result.out_path}; image {image.name!r} (layer {layer_names(technique)[0].rpartition('.')[0]}), "
+            f"{where}",
+        )
+        return {"FINISHED"}
+
+
+classes = (SSS_LAB_OT_apply,)
