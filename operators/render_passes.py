@@ -195,11 +195,36 @@ def thickness_setup(scene, materials: list, aov_name: str) -> tuple[str, list[st
     return next(iter(conventions)), missing
 
 
+def _rendered_materials(scene) -> list:
+    """The materials of every object the scene renders (meshes, curves, text...), each once."""
+    found = {}
+    for obj in scene.objects:
+        if obj.hide_render:
+            continue
+        for slot in getattr(obj, "material_slots", ()):
+            if slot.material is not None:
+                found[slot.material.name_full] = slot.material
+    return [found[k] for k in sorted(found)]
+
+
 def _zero_subsurface(st: SceneState, scene) -> list[str]:
     """Render every Principled BSDF of the scene's materials with Subsurface Weight 0."""
     seen: set = set()
     other_sss = []
-    for mat in scene_materials(scene):
+    for mat in _rendered_materials(scene):
+        if not mat.is_editable:
+            if any(
+                node.bl_idname == _PRINCIPLED
+                and "Subsurface Weight" in node.inputs
+                and (node.inputs["Subsurface Weight"].is_linked or node.inputs["Subsurface Weight"].default_value > 0)
+                for tree in _walk_trees(mat.node_tree, set())
+                for node in tree.nodes
+            ):
+                raise ValueError(
+                    f"material {mat.name!r} is linked from a library, so its Subsurface Weight cannot be set to 0 "
+                    "for the passes; make it local (Object > Relations > Make Local)"
+                )
+            continue
         for tree in _walk_trees(mat.node_tree, seen):
             for node in tree.nodes:
                 if node.bl_idname == "ShaderNodeSubsurfaceScattering" and not node.mute:

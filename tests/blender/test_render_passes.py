@@ -315,6 +315,27 @@ def test_sta_without_a_thickness_map_asks_to_bake_first(tmp_path):
     assert os.listdir(tmp_path) == []
 
 
+def test_sta_reads_a_baked_thickness_map_and_its_convention(tmp_path):
+    from sss_lab.core.thickness import BakeSettings
+    from sss_lab.operators.bake import bake_thickness
+
+    scene = build_scene(thickness=False)
+    settings = BakeSettings(target="attribute", convention="thickness", samples=4)
+    (result,) = bake_thickness(bpy.context, ["Ball"], settings, log=None)
+    assert result.status == "baked"
+    before = snapshot(scene)
+    lines = []
+    paths = render_passes(scene, tmp_path, techniques=["sta"], samples=SAMPLES, log=lines.append)
+    description = load_scene(paths[0])
+    assert description.thickness_convention == "thickness"  # as stored with the baked attribute
+    assert "no thickness map in 'Wax': STA reads thickness 0 there" in lines
+    p = read_passes(paths[0])
+    ball = p["Material Index"] == description.material(1).index
+    # Inside AO of a unit sphere at distance D: some rays escape, so the map is above 0 there.
+    assert p["Thickness"][ball].max() > 0.0
+    _assert_same(before, snapshot(scene))
+
+
 def test_existing_files_are_not_replaced_without_overwrite(tmp_path):
     scene = build_scene()
     (tmp_path / "passes_0003.json").write_text("{}")
