@@ -18,8 +18,9 @@ The scenes (``SCENES``), each meant for some of the techniques:
 
 Conventions shared by all scenes:
 
-- Lengths in metres; objects 5-30 cm; Subsurface Radius x Subsurface Scale (the mean free path
-  per channel) from a few millimetres to 2 cm, i.e. one to several pixels at 128x128.
+- Lengths in metres; objects 5-30 cm; Subsurface Radius x Subsurface Scale is the mean free
+  path per channel: 3 mm to 2 cm for the longest channel (one to several pixels at 128x128),
+  no channel under 1 mm.
 - Every subsurface input of every material is set explicitly (Subsurface IOR too, although the
   Random Walk method reads the IOR input instead; a material without SSS has Weight 0).
 - SSS materials get pass indices 1, 2, ... in name order (the order in which
@@ -160,12 +161,15 @@ def _uv_sphere(name, radius, scale=(1.0, 1.0, 1.0), segments=32, rings=16):
     return _mesh(name, build)
 
 
-def _box(name, size):
+def _box(name, size, cuts=0):
+    """A box centred on the origin; ``cuts`` cuts per edge give a baked attribute room to vary."""
     import bmesh
 
     def build(bm):
         bmesh.ops.create_cube(bm, size=1.0)
         bmesh.ops.scale(bm, vec=size, verts=bm.verts)
+        if cuts:
+            bmesh.ops.subdivide_edges(bm, edges=bm.edges[:], cuts=cuts, use_grid_fill=True)
 
     return _mesh(name, build)
 
@@ -407,7 +411,7 @@ def build_depth_leak():
     block = _object(
         scene,
         "Soap Block",
-        _box("Soap Block", (0.05, 0.035, 0.05)),
+        _box("Soap Block", (0.05, 0.035, 0.05), cuts=4),
         location=(0.065, -0.17, -0.035),
         rotation=(0.0, 0.0, math.radians(-25)),
         material=wax,
