@@ -1,8 +1,8 @@
 """Build SSS Lab's sample scenes with bpy and save them as .blend files.
 
 This script is the source of the sample scenes: the .blend files are generated from it
-(``python sample_blends/build_scenes.py [NAME ...] --out DIR``, or through
-``sss_lab.sample_blends`` from the project's commands). Every scene uses Principled BSDF
+(``python sample_blends/build_scenes.py [NAME ...] --out DIR``; the project's commands load
+this file with ``addon.cli_demo.load_sample_scenes`` and call ``build(name, path)``). Every scene uses Principled BSDF
 materials with Blender 5.2's Random Walk subsurface method and realistic scales (metres).
 
 The scenes (``SCENES``), each meant for some of the techniques:
