@@ -151,7 +151,7 @@ def burley(
         xs = np.rint(x0[:, None] + rad_px * ca)
         ys = np.rint(y0[:, None] + rad_px * sa)
         inside = (xs >= 0) & (xs <= w - 1) & (ys >= 0) & (ys <= h - 1)
-        j = np.where(inside, ys * w + xs, 0).astype(np.int64)
+        j = np.where(inside, ys.astype(np.intp) * w + xs.astype(np.intp), 0)
         zs = zkey[j]
         zc = zkey[idx][:, None]
         valid = inside & np.isfinite(zs)

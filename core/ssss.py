@@ -59,8 +59,9 @@ def _pass(color, depth_key, scale, mask_idx, offsets, weights, fs_inv, axis):
         zc = zflat[idx][:, None]
         pos = coord[:, None].astype(np.float32) + sflat[idx][:, None] * o[None, :]
         np.clip(pos, 0.0, np.float32(length - 1), out=pos)
-        i0 = pos.astype(np.int64)  # floor: pos >= 0
-        f = pos - i0
+        fl = np.floor(pos)
+        f = pos - fl  # float32: subtracting the integer array would promote everything to float64
+        i0 = fl.astype(np.intp)
         i1 = np.minimum(i0 + 1, length - 1)
         j0 = line[:, None] + i0 * stride
         j1 = line[:, None] + i1 * stride

@@ -36,39 +36,50 @@ THICKNESS_CONVENTIONS = ("translucency", "thickness")
 _EPS = np.float32(1e-6)
 
 
-def _norm(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    length = np.sqrt((v * v).sum(axis=-1, keepdims=True))
-    return v / np.maximum(length, np.float32(1e-30)), length[..., 0]
+def _norm(x, y, z):
+    """Normalize planar vectors (rows x, y, z); returns (x, y, z, length)."""
+    length = np.sqrt(x * x + y * y + z * z)
+    inv = np.float32(1.0) / np.maximum(length, np.float32(1e-30))
+    return x * inv, y * inv, z * inv, length
 
 
 def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
-    t = np.clip((x - e0) / max(e1 - e0, 1e-30), 0.0, 1.0)
+    t = np.clip((x - e0) / np.float32(max(e1 - e0, 1e-30)), 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
 
 
-def light_at(light: Light, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(unit vectors towards the light (N, 3), irradiance E_L (N,)) at world positions (N, 3)."""
+def light_at(light: Light, px, py, pz):
+    """(unit vector towards the light as planar rows lx, ly, lz; irradiance E_L) at world
+    positions given as planar rows (px, py, pz)."""
+    f32 = np.float32
     if light.type == "SUN":
-        to_light = np.broadcast_to((-light.direction).astype(np.float32), position.shape)
-        return to_light, np.full(position.shape[0], light.energy, np.float32)
-    delta = light.position.astype(np.float32) - position
-    to_light, dist = _norm(delta)
-    r2 = np.maximum(dist * dist, np.float32(1e-12))
+        d = (-light.direction).astype(f32)
+        ones = np.ones_like(px)
+        return d[0] * ones, d[1] * ones, d[2] * ones, np.full(px.shape, light.energy, f32)
+    c = light.position.astype(f32)
+    lx, ly, lz, dist = _norm(c[0] - px, c[1] - py, c[2] - pz)
+    r2 = np.maximum(dist * dist, f32(1e-12))
     if light.type == "AREA":
-        cos_l = np.maximum((-to_light) @ light.direction.astype(np.float32), 0.0)
-        return to_light, (light.energy * cos_l / (math.pi * r2)).astype(np.float32)
-    e = light.energy / (4.0 * math.pi * r2)
+        a = light.direction.astype(f32)
+        cos_l = np.maximum(-(lx * a[0] + ly * a[1] + lz * a[2]), 0.0)
+        return lx, ly, lz, (f32(light.energy / math.pi) * cos_l / r2).astype(f32)
+    e = f32(light.energy / (4.0 * math.pi)) / r2
     if light.type == "SPOT":
         # Cycles' spot attenuation: zero outside the cone, smoothstep over the blend region.
-        cos_angle = (-to_light) @ light.direction.astype(np.float32)
+        a = light.direction.astype(f32)
+        cos_angle = -(lx * a[0] + ly * a[1] + lz * a[2])
         half = math.cos(light.spot_size / 2.0)
         smooth = (1.0 - half) * light.spot_blend
-        t = cos_angle - half
-        cone = np.where(t > 0, 1.0, 0.0)
+        t = cos_angle - f32(half)
+        cone = (t > 0).astype(f32)
         if smooth > 0:
             cone = cone * _smoothstep(0.0, smooth, t)
         e = e * cone
-    return to_light, e.astype(np.float32)
+    return lx, ly, lz, e.astype(f32)
+
+
+#: Pixels per block: the planar rows of a block stay in the cache.
+_BLOCK = 1 << 15
 
 
 def sta(
@@ -118,27 +129,49 @@ def sta(
     p = _arrays.image(position, "position")
     t = _arrays.image(thickness, "thickness", None)
     _arrays.same_size(shape, normal=n, position=p, thickness=t)
-    m = _arrays.mask_array(mask, shape) & _arrays.finite_pixels(a, n, p, t)
+    m = _arrays.mask_array(mask, shape)
     out = np.zeros(a.shape, np.float32)
+    lights = [light for light in lights if light.energy > 0]
     if not m.any() or not lights:
         return out
-    tt = np.clip(t[m], 0.0, 1.0)
-    if thickness_convention == "thickness":
-        tt = 1.0 - tt
-    nn, _ = _norm(n[m])
-    pp = p[m]
-    view = camera.view_vectors(pp[None])[0]
-    total = np.zeros((pp.shape[0], 3), np.float32)
-    for light in lights:
-        if light.energy == 0:
-            continue
-        to_light, irradiance = light_at(light, pp)
-        lt, length = _norm(to_light + np.float32(distortion) * nn)
-        vdot = -(view * lt).sum(axis=1)
-        lobe = np.where(vdot > 0, np.maximum(vdot, 0.0) ** np.float32(power), 0.0)
-        t_dir = np.float32(scale) * lobe
-        t_dir = np.where(length > _EPS, t_dir, 0.0)  # L + d_T N vanished: no direction, no light
-        term = irradiance / np.float32(math.pi) * tt * (t_dir + np.float32(ambient))
-        total += term[:, None] * np.asarray(light.color, np.float32)[None, :]
-    out[m] = a[m] * total
+    flat = {name: arr.reshape(-1, 3) for name, arr in (("a", a), ("n", n), ("p", p))}
+    flat_t = t.ravel()
+    flat_out = out.reshape(-1, 3)
+    idx = np.flatnonzero(m)
+    colors = [np.asarray(light.color, np.float32) for light in lights]
+    f32 = np.float32
+    if camera.type == "ORTHO":
+        view_dir, cam_pos = (-camera.forward).astype(f32), None
+    else:
+        view_dir, cam_pos = None, camera.position.astype(f32)
+
+    def run(start, stop):
+        i = idx[start:stop]
+        ax, ay, az = np.ascontiguousarray(flat["a"][i].T)
+        nx, ny, nz = np.ascontiguousarray(flat["n"][i].T)
+        px, py, pz = np.ascontiguousarray(flat["p"][i].T)
+        tt = flat_t[i]
+        ok = np.isfinite(ax + ay + az + nx + ny + nz + px + py + pz + tt)
+        tt = np.clip(np.where(ok, tt, f32(0.0)), 0.0, 1.0)
+        if thickness_convention == "thickness":
+            tt = np.where(ok, 1.0 - tt, f32(0.0))
+        nx, ny, nz, _ = _norm(nx, ny, nz)
+        if cam_pos is None:
+            vx, vy, vz = (view_dir[k] for k in range(3))
+        else:
+            vx, vy, vz, _ = _norm(cam_pos[0] - px, cam_pos[1] - py, cam_pos[2] - pz)
+        total = np.zeros((3, i.size), f32)
+        for light, color in zip(lights, colors, strict=True):
+            lx, ly, lz, irradiance = light_at(light, px, py, pz)
+            tx, ty, tz, length = _norm(lx + f32(distortion) * nx, ly + f32(distortion) * ny, lz + f32(distortion) * nz)
+            vdot = -(vx * tx + vy * ty + vz * tz)
+            # max(0, x)^p with p = 0 giving 1 only where x > 0; a vanished L + d_T N gives nothing.
+            lobe = np.where((vdot > 0) & (length > _EPS), np.maximum(vdot, 0.0) ** f32(power), f32(0.0))
+            term = irradiance * f32(1.0 / math.pi) * tt * (f32(scale) * lobe + f32(ambient))
+            total += color[:, None] * term[None, :]
+        res = np.stack([ax, ay, az]) * total
+        res[:, ~ok] = 0.0
+        flat_out[i] = res.T
+
+    _arrays.for_blocks(idx.size, _BLOCK, run)
     return out
