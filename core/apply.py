@@ -234,7 +234,8 @@ def _kernel_su(technique: str, material: MaterialSSS, params: dict, mapping_tabl
     """Kernel radius in scene units per channel: how far the technique gathers light."""
     if technique == "sta":
         return None  # local: no kernel
-    if technique == "burley":
+    if technique in ("burley", "ssss") and ("d_su" in params or technique == "burley"):
+        # Both reach 16 d of the profile (SSSS's pre-integrated kernel spans the same range).
         d = params.get("d_su")
         if d is None:
             d = _mapping().burley_d(material, mapping=mapping_table)

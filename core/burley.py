@@ -159,8 +159,8 @@ def burley(
             valid &= idflat[j] == idflat[idx][:, None]
         dz = np.where(valid, zs - zc, 0.0)
         rp = np.sqrt(r2[None, :] + dz * dz)
-        # R_c(r') / pdf(r) up to constants: (e^{-r'/d} + e^{-r'/3d}) (r / r') / pdf_unit(r).
-        ratio = np.where(valid, inv_pdf[None, :] * (r_su[None, :] / np.maximum(rp, np.float32(1e-30))) / dmax, 0.0)
+        # R_c(r') / pdf_area(r) up to constants: (e^{-r'/d} + e^{-r'/3d}) / r' x r / f(r), in units of d_max.
+        ratio = np.where(valid, inv_pdf[None, :] / np.maximum(rp * np.float32(1.0 / dmax), np.float32(1e-30)), 0.0)
         for c in range(3):
             centre = planes[c][idx]
             if inv3d[c] == 0:

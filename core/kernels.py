@@ -6,9 +6,10 @@ Both kernels of Jimenez et al., "Separable Subsurface Scattering" (Computer Grap
 - ``artist_kernel``: the sum of five Gaussians fit to skin (d'Eon 2007), each channel widened by
   its falloff, the centre tap blended towards identity by the strength, as in the reference code.
 - ``preintegrated_kernel``: built offline from the Burley profile (``core.profiles``): the 2-D
-  profile integrated over each pair of tap footprints, then its best separable (rank-1)
-  approximation, the first singular vector, per channel. This is our reading of the paper's
-  pre-integrated kernel (REFERENCES.md marks its exact construction unverified).
+  profile integrated over each pair of tap footprints, then reduced to one 1-D kernel per
+  channel: by default its marginal (exact line and edge spread), or the first
+  singular vector (a rank-1 least-squares fit). REFERENCES.md marks the paper's exact
+  construction unverified; both readings are here and measured.
 
 Offsets are shared by the channels and denser near the centre (quadratic spacing, as in the
 reference code); the weights of each channel sum to 1, so a kernel never adds or removes light.
@@ -207,14 +208,29 @@ def _cell_integrals(edges: np.ndarray, d: float, sub: int = 12) -> np.ndarray:
     return out
 
 
-def preintegrated_kernel(n_taps: int = 17, *, d_su, radius_su: float | None = None) -> SeparableKernel:
+PREINTEGRATION_METHODS = ("marginal", "rank1")
+
+
+def preintegrated_kernel(
+    n_taps: int = 17, *, d_su, radius_su: float | None = None, method: str = "marginal"
+) -> SeparableKernel:
     """Kernel pre-integrated from the Burley profile of shape ``d_su`` (R, G, B, scene units).
 
     Taps span +-``radius_su`` (default 16 d of the widest channel, the truncation shared with
-    Burley and Cycles). Per channel: the profile integrated over every pair of footprints (an
-    n x n matrix), whose first singular vector is the best 1-D kernel k with outer(k, k) closest
-    to it; normalized to sum 1. A channel with d = 0 gets the identity (all weight on the centre).
+    Burley and Cycles). Per channel, the profile is integrated over every pair of footprints
+    (an n x n matrix M); the 1-D kernel is then, normalized to sum 1:
+
+    - ``marginal`` (default): the row sums of M, the profile integrated across the other axis.
+      The two passes then reproduce the profile's line- and edge-spread exactly (what a shadow
+      edge shows) and its energy;
+    - ``rank1``: M's first singular vector, the k whose outer(k, k) is closest to M in the
+      least-squares sense. It follows the profile's sharp peak and so spreads an edge less
+      (the comparison's fidelity table measures both readings of the paper).
+
+    A channel with d = 0 gets the identity (all weight on the centre).
     """
+    if method not in PREINTEGRATION_METHODS:
+        raise ValueError(f"method: {method!r} is not one of {', '.join(PREINTEGRATION_METHODS)}")
     n = check_taps(n_taps)
     d = np.broadcast_to(np.asarray(d_su, dtype=np.float64), (3,))
     if np.any(~np.isfinite(d)) or np.any(d < 0):
@@ -235,8 +251,7 @@ def preintegrated_kernel(n_taps: int = 17, *, d_su, radius_su: float | None = No
             weights[centre, c] = 1.0
             continue
         m = _cell_integrals(edges, float(d[c]))
-        u, s, _ = np.linalg.svd(m)
-        k = np.abs(u[:, 0]) * math.sqrt(s[0])
+        k = m.sum(axis=1) if method == "marginal" else np.abs(np.linalg.svd(m)[0][:, 0])
         weights[:, c] = k / k.sum()
     return SeparableKernel(offsets, weights, "preintegrated")
 

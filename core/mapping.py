@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from .profiles import ALBEDO_SCALINGS, MIN_RADIUS, TRUNCATION, albedo_scaling
+from .profiles import ALBEDO_SCALINGS, MIN_RADIUS, albedo_scaling
 from .scene import SUBSURFACE_METHODS, MaterialSSS
 from .techniques import check_technique
 
@@ -129,14 +129,13 @@ def technique_params(material: MaterialSSS, technique: str, *, mapping=None) -> 
     """Keyword parameters of ``technique`` for ``material`` (without the passes).
 
     Burley and SSSS get ``d_su``, the profile's d per channel in scene units; SSSS builds its
-    kernel from it (``core.kernels``). ``kernel_radius_su`` says how far each channel gathers
-    (16 d, the truncation shared with Cycles); the techniques ignore it.
+    kernel from it (``core.kernels``), reaching 16 d like Burley (the truncation shared with
+    Cycles).
     """
     check_technique(technique)
     if technique == "sta":
         return dict(STA_DEFAULTS)
     d = burley_d(material, mapping=mapping)
-    radius = tuple(TRUNCATION * v for v in d)
     if technique == "ssss":
-        return {**SSSS_DEFAULTS, "d_su": d, "kernel_radius_su": radius}
-    return {**BURLEY_DEFAULTS, "d_su": d, "kernel_radius_su": radius}
+        return {**SSSS_DEFAULTS, "d_su": d}
+    return {**BURLEY_DEFAULTS, "d_su": d}
