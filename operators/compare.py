@@ -1,0 +1,515 @@
+"""Compare each technique with Cycles' random-walk SSS on the user's own scene.
+
+``compare(scene, out_dir)`` renders
+
+- the reference: the scene as it is (its own subsurface method, normally Random Walk), fixed
+  seed, adaptive sampling off (REFERENCES.md section 8), cached by a fingerprint of the scene
+  and the settings so that a second run of an unchanged scene does not render it again;
+- the noise floor: the same reference with another seed, compared with the same metric;
+- peers: Cycles at lower sample counts, and Cycles' own Christensen-Burley method;
+- the passes the techniques need (``render_passes``: SSS rendered as plain diffuse);
+
+then applies every technique at several quality settings with ``core.apply``, and writes the
+report (``core.report``): metrics.json, report.md, report.html, grid.png, pareto.svg.
+
+The scene is left as it was (``SceneState``), also when a step fails.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import struct
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+
+import bpy
+import numpy as np
+
+from ..addon import compat
+from ..core import apply as core_apply
+from ..core import exr, fidelity, mapping, metrics, report
+from ..core.scene import SceneDescription
+from ..core.techniques import TECHNIQUES, check_technique
+from .describe import principled_node, scene_materials, sss_materials
+from .state import SceneState
+
+#: Quality ladders: the keyword arguments each technique is run with, cheapest first.
+DEFAULT_QUALITIES: dict[str, tuple[dict, ...]] = {
+    "sta": ({},),
+    "ssss": ({"n_taps": 11}, {"n_taps": 17}, {"n_taps": 25}),
+    "burley": ({"n_samples": 8}, {"n_samples": 16}, {"n_samples": 32}, {"n_samples": 64}),
+}
+
+
+@dataclass
+class CompareSettings:
+    """What ``compare`` renders and measures. Resolution None keeps the scene's."""
+
+    resolution: tuple[int, int] | None = None
+    reference_samples: int = 256
+    pass_samples: int = 64
+    seed: int = 0
+    peer_samples: tuple[int, ...] = (16, 64)
+    cycles_burley: bool = True
+    box: int = 2
+    techniques: tuple[str, ...] = tuple(TECHNIQUES)
+    qualities: dict = field(default_factory=lambda: dict(DEFAULT_QUALITIES))
+    cache_dir: str | None = None
+
+    def validate(self) -> None:
+        for name in ("reference_samples", "pass_samples", "box"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 1:
+                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
+        if any(not isinstance(s, int) or s < 1 for s in self.peer_samples):
+            raise ValueError(f"peer_samples: expected integers >= 1, got {self.peer_samples!r}")
+        if self.resolution is not None:
+            w, h = self.resolution
+            if not (isinstance(w, int) and isinstance(h, int) and w >= 1 and h >= 1):
+                raise ValueError(f"resolution: expected two integers >= 1 (W, H), got {self.resolution!r}")
+        for t in self.techniques:
+            check_technique(t)
+
+
+# --- The reference cache -------------------------------------------------------------------
+
+
+def _hash_floats(h, values) -> None:
+    h.update(struct.pack(f"<{len(values)}d", *values))
+
+
+def scene_fingerprint(scene) -> str:
+    """A hash of what the rendered image depends on: evaluated geometry, transforms, materials,
+    lights, camera, world and render settings. A change to any of these changes the hash."""
+    h = hashlib.sha256()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    # Instances are only valid while iterating: hash each into its own digest, then combine the
+    # digests in a stable order.
+    parts = []
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.hide_render:
+            continue
+        p = hashlib.sha256()
+        p.update(f"{obj.type}:{obj.name}:{obj.pass_index}".encode())
+        _hash_floats(p, [v for row in inst.matrix_world for v in row])
+        if obj.type == "MESH":
+            mesh = obj.data
+            co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+            mesh.vertices.foreach_get("co", co)
+            p.update(co.tobytes())
+            loops = np.empty(len(mesh.loops), dtype=np.int32)
+            mesh.loops.foreach_get("vertex_index", loops)
+            p.update(loops.tobytes())
+            for attr in mesh.attributes:
+                p.update(f"attr:{attr.name}:{attr.domain}:{attr.data_type}".encode())
+            p.update(",".join(m.name if m else "" for m in mesh.materials).encode())
+        elif obj.type == "LIGHT":
+            d = obj.data
+            p.update(f"{d.type}".encode())
+            _hash_floats(
+                p,
+                [
+                    d.energy,
+                    *d.color,
+                    getattr(d, "shadow_soft_size", 0.0),
+                    getattr(d, "spot_size", 0.0),
+                    getattr(d, "spot_blend", 0.0),
+                    getattr(d, "size", 0.0),
+                    getattr(d, "angle", 0.0),
+                ],
+            )
+        elif obj.type == "CAMERA":
+            d = obj.data
+            p.update(f"{d.type}:{d.sensor_fit}".encode())
+            _hash_floats(
+                p,
+                [
+                    d.lens,
+                    d.sensor_width,
+                    d.sensor_height,
+                    d.ortho_scale,
+                    d.clip_start,
+                    d.clip_end,
+                    d.shift_x,
+                    d.shift_y,
+                ],
+            )
+        parts.append(p.digest())
+    for digest in sorted(parts):
+        h.update(digest)
+    for mat in scene_materials(scene):
+        _hash_node_tree(h, mat.node_tree)
+    if scene.world is not None and scene.world.node_tree is not None:
+        _hash_node_tree(h, scene.world.node_tree)
+    r = scene.render
+    h.update(f"{r.engine}:{r.resolution_x}:{r.resolution_y}:{r.resolution_percentage}:{r.film_transparent}".encode())
+    h.update(f"{scene.camera.name if scene.camera else ''}:{bpy.app.version_string}".encode())
+    return h.hexdigest()
+
+
+def _hash_node_tree(h, tree) -> None:
+    if tree is None:
+        return
+    for node in sorted(tree.nodes, key=lambda n: n.name):
+        h.update(f"node:{node.name}:{node.bl_idname}".encode())
+        for prop in ("subsurface_method", "distribution", "blend_type", "operation", "data_type"):
+            if hasattr(node, prop):
+                h.update(f"{prop}={getattr(node, prop)}".encode())
+        for sock in node.inputs:
+            value = getattr(sock, "default_value", None)
+            if value is None:
+                continue
+            try:
+                floats = [float(v) for v in value] if hasattr(value, "__len__") else [float(value)]
+                _hash_floats(h, floats)
+            except (TypeError, ValueError):
+                h.update(str(value).encode())
+    for link in tree.links:
+        h.update(
+            f"link:{link.from_node.name}.{link.from_socket.identifier}->"
+            f"{link.to_node.name}.{link.to_socket.identifier}".encode()
+        )
+
+
+# --- Rendering -------------------------------------------------------------------------------
+
+
+def _render_combined(scene, *, samples: int, seed: int, resolution, path: str, state: SceneState) -> float:
+    """Render ``scene`` with Cycles to a float32 multilayer EXR at ``path``; returns seconds."""
+    cy = scene.cycles
+    state.set(scene.render, "engine", "CYCLES")
+    state.set(cy, "samples", samples)
+    state.set(cy, "seed", seed)
+    state.set(cy, "use_adaptive_sampling", False)
+    state.set(cy, "use_animated_seed", False)
+    state.set(cy, "use_denoising", False)
+    if resolution is not None:
+        state.set(scene.render, "resolution_x", resolution[0])
+        state.set(scene.render, "resolution_y", resolution[1])
+        state.set(scene.render, "resolution_percentage", 100)
+    start = time.perf_counter()
+    bpy.ops.render.render(scene=scene.name)
+    seconds = time.perf_counter() - start
+    settings = scene.render.image_settings
+    fmt = compat.image_format_state(settings)
+    state.on_restore(lambda: compat.restore_image_format(settings, fmt))
+    compat.set_multilayer_exr(settings)
+    bpy.data.images["Render Result"].save_render(filepath=path, scene=scene)
+    return seconds
+
+
+def _with_method(scene, method: str, state: SceneState) -> None:
+    """Switch every subsurface material's method to ``method`` (restored by ``state``)."""
+    for mat in scene_materials(scene):
+        node = principled_node(mat)
+        if node is not None and node.inputs["Subsurface Weight"].default_value > 0:
+            state.set(node, "subsurface_method", method)
+
+
+def cached_reference(
+    scene, cache_dir: str, *, samples: int, seed: int, resolution, method: str | None, log=print
+) -> tuple[np.ndarray, float, bool]:
+    """The Cycles image for these settings, from the cache when the scene has not changed.
+
+    Returns (RGBA float32 image, render seconds (as measured when it was rendered), from cache).
+    """
+    key = hashlib.sha256(
+        json.dumps([scene_fingerprint(scene), samples, seed, list(resolution or []), method]).encode()
+    ).hexdigest()[:24]
+    path = os.path.join(cache_dir, f"cycles_{key}.exr")
+    meta_path = path[:-4] + ".json"
+    if os.path.isfile(path) and os.path.isfile(meta_path):
+        with open(meta_path, encoding="utf-8") as fh:
+            seconds = json.load(fh)["seconds"]
+        log(f"Cycles {method or 'scene method'} {samples} samples seed {seed}: cached ({os.path.basename(path)})")
+        return exr.read_passes(path)["Combined"], seconds, True
+    os.makedirs(cache_dir, exist_ok=True)
+    log(f"Cycles {method or 'scene method'} {samples} samples seed {seed}: rendering")
+    with SceneState() as state:
+        if method is not None:
+            _with_method(scene, method, state)
+        fd, tmp = tempfile.mkstemp(dir=cache_dir, suffix=".exr")
+        os.close(fd)
+        try:
+            seconds = _render_combined(scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state)
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+    with open(meta_path, "w", encoding="utf-8") as fh:
+        json.dump({"seconds": seconds, "samples": samples, "seed": seed, "method": method}, fh)
+    return exr.read_passes(path)["Combined"], seconds, False
+
+
+# --- The comparison ---------------------------------------------------------------------------
+
+
+def _quality_label(technique: str, quality: dict) -> str:
+    label = TECHNIQUES[technique][2]
+    if not quality:
+        return label
+    return label + " " + ", ".join(f"{k.replace('n_', '')}={v}" for k, v in quality.items())
+
+
+def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log=print) -> dict:
+    """Run the whole comparison and write the report into ``out_dir``; returns the report data.
+
+    Raises ValueError for a scene without a camera or without subsurface materials (nothing to
+    compare). A technique that cannot run on this scene (e.g. a subsurface method the mapping
+    does not know, or STA without a thickness map) is noted in the report, which then says it
+    is incomplete.
+    """
+    from .render_passes import render_passes
+
+    settings = settings or CompareSettings()
+    settings.validate()
+    if scene.camera is None:
+        raise ValueError(f"scene {scene.name!r} has no active camera; set one in Scene Properties > Camera")
+    materials = sss_materials(scene)
+    if not materials:
+        raise ValueError(
+            f"scene {scene.name!r} has no material with subsurface scattering (Subsurface Weight > 0):"
+            " nothing to compare"
+        )
+    os.makedirs(out_dir, exist_ok=True)
+    cache_dir = settings.cache_dir or os.path.join(out_dir, "cache")
+    notes: list[str] = []
+    timings: dict[str, float] = {}
+    res = settings.resolution
+
+    ref, ref_seconds, _ = cached_reference(
+        scene, cache_dir, samples=settings.reference_samples, seed=settings.seed, resolution=res, method=None, log=log
+    )
+    second, _, _ = cached_reference(
+        scene,
+        cache_dir,
+        samples=settings.reference_samples,
+        seed=settings.seed + 1,
+        resolution=res,
+        method=None,
+        log=log,
+    )
+    images: dict[str, np.ndarray] = {}
+    entries: list[dict] = []
+
+    log(f"Passes: {settings.pass_samples} samples, subsurface as plain diffuse")
+    passes_dir = os.path.join(out_dir, "passes")
+    start = time.perf_counter()
+    written = render_passes(
+        scene,
+        passes_dir,
+        techniques=settings.techniques,
+        samples=settings.pass_samples,
+        resolution=res,
+        seed=settings.seed,
+        overwrite=True,
+        log=log,
+    )
+    timings["passes"] = time.perf_counter() - start
+    exr_path = next(p for p in written if p.endswith(".exr"))
+    passes = exr.read_passes(exr_path)
+    desc: SceneDescription = core_apply.load_scene(exr_path)
+    index = np.rint(np.nan_to_num(passes["Material Index"])).astype(np.int64)
+    if index.ndim == 3:
+        index = index[..., 0]
+    mask = np.isin(index, [m.index for m in desc.materials if m.scatters])
+    if ref.shape[:2] != mask.shape:
+        raise ValueError(f"reference {ref.shape[:2]} and passes {mask.shape} differ in size")
+
+    def add(name, kind, image, total, apply_s=None, extra=None):
+        m = metrics.compare_images(image, ref, mask, box=settings.box)
+        entry = {"name": name, "kind": kind, "metrics": m, "time_s": {"total": total, "apply": apply_s}}
+        entry.update(extra or {})
+        entries.append(entry)
+        images[name] = image
+        log(f"  {name}: rel. RMSE {m['rel_rmse']:.4f}, SSIM {m['ssim']:.4f}, {total:.2f} s")
+
+    add("no SSS", "baseline", passes["Combined"], timings["passes"])
+    for technique in settings.techniques:
+        for quality in settings.qualities.get(technique, ({},)):
+            label = _quality_label(technique, quality)
+            try:
+                start = time.perf_counter()
+                layers = core_apply.apply(passes, desc, technique, **quality)
+                apply_s = time.perf_counter() - start
+            except (ValueError, KeyError) as exc:
+                notes.append(f"{label} did not run: {exc}")
+                log(f"  {label}: not run ({exc})")
+                continue
+            if not layers:
+                notes.append(f"{label}: no material scattered on screen")
+                continue
+            image = layers[core_apply.layer_names(technique)[0]]
+            add(
+                label,
+                "technique",
+                image,
+                timings["passes"] + apply_s,
+                apply_s,
+                {"technique": technique, "quality": quality},
+            )
+
+    for samples in settings.peer_samples:
+        if samples >= settings.reference_samples:
+            continue
+        img, secs, _ = cached_reference(
+            scene, cache_dir, samples=samples, seed=settings.seed + 2, resolution=res, method=None, log=log
+        )
+        add(f"Cycles {samples} spp", "cycles", img, secs)
+    if settings.cycles_burley:
+        img, secs, _ = cached_reference(
+            scene,
+            cache_dir,
+            samples=settings.reference_samples,
+            seed=settings.seed + 3,
+            resolution=res,
+            method="BURLEY",
+            log=log,
+        )
+        add(f"Cycles Christensen-Burley {settings.reference_samples} spp", "cycles", img, secs)
+
+    images["Cycles reference"] = ref
+    noise = metrics.compare_images(second, ref, mask, box=settings.box)
+    data = {
+        "scene": {
+            "name": scene.name,
+            "file": bpy.data.filepath,
+            "materials": [asdict(m) for m in desc.materials],
+            "fingerprint": scene_fingerprint(scene),
+        },
+        "settings": {
+            "resolution": list(ref.shape[1::-1]),
+            "reference_samples": settings.reference_samples,
+            "reference_seconds": ref_seconds,
+            "pass_samples": settings.pass_samples,
+            "seed": settings.seed,
+            "box": settings.box,
+            "reference_method": "scene's own subsurface method ("
+            + ", ".join(sorted({m.method for m in materials}))
+            + ")",
+            "blender": bpy.app.version_string,
+        },
+        "noise_floor": noise,
+        "timings": timings,
+        "entries": entries,
+        "fidelity": fidelity.fidelity_table(_main_material(desc), techniques=settings.techniques),
+        "calibration": calibrate(passes, desc, ref, mask, box=settings.box, techniques=settings.techniques),
+        "notes": notes,
+        "complete": not notes,
+    }
+    order = (
+        ["no SSS"]
+        + [e["name"] for e in entries if e["kind"] == "technique"]
+        + [e["name"] for e in entries if e["kind"] == "cycles"]
+        + ["Cycles reference"]
+    )
+    out = report.write_report(out_dir, data, images, reference="Cycles reference", mask=mask, order=order)
+    log(f"Saved: {os.path.join(out_dir, 'report.html')}")
+    return out
+
+
+def _main_material(desc: SceneDescription):
+    """The scattering material the fidelity table is measured with: the one with the widest radius."""
+    return max((m for m in desc.materials if m.scatters), key=lambda m: max(m.radius))
+
+
+def calibrate(passes, desc: SceneDescription, ref, mask, *, box: int, techniques) -> dict:
+    """For each subsurface method in the scene and each scattering technique, the error of
+    every mapping the core offers; the lowest is marked chosen."""
+    rows = []
+    methods = sorted({m.method for m in desc.materials if m.scatters})
+    for method in methods:
+        for technique in [t for t in techniques if t in ("ssss", "burley")]:
+            results = []
+            for name in mapping.MAPPINGS.get(method, ()):
+                try:
+                    layers = core_apply.apply(passes, desc, technique, mapping=name)
+                except (ValueError, KeyError) as exc:
+                    rows.append(
+                        {"method": method, "technique": technique, "mapping": name, "rel_rmse": None, "error": str(exc)}
+                    )
+                    continue
+                if not layers:
+                    continue
+                m = metrics.compare_images(layers[core_apply.layer_names(technique)[0]], ref, mask, box=box)
+                results.append({"method": method, "technique": technique, "mapping": name, "rel_rmse": m["rel_rmse"]})
+            if results:
+                best = min(results, key=lambda r: r["rel_rmse"] if r["rel_rmse"] is not None else np.inf)
+                best["chosen"] = True
+            rows.extend(results)
+    return {
+        "definition": "Each mapping from the Principled BSDF inputs to the technique's parameters (core/mapping.py),"
+        " applied to this scene's passes; relative RMSE against the reference as above.",
+        "rows": rows,
+    }
+
+
+class SSS_LAB_OT_compare(bpy.types.Operator):
+    """Compare each technique with Cycles random walk on this scene and write a report"""
+
+    bl_idname = "sss_lab.compare"
+    bl_label = "Compare with Cycles"
+    bl_options = {"REGISTER"}
+
+    directory: bpy.props.StringProperty(
+        name="Report Folder",
+        description="Folder for the report (metrics.json, report.html, images)",
+        subtype="DIR_PATH",
+        default="//sss_lab_report/",
+    )
+    reference_samples: bpy.props.IntProperty(
+        name="Reference Samples",
+        min=1,
+        default=CompareSettings.reference_samples,
+        description="Cycles samples of the random-walk reference",
+    )
+    pass_samples: bpy.props.IntProperty(
+        name="Pass Samples",
+        min=1,
+        default=CompareSettings.pass_samples,
+        description="Cycles samples of the passes the techniques run on",
+    )
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self)
+
+    def execute(self, context):
+        out_dir = bpy.path.abspath(self.directory)
+        if not out_dir or out_dir.startswith("//"):
+            self.report({"ERROR"}, "Save the .blend file first, or choose an absolute report folder")
+            return {"CANCELLED"}
+        settings = CompareSettings(reference_samples=self.reference_samples, pass_samples=self.pass_samples)
+        wm = context.window_manager
+        steps = iter(range(10_000))
+        wm.progress_begin(0, 100)
+
+        def log(line):
+            print(line)
+            wm.progress_update(min(next(steps), 100))
+
+        try:
+            data = compare(context.scene, out_dir, settings, log=log)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        finally:
+            wm.progress_end()
+        best = [e for e in data["entries"] if e["name"] in data["pareto"] and e["kind"] == "technique"]
+        for e in best:
+            self.report(
+                {"INFO"}, f"{e['name']}: rel. RMSE {e['metrics']['rel_rmse']:.4f}, {e['time_s']['total']:.2f} s"
+            )
+        level = {"INFO"} if data["complete"] else {"WARNING"}
+        self.report(
+            level,
+            f"Report: {os.path.join(out_dir, 'report.html')}"
+            + ("" if data["complete"] else " (incomplete: " + "; ".join(data["notes"]) + ")"),
+        )
+        return {"FINISHED"}
+
+
+classes = (SSS_LAB_OT_compare,)
