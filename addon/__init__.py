@@ -17,6 +17,7 @@ _MODULES = (
     ".operators.render_passes",
     ".operators.apply",
     ".operators.presets",
+    ".operators.compare",
     ".addon.panels",
     ".addon.panel_bake",
 )

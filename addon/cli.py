@@ -18,6 +18,7 @@ COMMANDS = (
     ".cli_apply",
     ".cli_bake",
     ".cli_render",
+    ".cli_compare",
 )
 
 
