@@ -133,3 +133,56 @@ def remove_last_material_slot(obj) -> None:
     obj.active_material_index = len(obj.material_slots) - 1
     with bpy.context.temp_override(object=obj):
         bpy.ops.object.material_slot_remove()
+
+
+# --- Compositor nodes (nodes/ builds its node groups through these) ---------------------------
+
+#: The node type of a node group instance inside a compositor tree.
+COMPOSITOR_GROUP_NODE = "CompositorNodeGroup"
+
+
+def new_convolve(tree, *, color_kernel: bool = True, normalize: bool = False):
+    """A Convolve node set to a per-channel (Color) or single-channel (Float) kernel.
+
+    5.x has the node's options as input sockets: the "Kernel Data Type" menu (a Float kernel
+    image is read as its luminance) and the "Normalize Kernel" switch; the node has one
+    "Kernel" input socket per data type. Returns (node, image input, kernel input, output).
+    """
+    node = tree.nodes.new("CompositorNodeConvolve")
+    node.inputs["Kernel Data Type"].default_value = "Color" if color_kernel else "Float"
+    node.inputs["Normalize Kernel"].default_value = normalize
+    kind = "RGBA" if color_kernel else "VALUE"
+    kernel = next(s for s in node.inputs if s.name == "Kernel" and s.type == kind)
+    return node, node.inputs["Image"], kernel, node.outputs["Image"]
+
+
+def new_menu_switch(tree, data_type: str, items: tuple[str, ...]):
+    """A Menu Switch node with the menu entries ``items`` (5.x compositors have the Menu Switch
+    of geometry nodes). Returns (node, menu input, {item: input socket}, output)."""
+    node = tree.nodes.new("GeometryNodeMenuSwitch")
+    node.data_type = data_type
+    while len(node.enum_items) < len(items):
+        node.enum_items.new(f"item {len(node.enum_items)}")
+    while len(node.enum_items) > len(items):
+        node.enum_items.remove(node.enum_items[-1])
+    for entry, name in zip(node.enum_items, items, strict=True):
+        entry.name = name
+    values = [s for s in node.inputs[1:] if s.type != "CUSTOM"]
+    return node, node.inputs["Menu"], dict(zip(items, values, strict=True)), node.outputs[0]
+
+
+def compositor_result_socket(tree):
+    """The input socket that receives a compositor tree's result, created if missing.
+
+    5.x: the first colour output of the node group (a Group Output node), not a Composite node.
+    """
+    interface = tree.interface
+    outputs = [i for i in interface.items_tree if i.item_type == "SOCKET" and i.in_out == "OUTPUT"]
+    if not any(i.socket_type == "NodeSocketColor" for i in outputs):
+        interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    node = next((n for n in tree.nodes if n.bl_idname == "NodeGroupOutput" and n.is_active_output), None)
+    if node is None:
+        node = next((n for n in tree.nodes if n.bl_idname == "NodeGroupOutput"), None) or tree.nodes.new(
+            "NodeGroupOutput"
+        )
+    return next(s for s in node.inputs if s.type == "RGBA")
