@@ -1,8 +1,9 @@
 """``python -m sss_lab demo``: the main job on the bundled sample scene.
 
-Builds the default sample scene from ``sample_blends/build_scenes.py``, renders the passes the
-techniques need into a multilayer EXR with its scene description beside it, and writes a PNG
-preview. Later steps of the pipeline extend it until it produces the comparison report.
+Builds the default sample scene from ``sample_blends/build_scenes.py`` and runs the comparison
+on it (``operators/compare.py``): the Cycles random-walk reference, the passes the techniques
+need, every technique at several qualities, and the report folder with metrics.json,
+report.md, report.html, the image grid and the error-against-time plot.
 """
 
 from __future__ import annotations
@@ -15,10 +16,13 @@ _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("demo", help="run the main job on the bundled sample scene (needs bpy)")
+    p = subparsers.add_parser(
+        "demo", help="build the sample scene and compare every technique with Cycles random walk (needs bpy)"
+    )
     p.add_argument("--out", default="out", help="output folder (default: out)")
     p.add_argument("--scene", default=None, help="sample scene name (default: the demo scene)")
-    p.add_argument("--samples", type=int, default=32, help="Cycles samples for the passes (default 32)")
+    p.add_argument("--reference-samples", type=int, default=512, help="Cycles samples of the reference (default 512)")
+    p.add_argument("--samples", type=int, default=64, help="Cycles samples of the passes (default 64)")
     p.set_defaults(run=run)
 
 
@@ -38,52 +42,37 @@ def load_sample_scenes():
 def run(args) -> int:
     from .cli import CommandError, require_bpy
 
-    bpy = require_bpy()
-    if args.samples < 1:
-        raise CommandError(f"--samples: expected an integer >= 1, got {args.samples}")
+    require_bpy()
+    for name in ("samples", "reference_samples"):
+        if getattr(args, name) < 1:
+            raise CommandError(f"--{name.replace('_', '-')}: expected an integer >= 1, got {getattr(args, name)}")
     scenes = load_sample_scenes()
     name = args.scene or scenes.DEFAULT_SCENE
     if name not in scenes.SCENES:
         raise CommandError(f"unknown sample scene {name!r}; expected one of: {', '.join(scenes.SCENES)}")
     out = os.path.abspath(os.path.join(args.out, name))
     os.makedirs(out, exist_ok=True)
+    start = time.perf_counter()
     blend = scenes.build(name, os.path.join(out, f"{name}.blend"))
     print(f"Saved: {blend}")
 
-    from ..operators.describe import describe_scene
-    from . import compat
+    import bpy
 
-    scene = bpy.context.scene
-    scene.cycles.samples = args.samples
-    layer = scene.view_layers[0]
-    for prop in (
-        "use_pass_diffuse_direct",
-        "use_pass_diffuse_indirect",
-        "use_pass_diffuse_color",
-        "use_pass_z",
-        "use_pass_normal",
-        "use_pass_position",
-        "use_pass_material_index",
-        "use_pass_object_index",
-    ):
-        setattr(layer, prop, True)
-    start = time.perf_counter()
-    bpy.ops.render.render(write_still=False)
-    seconds = time.perf_counter() - start
-    result = bpy.data.images["Render Result"]
-    exr = os.path.join(out, "passes.exr")
-    compat.set_multilayer_exr(scene.render.image_settings)
-    result.save_render(filepath=exr, scene=scene)
-    print(f"Saved: {exr}")
-    with open(os.path.join(out, "passes.json"), "w", encoding="utf-8") as fh:
-        fh.write(describe_scene(scene, meta={"samples": args.samples}).to_json())
-    print(f"Saved: {os.path.join(out, 'passes.json')}")
-    compat.set_single_image(scene.render.image_settings, "PNG", color_depth="8")
-    png = os.path.join(out, "render.png")
-    result.save_render(filepath=png, scene=scene)
-    print(f"Saved: {png}")
-    print(
-        f"Rendered {name} at {scene.render.resolution_x}x{scene.render.resolution_y}, "
-        f"{args.samples} samples, in {seconds:.1f} s"
-    )
+    from ..operators.compare import CompareSettings, compare
+
+    settings = CompareSettings(reference_samples=args.reference_samples, pass_samples=args.samples)
+    try:
+        data = compare(bpy.context.scene, out, settings)
+    except ValueError as exc:
+        raise CommandError(str(exc)) from None
+    best = [e for e in data["entries"] if e["kind"] == "technique" and e["name"] in data["pareto"]]
+    print(f"Demo done in {time.perf_counter() - start:.0f} s. On {name}, against Cycles random walk:")
+    base = next(e for e in data["entries"] if e["kind"] == "baseline")
+    print(f"  no SSS: relative RMSE {base['metrics']['rel_rmse']:.3f}")
+    for e in best:
+        print(f"  {e['name']}: relative RMSE {e['metrics']['rel_rmse']:.3f}, apply {e['time_s']['apply'] * 1e3:.0f} ms")
+    print(f"Report: {os.path.join(out, 'report.html')} (and report.md, metrics.json)")
+    if not data["complete"]:
+        print("The report is incomplete: " + "; ".join(data["notes"]))
+        return 1
     return 0
