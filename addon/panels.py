@@ -53,6 +53,7 @@ class SSS_LAB_PT_main(bpy.types.Panel):
         layout.operator("sss_lab.render_passes", icon="RENDER_STILL")
         layout.prop(settings, "passes_file")
         layout.operator("sss_lab.apply", icon="IMAGE_DATA")
+        layout.operator("sss_lab.setup_compositor", icon="NODE_COMPOSITING")
         layout.operator("sss_lab.compare", icon="SORTTIME")
 
         layout.separator()

@@ -1,0 +1,213 @@
+"""Wire the technique node groups into a compositor tree, after a node that provides the passes.
+
+``build_chain`` adds one group node per light (STA) or per scattering material (SSSS, Burley),
+chained Image -> Image, with the passes taken by name from a ``source`` node: a Render Layers
+node (``operators/compositor.py``) or an Image node holding a multilayer EXR (the tests, the
+benchmark), whose outputs carry the same pass names. Each node it adds is tagged with the
+custom property ``sss_lab``; ``remove_chain`` removes exactly those and reconnects whatever
+read the chain's result to the chain's input, so the user's own nodes are never deleted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..addon import compat
+from ..core import mapping
+from ..core.scene import SceneDescription
+from ..core.techniques import check_technique
+from .burley import ensure_burley_group
+from .ssss import ensure_ssss_group
+from .sta import ensure_sta_group
+
+#: Custom property on the nodes SSS Lab adds to a compositor tree (its value: the technique).
+NODE_TAG = "sss_lab"
+
+#: Group input -> pass name (Render Layers and multilayer-EXR Image nodes use the same names).
+PASS_INPUTS = {
+    "albedo": "Diffuse Color",
+    "normal": "Normal",
+    "position": "Position",
+    "diffuse": "Diffuse Direct",
+    "diffuse_indirect": "Diffuse Indirect",
+}
+INDEX_PASS = "Material Index"
+
+#: Technique options each group takes as input values (the rest are build parameters).
+_STA_INPUTS = ("distortion", "power", "scale", "ambient")
+_KERNEL_OPTIONS = {
+    "ssss": ("kernel_type", "n_taps", "unit_su", "falloff", "strength"),
+    "burley": (),
+}
+
+
+def group_name(technique: str, material_name: str = "") -> str:
+    """The node group of ``technique`` (SSSS and Burley: one per material, its own kernel)."""
+    label = {"sta": "STA", "ssss": "SSSS", "burley": "Burley"}[check_technique(technique)]
+    return f"SSS Lab {label}" + (f" {material_name}" if material_name and technique != "sta" else "")
+
+
+def _tag(node, technique: str, name: str, location) -> None:
+    node[NODE_TAG] = technique
+    node.name = name
+    node.label = name
+    node.location = location
+
+
+def _tagged(tree) -> list:
+    return [n for n in tree.nodes if NODE_TAG in n.keys()]
+
+
+def _pass(source, name: str):
+    socket = source.outputs.get(name)
+    if socket is None or not socket.enabled:
+        raise ValueError(
+            f"{source.name!r} has no {name!r} output; switch the pass on "
+            "(View Layer Properties > Passes) or render the passes with SSS Lab"
+        )
+    return socket
+
+
+def _mask(tree, source, indices: list[int], technique: str, location):
+    """1 where the Material Index is one of ``indices`` (Compare nodes, summed)."""
+    index = _pass(source, INDEX_PASS)
+    total = None
+    for k, value in enumerate(indices):
+        node = tree.nodes.new("ShaderNodeMath")
+        _tag(node, technique, f"SSS Lab mask {value}", (location[0], location[1] - 120 * k))
+        node.operation = "COMPARE"
+        tree.links.new(index, node.inputs[0])
+        node.inputs[1].default_value = float(value)
+        node.inputs[2].default_value = 0.5
+        if total is None:
+            total = node.outputs[0]
+        else:
+            add = tree.nodes.new("ShaderNodeMath")
+            _tag(add, technique, f"SSS Lab mask sum {value}", (location[0] + 160, location[1] - 120 * k))
+            add.operation = "ADD"
+            tree.links.new(total, add.inputs[0])
+            tree.links.new(node.outputs[0], add.inputs[1])
+            total = add.outputs[0]
+    return total
+
+
+def _set(node, name: str, value) -> None:
+    socket = node.inputs[name]
+    if isinstance(value, (tuple, list, np.ndarray)):
+        v = tuple(float(x) for x in value)
+        n = len(socket.default_value)
+        socket.default_value = (v + (1.0,) * n)[:n]
+    else:
+        socket.default_value = value
+
+
+def build_chain(
+    tree,
+    source,
+    *,
+    image,
+    technique: str,
+    scene: SceneDescription,
+    options: Mapping | None = None,
+    pixels_per_unit: Mapping[int, float] | None = None,
+    location=(400.0, 0.0),
+) -> tuple[object, list[str]]:
+    """Add ``technique``'s group nodes to ``tree``; returns (the result's output socket, notes).
+
+    ``image``: the output socket the SSS is composited onto (Render Layers "Image", or an EXR's
+    "Combined"); ``source``: the node whose outputs hold the passes. ``scene``: the scene
+    description (camera, lights, the subsurface materials with their pass indices).
+    ``options``: technique parameters under ``core``'s names (STA: distortion, power, scale,
+    ambient; SSSS: kernel_type, n_taps, ...; all: albedo_mode); missing ones keep the defaults.
+    ``pixels_per_unit``: material index -> the kernel's fixed screen scale (SSSS, Burley).
+    Notes say what was left out and why (no lights, no screen scale for a material...).
+    """
+    check_technique(technique)
+    options = dict(options or {})
+    notes: list[str] = []
+    materials = [m for m in scene.materials if m.scatters]
+    x, y = location
+    current = image
+    if not materials:
+        notes.append("no subsurface material in the scene description: nothing to add")
+        return current, notes
+    if technique == "sta":
+        group = ensure_sta_group()
+        mask = _mask(tree, source, [m.index for m in materials], technique, (x, y - 300))
+        lights = [light for light in scene.lights if light.energy > 0]
+        if not lights:
+            notes.append("STA: the scene has no light with energy > 0: nothing to add")
+        cam = scene.camera
+        for k, light in enumerate(lights):
+            node = tree.nodes.new(compat.COMPOSITOR_GROUP_NODE)
+            node.node_tree = group
+            _tag(node, technique, f"SSS Lab STA {light.name or k}", (x + 350 + 260 * k, y))
+            tree.links.new(current, node.inputs["Image"])
+            for name in ("albedo", "normal", "position"):
+                tree.links.new(_pass(source, PASS_INPUTS[name]), node.inputs[name])
+            tree.links.new(_pass(source, scene.thickness_aov), node.inputs["thickness"])
+            tree.links.new(mask, node.inputs["mask"])
+            for name in _STA_INPUTS:
+                if name in options:
+                    _set(node, name, float(options[name]))
+            node.inputs["thickness_convention"].default_value = scene.thickness_convention
+            node.inputs["light_type"].default_value = light.type
+            _set(node, "light_direction", light.direction)
+            _set(node, "light_position", light.position)
+            _set(node, "light_color", light.color)
+            _set(node, "light_energy", float(light.energy))
+            _set(node, "light_spot_size", float(light.spot_size))
+            _set(node, "light_spot_blend", float(light.spot_blend))
+            node.inputs["camera_type"].default_value = cam.type
+            _set(node, "camera_position", cam.position)
+            _set(node, "camera_forward", cam.forward)
+            current = node.outputs["Image"]
+        return current, notes
+
+    scale = dict(pixels_per_unit or {})
+    kernel_options = {k: options[k] for k in _KERNEL_OPTIONS[technique] if options.get(k) is not None}
+    for k, material in enumerate(materials):
+        if material.index not in scale:
+            notes.append(f"{material.name}: no screen scale (no visible object in front of the camera): left out")
+            continue
+        d_su = mapping.burley_d(material, mapping=options.get("mapping"))
+        name = group_name(technique, material.name)
+        if technique == "ssss":
+            group = ensure_ssss_group(name=name, pixels_per_unit=scale[material.index], d_su=d_su, **kernel_options)
+        else:
+            group = ensure_burley_group(name=name, pixels_per_unit=scale[material.index], d_su=d_su)
+        node = tree.nodes.new(compat.COMPOSITOR_GROUP_NODE)
+        node.node_tree = group
+        _tag(node, technique, name, (x + 350 + 260 * k, y))
+        tree.links.new(current, node.inputs["Image"])
+        for name_in in ("diffuse", "diffuse_indirect", "albedo"):
+            tree.links.new(_pass(source, PASS_INPUTS[name_in]), node.inputs[name_in])
+        mask = _mask(tree, source, [material.index], technique, (x + 350 + 260 * k, y - 300))
+        tree.links.new(mask, node.inputs["mask"])
+        node.inputs["albedo_mode"].default_value = options.get("albedo_mode", "post")
+        current = node.outputs["Image"]
+    return current, notes
+
+
+def remove_chain(tree) -> int:
+    """Remove the nodes ``build_chain`` added to ``tree`` and reconnect what read the chain's
+    result to the chain's input. Returns the number of nodes removed."""
+    ours = _tagged(tree)
+    if not ours:
+        return 0
+    names = {n.name for n in ours}
+    source = None
+    for node in ours:
+        socket = node.inputs.get("Image")
+        if socket is not None and socket.is_linked and socket.links[0].from_node.name not in names:
+            source = socket.links[0].from_socket
+            break
+    readers = [link.to_socket for link in tree.links if link.from_node.name in names and link.to_node.name not in names]
+    for node in ours:
+        tree.nodes.remove(node)
+    if source is not None:
+        for socket in readers:
+            tree.links.new(source, socket)
+    return len(ours)

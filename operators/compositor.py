@@ -1,0 +1,251 @@
+"""Set up the scene's compositor with a technique's node groups, reading from Render Layers.
+
+``setup_compositor(scene, technique)`` is the plain function; ``bpy.ops.sss_lab.setup_compositor``
+wraps it for the panel (technique, parameters and albedo mode from ``scene.sss_lab``). What it
+changes, on purpose and for good (it is a set-up, undoable with Ctrl+Z, not a temporary change):
+
+- the scene gets a compositor node group if it has none (5.x: ``scene.compositing_node_group``);
+- a Render Layers node for the view layer is reused, or added; the technique's group nodes are
+  inserted after its Image output: whatever read that output now reads the result (with a new
+  tree, the tree's output). Nodes added by an earlier set-up are removed first (and only those:
+  they carry the ``sss_lab`` custom property), so running it twice adds nothing twice;
+- the view layer gets the passes the groups read (Diffuse Direct/Indirect/Color, Material
+  Index; STA: Normal, Position and the thickness AOV), and each subsurface material gets the
+  Pass Index the scene description gives it (1, 2, ... in name order), so that its mask is its
+  Material Index, as with ``render_passes``.
+
+Not changed: the materials' subsurface settings. Cycles puts its own subsurface light into the
+Diffuse passes, so a material rendered with Subsurface Weight > 0 would be scattered twice; the
+function warns about those (render them with Subsurface Weight 0 for the compositor techniques).
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from ..addon import compat
+from ..core.techniques import TECHNIQUES, check_technique
+from ..nodes import setup as chain
+from .describe import describe_scene, principled_node, sss_materials
+from .render_passes import PASS_FLAGS, thickness_aov_name, thickness_setup
+
+#: Passes each technique's groups read (the masks need the Material Index).
+COMPOSITOR_PASSES = {
+    "sta": ("Diffuse Color", "Normal", "Position", "Material Index"),
+    "ssss": ("Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Material Index"),
+    "burley": ("Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Material Index"),
+}
+
+
+def _world_corners(obj) -> np.ndarray:
+    m = np.array(obj.matrix_world, dtype=np.float64)
+    c = np.array([tuple(v) for v in obj.bound_box], dtype=np.float64)
+    return c @ m[:3, :3].T + m[:3, 3]
+
+
+def material_depths(scene, camera) -> dict[str, float]:
+    """Material name -> planar view depth of the objects using it (median of their bounding-box
+    centres; only objects in front of the camera)."""
+    forward = camera.forward
+    origin = camera.position
+    depths: dict[str, list[float]] = {}
+    for obj in scene.objects:
+        if obj.type != "MESH" or obj.hide_render:
+            continue
+        z = float((_world_corners(obj).mean(axis=0) - origin) @ forward)
+        if z <= 0:
+            continue
+        for slot in obj.material_slots:
+            if slot.material is not None:
+                depths.setdefault(slot.material.name, []).append(z)
+    return {name: float(np.median(zs)) for name, zs in depths.items()}
+
+
+def _render_layers(tree, scene, layer):
+    for node in tree.nodes:
+        if node.bl_idname == "CompositorNodeRLayers" and node.layer == layer.name:
+            if node.scene in (None, scene):
+                return node
+    node = tree.nodes.new("CompositorNodeRLayers")
+    node.scene = scene
+    node.layer = layer.name
+    node.location = (-300.0, 0.0)
+    return node
+
+
+def _enable_passes(layer, names, aov_name: str | None) -> list[str]:
+    enabled = []
+    for name in names:
+        flag = PASS_FLAGS[name]
+        if not getattr(layer, flag):
+            setattr(layer, flag, True)
+            enabled.append(name)
+    if aov_name and layer.aovs.get(aov_name) is None:
+        aov = layer.aovs.add()
+        aov.name, aov.type = aov_name, "VALUE"
+        enabled.append(f"AOV {aov_name}")
+    return enabled
+
+
+def _set_pass_indices(materials) -> tuple[list[str], list[str]]:
+    """Pass Index = the description's index for each subsurface material; (changed, warnings)."""
+    changed, warnings = [], []
+    wanted = {m.name: m.index for m in materials}
+    for mat in bpy.data.materials:
+        if mat.name in wanted:
+            if mat.pass_index != wanted[mat.name]:
+                if not mat.is_editable:
+                    warnings.append(f"{mat.name}: linked from a library, its Pass Index cannot be set")
+                    continue
+                mat.pass_index = wanted[mat.name]
+                changed.append(f"{mat.name}={wanted[mat.name]}")
+        elif mat.users and mat.pass_index in wanted.values():
+            warnings.append(
+                f"{mat.name} has Pass Index {mat.pass_index}, which is also a subsurface material's: "
+                "its pixels get that material's SSS"
+            )
+    return changed, warnings
+
+
+def setup_compositor(scene, technique: str, *, options: dict | None = None, view_layer=None) -> dict:
+    """Insert ``technique``'s node groups into ``scene``'s compositor; returns a report dict
+    (technique, groups, nodes, passes_enabled, pass_indices, notes, warnings).
+
+    ``options``: technique parameters under ``core``'s names (and ``albedo_mode``).
+    Raises ValueError (no camera, no subsurface material) with a clear message.
+    """
+    check_technique(technique)
+    layer = view_layer or bpy.context.view_layer
+    if layer is None or layer.name not in scene.view_layers:
+        layer = scene.view_layers[0]
+    if scene.render.engine != "CYCLES":
+        raise ValueError(
+            f"the compositor groups read Cycles passes (Material Index, Diffuse Direct/Indirect); scene "
+            f"{scene.name!r} renders with {scene.render.engine}: set Render Engine to Cycles"
+        )
+    materials = sss_materials(scene)
+    if not materials:
+        raise ValueError(
+            f"scene {scene.name!r} has no material with subsurface scattering (Subsurface Weight, Radius and "
+            "Scale > 0 on a Principled BSDF): nothing to set up"
+        )
+    warnings = []
+    extra = {}
+    aov = None
+    if technique == "sta":
+        aov = thickness_aov_name(scene)
+        convention, missing = thickness_setup(scene, materials, aov)
+        extra = {"thickness_aov": aov, "thickness_convention": convention}
+        warnings += [f"{name}: no thickness map feeds the AOV {aov!r}; its thickness reads 0" for name in missing]
+    desc = describe_scene(scene, materials, **extra)
+    changed, index_warnings = _set_pass_indices(materials)
+    warnings += index_warnings
+    enabled = _enable_passes(layer, COMPOSITOR_PASSES[technique], aov)
+    for m in materials:
+        node = principled_node(bpy.data.materials.get(m.name))
+        weight = node.inputs.get("Subsurface Weight") if node is not None else None
+        if weight is not None and (weight.is_linked or weight.default_value > 0):
+            warnings.append(
+                f"{m.name}: Subsurface Weight > 0, so Cycles' own subsurface light is in the Diffuse passes and "
+                "would be scattered twice; render it with Subsurface Weight 0 for the compositor"
+            )
+    scale = {}
+    if technique != "sta":
+        depths = material_depths(scene, desc.camera)
+        for m in materials:
+            if m.name in depths:
+                z = np.array([[depths[m.name]]], np.float32)
+                scale[m.index] = float(desc.camera.pixels_per_unit(z)[0, 0])
+
+    tree = compat.compositor_tree(scene, create=True)
+    result = compat.compositor_result_socket(tree)
+    removed = chain.remove_chain(tree)
+    rl = _render_layers(tree, scene, layer)
+    image = rl.outputs["Image"]
+    readers = [link.to_socket for link in tree.links if link.from_socket == image]
+    if not readers and not result.is_linked:
+        readers = [result]
+    for link in [lk for lk in tree.links if lk.from_socket == image]:
+        tree.links.remove(link)
+    location = (rl.location[0] + 300.0, rl.location[1])
+    output, notes = chain.build_chain(
+        tree,
+        rl,
+        image=image,
+        technique=technique,
+        scene=desc,
+        options=options,
+        pixels_per_unit=scale,
+        location=location,
+    )
+    for socket in readers:
+        tree.links.new(output, socket)
+    added = [n.name for n in tree.nodes if chain.NODE_TAG in n.keys()]
+    groups = sorted({n.node_tree.name for n in tree.nodes if n.name in added and getattr(n, "node_tree", None)})
+    return {
+        "technique": technique,
+        "tree": tree.name,
+        "groups": groups,
+        "nodes": added,
+        "removed": removed,
+        "passes_enabled": enabled,
+        "pass_indices": changed,
+        "pixels_per_unit": {m.name: scale[m.index] for m in materials if m.index in scale},
+        "notes": notes,
+        "warnings": warnings,
+    }
+
+
+_TECHNIQUE_ITEMS = [("PANEL", "From Panel", "The technique chosen in the SSS Lab panel")] + [
+    (name, label, desc) for name, (_, _, label, desc) in TECHNIQUES.items()
+]
+
+
+class SSS_LAB_OT_setup_compositor(bpy.types.Operator):
+    """Insert the technique's compositor node groups after Render Layers (the user's nodes are kept;
+    running it again replaces only SSS Lab's nodes)"""
+
+    bl_idname = "sss_lab.setup_compositor"
+    bl_label = "Set Up Compositor"
+    bl_options = {"REGISTER", "UNDO"}
+
+    technique: bpy.props.EnumProperty(name="Technique", items=_TECHNIQUE_ITEMS, default="PANEL", options={"SKIP_SAVE"})
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def execute(self, context):
+        scene = context.scene
+        settings = getattr(scene, "sss_lab", None)
+        technique = self.technique
+        if technique == "PANEL":
+            technique = settings.technique if settings is not None else "burley"
+        options = {}
+        if settings is not None:
+            options = dict(settings.technique_options(technique))
+            options["albedo_mode"] = settings.albedo_mode
+        try:
+            report = setup_compositor(scene, technique, options=options, view_layer=context.view_layer)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        for line in report["warnings"]:
+            self.report({"WARNING"}, line)
+        for line in report["notes"]:
+            self.report({"INFO"}, line)
+        extra = []
+        if report["passes_enabled"]:
+            extra.append("passes on: " + ", ".join(report["passes_enabled"]))
+        if report["pass_indices"]:
+            extra.append("pass indices: " + ", ".join(report["pass_indices"]))
+        self.report(
+            {"INFO"},
+            f"{technique}: {len(report['nodes'])} node(s) in {report['tree']!r} ({', '.join(report['groups'])})"
+            + (f"; {'; '.join(extra)}" if extra else ""),
+        )
+        return {"FINISHED"}
+
+
+classes = (SSS_LAB_OT_setup_compositor,)
