@@ -44,6 +44,10 @@ DEFAULT_QUALITIES: dict[str, tuple[dict, ...]] = {
 }
 
 
+#: STA scales s_T the calibration tries (STA_DEFAULTS uses 1).
+STA_SCALES = (0.25, 0.5, 1.0, 2.0, 4.0)
+
+
 @dataclass
 class CompareSettings:
     """What ``compare`` renders and measures. Resolution None keeps the scene's."""
@@ -396,7 +400,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         "noise_floor": noise,
         "timings": timings,
         "entries": entries,
-        "fidelity": fidelity.fidelity_table(_main_material(desc), techniques=settings.techniques),
+        "fidelity": _fidelity(desc, settings.techniques, notes),
         "calibration": calibrate(passes, desc, ref, mask, box=settings.box, techniques=settings.techniques),
         "notes": notes,
         "complete": not notes,
@@ -410,6 +414,14 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     out = report.write_report(out_dir, data, images, reference="Cycles reference", mask=mask, order=order)
     log(f"Saved: {os.path.join(out_dir, 'report.html')}")
     return out
+
+
+def _fidelity(desc: SceneDescription, techniques, notes: list) -> dict | None:
+    try:
+        return fidelity.fidelity_table(_main_material(desc), techniques=techniques)
+    except ValueError as exc:
+        notes.append(f"fidelity table not measured: {exc}")
+        return None
 
 
 def _main_material(desc: SceneDescription):
@@ -441,9 +453,27 @@ def calibrate(passes, desc: SceneDescription, ref, mask, *, box: int, techniques
                 best = min(results, key=lambda r: r["rel_rmse"] if r["rel_rmse"] is not None else np.inf)
                 best["chosen"] = True
             rows.extend(results)
+    if "sta" in techniques:
+        # STA has no physical scale (core/mapping.py): its scale s_T is what there is to calibrate.
+        results = []
+        for scale in STA_SCALES:
+            try:
+                layers = core_apply.apply(passes, desc, "sta", scale=scale)
+            except (ValueError, KeyError) as exc:
+                rows.append({"method": "any", "technique": "sta", "mapping": f"scale={scale:g}", "error": str(exc)})
+                continue
+            if not layers:
+                continue
+            m = metrics.compare_images(layers[core_apply.layer_names("sta")[0]], ref, mask, box=box)
+            results.append(
+                {"method": "any", "technique": "sta", "mapping": f"scale={scale:g}", "rel_rmse": m["rel_rmse"]}
+            )
+        if results:
+            min(results, key=lambda r: r["rel_rmse"])["chosen"] = True
+        rows.extend(results)
     return {
         "definition": "Each mapping from the Principled BSDF inputs to the technique's parameters (core/mapping.py),"
-        " applied to this scene's passes; relative RMSE against the reference as above.",
+        " applied to this scene's passes, and STA's scale s_T; relative RMSE against the reference as above.",
         "rows": rows,
     }
 

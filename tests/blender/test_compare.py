@@ -1,0 +1,198 @@
+"""Ground truth: each technique against Cycles random walk on the sample scenes (marked slow,
+run in CI), the reference cache, the report's numbers, and bad input.
+
+Settings are small so that CI stays fast: 96 x 96 pixels, a 128-sample reference (seed 0), passes
+at 16 samples, one quality per technique, no Cycles peers.
+
+Margins: a technique meant for a scene must cut the no-SSS image's relative RMSE (over the
+subsurface pixels, 2 x 2 box-downsampled) to at most ``MARGIN`` of it. The reference itself is
+noisy: its noise floor (the same render with another seed, reported as ``noise_floor``) is about
+0.05 to 0.08 relative RMSE at these settings, and it is in both errors alike, so a technique
+can never reach 0; the margins below leave room for that floor while still demanding that the
+technique remove a clear share of the error the missing SSS causes. The figures behind them
+are in the comparison report of each scene (README, "Comparison").
+"""
+
+import json
+import os
+import re
+
+import bpy
+import pytest
+
+from sss_lab.addon.cli_demo import load_sample_scenes
+from sss_lab.core import mapping
+from sss_lab.operators import compare as compare_mod
+from sss_lab.operators.compare import CompareSettings, cached_reference, compare
+
+pytestmark = pytest.mark.slow
+
+QUALITIES = {"sta": ({},), "ssss": ({"n_taps": 17},), "burley": ({"n_samples": 32},)}
+# (scene, technique, margin): the techniques each scene is meant for.
+CASES = (
+    ("head_frontlit", "ssss", 0.8),
+    ("head_frontlit", "burley", 0.8),
+    ("wax_marble", "ssss", 0.8),
+    ("wax_marble", "burley", 0.8),
+    ("backlit_thin", "sta", 0.6),
+    ("depth_leak", "ssss", 0.9),
+    ("depth_leak", "burley", 0.9),
+)
+
+
+def _settings(**kw):
+    base = dict(
+        resolution=(96, 96),
+        reference_samples=128,
+        pass_samples=16,
+        peer_samples=(),
+        cycles_burley=False,
+        qualities=QUALITIES,
+    )
+    base.update(kw)
+    return CompareSettings(**base)
+
+
+@pytest.fixture(scope="module")
+def blends(tmp_path_factory):
+    """The sample scenes, built once for the module (the build bakes thickness)."""
+    folder = tmp_path_factory.mktemp("scenes")
+    scenes = load_sample_scenes()
+    out = {}
+    for name in sorted({c[0] for c in CASES}):
+        out[name] = scenes.build(name, str(folder / f"{name}.blend"))
+    return out
+
+
+def _open(path):
+    bpy.ops.wm.open_mainfile(filepath=path)
+    return bpy.context.scene
+
+
+@pytest.fixture(scope="module")
+def reports(blends, tmp_path_factory):
+    """One comparison per scene with the techniques its cases name."""
+    folder = tmp_path_factory.mktemp("reports")
+    out = {}
+    for name, path in blends.items():
+        techniques = tuple(sorted({t for s, t, _ in CASES if s == name}))
+        scene = _open(path)
+        out[name] = compare(scene, str(folder / name), _settings(techniques=techniques), log=None or (lambda s: None))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return out, folder
+
+
+@pytest.mark.parametrize(("scene", "technique", "margin"), CASES)
+def test_technique_beats_no_sss_on_its_scene(reports, scene, technique, margin):
+    data = reports[0][scene]
+    assert data["complete"], data["notes"]
+    by_name = {e["name"]: e for e in data["entries"]}
+    base = by_name["no SSS"]["metrics"]["rel_rmse"]
+    entry = next(e for e in data["entries"] if e.get("technique") == technique)
+    err = entry["metrics"]["rel_rmse"]
+    noise = data["noise_floor"]["rel_rmse"]
+    print(f"{scene} {technique}: rel. RMSE {err:.4f} vs no SSS {base:.4f} (noise floor {noise:.4f})")
+    assert err <= margin * base
+
+
+def test_report_numbers_are_the_json_numbers(reports):
+    folder = reports[1]
+    for name in reports[0]:
+        with open(os.path.join(folder, name, "metrics.json"), encoding="utf-8") as fh:
+            data = json.load(fh)
+        with open(os.path.join(folder, name, "report.md"), encoding="utf-8") as fh:
+            md = fh.read()
+        html = open(os.path.join(folder, name, "report.html"), encoding="utf-8").read()
+        for entry in data["entries"]:
+            row = re.search(
+                r"^\| " + re.escape(entry["name"]) + r" \| [^|]+ \| ([^|]+) \| ([^|]+) \| ([^|]+) \|", md, re.M
+            )
+            assert row, entry["name"]
+            shown = [float(v) for v in row.groups()]
+            expected = [entry["metrics"][k] for k in ("rel_rmse", "rmse", "ssim")]
+            for s, e in zip(shown, expected, strict=True):
+                assert s == pytest.approx(e, rel=5e-4)  # the table shows 4 significant digits
+            assert entry["name"] in html
+        for f in ("grid.png", "pareto.svg"):
+            assert os.path.getsize(os.path.join(folder, name, f)) > 0
+
+
+def test_reference_cache_is_reused_and_invalidated_when_the_scene_changes(blends, tmp_path):
+    scene = _open(blends["head_frontlit"])
+    kw = dict(samples=4, seed=0, resolution=(32, 32), method=None, log=lambda s: None)
+    first, _, cached = cached_reference(scene, str(tmp_path), **kw)
+    assert not cached
+    again, _, cached = cached_reference(scene, str(tmp_path), **kw)
+    assert cached and (again == first).all()
+    light = next(o for o in scene.objects if o.type == "LIGHT")
+    light.data.energy *= 2
+    _, _, cached = cached_reference(scene, str(tmp_path), **kw)
+    assert not cached  # a changed light is a new reference
+    light.data.energy /= 2
+    _, _, cached = cached_reference(scene, str(tmp_path), **kw)
+    assert cached  # back as it was: the first one again
+    _, _, cached = cached_reference(scene, str(tmp_path), **{**kw, "samples": 5})
+    assert not cached  # other settings, another reference
+
+
+def _snapshot(scene):
+    mats = {}
+    for mat in bpy.data.materials:
+        if mat.node_tree is None:
+            continue
+        for node in mat.node_tree.nodes:
+            if node.bl_idname == "ShaderNodeBsdfPrincipled":
+                mats[mat.name] = (
+                    node.subsurface_method,
+                    node.inputs["Subsurface Weight"].default_value,
+                    mat.pass_index,
+                )
+    r, c = scene.render, scene.cycles
+    return (
+        mats,
+        r.resolution_x,
+        r.resolution_y,
+        r.resolution_percentage,
+        r.image_settings.file_format,
+        r.image_settings.color_depth,
+        c.samples,
+        c.seed,
+        c.use_adaptive_sampling,
+        tuple(o.pass_index for o in scene.objects),
+    )
+
+
+def test_scene_is_unchanged_and_bad_input_is_refused(blends, tmp_path, monkeypatch):
+    scene = _open(blends["head_frontlit"])
+    before = _snapshot(scene)
+    # A subsurface method the mapping does not know: the techniques are noted, the report says
+    # it is incomplete (and the scene is left as it was).
+    monkeypatch.setattr(mapping, "MAPPINGS", {k: v for k, v in mapping.MAPPINGS.items() if k != "RANDOM_WALK"})
+    data = compare(
+        scene,
+        str(tmp_path / "unknown"),
+        _settings(resolution=(32, 32), reference_samples=4, pass_samples=2, techniques=("burley",)),
+        log=lambda s: None,
+    )
+    assert not data["complete"]
+    assert any("RANDOM_WALK" in n for n in data["notes"])
+    with open(tmp_path / "unknown" / "metrics.json", encoding="utf-8") as fh:
+        assert json.load(fh)["complete"] is False
+    monkeypatch.undo()
+    assert _snapshot(scene) == before
+    # No camera.
+    cam = scene.camera
+    scene.camera = None
+    with pytest.raises(ValueError, match="no active camera"):
+        compare(scene, str(tmp_path / "nocam"), _settings())
+    scene.camera = cam
+    # No subsurface material.
+    for mat in bpy.data.materials:
+        if mat.node_tree is not None:
+            for node in mat.node_tree.nodes:
+                if node.bl_idname == "ShaderNodeBsdfPrincipled":
+                    node.inputs["Subsurface Weight"].default_value = 0.0
+    with pytest.raises(ValueError, match="no material with subsurface scattering"):
+        compare(scene, str(tmp_path / "nosss"), _settings())
+    assert not os.path.exists(tmp_path / "nosss" / "metrics.json")
+    assert compare_mod.CompareSettings  # the module's public entry points are importable
