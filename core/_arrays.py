@@ -87,6 +87,29 @@ def rgb_lengths(value, name: str) -> np.ndarray:
     return a
 
 
+#: One pixel's three float32 channels as a single 12-byte item: gathering (N,) items is several
+#: times faster than gathering N rows of a (HW, 3) array with 2-D fancy indexing.
+RGB_ITEM = np.dtype((np.void, 12))
+
+
+def pixel_rows(a: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float32 as (H*W,) 12-byte items; a view when ``a`` is C-contiguous."""
+    return np.ascontiguousarray(a, dtype=np.float32).reshape(-1, 3).view(RGB_ITEM).ravel()
+
+
+def block_selection(idx: np.ndarray, start: int, stop: int):
+    """``idx[start:stop]`` (sorted flat pixel indices) as a slice when they are consecutive."""
+    first, last = int(idx[start]), int(idx[stop - 1])
+    if last - first == stop - start - 1:
+        return slice(first, last + 1)
+    return idx[start:stop]
+
+
+def as_rows(items: np.ndarray) -> np.ndarray:
+    """(N,) 12-byte items (``pixel_rows``) as a float32 (N, 3) view."""
+    return items.view(np.float32).reshape(-1, 3)
+
+
 _WORKERS = max(1, min(4, os.cpu_count() or 1))
 _POOL: ThreadPoolExecutor | None = None
 

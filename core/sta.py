@@ -38,8 +38,12 @@ _EPS = np.float32(1e-6)
 
 def _norm(x, y, z):
     """Normalize planar vectors (rows x, y, z); returns (x, y, z, length)."""
-    length = np.sqrt(x * x + y * y + z * z)
-    inv = np.float32(1.0) / np.maximum(length, np.float32(1e-30))
+    length = x * x
+    length += y * y
+    length += z * z
+    np.sqrt(length, out=length)
+    inv = np.maximum(length, np.float32(1e-30))
+    np.divide(np.float32(1.0), inv, out=inv)
     return x * inv, y * inv, z * inv, length
 
 
@@ -50,12 +54,11 @@ def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
 
 def light_at(light: Light, px, py, pz):
     """(unit vector towards the light as planar rows lx, ly, lz; irradiance E_L) at world
-    positions given as planar rows (px, py, pz)."""
+    positions given as planar rows (px, py, pz). A sun gives float32 scalars (the same everywhere)."""
     f32 = np.float32
     if light.type == "SUN":
         d = (-light.direction).astype(f32)
-        ones = np.ones_like(px)
-        return d[0] * ones, d[1] * ones, d[2] * ones, np.full(px.shape, light.energy, f32)
+        return d[0], d[1], d[2], f32(light.energy)
     c = light.position.astype(f32)
     lx, ly, lz, dist = _norm(c[0] - px, c[1] - py, c[2] - pz)
     r2 = np.maximum(dist * dist, f32(1e-12))
@@ -79,7 +82,7 @@ def light_at(light: Light, px, py, pz):
 
 
 #: Pixels per block: the planar rows of a block stay in the cache.
-_BLOCK = 1 << 15
+_BLOCK = 1 << 14
 
 
 def sta(
@@ -134,9 +137,9 @@ def sta(
     lights = [light for light in lights if light.energy > 0]
     if not m.any() or not lights:
         return out
-    flat = {name: arr.reshape(-1, 3) for name, arr in (("a", a), ("n", n), ("p", p))}
-    flat_t = t.ravel()
-    flat_out = out.reshape(-1, 3)
+    rows = {name: _arrays.pixel_rows(arr) for name, arr in (("a", a), ("n", n), ("p", p))}
+    flat_t = np.ascontiguousarray(t).ravel()
+    out_rows = _arrays.pixel_rows(out)
     idx = np.flatnonzero(m)
     colors = [np.asarray(light.color, np.float32) for light in lights]
     f32 = np.float32
@@ -144,34 +147,97 @@ def sta(
         view_dir, cam_pos = (-camera.forward).astype(f32), None
     else:
         view_dir, cam_pos = None, camera.position.astype(f32)
+    d_t = f32(distortion)
+    one_over_pi = f32(1.0 / math.pi)
 
     def run(start, stop):
-        i = idx[start:stop]
-        ax, ay, az = np.ascontiguousarray(flat["a"][i].T)
-        nx, ny, nz = np.ascontiguousarray(flat["n"][i].T)
-        px, py, pz = np.ascontiguousarray(flat["p"][i].T)
-        tt = flat_t[i]
-        ok = np.isfinite(ax + ay + az + nx + ny + nz + px + py + pz + tt)
-        tt = np.clip(np.where(ok, tt, f32(0.0)), 0.0, 1.0)
+        # A block of consecutive pixels (the full-screen case) is read and written as slices.
+        sel = _arrays.block_selection(idx, start, stop)
+        # (B, 3) rows and strided (3, B) views of them: read-only (a slice is the caller's array).
+        albedo_rows = _arrays.as_rows(rows["a"][sel])
+        nx, ny, nz = _arrays.as_rows(rows["n"][sel]).T
+        px, py, pz = _arrays.as_rows(rows["p"][sel]).T
+        tt = flat_t[sel]
+        ok = albedo_rows[:, 0] + albedo_rows[:, 1]
+        for v in (albedo_rows[:, 2], nx, ny, nz, px, py, pz, tt):
+            ok += v
+        ok = np.isfinite(ok)
+        all_ok = bool(ok.all())
+        if not all_ok:
+            tt = np.where(ok, tt, f32(0.0))
+        tt = np.clip(tt, f32(0.0), f32(1.0))
         if thickness_convention == "thickness":
-            tt = np.where(ok, 1.0 - tt, f32(0.0))
+            tt = f32(1.0) - tt
+            if not all_ok:
+                tt[~ok] = 0.0
         nx, ny, nz, _ = _norm(nx, ny, nz)
         if cam_pos is None:
             vx, vy, vz = (view_dir[k] for k in range(3))
         else:
             vx, vy, vz, _ = _norm(cam_pos[0] - px, cam_pos[1] - py, cam_pos[2] - pz)
-        total = np.zeros((3, i.size), f32)
+        # Lights of equal R, G, B (white ones, say) share one accumulator; coloured ones one per channel.
+        grey = coloured = None
         for light, color in zip(lights, colors, strict=True):
             lx, ly, lz, irradiance = light_at(light, px, py, pz)
-            tx, ty, tz, length = _norm(lx + f32(distortion) * nx, ly + f32(distortion) * ny, lz + f32(distortion) * nz)
-            vdot = -(vx * tx + vy * ty + vz * tz)
-            # max(0, x)^p with p = 0 giving 1 only where x > 0; a vanished L + d_T N gives nothing.
-            lobe = np.where((vdot > 0) & (length > _EPS), np.maximum(vdot, 0.0) ** f32(power), f32(0.0))
-            term = irradiance * f32(1.0 / math.pi) * tt * (f32(scale) * lobe + f32(ambient))
-            total += color[:, None] * term[None, :]
-        res = np.stack([ax, ay, az]) * total
-        res[:, ~ok] = 0.0
-        flat_out[i] = res.T
+            ux = d_t * nx
+            ux += lx
+            uy = d_t * ny
+            uy += ly
+            uz = d_t * nz
+            uz += lz
+            # V . normalize(L + d_T N), negated; |L + d_T N| kept to drop lights whose direction vanished.
+            length = ux * ux
+            length += uy * uy
+            length += uz * uz
+            np.sqrt(length, out=length)
+            vdot = vx * ux
+            vdot += vy * uy
+            vdot += vz * uz
+            inv = np.maximum(length, f32(1e-30))
+            np.divide(f32(-1.0), inv, out=inv)
+            vdot *= inv
+            # max(0, x)^p, with p = 0 giving 1 only where x > 0; a vanished L + d_T N gives nothing.
+            if power == 0:
+                lobe = (vdot > 0).astype(f32)
+            else:
+                lobe = np.maximum(vdot, f32(0.0), out=vdot)
+                lobe **= f32(power)
+            vanished = length <= _EPS
+            if vanished.any():
+                lobe[vanished] = 0.0
+            # E_L / pi (s_T lobe + a_T); the thickness is applied once after the sum over lights.
+            e_pi = irradiance * one_over_pi
+            if np.ndim(e_pi) == 0:
+                lobe *= f32(scale) * e_pi
+                if ambient:
+                    lobe += f32(ambient) * e_pi
+            else:
+                lobe *= f32(scale)
+                lobe += f32(ambient)
+                lobe *= e_pi
+            if color[0] == color[1] == color[2]:
+                if color[0] != 1:
+                    lobe *= color[0]
+                if grey is None:
+                    grey = lobe
+                else:
+                    grey += lobe
+            else:
+                if coloured is None:
+                    coloured = np.zeros((3, tt.size), f32)
+                for c in range(3):
+                    coloured[c] += color[c] * lobe
+        if coloured is None:
+            grey *= tt
+            res = albedo_rows * grey[:, None]
+        else:
+            if grey is not None:
+                coloured += grey
+            coloured *= tt
+            res = albedo_rows * coloured.T
+        if not all_ok:
+            res[~ok] = 0.0
+        out_rows[sel] = res.view(_arrays.RGB_ITEM).ravel()
 
     _arrays.for_blocks(idx.size, _BLOCK, run)
     return out
