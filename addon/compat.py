@@ -186,3 +186,10 @@ def compositor_result_socket(tree):
             "NodeGroupOutput"
         )
     return next(s for s in node.inputs if s.type == "RGBA")
+
+
+def set_compositor_device(scene, device: str = "CPU") -> None:
+    """Run the compositor on ``device`` ("CPU" or "GPU"; 5.x ``render.compositor_device``).
+    Headless machines without a GPU context should use the CPU."""
+    if hasattr(scene.render, "compositor_device"):
+        scene.render.compositor_device = device
