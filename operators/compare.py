@@ -380,7 +380,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     noise = metrics.compare_images(second, ref, mask, box=settings.box)
     data = {
         "scene": {
-            "name": scene.name,
+            "name": _scene_label(scene),
             "file": bpy.data.filepath,
             "materials": [asdict(m) for m in desc.materials],
             "fingerprint": scene_fingerprint(scene),
@@ -414,6 +414,12 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     out = report.write_report(out_dir, data, images, reference="Cycles reference", mask=mask, order=order)
     log(f"Saved: {os.path.join(out_dir, 'report.html')}")
     return out
+
+
+def _scene_label(scene) -> str:
+    """``file.blend / Scene``, or the scene's name alone for an unsaved file."""
+    path = bpy.data.filepath
+    return f"{os.path.basename(path)} / {scene.name}" if path else scene.name
 
 
 def _fidelity(desc: SceneDescription, techniques, notes: list) -> dict | None:
