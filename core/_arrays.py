@@ -60,7 +60,11 @@ def finite_pixels(*arrays: np.ndarray) -> np.ndarray:
     for a in arrays:
         f = np.isfinite(a)
         if f.ndim == 3:
-            f = f.all(axis=2)
+            # Channel by channel: all(axis=2) over a short last axis is several times slower.
+            g = f[..., 0].copy()
+            for c in range(1, f.shape[2]):
+                g &= f[..., c]
+            f = g
         ok = f if ok is None else ok & f
     return ok
 
@@ -90,6 +94,7 @@ def rgb_lengths(value, name: str) -> np.ndarray:
 #: One pixel's three float32 channels as a single 12-byte item: gathering (N,) items is several
 #: times faster than gathering N rows of a (HW, 3) array with 2-D fancy indexing.
 RGB_ITEM = np.dtype((np.void, 12))
+ZERO_RGB = np.zeros(3, np.float32).view(RGB_ITEM)[0]
 
 
 def pixel_rows(a: np.ndarray) -> np.ndarray:

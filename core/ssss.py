@@ -31,60 +31,109 @@ ALBEDO_MODES = ("post", "pre-post")
 #: Pixels (times taps) per block: small enough to stay in the cache, large enough to amortize calls.
 _BLOCK_ELEMENTS = 1 << 16
 
+#: A pixel and its right-hand neighbour along the pass, (r, g, b, key, r', g', b', key') as one
+#: 32-byte item: one gather fetches both samples of a linearly interpolated tap with their depths.
+_PAIR = np.dtype((np.void, 32))
 
-def _pass(color, depth_key, scale, mask_idx, offsets, weights, fs_inv, axis):
-    """One 1-D pass over the pixels ``mask_idx`` (flat indices) along ``axis`` (1 rows, 0 columns).
 
-    ``depth_key`` is the depth of pixels that may give light and +inf elsewhere; ``scale`` is
-    pixels per scene unit. Returns a copy of ``color`` with the masked pixels filtered.
+_LAYOUT = np.dtype(
+    {"names": ["rgb", "key"], "formats": [_arrays.RGB_ITEM, np.float32], "offsets": [0, 12], "itemsize": 32}
+)
+_HALF = np.dtype((np.void, 16))
+_NOTHING = np.array([(0.0, 0.0, 0.0, np.inf)], np.float32).view(_HALF)[0]
+
+
+def _pairs(buf, length, key, rgb=None, zero=None, at=None, values=None) -> np.ndarray:
+    """Pack pixels laid out in lines of ``length`` into ``buf`` (count + 1, 8) float32, as (count + 1,)
+    ``_PAIR`` items.
+
+    ``key`` (count,) in the pass's order; the colours are ``rgb`` (count,) 12-byte items
+    (``_arrays.pixel_rows``), with the pixels ``zero`` set to 0, or 0 everywhere but at the
+    indices ``at``, which get ``values`` (12-byte items). The neighbour of a line's last pixel is
+    (0, 0, 0, inf), so that it gives nothing (it is only read with weight 0). Whole 12- and
+    16-byte items are copied: strided float copies of 3 or 4 columns are several times slower.
     """
-    h, w, _ = color.shape
-    planes = [np.ascontiguousarray(color[..., c]).ravel() for c in range(3)]
-    zflat = depth_key.ravel()
-    sflat = scale.ravel()
-    out = color.copy()
-    oflat = out.reshape(-1, 3)
-    n = offsets.size
-    o = offsets.astype(np.float32)
-    wt = weights.astype(np.float32)
-    length, stride = (w, 1) if axis == 1 else (h, w)
+    count = key.size
+    rec = buf.view(_LAYOUT).ravel()
+    if rgb is not None:
+        rec["rgb"][:count] = rgb
+        if zero is not None and zero.size:
+            rec["rgb"][zero] = _arrays.ZERO_RGB
+    else:
+        rec["rgb"] = _arrays.ZERO_RGB
+        rec["rgb"][at] = values
+    rec["key"][:count] = key
+    halves = buf.view(_HALF).reshape(count + 1, 2)
+    halves[count] = _NOTHING
+    halves[:count, 1] = halves[1:, 0]
+    halves[length - 1 : count : length, 1] = _NOTHING
+    return buf.view(_PAIR).ravel()
+
+
+def _pass(packed, length, mask_idx, centre_key, scale, offsets, weights, result):
+    """One 1-D pass along lines of ``length`` pixels (``packed`` from ``_pairs``), into ``result``.
+
+    For the pixels ``mask_idx`` (flat indices in the pass's layout) with their ``centre_key``
+    (depth x follow-surface factor; 0 when the key only tells valid 0 from invalid inf) and
+    ``scale`` (pixels per scene unit): result (count, 3) = sum_k w_k (a0 p[i0] + a1 p[i0 + 1])
+    + (1 - sum_k w_k (a0 + a1)) p[centre], a0 = (1 - f)(1 - g0), a1 = f (1 - g1), with
+    g = min(1, |key - centre key|) the follow-surface blend. The zero-offset tap (f = 0, g = 0)
+    only ever weights the centre, so it is left to the last term.
+    """
+    f32 = np.float32
+    taps = offsets != 0
+    o = offsets[taps].astype(f32)
+    wt = weights[taps].astype(f32)
+    wsum = weights.sum(axis=0).astype(f32)
+    n = o.size
+    # Weights per (tap, sample of the pair) in the order of the packed pair: (k0 i0, k0 i1, k1 i0, ...).
+    wt2 = np.repeat(wt, 2, axis=0)
+    cols = [np.ascontiguousarray(wt2[:, c]) for c in range(3)]
     count = mask_idx.size
-    block = max(256, _BLOCK_ELEMENTS // n)
-    result = np.empty((count, 3), np.float32)
+    block = max(256, _BLOCK_ELEMENTS // max(n, 1))
+    last = f32(length - 1)
 
     def run(start, stop):
         idx = mask_idx[start:stop]
-        coord = (idx % w) if axis == 1 else (idx // w)
-        line = idx - coord * stride
-        zc = zflat[idx][:, None]
-        pos = coord[:, None].astype(np.float32) + sflat[idx][:, None] * o[None, :]
-        np.clip(pos, 0.0, np.float32(length - 1), out=pos)
+        b = idx.size
+        coord = idx % length
+        line = idx - coord
+        centre = np.take(packed, idx).view(f32).reshape(b, 8)[:, :3]
+        if n == 0:
+            result[start:stop] = centre * wsum
+            return
+        pos = scale[start:stop, None] * o[None, :]
+        pos += coord.astype(f32)[:, None]
+        np.clip(pos, f32(0.0), last, out=pos)
         fl = np.floor(pos)
-        f = pos - fl  # float32: subtracting the integer array would promote everything to float64
-        i0 = fl.astype(np.intp)
-        i1 = np.minimum(i0 + 1, length - 1)
-        j0 = line[:, None] + i0 * stride
-        j1 = line[:, None] + i1 * stride
-        z0 = zflat[j0]
-        z1 = zflat[j1]
-        with np.errstate(invalid="ignore"):
-            if fs_inv > 0:
-                g0 = np.minimum(np.abs(z0 - zc) * np.float32(fs_inv), 1.0)
-                g1 = np.minimum(np.abs(z1 - zc) * np.float32(fs_inv), 1.0)
-            else:
-                g0 = np.isinf(z0).astype(np.float32)
-                g1 = np.isinf(z1).astype(np.float32)
-        a0 = (1.0 - f) * (1.0 - g0)
-        a1 = f * (1.0 - g1)
-        rest = 1.0 - a0 - a1
+        j = fl.astype(np.intp)
+        j += line[:, None]
+        f = pos
+        f -= fl  # float32: subtracting the integer array would promote everything to float64
+        g = np.take(packed, j).view(f32).reshape(b, n, 8)
+        zc = centre_key[start:stop, None]
+        # (1 - g) for both samples of each tap at once, then times the interpolation weights.
+        a = np.empty((b, n, 2), f32)
+        np.subtract(g[..., 3::4], zc[:, :, None], out=a)
+        np.abs(a, out=a)
+        np.subtract(f32(1.0), a, out=a)
+        np.maximum(a, f32(0.0), out=a)
+        lerp = np.empty((b, n, 2), f32)
+        lerp[..., 1] = f
+        np.subtract(f32(1.0), f, out=lerp[..., 0])
+        a *= lerp
+        a2 = a.reshape(b, 2 * n)
+        res = result[start:stop]
+        np.matmul(a2, wt2, out=res)
+        np.subtract(wsum, res, out=res)
+        res *= centre
+        tmp = np.empty((b, n, 2), f32)
+        tmp2 = tmp.reshape(b, 2 * n)
         for c in range(3):
-            p = planes[c]
-            t = a0 * p[j0] + a1 * p[j1]
-            result[start:stop, c] = t @ wt[:, c] + (rest @ wt[:, c]) * p[idx]
+            np.multiply(a, g[..., c::4], out=tmp)
+            res[:, c] += tmp2 @ cols[c]
 
     _arrays.for_blocks(count, block, run)
-    oflat[mask_idx] = result
-    return out
 
 
 def filter_1d(image, *, offsets_px, weights, axis: int, mask=None) -> np.ndarray:
@@ -107,8 +156,20 @@ def filter_1d(image, *, offsets_px, weights, axis: int, mask=None) -> np.ndarray
         raise ValueError(f"axis: expected 0 (vertical) or 1 (horizontal), got {axis!r}")
     m = np.ones((h, w), bool) if mask is None else _arrays.mask_array(mask, (h, w))
     key = np.where(m, np.float32(0.0), np.float32(np.inf)).astype(np.float32)
-    scale = np.ones((h, w), np.float32)
-    return _pass(img, key, scale, np.flatnonzero(m), o, wt, 0.0, axis)
+    out = np.array(img, dtype=np.float32, order="C")
+    if axis == 0:
+        img, key, m = img.transpose(1, 0, 2), key.T, m.T
+    idx = np.flatnonzero(m)
+    length = img.shape[1]
+    buf = np.empty((h * w + 1, 8), np.float32)
+    packed = _pairs(buf, length, np.ascontiguousarray(key).ravel(), rgb=_arrays.pixel_rows(img))
+    result = np.empty((idx.size, 3), np.float32)
+    ones = np.ones(idx.size, np.float32)
+    _pass(packed, length, idx, np.zeros(idx.size, np.float32), ones, o, wt, result)
+    if axis == 0:
+        idx = (idx % h) * w + idx // h
+    _arrays.pixel_rows(out)[idx] = result.view(_arrays.RGB_ITEM).ravel()
+    return out
 
 
 def ssss(
@@ -170,16 +231,36 @@ def ssss(
     if not ok.any():
         return base
     if albedo_mode == "pre-post":
-        root = np.sqrt(np.maximum(a, 0.0))
-        light, post = root * e, root
+        post = np.sqrt(np.maximum(a, 0.0))
+        light = post * e
     else:
         light, post = e, a
-    light = np.where(ok[..., None], light, 0.0).astype(np.float32)
-    key = np.where(ok, z, np.float32(np.inf)).astype(np.float32)
-    fs_inv = 1.0 / (2.0 * kernel.radius_su) if follow_surface else 0.0
+    h, w = shape
+    # Follow surface compares depths in units of 2 R: key = z / (2 R) where pixels may give light,
+    # +inf elsewhere (so that they give nothing); without it, 0 and +inf.
+    fs = np.float32(1.0 / (2.0 * kernel.radius_su)) if follow_surface else np.float32(0.0)
+    key = np.full(shape, np.inf, np.float32)
+    np.multiply(z, fs, out=key, where=ok)
     idx = np.flatnonzero(ok)
-    once = _pass(light, key, scale, idx, kernel.offsets_su, kernel.weights, fs_inv, axis=1)
-    twice = _pass(once, key, scale, idx, kernel.offsets_su, kernel.weights, fs_inv, axis=0)
-    out = base.copy()
-    out[ok] = (post * twice)[ok]
+    buf = np.empty((h * w + 1, 8), np.float32)
+    # Pass 1, along rows. Pixels that take no part give no light (a NaN times a zero weight would
+    # still be NaN): their colour is 0 in the packed pairs.
+    light_rows = _arrays.pixel_rows(light)
+    if 2 * idx.size >= h * w:
+        packed = _pairs(buf, w, key.ravel(), rgb=light_rows, zero=np.flatnonzero(~ok))
+    else:
+        packed = _pairs(buf, w, key.ravel(), at=idx, values=light_rows[idx])
+    once = np.empty((idx.size, 3), np.float32)
+    _pass(packed, w, idx, key.ravel()[idx], scale.ravel()[idx], kernel.offsets_su, kernel.weights, once)
+    # Pass 2, along columns: the same on the transposed image (flat index x h + y).
+    packed = _pairs(buf, h, key.T.ravel(), at=(idx % w) * h + idx // w, values=once.view(_arrays.RGB_ITEM).ravel())
+    del once
+    idx_t = np.flatnonzero(ok.T)
+    flat_of_t = (idx_t % h) * w + idx_t // h
+    twice = np.empty((idx_t.size, 3), np.float32)
+    _pass(packed, h, idx_t, key.ravel()[flat_of_t], scale.ravel()[flat_of_t], kernel.offsets_su, kernel.weights, twice)
+    del packed, buf
+    twice *= _arrays.as_rows(_arrays.pixel_rows(post)[flat_of_t])
+    out = base
+    _arrays.pixel_rows(out)[flat_of_t] = twice.view(_arrays.RGB_ITEM).ravel()
     return out
