@@ -116,30 +116,45 @@ def burley(
     else:
         light, post = e, a
     h, w = shape
-    # Pixels that take no part give no light (a NaN times a zero weight would still be NaN).
-    light = np.where(ok[..., None], light, np.float32(0.0))
-    planes = [np.ascontiguousarray(light[..., c], dtype=np.float32).ravel() for c in range(3)]
-    zkey = np.where(ok, z, np.float32(np.inf)).astype(np.float32).ravel()
+    f32 = np.float32
+    # Each pixel as one 16-byte item (r, g, b, depth key), plus a last item (0, 0, 0, inf) that
+    # samples off the image or from another object read: one gather per sample fetches colour
+    # and depth. Pixels that take no part have colour 0 (a NaN times a zero weight would still
+    # be NaN) and key +inf, so that their weight is exactly 0 (e^-inf = 0, r / inf = 0).
+    packed = np.empty((h * w + 1, 4), f32)
+    rec = packed.view(np.dtype({"names": ["rgb", "key"], "formats": [_arrays.RGB_ITEM, f32], "offsets": [0, 12]}))
+    rec = rec.ravel()
+    rec["rgb"][: h * w] = _arrays.pixel_rows(light)
+    rec["rgb"][np.flatnonzero(~ok)] = _arrays.ZERO_RGB
+    rec["key"][: h * w] = z.ravel()
+    rec["key"][np.flatnonzero(~ok)] = np.inf
+    packed[h * w] = (0.0, 0.0, 0.0, np.inf)
+    items = packed.view(np.dtype((np.void, 16))).ravel()
+    sentinel = h * w
+    zkey = packed[:, 3]
     idflat = None if ids is None else np.rint(ids).astype(np.int64).ravel()
     sflat = scale.ravel()
     r_unit, angles, inv_pdf = spiral(int(n_samples))
-    r_su = (r_unit * dmax).astype(np.float32)
+    r_su = (r_unit * dmax).astype(f32)
     r2 = r_su * r_su
-    cos_a = np.cos(angles).astype(np.float32)
-    sin_a = np.sin(angles).astype(np.float32)
-    inv_pdf = inv_pdf.astype(np.float32)
+    cos_a = np.cos(angles).astype(f32)
+    sin_a = np.sin(angles).astype(f32)
+    inv_pdf = inv_pdf.astype(f32)
     # exp(-r'/(3 d_c)); a channel with d_c = 0 keeps its light (handled by its footprint below).
-    inv3d = np.array([1.0 / (3.0 * v) if v > 0 else 0.0 for v in d], np.float32)
+    inv3d = np.array([1.0 / (3.0 * v) if v > 0 else 0.0 for v in d], f32)
     idx_all = np.flatnonzero(ok)
     count = idx_all.size
-    result = np.empty((count, 3), np.float32)
+    result = np.empty((count, 3), f32)
     n = r_su.size
     block = max(128, _BLOCK_ELEMENTS // n)
+    ones = np.ones(n, f32)
+    inv_dmax = f32(1.0 / dmax)
 
     def run(start, stop):
         idx = idx_all[start:stop]
-        x0 = (idx % w).astype(np.float32)
-        y0 = (idx // w).astype(np.float32)
+        b = idx.size
+        x0 = (idx % w).astype(f32)
+        y0 = (idx // w).astype(f32)
         s = sflat[idx]
         rad_px = s[:, None] * r_su[None, :]
         if random_rotation:
@@ -148,34 +163,58 @@ def burley(
             sa = np.sin(phi) * cos_a + np.cos(phi) * sin_a
         else:
             ca, sa = cos_a[None, :], sin_a[None, :]
-        xs = np.rint(x0[:, None] + rad_px * ca)
-        ys = np.rint(y0[:, None] + rad_px * sa)
-        inside = (xs >= 0) & (xs <= w - 1) & (ys >= 0) & (ys <= h - 1)
-        j = np.where(inside, ys.astype(np.intp) * w + xs.astype(np.intp), 0)
-        zs = zkey[j]
-        zc = zkey[idx][:, None]
-        valid = inside & np.isfinite(zs)
+        xs = rad_px * ca
+        xs += x0[:, None]
+        np.rint(xs, out=xs)
+        ys = np.multiply(rad_px, sa, out=rad_px)
+        ys += y0[:, None]
+        np.rint(ys, out=ys)
+        # Off the image: the sentinel item. Clipping and comparing is cheaper than four comparisons.
+        xc = np.clip(xs, f32(0.0), f32(w - 1))
+        yc = np.clip(ys, f32(0.0), f32(h - 1))
+        outside = xc != xs
+        outside |= yc != ys
+        j = yc.astype(np.intp)
+        j *= w
+        j += xc.astype(np.intp)
+        np.copyto(j, sentinel, where=outside)
         if idflat is not None:
-            valid &= idflat[j] == idflat[idx][:, None]
-        dz = np.where(valid, zs - zc, 0.0)
-        rp = np.sqrt(r2[None, :] + dz * dz)
+            other = idflat[np.minimum(j, sentinel - 1)] != idflat[idx][:, None]
+            np.copyto(j, sentinel, where=other)
+        g = np.take(items, j).view(f32).reshape(b, n, 4)
+        zc = zkey[idx][:, None]
+        rp = np.subtract(g[..., 3], zc)
+        rp *= rp
+        rp += r2[None, :]
+        np.sqrt(rp, out=rp)
         # R_c(r') / pdf_area(r) up to constants: (e^{-r'/d} + e^{-r'/3d}) / r' x r / f(r), in units of d_max.
-        ratio = np.where(valid, inv_pdf[None, :] / np.maximum(rp * np.float32(1.0 / dmax), np.float32(1e-30)), 0.0)
+        ratio = rp * inv_dmax
+        np.maximum(ratio, f32(1e-30), out=ratio)
+        np.divide(inv_pdf[None, :], ratio, out=ratio)
+        e3 = np.empty_like(rp)
+        wgt = np.empty_like(rp)
         for c in range(3):
-            centre = planes[c][idx]
+            centre = packed[idx, c]
             if inv3d[c] == 0:
                 result[start:stop, c] = centre
                 continue
-            e3 = np.exp(-rp * inv3d[c])
-            wgt = (e3 * e3 * e3 + e3) * ratio
-            den = wgt.sum(axis=1)
-            num = (wgt * planes[c][j]).sum(axis=1)
+            np.multiply(rp, -inv3d[c], out=e3)
+            np.exp(e3, out=e3)
+            np.multiply(e3, e3, out=wgt)
+            wgt *= e3
+            wgt += e3
+            wgt *= ratio
+            den = wgt @ ones
+            wgt *= g[..., c]
+            num = wgt @ ones
             small = (TRUNCATION / (3.0 * inv3d[c])) * s <= 1.0  # this channel's footprint <= 1 px
-            keep = small | (den <= np.float32(1e-30))
-            result[start:stop, c] = np.where(keep, centre, num / np.where(keep, 1.0, den))
+            keep = small | (den <= f32(1e-30))
+            result[start:stop, c] = np.where(keep, centre, num / np.where(keep, f32(1.0), den))
 
     _arrays.for_blocks(count, block, run)
-    out = base.copy()
-    flat = out.reshape(-1, 3)
-    flat[idx_all] = post.reshape(-1, 3)[idx_all] * result
+    out = base
+    flat = _arrays.pixel_rows(out)
+    res = _arrays.as_rows(_arrays.pixel_rows(post)[idx_all])
+    res *= result
+    flat[idx_all] = res.reshape(-1).view(_arrays.RGB_ITEM)
     return out
