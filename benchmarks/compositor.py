@@ -1,0 +1,221 @@
+"""Compositor node groups against the NumPy passes at 1920 x 1080:
+``.venv/bin/python -m benchmarks.compositor`` (from the repository root).
+
+Inputs: the synthetic plane-and-spheres passes of ``core/synthetic.py`` (two scattering
+materials, Skin and Wax, two sun lights), written to a multilayer EXR in a temporary folder,
+with the profiles of ``benchmarks/speed.py``: Skin d = (4, 1.6, 0.8) mm (its red kernel spans
+about 30 pixels at the spheres' depth, a face in a close-up), Wax 1.5 times that (both as
+Christensen-Burley materials, d = radius / (4 pi)). Per technique:
+
+- NumPy: ``core.apply.apply`` on the passes (every scattering material, composited), with the
+  default parameters (SSSS 17 taps pre-integrated, Burley 32 samples, STA's defaults);
+- compositor: the chain ``nodes.setup.build_chain`` builds (one group per material or light,
+  read from an Image node: no Render Layers node, so Blender only composites), timed as
+  ``bpy.ops.render.render()`` on the CPU compositor; a tree that only passes the image through
+  is timed as well (loading and output, included in every compositor figure);
+- group build: ``ensure_*`` (kernel images from ``core``), a one-time cost;
+- difference: relative RMS of the SSS term (result minus Combined) over the scattering
+  materials' pixels, compositor vs NumPy. The spheres vary in depth, so this is the
+  depth-varying case: the groups use one screen scale per material (its median depth) and
+  ignore depth. The same against NumPy on passes whose depth is flattened to each material's
+  median (Burley with 1024 samples, so that the spiral's own error is left out) says how much
+  of the difference is depth.
+
+Each timing is the fastest of ``--repeat`` runs after a warm-up (the machine is shared and
+noisy). Writes ``benchmarks/results/compositor.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import platform
+import tempfile
+import time
+
+import numpy as np
+
+from benchmarks.speed import D_SU
+
+RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "compositor.json")
+TECHNIQUES = ("sta", "ssss", "burley")
+
+
+def _rel_rms(a, b) -> float:
+    return round(float(np.sqrt(np.mean((a - b) ** 2) / max(np.mean(b * b), 1e-30))), 4)
+
+
+def _best(fn, repeat: int) -> float:
+    fn()  # warm-up
+    best = float("inf")
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.compositor", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--repeat", type=int, default=3, help="runs per case, fastest reported (default: 3)")
+    parser.add_argument("--resolution", default="1920x1080", help="WxH (default: 1920x1080)")
+    parser.add_argument("--out", default=RESULTS, help="JSON output (default: benchmarks/results/compositor.json)")
+    args = parser.parse_args(argv)
+    try:
+        width, height = (int(v) for v in args.resolution.lower().split("x"))
+    except ValueError:
+        parser.error(f"--resolution: expected WxH such as 1920x1080, got {args.resolution!r}")
+
+    import bpy
+
+    from sss_lab.addon import compat
+    from sss_lab.core import mapping
+    from sss_lab.core.apply import apply
+    from sss_lab.core.exr import Passes, read_layers, read_passes
+    from sss_lab.core.synthetic import sphere_scene, write_scene
+    from sss_lab.nodes import setup
+    from sss_lab.nodes.burley import ensure_burley_group
+    from sss_lab.nodes.ssss import ensure_ssss_group
+    from sss_lab.nodes.sta import ensure_sta_group
+
+    folder = tempfile.mkdtemp(prefix="sss_lab_bench_compositor_")
+    passes, desc = sphere_scene(width, height)
+    widths = {"Skin": 1.0, "Wax": 1.5}
+    desc = dataclasses.replace(
+        desc,
+        materials=tuple(
+            dataclasses.replace(
+                m,
+                method="BURLEY",
+                subsurface_radius=tuple(4 * math.pi * d * widths.get(m.name, 1.0) for d in D_SU),
+                subsurface_scale=1.0,
+            )
+            for m in desc.materials
+        ),
+    )
+    path = write_scene(os.path.join(folder, "passes.exr"), passes, desc)
+    loaded = read_passes(path)
+    index = passes["Material Index"]
+    scattering = [m for m in desc.materials if m.scatters]
+    on = np.isin(index, [m.index for m in scattering])
+    scale = {}
+    for m in scattering:
+        depth = float(np.median(passes["Depth"][index == m.index]))
+        scale[m.index] = float(desc.camera.pixels_per_unit(np.array([[depth]], np.float32))[0, 0])
+    combined = passes["Combined"][..., :3]
+    flat_depth = passes["Depth"].copy()
+    for m in scattering:
+        flat_depth[index == m.index] = np.median(flat_depth[index == m.index])
+    flat_passes = Passes({**passes, "Depth": flat_depth})
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    render = scene.render
+    render.resolution_x, render.resolution_y, render.resolution_percentage = width, height, 100
+    render.use_compositing = True
+    compat.set_compositor_device(scene, "CPU")
+    compat.set_single_image(render.image_settings, "OPEN_EXR", color_depth="32")
+    scene.view_settings.view_transform = "Standard"
+    image = bpy.data.images.load(path)
+
+    def tree_with(technique):
+        old = compat.compositor_tree(scene)
+        if old is not None:
+            scene.compositing_node_group = None
+            bpy.data.node_groups.remove(old)
+        tree = compat.compositor_tree(scene, create=True)
+        result = compat.compositor_result_socket(tree)
+        src = tree.nodes.new("CompositorNodeImage")
+        src.image = image
+        out = src.outputs["Combined"]
+        if technique is not None:
+            out, _ = setup.build_chain(
+                tree, src, image=out, technique=technique, scene=desc, options={}, pixels_per_unit=scale
+            )
+        tree.links.new(out, result)
+        return tree
+
+    def composite():
+        bpy.ops.render.render()
+
+    def composite_to_file(name):
+        render.filepath = os.path.join(folder, name)
+        bpy.ops.render.render(write_still=True)
+        (layer,) = read_layers(render.filepath).layers.values()
+        return np.array(layer[..., :3])
+
+    tree_with(None)
+    baseline = _best(composite, args.repeat)
+    print(f"compositor overhead (a tree passing the image through): {baseline * 1e3:8.0f} ms")
+    results = {}
+    for technique in TECHNIQUES:
+        entry = {}
+        kernels = {}
+        t0 = time.perf_counter()
+        if technique == "sta":
+            ensure_sta_group()
+        for m in scattering if technique != "sta" else ():
+            name = setup.group_name(technique, m.name)
+            d = mapping.burley_d(m)
+            if technique == "ssss":
+                group = ensure_ssss_group(name=name, pixels_per_unit=scale[m.index], d_su=d)
+            else:
+                group = ensure_burley_group(name=name, pixels_per_unit=scale[m.index], d_su=d)
+            kernels[m.name] = 2 * group["sss_lab"]["kernel_radius_px"] + 1
+        entry["group_build_ms"] = round((time.perf_counter() - t0) * 1e3, 1)
+        entry["kernel_size_px"] = kernels
+        tree = tree_with(technique)
+        entry["convolve_nodes"] = sum(
+            1
+            for n in tree.nodes
+            if getattr(n, "node_tree", None) is not None
+            for inner in n.node_tree.nodes
+            if inner.bl_idname == "CompositorNodeConvolve"
+        )
+        seconds = _best(composite, args.repeat)
+        entry["compositor_ms"] = round(seconds * 1e3, 1)
+        numpy_s = _best(lambda t=technique: apply(loaded, desc, t), args.repeat)
+        entry["numpy_ms"] = round(numpy_s * 1e3, 1)
+        got = composite_to_file(f"{technique}.exr")
+        want = apply(loaded, desc, technique)[f"SSSLab.{technique}.Image"][..., :3]
+        a, b = (got - combined)[on], (want - combined)[on]
+        entry["rel_rms_sss_vs_numpy"] = _rel_rms(a, b)
+        extra = {"n_samples": 1024} if technique == "burley" else {}
+        flat = apply(flat_passes, desc, technique, **extra)[f"SSSLab.{technique}.Image"][..., :3]
+        entry["rel_rms_sss_vs_numpy_median_depth"] = _rel_rms(a, (flat - combined)[on])
+        results[technique] = entry
+        print(
+            f"{technique:7s} compositor {seconds * 1e3:8.0f} ms   numpy {numpy_s * 1e3:8.0f} ms   "
+            f"group build {entry['group_build_ms']:6.0f} ms   kernels {kernels}   "
+            f"SSS rel. RMS vs numpy {entry['rel_rms_sss_vs_numpy']:.3f} "
+            f"(median depth: {entry['rel_rms_sss_vs_numpy_median_depth']:.4f})"
+        )
+    data = {
+        "resolution": [width, height],
+        "repeat": args.repeat,
+        "statistic": "fastest of the repeats after a warm-up",
+        "scene": "core.synthetic.sphere_scene (Skin and Wax scatter, two sun lights)",
+        "d_su": {name: [round(d * f, 6) for d in D_SU] for name, f in widths.items()},
+        "compositor_device": "CPU",
+        "compositor_image_only_ms": round(baseline * 1e3, 1),
+        "pixels_per_unit": {m.name: round(scale[m.index], 2) for m in scattering},
+        "machine": {
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "blender": bpy.app.version_string,
+        },
+        "techniques": results,
+    }
+    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+    with open(args.out, "w", encoding="utf-8") as fh:
+        json.dump(data, fh, indent=2)
+    print(f"Saved: {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
