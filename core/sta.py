@@ -82,7 +82,7 @@ def light_at(light: Light, px, py, pz):
 
 
 #: Pixels per block: the planar rows of a block stay in the cache.
-_BLOCK = 1 << 14
+_BLOCK = 1 << 16
 
 
 def sta(
