@@ -60,7 +60,7 @@ def _time(fn, repeat: int) -> float:
     return best
 
 
-def run(width: int = 1920, height: int = 1080, repeat: int = 3, log=print) -> dict:
+def run(width: int = 1920, height: int = 1080, repeat: int = 5, log=print) -> dict:
     passes, scene, depth, normal, masks = _inputs(width, height)
     diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]
     albedo = passes["Diffuse Color"]
@@ -125,7 +125,7 @@ def run(width: int = 1920, height: int = 1080, repeat: int = 3, log=print) -> di
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.speed", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--repeat", type=int, default=3, help="runs per case, fastest reported (default: 3)")
+    parser.add_argument("--repeat", type=int, default=5, help="runs per case, fastest reported (default: 5)")
     parser.add_argument("--resolution", default="1920x1080", help="WxH (default: 1920x1080)")
     parser.add_argument("--out", default=RESULTS, help="JSON output (default: benchmarks/results/speed.json)")
     args = parser.parse_args(argv)
