@@ -435,9 +435,18 @@ def _main_material(desc: SceneDescription):
     return max((m for m in desc.materials if m.scatters), key=lambda m: max(m.radius))
 
 
+def _mark_best(results: list[dict]) -> None:
+    """Mark the row with the lowest error chosen, unless all are equal to 1e-4 relative (the
+    technique did not change this scene, e.g. STA without light from behind): then none is."""
+    errors = [r["rel_rmse"] for r in results if r.get("rel_rmse") is not None]
+    if not errors or max(errors) - min(errors) <= 1e-4 * max(min(errors), 1e-12):
+        return
+    min((r for r in results if r.get("rel_rmse") is not None), key=lambda r: r["rel_rmse"])["chosen"] = True
+
+
 def calibrate(passes, desc: SceneDescription, ref, mask, *, box: int, techniques) -> dict:
     """For each subsurface method in the scene and each scattering technique, the error of
-    every mapping the core offers; the lowest is marked chosen."""
+    every mapping the core offers; the lowest is marked chosen (none when all are equal)."""
     rows = []
     methods = sorted({m.method for m in desc.materials if m.scatters})
     for method in methods:
@@ -455,9 +464,7 @@ def calibrate(passes, desc: SceneDescription, ref, mask, *, box: int, techniques
                     continue
                 m = metrics.compare_images(layers[core_apply.layer_names(technique)[0]], ref, mask, box=box)
                 results.append({"method": method, "technique": technique, "mapping": name, "rel_rmse": m["rel_rmse"]})
-            if results:
-                best = min(results, key=lambda r: r["rel_rmse"] if r["rel_rmse"] is not None else np.inf)
-                best["chosen"] = True
+            _mark_best(results)
             rows.extend(results)
     if "sta" in techniques:
         # STA has no physical scale (core/mapping.py): its scale s_T is what there is to calibrate.
@@ -474,8 +481,7 @@ def calibrate(passes, desc: SceneDescription, ref, mask, *, box: int, techniques
             results.append(
                 {"method": "any", "technique": "sta", "mapping": f"scale={scale:g}", "rel_rmse": m["rel_rmse"]}
             )
-        if results:
-            min(results, key=lambda r: r["rel_rmse"])["chosen"] = True
+        _mark_best(results)
         rows.extend(results)
     return {
         "definition": "Each mapping from the Principled BSDF inputs to the technique's parameters (core/mapping.py),"
