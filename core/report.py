@@ -19,6 +19,7 @@ import html
 import json
 import math
 import os
+import re
 import tempfile
 
 import numpy as np
@@ -170,6 +171,24 @@ def _markdown(data: dict) -> str:
             f" | {_fmt(t.get('total'), 3)} | {_fmt(t.get('apply'), 3)} | {'yes' if e['name'] in front else ''} |"
         )
     lines += ["", "![error against time](pareto.svg)", "", "![images](grid.png)", ""]
+    grid = data.get("grid")
+    if grid:
+        white = _fmt(grid["error_scale_white"], 3)
+        lines += [
+            "Columns, left to right: " + ", ".join(grid["columns"]) + ". Top row: tone-mapped image; bottom row:"
+            f" relative luminance error against the reference (black 0, white at {white}).",
+            "",
+        ]
+    pictures = [e for e in data.get("entries", []) if e.get("image")]
+    if pictures:
+        lines += ["## Images", "", "| image | picture | error map |", "|---|---|---|"]
+        for e in pictures:
+            err = f"![error of {e['name']}]({e['error_image']})" if e.get("error_image") else ""
+            lines.append(f"| {e['name']} | ![{e['name']}]({e['image']}) | {err} |")
+        ref_image = data.get("reference_image")
+        if ref_image:
+            lines.append(f"| reference | ![reference]({ref_image}) | |")
+        lines.append("")
     fid = data.get("fidelity")
     if fid:
         lines += [
@@ -198,12 +217,24 @@ def _markdown(data: dict) -> str:
         ]
         for row in cal.get("rows", []):
             lines.append(
-                f"| {row['method']} | {row['technique']} | {row['mapping']} | {_fmt(row['rel_rmse'])} |"
+                f"| {row['method']} | {row['technique']} | {row['mapping']} | {_fmt(row.get('rel_rmse'))} |"
                 f" {'yes' if row.get('chosen') else ''} |"
             )
         lines.append("")
     lines += ["## Definitions", ""] + [f"- **{k}**: {v}" for k, v in METRIC_DEFINITIONS.items()] + [""]
     return "\n".join(lines)
+
+
+_MD_IMAGE = re.compile(r"!\[([^\]]*)\]\(([^)]+)\)")
+
+
+def _html_cell(text: str) -> str:
+    """A table cell: Markdown images become <img>, everything else is escaped text."""
+    m = _MD_IMAGE.fullmatch(text)
+    if m:
+        alt, src = (html.escape(g, quote=True) for g in m.groups())
+        return f'<img src="{src}" alt="{alt}" width="128" style="image-rendering: pixelated">'
+    return html.escape(text)
 
 
 def _html(data: dict, svg: str) -> str:
@@ -218,7 +249,7 @@ def _html(data: dict, svg: str) -> str:
             continue
         elif line.startswith("| "):
             cells = [c.strip() for c in line.strip("|").split("|")]
-            rows.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
+            rows.append("<tr>" + "".join(f"<td>{_html_cell(c)}</td>" for c in cells) + "</tr>")
         elif line.startswith("![error"):
             rows.append(svg)
         elif line.startswith("![images]"):
@@ -293,6 +324,8 @@ def write_report(
             bottoms.append(heat)
         else:
             bottoms.append(np.zeros_like(disp))
+        if n == reference:
+            data["reference_image"] = f"images/{slug}.png"
         for e in data.get("entries", []):
             if e["name"] == n:
                 e["image"] = f"images/{slug}.png"

@@ -40,6 +40,11 @@ def test_report_pages_carry_the_json_numbers(tmp_path):
         assert os.path.isfile(tmp_path / e["image"]) and os.path.isfile(tmp_path / e["error_image"])
     assert "<svg" in html and (tmp_path / "grid.png").read_bytes()[:4] == b"\x89PNG"
     assert "incomplete" not in md
+    # The grid's columns are named, and each picture is shown with its name.
+    assert "Columns, left to right: Cycles reference, burley n=32, no SSS." in md
+    for e in saved["entries"]:
+        assert f'<img src="{e["image"]}" alt="{e["name"]}"' in html
+    assert saved["reference_image"] == "images/Cycles_reference.png"
 
 
 def test_incomplete_report_says_so(tmp_path):
