@@ -502,6 +502,7 @@ class SSS_LAB_OT_compare(bpy.types.Operator):
         description="Folder for the report (metrics.json, report.html, images)",
         subtype="DIR_PATH",
         default="//sss_lab_report/",
+        options={"PATH_SUPPORTS_BLEND_RELATIVE"},
     )
     reference_samples: bpy.props.IntProperty(
         name="Reference Samples",
@@ -521,7 +522,8 @@ class SSS_LAB_OT_compare(bpy.types.Operator):
 
     def execute(self, context):
         out_dir = bpy.path.abspath(self.directory)
-        if not out_dir or out_dir.startswith("//"):
+        # An unsaved file has no folder for "//": abspath would quietly use the working directory.
+        if not out_dir or (self.directory.startswith("//") and not bpy.data.filepath):
             self.report({"ERROR"}, "Save the .blend file first, or choose an absolute report folder")
             return {"CANCELLED"}
         settings = CompareSettings(reference_samples=self.reference_samples, pass_samples=self.pass_samples)

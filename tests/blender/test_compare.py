@@ -196,3 +196,21 @@ def test_scene_is_unchanged_and_bad_input_is_refused(blends, tmp_path, monkeypat
         compare(scene, str(tmp_path / "nosss"), _settings())
     assert not os.path.exists(tmp_path / "nosss" / "metrics.json")
     assert compare_mod.CompareSettings  # the module's public entry points are importable
+
+
+def test_compare_operator_writes_the_report_and_leaves_the_scene(addon, blends, tmp_path):
+    scene = _open(blends["head_frontlit"])
+    scene.render.resolution_x = scene.render.resolution_y = 32  # small and quick; the operator keeps the scene's
+    before = _snapshot(scene)
+    result = bpy.ops.sss_lab.compare(directory=str(tmp_path), reference_samples=4, pass_samples=2)
+    assert result == {"FINISHED"}
+    with open(tmp_path / "metrics.json", encoding="utf-8") as fh:
+        data = json.load(fh)
+    assert data["settings"]["resolution"] == [32, 32]
+    assert {e["technique"] for e in data["entries"] if e["kind"] == "technique"} == {"sta", "ssss", "burley"}
+    assert os.path.isfile(tmp_path / "report.html")
+    assert _snapshot(scene) == before
+    # A relative folder of an unsaved file cannot be resolved: refused, nothing written.
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    with pytest.raises(RuntimeError, match="Save the .blend file first"):
+        bpy.ops.sss_lab.compare(directory="//report/")
