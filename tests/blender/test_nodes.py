@@ -48,6 +48,7 @@ from sss_lab.nodes import _graph
 from sss_lab.nodes.burley import ensure_burley_group
 from sss_lab.nodes.setup import NODE_TAG, build_chain, group_name, remove_chain
 from sss_lab.nodes.ssss import ensure_ssss_group
+from sss_lab.nodes.sta import INTERFACE as STA_INTERFACE
 from sss_lab.nodes.sta import ensure_sta_group
 
 W = H = 64
@@ -636,3 +637,26 @@ def test_bad_builder_input_is_refused():
     with pytest.raises(ValueError, match="not a compositor node group"):
         ensure_sta_group()
     assert len(bpy.data.node_groups) == 1
+
+
+def test_rebuild_keeps_links_and_values_of_the_instances_and_fixes_the_interface():
+    group = ensure_sta_group()
+    # An older or edited interface: a stray socket, one missing, one moved to the end.
+    group.interface.new_socket("stray", in_out="INPUT", socket_type="NodeSocketFloat")
+    group.interface.remove(next(s for s in group.interface.items_tree if getattr(s, "name", "") == "ambient"))
+    moved = next(s for s in group.interface.items_tree if getattr(s, "name", "") == "distortion")
+    group.interface.move(moved, len(group.interface.items_tree))
+    before = [s.name for s in group.interface.items_tree if s.item_type == "SOCKET" and s.in_out == "INPUT"]
+    assert "stray" in before and "ambient" not in before and before[-1] == "distortion"
+    tree, result = _tree(bpy.context.scene)
+    node = tree.nodes.new(compat.COMPOSITOR_GROUP_NODE)
+    node.node_tree = group
+    node.inputs["power"].default_value = 7.0
+    node.inputs["light_type"].default_value = "AREA"
+    tree.links.new(node.outputs["Image"], result)
+    ensure_sta_group()
+    names = [s.name for s in group.interface.items_tree if s.item_type == "SOCKET" and s.in_out == "INPUT"]
+    assert names == [s.name for s in STA_INTERFACE.inputs]
+    assert node.inputs["power"].default_value == 7.0 and node.inputs["light_type"].default_value == "AREA"
+    assert node.inputs["ambient"].default_value == 0.0
+    assert result.links[0].from_node == node
