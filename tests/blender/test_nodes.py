@@ -660,3 +660,33 @@ def test_rebuild_keeps_links_and_values_of_the_instances_and_fixes_the_interface
     assert node.inputs["power"].default_value == 7.0 and node.inputs["light_type"].default_value == "AREA"
     assert node.inputs["ambient"].default_value == 0.0
     assert result.links[0].from_node == node
+
+
+def test_operator_takes_the_panel_settings_and_the_panel_has_its_button(addon):
+    from types import SimpleNamespace
+
+    from sss_lab.addon.panels import SSS_LAB_PT_main
+
+    scene, tree, _ = _cycles_scene()
+    settings = scene.sss_lab
+    settings.technique, settings.ssss_taps, settings.ssss_kernel = "ssss", "11", "artist"
+    settings.albedo_mode = "pre-post"
+    assert bpy.ops.sss_lab.setup_compositor() == {"FINISHED"}
+    node = tree.nodes[group_name("ssss", "Skin")]
+    meta = _graph.read_meta(node.node_tree)
+    assert (meta["n_taps"], meta["kernel_type"]) == (11, "artist")
+    assert node.inputs["albedo_mode"].default_value == "pre-post"
+    # The screen scale: the quad is 4 units in front of the camera.
+    assert meta["pixels_per_unit"] == pytest.approx(Camera(width_px=1920, height_px=1080).focal_px / 4.0, rel=1e-6)
+
+    drawn = []
+
+    class Layout(SimpleNamespace):
+        def operator(self, idname, **_):
+            drawn.append(idname)
+
+        def __getattr__(self, name):  # prop, column, row, box, separator...: accept and ignore
+            return lambda *a, **k: self
+
+    SSS_LAB_PT_main.draw(SimpleNamespace(layout=Layout()), bpy.context)
+    assert "sss_lab.setup_compositor" in drawn
