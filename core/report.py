@@ -287,6 +287,7 @@ def write_report(
     reference: str,
     mask: np.ndarray | None = None,
     order: list[str] | None = None,
+    summary: list[str] | None = None,
     exposure: float = 1.0,
 ) -> dict:
     """Write the report folder; returns ``data`` completed with ``pareto`` and image paths.
@@ -332,6 +333,13 @@ def write_report(
                 if n in err_maps:
                     e["error_image"] = f"images/{slug}_error.png"
     png.write_png(os.path.join(out_dir, "grid.png"), png.grid(tops + bottoms, columns=len(names)))
+    picked = [n for n in (summary or []) if n in images]
+    if picked:
+        # A short grid for a first look: the same tiles, fewer columns (README figures use it).
+        index = {n: i for i, n in enumerate(names)}
+        tiles = [tops[index[n]] for n in picked] + [bottoms[index[n]] for n in picked]
+        png.write_png(os.path.join(out_dir, "summary.png"), png.grid(tiles, columns=len(picked)))
+        data["summary"] = {"file": "summary.png", "columns": picked}
     data["grid"] = {
         "file": "grid.png",
         "columns": names,

@@ -411,9 +411,26 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         + [e["name"] for e in entries if e["kind"] == "cycles"]
         + ["Cycles reference"]
     )
-    out = report.write_report(out_dir, data, images, reference="Cycles reference", mask=mask, order=order)
+    out = report.write_report(
+        out_dir, data, images, reference="Cycles reference", mask=mask, order=order, summary=_summary(order, entries)
+    )
     log(f"Saved: {os.path.join(out_dir, 'report.html')}")
     return out
+
+
+def _summary(order: list[str], entries: list[dict]) -> list[str]:
+    """Columns of summary.png: no SSS, each technique at its default quality (or its last), the
+    reference."""
+    defaults = {"ssss": mapping.SSSS_DEFAULTS["n_taps"], "burley": mapping.BURLEY_DEFAULTS["n_samples"]}
+    picked = ["no SSS"]
+    for technique in TECHNIQUES:
+        runs = [e for e in entries if e.get("technique") == technique]
+        if not runs:
+            continue
+        key = "n_taps" if technique == "ssss" else "n_samples"
+        best = [e for e in runs if e.get("quality", {}).get(key) == defaults.get(technique)]
+        picked.append((best or runs)[-1]["name"])
+    return [n for n in picked if n in order] + ["Cycles reference"]
 
 
 def _scene_label(scene) -> str:

@@ -29,7 +29,14 @@ def test_report_pages_carry_the_json_numbers(tmp_path):
     images = {"Cycles reference": ref, "burley n=32": ref * 1.05, "no SSS": ref * 0.8}
     entries = [_entry("burley n=32", 0.4, 0.0512345), _entry("no SSS", 0.2, 0.2012345, kind="baseline")]
     data = {"scene": {"name": "t"}, "settings": {"box": 1}, "entries": entries, "complete": True}
-    out = write_report(str(tmp_path), data, images, reference="Cycles reference", mask=np.ones((8, 8), bool))
+    out = write_report(
+        str(tmp_path),
+        data,
+        images,
+        reference="Cycles reference",
+        mask=np.ones((8, 8), bool),
+        summary=["no SSS", "Cycles reference", "not rendered"],
+    )
     saved = json.loads((tmp_path / "metrics.json").read_text())
     assert saved["pareto"] == out["pareto"] == ["no SSS", "burley n=32"]
     md = (tmp_path / "report.md").read_text()
@@ -45,6 +52,9 @@ def test_report_pages_carry_the_json_numbers(tmp_path):
     for e in saved["entries"]:
         assert f'<img src="{e["image"]}" alt="{e["name"]}"' in html
     assert saved["reference_image"] == "images/Cycles_reference.png"
+    # The summary keeps the asked columns that exist, in that order.
+    assert saved["summary"]["columns"] == ["no SSS", "Cycles reference"]
+    assert (tmp_path / "summary.png").read_bytes()[:4] == b"\x89PNG"
 
 
 def test_incomplete_report_says_so(tmp_path):
