@@ -101,16 +101,29 @@ def scene_fingerprint(scene) -> str:
         p.update(f"{obj.type}:{obj.name}:{obj.pass_index}".encode())
         _hash_floats(p, [v for row in inst.matrix_world for v in row])
         if obj.type == "MESH":
-            mesh = obj.data
+            # The original mesh and its modifier stack, not the evaluated mesh: modifiers such as
+            # Subdivision Surface number their output vertices differently from run to run
+            # (threads), which would make every run a new reference.
+            original = obj.original
+            mesh = original.data
             co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
             mesh.vertices.foreach_get("co", co)
             p.update(co.tobytes())
-            loops = np.empty(len(mesh.loops), dtype=np.int32)
-            mesh.loops.foreach_get("vertex_index", loops)
-            p.update(loops.tobytes())
+            p.update(_topology_digest(mesh))
             for attr in mesh.attributes:
                 p.update(f"attr:{attr.name}:{attr.domain}:{attr.data_type}".encode())
             p.update(",".join(m.name if m else "" for m in mesh.materials).encode())
+            if mesh.shape_keys is not None:
+                for key in mesh.shape_keys.key_blocks:
+                    _hash_floats(p, [key.value])
+                    kco = np.empty(len(key.data) * 3, dtype=np.float32)
+                    key.data.foreach_get("co", kco)
+                    p.update(kco.tobytes())
+            for modifier in original.modifiers:
+                _hash_rna(p, modifier)
+        elif obj.type == "ARMATURE":
+            for bone in obj.pose.bones:
+                _hash_floats(p, [v for row in bone.matrix for v in row])
         elif obj.type == "LIGHT":
             d = obj.data
             p.update(f"{d.type}".encode())
@@ -153,6 +166,47 @@ def scene_fingerprint(scene) -> str:
     h.update(f"{r.engine}:{r.resolution_x}:{r.resolution_y}:{r.resolution_percentage}:{r.film_transparent}".encode())
     h.update(f"{scene.camera.name if scene.camera else ''}:{bpy.app.version_string}".encode())
     return h.hexdigest()
+
+
+def _topology_digest(mesh) -> bytes:
+    """The mesh's faces as sets of vertex indices, in a canonical order: the same faces listed in
+    another order (or starting at another corner) give the same digest."""
+    loops = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get("vertex_index", loops)
+    starts = np.empty(len(mesh.polygons), dtype=np.int64)
+    totals = np.empty(len(mesh.polygons), dtype=np.int64)
+    mesh.polygons.foreach_get("loop_start", starts)
+    mesh.polygons.foreach_get("loop_total", totals)
+    if not starts.size:
+        return b"no faces"
+    width = int(totals.max())
+    corner = np.arange(width)[None, :]
+    faces = np.where(corner < totals[:, None], loops[np.minimum(starts[:, None] + corner, loops.size - 1)], -1)
+    faces.sort(axis=1)
+    faces = faces[np.lexsort(faces.T[::-1])]
+    return hashlib.sha256(faces.tobytes()).digest()
+
+
+def _hash_rna(h, struct) -> None:
+    """Hash the editable RNA properties of ``struct`` (a modifier): numbers, enums, strings, the
+    names of the IDs it points to, and its custom properties (geometry-node inputs)."""
+    h.update(struct.bl_rna.identifier.encode())
+    for prop in struct.bl_rna.properties:
+        if prop.is_readonly or prop.identifier == "rna_type" or prop.type == "COLLECTION":
+            continue
+        value = getattr(struct, prop.identifier, None)
+        if prop.type == "POINTER":
+            value = getattr(value, "name", None)
+        elif hasattr(value, "__len__") and not isinstance(value, str):
+            value = list(value)
+        h.update(f"{prop.identifier}={value!r};".encode())
+    try:
+        keys = list(struct.keys())
+    except TypeError:  # this kind of modifier holds no custom properties
+        keys = []
+    for key in keys:
+        value = struct[key]
+        h.update(f"[{key}]={getattr(value, 'name', value)!r};".encode())
 
 
 def _hash_node_tree(h, tree) -> None:

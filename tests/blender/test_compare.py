@@ -214,3 +214,29 @@ def test_compare_operator_writes_the_report_and_leaves_the_scene(addon, blends, 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     with pytest.raises(RuntimeError, match="Save the .blend file first"):
         bpy.ops.sss_lab.compare(directory="//report/")
+
+
+def _mesh(faces, verts):
+    mesh = bpy.data.meshes.new("Grid")
+    mesh.from_pydata(verts, [], faces)
+    return mesh
+
+
+def test_fingerprint_ignores_face_order_but_not_geometry():
+    verts = [(x, y, 0.0) for y in range(3) for x in range(3)]
+    faces = [(0, 1, 4, 3), (1, 2, 5, 4), (3, 4, 7, 6), (4, 5, 8, 7)]
+    obj = bpy.data.objects.new("Grid", _mesh(faces, verts))
+    scene = bpy.context.scene
+    scene.collection.objects.link(obj)
+    first = compare_mod.scene_fingerprint(scene)
+    # The same faces listed in another order, each starting at another corner (as modifiers and
+    # mesh builders may produce from run to run): the same scene, the same reference.
+    original = obj.data
+    obj.data = _mesh([f[1:] + f[:1] for f in reversed(faces)], verts)
+    assert compare_mod.scene_fingerprint(scene) == first
+    moved = list(verts)
+    moved[4] = (1.0, 1.0, 0.25)
+    obj.data = _mesh(faces, moved)
+    assert compare_mod.scene_fingerprint(scene) != first
+    obj.data = original
+    assert compare_mod.scene_fingerprint(scene) == first
