@@ -65,12 +65,18 @@ def run(args) -> int:
         data = compare(bpy.context.scene, out, settings)
     except ValueError as exc:
         raise CommandError(str(exc)) from None
-    best = [e for e in data["entries"] if e["kind"] == "technique" and e["name"] in data["pareto"]]
-    print(f"Demo done in {time.perf_counter() - start:.0f} s. On {name}, against Cycles random walk:")
-    base = next(e for e in data["entries"] if e["kind"] == "baseline")
-    print(f"  no SSS: relative RMSE {base['metrics']['rel_rmse']:.3f}")
-    for e in best:
-        print(f"  {e['name']}: relative RMSE {e['metrics']['rel_rmse']:.3f}, apply {e['time_s']['apply'] * 1e3:.0f} ms")
+    print(f"Demo done in {time.perf_counter() - start:.0f} s. On {name}, against Cycles random walk")
+    print("(relative RMSE over the subsurface pixels; lower is better):")
+    noise = data["noise_floor"]["rel_rmse"]
+    shown = data.get("summary", {}).get("columns", [])
+    front = set(data["pareto"])
+    for e in data["entries"]:
+        if e["name"] in shown or (e["kind"] == "technique" and e["name"] in front):
+            apply_s = e["time_s"].get("apply")
+            cost = f", apply {apply_s * 1e3:.0f} ms" if apply_s is not None else ""
+            mark = " (on the error/time Pareto front)" if e["name"] in front else ""
+            print(f"  {e['name']:22s} {e['metrics']['rel_rmse']:.3f}{cost}{mark}")
+    print(f"  noise floor of the reference: {noise:.3f}")
     print(f"Report: {os.path.join(out, 'report.html')} (and report.md, metrics.json)")
     if not data["complete"]:
         print("The report is incomplete: " + "; ".join(data["notes"]))
