@@ -17,6 +17,21 @@ def _resolution(text: str) -> tuple[int, int]:
     return w, h
 
 
+def _methods(text: str) -> tuple[str, ...]:
+    from ..core.scene import SUBSURFACE_METHODS
+    from .cli import CommandError
+
+    names = [t.strip().upper() for t in text.split(",") if t.strip()]
+    if names == ["ALL"]:
+        return SUBSURFACE_METHODS
+    unknown = [n for n in names if n not in SUBSURFACE_METHODS]
+    if unknown:
+        raise CommandError(
+            f"--calibrate-methods: unknown {unknown}; expected some of {', '.join(SUBSURFACE_METHODS)} or all"
+        )
+    return tuple(names)
+
+
 def add_parser(subparsers):
     p = subparsers.add_parser(
         "compare", help="compare each technique with Cycles random walk and write a report (needs bpy)"
@@ -31,6 +46,12 @@ def add_parser(subparsers):
     p.add_argument("--box", type=int, default=2, help="box downsampling before the metrics (2)")
     p.add_argument("--methods", default="sta,ssss,burley", help="techniques to compare (default: all)")
     p.add_argument("--cache", help="reference cache folder (default: OUT/cache)")
+    p.add_argument(
+        "--calibrate-methods",
+        default="",
+        help="also calibrate the mapping for these subsurface methods (comma-separated, or all):"
+        " one more reference each",
+    )
     p.set_defaults(run=run)
 
 
@@ -50,6 +71,7 @@ def run(args) -> int:
         box=args.box,
         techniques=tuple(parse_methods(args.methods)),
         cache_dir=args.cache,
+        calibrate_methods=_methods(args.calibrate_methods),
     )
     try:
         data = compare(scene, os.path.abspath(args.out), settings)

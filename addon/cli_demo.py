@@ -58,9 +58,13 @@ def run(args) -> int:
 
     import bpy
 
+    from ..core.scene import SUBSURFACE_METHODS
     from ..operators.compare import CompareSettings, compare
 
-    settings = CompareSettings(reference_samples=args.reference_samples, pass_samples=args.samples)
+    # Every subsurface method gets its mapping calibrated (one more cached reference each).
+    settings = CompareSettings(
+        reference_samples=args.reference_samples, pass_samples=args.samples, calibrate_methods=SUBSURFACE_METHODS
+    )
     try:
         data = compare(bpy.context.scene, out, settings)
     except ValueError as exc:

@@ -17,6 +17,7 @@ The scene is left as it was (``SceneState``), also when a step fails.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -31,7 +32,7 @@ import numpy as np
 from ..addon import compat
 from ..core import apply as core_apply
 from ..core import exr, fidelity, mapping, metrics, report
-from ..core.scene import SceneDescription
+from ..core.scene import SUBSURFACE_METHODS, SceneDescription
 from ..core.techniques import TECHNIQUES, check_technique
 from .describe import principled_node, scene_materials, sss_materials
 from .state import SceneState
@@ -62,6 +63,9 @@ class CompareSettings:
     techniques: tuple[str, ...] = tuple(TECHNIQUES)
     qualities: dict = field(default_factory=lambda: dict(DEFAULT_QUALITIES))
     cache_dir: str | None = None
+    #: Other subsurface methods to calibrate the mapping for: the reference is rendered again with
+    #: the scene's subsurface materials switched to each (cached like the others).
+    calibrate_methods: tuple[str, ...] = ()
 
     def validate(self) -> None:
         for name in ("reference_samples", "pass_samples", "box"):
@@ -76,6 +80,9 @@ class CompareSettings:
                 raise ValueError(f"resolution: expected two integers >= 1 (W, H), got {self.resolution!r}")
         for t in self.techniques:
             check_technique(t)
+        for m in self.calibrate_methods:
+            if m not in SUBSURFACE_METHODS:
+                raise ValueError(f"calibrate_methods: unknown subsurface method {m!r}; expected: {SUBSURFACE_METHODS}")
 
 
 # --- The reference cache -------------------------------------------------------------------
@@ -455,7 +462,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         "timings": timings,
         "entries": entries,
         "fidelity": _fidelity(desc, settings.techniques, notes),
-        "calibration": calibrate(passes, desc, ref, mask, box=settings.box, techniques=settings.techniques),
+        "calibration": _calibration(scene, settings, passes, desc, ref, mask, cache_dir, res, log),
         "notes": notes,
         "complete": not notes,
     }
@@ -513,6 +520,36 @@ def _mark_best(results: list[dict]) -> None:
     if not errors or max(errors) - min(errors) <= 1e-4 * max(min(errors), 1e-12):
         return
     min((r for r in results if r.get("rel_rmse") is not None), key=lambda r: r["rel_rmse"])["chosen"] = True
+
+
+def _calibration(scene, settings: CompareSettings, passes, desc: SceneDescription, ref, mask, cache_dir, res, log):
+    """The scene's own methods against its reference, then each method of
+    ``settings.calibrate_methods`` against a reference rendered with it."""
+    result = calibrate(passes, desc, ref, mask, box=settings.box, techniques=settings.techniques)
+    own = {m.method for m in desc.materials if m.scatters}
+    scattering = tuple(t for t in settings.techniques if t != "sta")
+    for method in settings.calibrate_methods:
+        if method in own or not scattering:
+            continue
+        method_ref, _, _ = cached_reference(
+            scene,
+            cache_dir,
+            samples=settings.reference_samples,
+            seed=settings.seed,
+            resolution=res,
+            method=method,
+            log=log,
+        )
+        as_method = dataclasses.replace(
+            desc,
+            materials=tuple(dataclasses.replace(m, method=method) if m.scatters else m for m in desc.materials),
+        )
+        base = metrics.compare_images(passes["Combined"], method_ref, mask, box=settings.box)
+        result["rows"].append({"method": method, "technique": "no SSS", "mapping": "-", "rel_rmse": base["rel_rmse"]})
+        result["rows"] += calibrate(passes, as_method, method_ref, mask, box=settings.box, techniques=scattering)[
+            "rows"
+        ]
+    return result
 
 
 def calibrate(passes, desc: SceneDescription, ref, mask, *, box: int, techniques) -> dict:

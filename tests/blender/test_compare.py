@@ -240,3 +240,23 @@ def test_fingerprint_ignores_face_order_but_not_geometry():
     assert compare_mod.scene_fingerprint(scene) != first
     obj.data = original
     assert compare_mod.scene_fingerprint(scene) == first
+
+
+def test_calibration_renders_a_reference_per_extra_method(blends, tmp_path):
+    scene = _open(blends["head_frontlit"])
+    settings = _settings(
+        resolution=(32, 32), reference_samples=4, pass_samples=2, techniques=("burley",), calibrate_methods=("BURLEY",)
+    )
+    data = compare(scene, str(tmp_path), settings, log=lambda s: None)
+    rows = [r for r in data["calibration"]["rows"] if r["method"] == "BURLEY"]
+    assert {r["mapping"] for r in rows if r["technique"] == "burley"} == set(mapping.MAPPINGS["BURLEY"])
+    assert any(r["technique"] == "no SSS" for r in rows)
+    # The scene's own method is calibrated against the main reference, as before.
+    assert any(r["method"] == "RANDOM_WALK" for r in data["calibration"]["rows"])
+    # The materials are back to Random Walk afterwards.
+    for mat in bpy.data.materials:
+        for node in mat.node_tree.nodes if mat.node_tree else ():
+            if node.bl_idname == "ShaderNodeBsdfPrincipled":
+                assert node.subsurface_method == "RANDOM_WALK"
+    with pytest.raises(ValueError, match="calibrate_methods: unknown subsurface method 'CUBIC'"):
+        compare(scene, str(tmp_path / "bad"), _settings(calibrate_methods=("CUBIC",)))
