@@ -13,6 +13,7 @@ def draw_technique_parameters(layout, settings) -> None:
         col.prop(settings, "sta_power")
         col.prop(settings, "sta_scale")
         col.prop(settings, "sta_ambient")
+        layout.prop(settings, "sta_falloff")
     elif settings.technique == "ssss":
         layout.prop(settings, "ssss_taps", expand=True)
         layout.prop(settings, "ssss_kernel")

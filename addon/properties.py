@@ -71,6 +71,20 @@ class SSSLabSettings(bpy.types.PropertyGroup):
         min=0.0,
         soft_max=1.0,
     )
+    sta_falloff: bpy.props.EnumProperty(
+        name="Falloff",
+        description="How the thickness map scales the translucency",
+        items=(
+            ("map", "Map", "The paper's: the translucency map itself, the same for R, G and B"),
+            (
+                "burley",
+                "Burley Transmission",
+                "Per-channel Burley transmittance through the slab thickness the baked map stands for"
+                " (uses the bake distance; red passes thick parts best)",
+            ),
+        ),
+        default="map",
+    )
     ssss_taps: bpy.props.EnumProperty(
         name="Taps",
         description="Samples of each of the two 1-D convolutions",
@@ -137,6 +151,7 @@ class SSSLabSettings(bpy.types.PropertyGroup):
                 "power": self.sta_power,
                 "scale": self.sta_scale,
                 "ambient": self.sta_ambient,
+                "falloff": self.sta_falloff,
             }
         if technique == "ssss":
             return {"n_taps": int(self.ssss_taps), "kernel_type": self.ssss_kernel}

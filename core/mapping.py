@@ -133,9 +133,10 @@ def technique_params(material: MaterialSSS, technique: str, *, mapping=None) -> 
     Cycles).
     """
     check_technique(technique)
-    if technique == "sta":
-        return dict(STA_DEFAULTS)
     d = burley_d(material, mapping=mapping)
+    if technique == "sta":
+        # d and the bake distance serve the "burley" falloff; the paper's "map" ignores them.
+        return {**STA_DEFAULTS, "d_su": d, "thickness_distance_su": material.thickness_distance}
     if technique == "ssss":
         return {**SSSS_DEFAULTS, "d_su": d}
     return {**BURLEY_DEFAULTS, "d_su": d}

@@ -224,6 +224,9 @@ class MaterialSSS:
     subsurface_scale: float = 0.005
     subsurface_ior: float = 1.4
     subsurface_anisotropy: float = 0.0
+    #: The thickness bake's maximum distance D (scene units) of the material's objects, 0 when
+    #: unknown: with it a translucency value tau reads back as a slab thickness D sqrt(1 - tau).
+    thickness_distance: float = 0.0
 
     def __post_init__(self):
         if not isinstance(self.index, int) or isinstance(self.index, bool) or self.index < 1:
@@ -236,7 +239,7 @@ class MaterialSSS:
         if min(radius) < 0:
             raise ValueError(f"material {self.name!r} subsurface_radius: expected values >= 0, got {radius!r}")
         object.__setattr__(self, "subsurface_radius", radius)
-        for name in ("subsurface_weight", "subsurface_scale"):
+        for name in ("subsurface_weight", "subsurface_scale", "thickness_distance"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"material {self.name!r} {name}: expected a finite number >= 0, got {v!r}")

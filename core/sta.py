@@ -81,6 +81,23 @@ def light_at(light: Light, px, py, pz):
     return lx, ly, lz, e.astype(f32)
 
 
+FALLOFFS = ("map", "burley")
+
+
+def _transmittance(translucency: np.ndarray, distance: float, d_c: np.ndarray) -> np.ndarray:
+    """Per-channel Burley transmittance (B, 3) through the slab thickness the map stands for."""
+    f32 = np.float32
+    x = f32(distance) * np.sqrt(np.maximum(f32(1.0) - translucency, f32(0.0)))
+    out = np.empty((x.size, 3), f32)
+    for c in range(3):
+        if d_c[c] > 0:
+            e3 = np.exp(-x / f32(3.0 * d_c[c]))
+            out[:, c] = f32(0.25) * (e3 * e3 * e3 + f32(3.0) * e3)
+        else:  # no scattering distance: only a part of zero thickness lets light through
+            out[:, c] = (x == 0).astype(f32)
+    return out
+
+
 #: Pixels per block: the planar rows of a block stay in the cache.
 _BLOCK = 1 << 16
 
@@ -99,8 +116,19 @@ def sta(
     scale: float = 1.0,
     ambient: float = 0.0,
     thickness_convention: str = "translucency",
+    falloff: str = "map",
+    d_su=None,
+    thickness_distance_su: float = 0.0,
 ) -> np.ndarray:
     """The translucency term STA adds, float32 (H, W, 3); zero outside ``mask``.
+
+    ``falloff`` "map" (the paper's): the term is scaled by the translucency map t itself, the
+    same for R, G and B. "burley": the map is read back as a slab thickness,
+    x = D sqrt(1 - t) (the bake's AO of a slab is (x / D)^2, ``core/thickness.py``, with D =
+    ``thickness_distance_su``), and each channel is scaled by the Burley transmittance
+    T_c(x) = (e^{-x/d_c} + 3 e^{-x/3d_c}) / 4 for the profile shape ``d_su`` (HDRP's
+    ComputeTransmittanceDisney, REFERENCES.md section 4; the albedo is applied as before): thin
+    parts pass every channel, thicker ones mostly the channel that scatters furthest.
 
     ``albedo`` (H, W, 3) Diffuse Color; ``normal`` (H, W, 3) world-space normals; ``position``
     (H, W, 3) world positions; ``thickness`` (H, W) in [0, 1]; ``lights``: core.scene.Light list.
@@ -123,6 +151,11 @@ def sta(
         raise ValueError(f"distortion: expected a number, got {distortion!r}") from None
     if not math.isfinite(distortion):
         raise ValueError(f"distortion: expected a finite number, got {distortion!r}")
+    if falloff not in FALLOFFS:
+        raise ValueError(f"falloff: {falloff!r} is not one of {', '.join(FALLOFFS)}")
+    if falloff == "burley":
+        d_c = _arrays.rgb_lengths(d_su, "d_su")
+        distance = _arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
     power = _arrays.positive_finite(power, "power")
     scale = _arrays.positive_finite(scale, "scale")
     ambient = _arrays.positive_finite(ambient, "ambient")
@@ -227,7 +260,11 @@ def sta(
                     coloured = np.zeros((3, tt.size), f32)
                 for c in range(3):
                     coloured[c] += color[c] * lobe
-        if coloured is None:
+        if falloff == "burley":
+            trans = _transmittance(tt, distance, d_c)  # (B, 3)
+            light = grey[:, None] if coloured is None else (coloured + (0.0 if grey is None else grey)).T
+            res = albedo_rows * light * trans
+        elif coloured is None:
             grey *= tt
             res = albedo_rows * grey[:, None]
         else:

@@ -39,7 +39,7 @@ from .state import SceneState
 
 #: Quality ladders: the keyword arguments each technique is run with, cheapest first.
 DEFAULT_QUALITIES: dict[str, tuple[dict, ...]] = {
-    "sta": ({},),
+    "sta": ({}, {"falloff": "burley"}),
     "ssss": ({"n_taps": 11}, {"n_taps": 17}, {"n_taps": 25}),
     "burley": ({"n_samples": 8}, {"n_samples": 16}, {"n_samples": 32}, {"n_samples": 64}),
 }
@@ -482,15 +482,17 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
 def _summary(order: list[str], entries: list[dict]) -> list[str]:
     """Columns of summary.png: no SSS, each technique at its default quality (or its last), the
     reference."""
-    defaults = {"ssss": mapping.SSSS_DEFAULTS["n_taps"], "burley": mapping.BURLEY_DEFAULTS["n_samples"]}
+    defaults = {
+        "sta": {},
+        "ssss": {"n_taps": mapping.SSSS_DEFAULTS["n_taps"]},
+        "burley": {"n_samples": mapping.BURLEY_DEFAULTS["n_samples"]},
+    }
     picked = ["no SSS"]
     for technique in TECHNIQUES:
         runs = [e for e in entries if e.get("technique") == technique]
-        if not runs:
-            continue
-        key = "n_taps" if technique == "ssss" else "n_samples"
-        best = [e for e in runs if e.get("quality", {}).get(key) == defaults.get(technique)]
-        picked.append((best or runs)[-1]["name"])
+        if runs:
+            best = [e for e in runs if e.get("quality") == defaults[technique]]
+            picked.append((best or runs)[-1]["name"])
     return [n for n in picked if n in order] + ["Cycles reference"]
 
 

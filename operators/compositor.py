@@ -138,6 +138,11 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
         convention, missing = thickness_setup(scene, materials, aov)
         extra = {"thickness_aov": aov, "thickness_convention": convention}
         warnings += [f"{name}: no thickness map feeds the AOV {aov!r}; its thickness reads 0" for name in missing]
+        if (options or {}).get("falloff", "map") != "map":
+            warnings.append(
+                "the STA node group uses the paper's falloff (the map for all channels); the Burley"
+                " transmission falloff exists only in Apply (NumPy)"
+            )
     desc = describe_scene(scene, materials, **extra)
     changed, index_warnings = _set_pass_indices(materials)
     warnings += index_warnings

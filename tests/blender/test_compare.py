@@ -260,3 +260,18 @@ def test_calibration_renders_a_reference_per_extra_method(blends, tmp_path):
                 assert node.subsurface_method == "RANDOM_WALK"
     with pytest.raises(ValueError, match="calibrate_methods: unknown subsurface method 'CUBIC'"):
         compare(scene, str(tmp_path / "bad"), _settings(calibrate_methods=("CUBIC",)))
+
+
+def test_scene_description_carries_the_thickness_bake_distance(blends):
+    from sss_lab.operators.describe import sss_materials
+
+    scene = _open(blends["backlit_thin"])
+    by_name = {m.name: m for m in sss_materials(scene)}
+    for obj in scene.objects:
+        meta = obj.data.get("sss_lab_thickness") if obj.type == "MESH" else None
+        if meta is None:
+            continue
+        distance = max(v["distance_su"] for v in meta.to_dict().values())
+        for slot in obj.material_slots:
+            if slot.material and slot.material.name in by_name:
+                assert by_name[slot.material.name].thickness_distance >= distance > 0

@@ -309,3 +309,39 @@ def test_bad_input_names_the_value(fn):
         _run(fn, e, a, z, m, cam, albedo_mode="pre")
     with pytest.raises(ValueError, match="camera: expected"):
         _run(fn, e, a, z, m, "cam")
+
+
+def test_sta_burley_falloff_filters_light_by_thickness_per_channel():
+    cam = Camera(type="ORTHO", width_px=3, height_px=1)
+    n = np.zeros((1, 3, 3), np.float32)
+    n[..., 2] = 1.0
+    p = np.zeros((1, 3, 3), np.float32)
+    p[..., 2] = -5.0
+    back = Light(type="SUN", energy=math.pi, matrix_world=(1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1))
+    # Translucency 1 (no thickness), 0.75 and 0 (thicker than the bake distance D = 0.04).
+    tau = np.array([[1.0, 0.75, 0.0]], np.float32)
+    d = (0.01, 0.004, 0.002)
+    kw = dict(
+        albedo=np.ones((1, 3, 3), np.float32),
+        normal=n,
+        position=p,
+        thickness=tau,
+        mask=np.ones((1, 3), bool),
+        camera=cam,
+        lights=[back],
+        distortion=0.0,
+    )
+    out = sta(falloff="burley", d_su=d, thickness_distance_su=0.04, **kw)
+    # A part of zero thickness passes everything: the same as the paper's map there.
+    assert np.allclose(out[0, 0], 1.0, atol=1e-6)
+    assert np.allclose(out[0, 0], sta(**kw)[0, 0], atol=1e-6)
+    # tau = 0.75 is a slab of 0.04 x sqrt(0.25) = 0.02: T_c = (e^{-x/d} + 3 e^{-x/3d}) / 4.
+    x = 0.02
+    expected = [0.25 * (math.exp(-x / dc) + 3 * math.exp(-x / (3 * dc))) for dc in d]
+    assert np.allclose(out[0, 1], expected, rtol=1e-5)
+    # Red, which scatters furthest, gets through best; nothing is negative or above the thin case.
+    assert out[0, 2, 0] > out[0, 2, 1] > out[0, 2, 2] >= 0
+    with pytest.raises(ValueError, match="thickness_distance_su: expected a finite number > 0"):
+        sta(falloff="burley", d_su=d, **kw)
+    with pytest.raises(ValueError, match="falloff: 'hdrp' is not one of map, burley"):
+        sta(falloff="hdrp", **kw)
