@@ -45,8 +45,9 @@ DEFAULT_QUALITIES: dict[str, tuple[dict, ...]] = {
 }
 
 
-#: STA scales s_T the calibration tries (STA_DEFAULTS uses 1).
+#: STA scales s_T and thickness falloffs the calibration tries (STA_DEFAULTS: 1, the map).
 STA_SCALES = (0.25, 0.5, 1.0, 2.0, 4.0)
+STA_FALLOFFS = ("map", "burley")
 
 
 @dataclass
@@ -577,20 +578,21 @@ def calibrate(passes, desc: SceneDescription, ref, mask, *, box: int, techniques
             _mark_best(results)
             rows.extend(results)
     if "sta" in techniques:
-        # STA has no physical scale (core/mapping.py): its scale s_T is what there is to calibrate.
+        # STA has no physical scale (core/mapping.py): its scale s_T is what there is to calibrate,
+        # with each thickness falloff.
         results = []
-        for scale in STA_SCALES:
-            try:
-                layers = core_apply.apply(passes, desc, "sta", scale=scale)
-            except (ValueError, KeyError) as exc:
-                rows.append({"method": "any", "technique": "sta", "mapping": f"scale={scale:g}", "error": str(exc)})
-                continue
-            if not layers:
-                continue
-            m = metrics.compare_images(layers[core_apply.layer_names("sta")[0]], ref, mask, box=box)
-            results.append(
-                {"method": "any", "technique": "sta", "mapping": f"scale={scale:g}", "rel_rmse": m["rel_rmse"]}
-            )
+        for falloff in STA_FALLOFFS:
+            for scale in STA_SCALES:
+                label = f"{falloff}, scale={scale:g}"
+                try:
+                    layers = core_apply.apply(passes, desc, "sta", scale=scale, falloff=falloff)
+                except (ValueError, KeyError) as exc:
+                    rows.append({"method": "any", "technique": "sta", "mapping": label, "error": str(exc)})
+                    continue
+                if not layers:
+                    continue
+                m = metrics.compare_images(layers[core_apply.layer_names("sta")[0]], ref, mask, box=box)
+                results.append({"method": "any", "technique": "sta", "mapping": label, "rel_rmse": m["rel_rmse"]})
         _mark_best(results)
         rows.extend(results)
     return {
