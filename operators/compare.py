@@ -341,9 +341,23 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
             f"scene {scene.name!r} has no material with subsurface scattering (Subsurface Weight > 0):"
             " nothing to compare"
         )
+    notes: list[str] = []
+    techniques = tuple(settings.techniques)
+    if "sta" in techniques:
+        from .render_passes import thickness_aov_name, thickness_setup
+
+        try:
+            thickness_setup(scene, materials, thickness_aov_name(scene))
+        except ValueError as exc:
+            # Checked before anything renders: the other techniques still get their report.
+            techniques = tuple(t for t in techniques if t != "sta")
+            notes.append(f"STA not run: {exc}")
+            log(f"STA not run: {exc}")
+            if not techniques:
+                raise
+        settings = dataclasses.replace(settings, techniques=techniques)
     os.makedirs(out_dir, exist_ok=True)
     cache_dir = settings.cache_dir or os.path.join(out_dir, "cache")
-    notes: list[str] = []
     timings: dict[str, float] = {}
     res = settings.resolution
 

@@ -20,6 +20,7 @@ import re
 import bpy
 import pytest
 
+from sss_lab.addon import compat
 from sss_lab.addon.cli_demo import load_sample_scenes
 from sss_lab.core import mapping
 from sss_lab.operators import compare as compare_mod
@@ -275,3 +276,29 @@ def test_scene_description_carries_the_thickness_bake_distance(blends):
         for slot in obj.material_slots:
             if slot.material and slot.material.name in by_name:
                 assert by_name[slot.material.name].thickness_distance >= distance > 0
+
+
+def test_a_scene_without_thickness_map_is_compared_without_sta_and_says_so(tmp_path):
+    bpy.ops.wm.read_factory_settings(use_empty=False)  # the default cube, camera and light
+    scene = bpy.context.scene
+    mat = bpy.data.materials.new("Wax")
+    compat.ensure_node_tree(mat)
+    node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    node.inputs["Subsurface Weight"].default_value = 1.0
+    node.inputs["Subsurface Scale"].default_value = 0.1
+    cube = bpy.data.objects["Cube"]
+    cube.data.materials.clear()
+    cube.data.materials.append(mat)
+    scene.render.engine = "BLENDER_EEVEE"
+    data = compare(scene, str(tmp_path), _settings(resolution=(32, 24), reference_samples=4, pass_samples=2))
+    assert not data["complete"]
+    assert any(n.startswith("STA not run:") and "bake thickness first" in n for n in data["notes"])
+    kinds = {e.get("technique") for e in data["entries"] if e["kind"] == "technique"}
+    assert kinds == {"ssss", "burley"}
+    assert scene.render.engine == "BLENDER_EEVEE"  # the scene is left as it was
+    with open(tmp_path / "report.md", encoding="utf-8") as fh:
+        assert "This report is incomplete" in fh.read()
+    # STA alone cannot run at all: a clear error, no report.
+    with pytest.raises(ValueError, match="bake thickness first"):
+        compare(scene, str(tmp_path / "sta"), _settings(techniques=("sta",)))
+    assert not os.path.exists(tmp_path / "sta" / "metrics.json")
