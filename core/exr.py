@@ -25,11 +25,12 @@ input.
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from ._files import atomic_write
 
 #: Blender 4.x short pass names (``RE_PASSNAME_*`` in Blender's ``DNA_scene_types.h`` and the
 #: Cycles pass names of ``blender/sync.cpp``) -> the names Blender 5.x writes. AOVs, light
@@ -423,22 +424,6 @@ def _same_file(a: str, b: str) -> bool:
         return os.path.abspath(a) == os.path.abspath(b)
 
 
-def _move_no_clobber(tmp: str, path: str) -> None:
-    """Move ``tmp`` to ``path`` atomically, failing if ``path`` appeared meanwhile.
-
-    A hard link fails with FileExistsError when the target exists, which ``os.replace`` would
-    silently overwrite; where the file system has no hard links, fall back to ``os.replace``.
-    """
-    try:
-        os.link(tmp, path)
-    except FileExistsError:
-        raise FileExistsError(f"{path} already exists; refusing to overwrite it (choose another output name)") from None
-    except OSError:
-        os.replace(tmp, path)
-        return
-    os.remove(tmp)
-
-
 def write_layers(
     path: str | os.PathLike,
     layers: Mapping[str, np.ndarray],
@@ -500,19 +485,5 @@ def write_layers(
         if index == 0 and header:
             part_header.update(_user_header(header))
         parts.append(OpenEXR.Part(part_header, pixels, name))
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + os.path.basename(path) + ".", suffix=".tmp")
-    os.close(fd)
-    try:
-        OpenEXR.File(parts).write(tmp)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual permissions
-        if overwrite:
-            os.replace(tmp, path)
-        else:
-            _move_no_clobber(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+    atomic_write(path, lambda tmp: OpenEXR.File(parts).write(tmp), overwrite=overwrite)
     return path

@@ -6,13 +6,12 @@
 
 from __future__ import annotations
 
-import os
 import struct
-import tempfile
 import zlib
 
 import numpy as np
 
+from ._files import write_bytes
 from .metrics import tonemap
 
 
@@ -53,18 +52,7 @@ def heat(values: np.ndarray, *, vmax: float) -> np.ndarray:
 
 def write_png(path: str, rgb8: np.ndarray) -> str:
     """Write atomically (temp file in the same folder, then rename)."""
-    data = encode_png(rgb8)
-    folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=folder, suffix=".png.tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+    write_bytes(path, encode_png(rgb8))
     return path
 
 

@@ -20,12 +20,12 @@ import json
 import math
 import os
 import re
-import tempfile
 
 import numpy as np
 
 from . import metrics as _metrics
 from . import png
+from ._files import write_text
 
 REPORT_VERSION = 1
 
@@ -57,17 +57,7 @@ def pareto_front(entries: list[dict], *, error_key: str = "rel_rmse") -> list[st
 
 
 def _atomic_write(path: str, text: str) -> None:
-    folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+    write_text(path, text)
 
 
 def _fmt(value, digits: int = 4) -> str:
