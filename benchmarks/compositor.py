@@ -38,6 +38,7 @@ import time
 
 import numpy as np
 
+from benchmarks._common import add_options, fastest, resolution
 from benchmarks.speed import D_SU
 
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "compositor.json")
@@ -48,26 +49,11 @@ def _rel_rms(a, b) -> float:
     return round(float(np.sqrt(np.mean((a - b) ** 2) / max(np.mean(b * b), 1e-30))), 4)
 
 
-def _best(fn, repeat: int) -> float:
-    fn()  # warm-up
-    best = float("inf")
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - start)
-    return best
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.compositor", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--repeat", type=int, default=3, help="runs per case, fastest reported (default: 3)")
-    parser.add_argument("--resolution", default="1920x1080", help="WxH (default: 1920x1080)")
-    parser.add_argument("--out", default=RESULTS, help="JSON output (default: benchmarks/results/compositor.json)")
+    add_options(parser, repeat=3, results=RESULTS)
     args = parser.parse_args(argv)
-    try:
-        width, height = (int(v) for v in args.resolution.lower().split("x"))
-    except ValueError:
-        parser.error(f"--resolution: expected WxH such as 1920x1080, got {args.resolution!r}")
+    width, height = resolution(parser, args.resolution)
 
     import bpy
 
@@ -148,7 +134,7 @@ def main(argv=None) -> int:
         return np.array(layer[..., :3])
 
     tree_with(None)
-    baseline = _best(composite, args.repeat)
+    baseline = fastest(composite, args.repeat, warm_up=True)
     print(f"compositor overhead (a tree passing the image through): {baseline * 1e3:8.0f} ms")
     results = {}
     for technique in TECHNIQUES:
@@ -175,9 +161,9 @@ def main(argv=None) -> int:
             for inner in n.node_tree.nodes
             if inner.bl_idname == "CompositorNodeConvolve"
         )
-        seconds = _best(composite, args.repeat)
+        seconds = fastest(composite, args.repeat, warm_up=True)
         entry["compositor_ms"] = round(seconds * 1e3, 1)
-        numpy_s = _best(lambda t=technique: apply(loaded, desc, t), args.repeat)
+        numpy_s = fastest(lambda t=technique: apply(loaded, desc, t), args.repeat, warm_up=True)
         entry["numpy_ms"] = round(numpy_s * 1e3, 1)
         got = composite_to_file(f"{technique}.exr")
         want = apply(loaded, desc, technique)[f"SSSLab.{technique}.Image"][..., :3]

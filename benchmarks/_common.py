@@ -1,0 +1,36 @@
+"""What the benchmarks share: timing (fastest of several runs) and their command-line options."""
+
+from __future__ import annotations
+
+import time
+
+
+def fastest(fn, repeat: int, *, warm_up: bool = False) -> float:
+    """Seconds of the fastest of ``repeat`` calls of ``fn`` (these machines are noisy: the
+    fastest run is the one least disturbed); one untimed call first with ``warm_up``."""
+    if warm_up:
+        fn()
+    best = float("inf")
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def add_options(parser, *, repeat: int, results: str) -> None:
+    parser.add_argument(
+        "--repeat", type=int, default=repeat, help=f"runs per case, fastest reported (default: {repeat})"
+    )
+    parser.add_argument("--resolution", default="1920x1080", help="WxH (default: 1920x1080)")
+    parser.add_argument("--out", default=results, help=f"JSON output (default: {results})")
+
+
+def resolution(parser, text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        parser.error(f"--resolution: expected WxH such as 1920x1080, got {text!r}")
+    if width < 1 or height < 1:
+        parser.error(f"--resolution: expected a positive width and height, got {text!r}")
+    return width, height
