@@ -24,6 +24,8 @@ _MODULES = (
 )
 
 _registered: list = []
+#: Handle of the ``blender --command sss_lab`` command, while registered.
+_cli_handle = None
 
 
 def _modules():
@@ -34,7 +36,7 @@ def _modules():
 def register():
     import bpy
 
-    from . import compat, properties
+    from . import cli, compat, properties
 
     if not compat.is_supported():
         raise RuntimeError(
@@ -46,6 +48,8 @@ def register():
                 bpy.utils.register_class(cls)
                 _registered.append(cls)
         properties.attach()
+        global _cli_handle
+        _cli_handle = bpy.utils.register_cli_command(cli.BLENDER_COMMAND, cli.blender_command)
     except Exception:
         unregister()
         raise
@@ -56,6 +60,10 @@ def unregister():
 
     from . import properties
 
+    global _cli_handle
+    if _cli_handle is not None:
+        bpy.utils.unregister_cli_command(_cli_handle)
+        _cli_handle = None
     properties.detach()
     while _registered:
         bpy.utils.unregister_class(_registered.pop())

@@ -39,9 +39,9 @@ def require_bpy():
     return bpy
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(prog: str = "python -m sss_lab") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m sss_lab",
+        prog=prog,
         description="SSS Lab: real-time subsurface scattering approximations, measured against Cycles.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -51,8 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+def main(argv: list[str] | None = None, *, prog: str = "python -m sss_lab") -> int:
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     try:
         return int(args.run(args) or 0)
@@ -62,3 +62,17 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError, FileExistsError) as exc:
         print(f"sss_lab {args.command}: error: {exc}", file=sys.stderr)
         return 2
+
+
+#: The id of the command the extension registers with Blender: ``blender --command sss_lab ...``.
+BLENDER_COMMAND = "sss_lab"
+
+
+def blender_command(argv: list[str]) -> int:
+    """``blender --command sss_lab COMMAND ...``: the same commands inside Blender (registered by
+    the extension with ``bpy.utils.register_cli_command``), for render-farm nodes that have Blender
+    but not the bpy module. argparse's exits (``--help``, a usage error) become return codes."""
+    try:
+        return main(list(argv), prog=f"blender --command {BLENDER_COMMAND}")
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
