@@ -11,6 +11,26 @@ import numpy as np
 BACKGROUND_DEPTH = 1e9
 
 
+#: Where the albedo is applied around a scatter: after it, or half before and half after.
+ALBEDO_MODES = ("post", "pre-post")
+
+
+def check_albedo_mode(mode: str) -> str:
+    if mode not in ALBEDO_MODES:
+        raise ValueError(f"albedo_mode: {mode!r} is not one of {', '.join(ALBEDO_MODES)}")
+    return mode
+
+
+def split_albedo(albedo: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """(factor on the light before the scatter, factor after it) for ``mode``: "post" gives
+    (1, A); "pre-post" gives (sqrt(A), sqrt(A)), keeping half of the texture detail under the
+    blur (Jimenez et al. 2015's pre/post scatter option). The first is None for "post"."""
+    if check_albedo_mode(mode) == "pre-post":
+        root = np.sqrt(np.maximum(albedo, 0.0))
+        return root, root
+    return None, albedo
+
+
 def image(x, name: str, channels: int | None = 3) -> np.ndarray:
     """``x`` as float32 (H, W, C) (or (H, W) when ``channels`` is None); ValueError otherwise.
 

@@ -25,7 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import _arrays
 from .exr import Passes
+from .profiles import TRUNCATION
 from .scene import MaterialSSS, SceneDescription
 from .techniques import TECHNIQUES, check_technique, get_technique
 
@@ -49,16 +51,10 @@ REQUIRED_PASSES: dict[str, tuple[str, ...]] = {
     ),
 }
 
-ALBEDO_MODES = ("post", "pre-post")
+ALBEDO_MODES = _arrays.ALBEDO_MODES
 
 #: Name of the layers ``apply`` returns: ``SSSLab.<technique>.Image`` and ``.SSS``.
 LAYER_PREFIX = "SSSLab"
-
-# Depth at or beyond this is background (Cycles writes 1e10 there, REFERENCES.md section 2).
-_BACKGROUND_DEPTH = 1e9
-
-# Burley's kernel ends at 16 d, where the CDF reaches 0.99638 (Cycles/EEVEE; REFERENCES.md section 1).
-_BURLEY_TRUNCATION = 16.0
 
 
 def required_passes(technique: str, thickness_aov: str = THICKNESS) -> tuple[str, ...]:
@@ -187,8 +183,7 @@ def _fmt(value) -> str:
 
 def _check_inputs(passes: Passes, scene: SceneDescription, technique: str, albedo_mode: str) -> None:
     check_technique(technique)
-    if albedo_mode not in ALBEDO_MODES:
-        raise ValueError(f"albedo_mode: {albedo_mode!r} is not one of {', '.join(ALBEDO_MODES)}")
+    _arrays.check_albedo_mode(albedo_mode)
     if not isinstance(scene, SceneDescription):
         raise ValueError(f"scene: expected a SceneDescription, got {type(scene).__name__}")
     h, w = passes.shape
@@ -234,13 +229,13 @@ def _kernel_su(technique: str, material: MaterialSSS, params: dict, mapping_tabl
     """Kernel radius in scene units per channel: how far the technique gathers light."""
     if technique == "sta":
         return None  # local: no kernel
-    if technique in ("burley", "ssss") and ("d_su" in params or technique == "burley"):
-        # Both reach 16 d of the profile (SSSS's pre-integrated kernel spans the same range).
-        d = params.get("d_su")
-        if d is None:
-            d = _mapping().burley_d(material, mapping=mapping_table)
+    d = params.get("d_su")
+    if d is None and technique == "burley":
+        d = _mapping().burley_d(material, mapping=mapping_table)
+    if d is not None:
+        # Burley and SSSS's pre-integrated kernel both reach 16 d of the profile.
         d = np.broadcast_to(np.asarray(d, dtype=np.float64), (3,))
-        return tuple(float(v) * _BURLEY_TRUNCATION for v in d)
+        return tuple(float(v) * TRUNCATION for v in d)
     for key in ("radius_su", "width_su", "kernel_radius_su"):
         if key in params:
             r = np.broadcast_to(np.asarray(params[key], dtype=np.float64), (3,))
@@ -313,7 +308,7 @@ def plan(
         mp.kernel_su = _kernel_su(technique, material, mp.params, mapping)
         if depth is not None:
             z = depth[index == material.index]
-            z = z[np.isfinite(z) & (z > 0) & (z < _BACKGROUND_DEPTH)]
+            z = z[np.isfinite(z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)]
             if z.size:
                 mp.median_depth = float(np.median(z))
                 mp.nearest_depth = float(z.min())
@@ -419,11 +414,8 @@ def apply(
         ok &= _finite(direct) & _finite(indirect) & _finite(depth_raw)
         diffuse = _clean(direct) + _clean(indirect)
         original = albedo * diffuse  # the diffuse light Combined holds on these pixels
-        if albedo_mode == "pre-post":
-            root = np.sqrt(np.maximum(albedo, 0.0))
-            tech_albedo, tech_diffuse = root, root * diffuse
-        else:
-            tech_albedo, tech_diffuse = albedo, diffuse
+        pre, tech_albedo = _arrays.split_albedo(albedo, albedo_mode)
+        tech_diffuse = diffuse if pre is None else pre * diffuse
         inputs = {
             "diffuse": tech_diffuse,
             "albedo": tech_albedo,

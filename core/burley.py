@@ -29,7 +29,6 @@ from . import _arrays
 from .profiles import TRUNCATION, burley_icdf
 from .scene import Camera
 
-ALBEDO_MODES = ("post", "pre-post")
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 MAX_SAMPLES = 4096
 
@@ -85,8 +84,7 @@ def burley(
     """
     if not isinstance(camera, Camera):
         raise ValueError(f"camera: expected a core.scene.Camera, got {type(camera).__name__}")
-    if albedo_mode not in ALBEDO_MODES:
-        raise ValueError(f"albedo_mode: {albedo_mode!r} is not one of {', '.join(ALBEDO_MODES)}")
+    _arrays.check_albedo_mode(albedo_mode)
     if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or not 1 <= n_samples <= MAX_SAMPLES:
         raise ValueError(f"n_samples: expected an integer in 1..{MAX_SAMPLES}, got {n_samples!r}")
     d = _arrays.rgb_lengths(d_su, "d_su")
@@ -110,11 +108,8 @@ def burley(
     ok &= TRUNCATION * dmax * scale > 1.0
     if not ok.any():
         return base
-    if albedo_mode == "pre-post":
-        root = np.sqrt(np.maximum(a, 0.0))
-        light, post = root * e, root
-    else:
-        light, post = e, a
+    pre, post = _arrays.split_albedo(a, albedo_mode)
+    light = e if pre is None else pre * e
     h, w = shape
     f32 = np.float32
     # Each pixel as one 16-byte item (r, g, b, depth key), plus a last item (0, 0, 0, inf) that

@@ -26,8 +26,6 @@ from . import _arrays
 from .kernels import SeparableKernel, check_taps, make_kernel
 from .scene import Camera
 
-ALBEDO_MODES = ("post", "pre-post")
-
 #: Pixels (times taps) per block: small enough to stay in the cache, large enough to amortize calls.
 _BLOCK_ELEMENTS = 1 << 16
 
@@ -204,8 +202,7 @@ def ssss(
     """
     if not isinstance(camera, Camera):
         raise ValueError(f"camera: expected a core.scene.Camera, got {type(camera).__name__}")
-    if albedo_mode not in ALBEDO_MODES:
-        raise ValueError(f"albedo_mode: {albedo_mode!r} is not one of {', '.join(ALBEDO_MODES)}")
+    _arrays.check_albedo_mode(albedo_mode)
     e = _arrays.image(diffuse, "diffuse")
     shape = e.shape[:2]
     a = _arrays.image(albedo, "albedo")
@@ -230,11 +227,8 @@ def ssss(
     ok &= kernel.radius_su * scale > 0.5
     if not ok.any():
         return base
-    if albedo_mode == "pre-post":
-        post = np.sqrt(np.maximum(a, 0.0))
-        light = post * e
-    else:
-        light, post = e, a
+    pre, post = _arrays.split_albedo(a, albedo_mode)
+    light = e if pre is None else pre * e
     h, w = shape
     # Follow surface compares depths in units of 2 R: key = z / (2 R) where pixels may give light,
     # +inf elsewhere (so that they give nothing); without it, 0 and +inf.

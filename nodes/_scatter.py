@@ -19,10 +19,9 @@ the mask.
 
 from __future__ import annotations
 
+from ..core.apply import ALBEDO_MODES
 from . import _graph
 from ._graph import Interface, Socket
-
-ALBEDO_MODES = ("post", "pre-post")
 
 
 def interface(description: str) -> Interface:
