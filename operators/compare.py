@@ -18,6 +18,7 @@ The scene is left as it was (``SceneState``), also when a step fails.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import os
@@ -277,15 +278,26 @@ def _with_method(scene, method: str, state: SceneState) -> None:
 
 
 def cached_reference(
-    scene, cache_dir: str, *, samples: int, seed: int, resolution, method: str | None, log=print
+    scene,
+    cache_dir: str,
+    *,
+    samples: int,
+    seed: int,
+    resolution,
+    method: str | None,
+    log=print,
+    fingerprint: str | None = None,
 ) -> tuple[np.ndarray, float, bool]:
     """The Cycles image for these settings, from the cache when the scene has not changed.
 
-    Returns (RGBA float32 image, render seconds (as measured when it was rendered), from cache).
+    ``fingerprint``: the scene's ``scene_fingerprint``, when the caller already has it (it hashes
+    every mesh). Returns (RGBA float32 image, render seconds (as measured when it was rendered),
+    from cache).
     """
-    key = hashlib.sha256(
-        json.dumps([scene_fingerprint(scene), samples, seed, list(resolution or []), method]).encode()
-    ).hexdigest()[:24]
+    fingerprint = fingerprint or scene_fingerprint(scene)
+    key = hashlib.sha256(json.dumps([fingerprint, samples, seed, list(resolution or []), method]).encode()).hexdigest()[
+        :24
+    ]
     path = os.path.join(cache_dir, f"cycles_{key}.exr")
     meta_path = path[:-4] + ".json"
     if os.path.isfile(path) and os.path.isfile(meta_path):
@@ -361,18 +373,11 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     timings: dict[str, float] = {}
     res = settings.resolution
 
-    ref, ref_seconds, _ = cached_reference(
-        scene, cache_dir, samples=settings.reference_samples, seed=settings.seed, resolution=res, method=None, log=log
-    )
-    second, _, _ = cached_reference(
-        scene,
-        cache_dir,
-        samples=settings.reference_samples,
-        seed=settings.seed + 1,
-        resolution=res,
-        method=None,
-        log=log,
-    )
+    fingerprint = scene_fingerprint(scene)
+    # Every Cycles image of this comparison: same scene, folder and size; samples, seed and method vary.
+    reference = functools.partial(cached_reference, scene, cache_dir, resolution=res, log=log, fingerprint=fingerprint)
+    ref, ref_seconds, _ = reference(samples=settings.reference_samples, seed=settings.seed, method=None)
+    second, _, _ = reference(samples=settings.reference_samples, seed=settings.seed + 1, method=None)
     images: dict[str, np.ndarray] = {}
     entries: list[dict] = []
 
@@ -436,20 +441,10 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     for samples in settings.peer_samples:
         if samples >= settings.reference_samples:
             continue
-        img, secs, _ = cached_reference(
-            scene, cache_dir, samples=samples, seed=settings.seed + 2, resolution=res, method=None, log=log
-        )
+        img, secs, _ = reference(samples=samples, seed=settings.seed + 2, method=None)
         add(f"Cycles {samples} spp", "cycles", img, secs)
     if settings.cycles_burley:
-        img, secs, _ = cached_reference(
-            scene,
-            cache_dir,
-            samples=settings.reference_samples,
-            seed=settings.seed + 3,
-            resolution=res,
-            method="BURLEY",
-            log=log,
-        )
+        img, secs, _ = reference(samples=settings.reference_samples, seed=settings.seed + 3, method="BURLEY")
         add(f"Cycles Christensen-Burley {settings.reference_samples} spp", "cycles", img, secs)
 
     images["Cycles reference"] = ref
@@ -459,7 +454,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
             "name": _scene_label(scene),
             "file": bpy.data.filepath,
             "materials": [asdict(m) for m in desc.materials],
-            "fingerprint": scene_fingerprint(scene),
+            "fingerprint": fingerprint,
         },
         "settings": {
             "resolution": list(ref.shape[1::-1]),
@@ -477,7 +472,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         "timings": timings,
         "entries": entries,
         "fidelity": _fidelity(desc, settings.techniques, notes),
-        "calibration": _calibration(scene, settings, passes, desc, ref, mask, cache_dir, res, log),
+        "calibration": _calibration(settings, passes, desc, ref, mask, reference),
         "notes": notes,
         "complete": not notes,
     }
@@ -539,24 +534,17 @@ def _mark_best(results: list[dict]) -> None:
     min((r for r in results if r.get("rel_rmse") is not None), key=lambda r: r["rel_rmse"])["chosen"] = True
 
 
-def _calibration(scene, settings: CompareSettings, passes, desc: SceneDescription, ref, mask, cache_dir, res, log):
+def _calibration(settings: CompareSettings, passes, desc: SceneDescription, ref, mask, reference):
     """The scene's own methods against its reference, then each method of
-    ``settings.calibrate_methods`` against a reference rendered with it."""
+    ``settings.calibrate_methods`` against a reference rendered with it (``reference``: the
+    comparison's ``cached_reference`` with the scene and size bound)."""
     result = calibrate(passes, desc, ref, mask, box=settings.box, techniques=settings.techniques)
     own = {m.method for m in desc.materials if m.scatters}
     scattering = tuple(t for t in settings.techniques if t != "sta")
     for method in settings.calibrate_methods:
         if method in own or not scattering:
             continue
-        method_ref, _, _ = cached_reference(
-            scene,
-            cache_dir,
-            samples=settings.reference_samples,
-            seed=settings.seed,
-            resolution=res,
-            method=method,
-            log=log,
-        )
+        method_ref, _, _ = reference(samples=settings.reference_samples, seed=settings.seed, method=method)
         as_method = dataclasses.replace(
             desc,
             materials=tuple(dataclasses.replace(m, method=method) if m.scatters else m for m in desc.materials),
@@ -569,46 +557,41 @@ def _calibration(scene, settings: CompareSettings, passes, desc: SceneDescriptio
     return result
 
 
+def _sweep(passes, desc, ref, mask, box: int, technique: str, method: str, variants) -> list[dict]:
+    """Rows for ``technique`` run with each (label, options) of ``variants``: the ones that could
+    not run (with the reason), then the measured ones, the best marked chosen."""
+    failed, results = [], []
+    for label, options in variants:
+        row = {"method": method, "technique": technique, "mapping": label}
+        try:
+            layers = core_apply.apply(passes, desc, technique, **options)
+        except (ValueError, KeyError) as exc:
+            failed.append({**row, "rel_rmse": None, "error": str(exc)})
+            continue
+        if layers:
+            m = metrics.compare_images(layers[core_apply.layer_names(technique)[0]], ref, mask, box=box)
+            results.append({**row, "rel_rmse": m["rel_rmse"]})
+    _mark_best(results)
+    return failed + results
+
+
 def calibrate(passes, desc: SceneDescription, ref, mask, *, box: int, techniques) -> dict:
     """For each subsurface method in the scene and each scattering technique, the error of
     every mapping the core offers; the lowest is marked chosen (none when all are equal)."""
     rows = []
-    methods = sorted({m.method for m in desc.materials if m.scatters})
-    for method in methods:
+    for method in sorted({m.method for m in desc.materials if m.scatters}):
         for technique in [t for t in techniques if t in ("ssss", "burley")]:
-            results = []
-            for name in mapping.MAPPINGS.get(method, ()):
-                try:
-                    layers = core_apply.apply(passes, desc, technique, mapping=name)
-                except (ValueError, KeyError) as exc:
-                    rows.append(
-                        {"method": method, "technique": technique, "mapping": name, "rel_rmse": None, "error": str(exc)}
-                    )
-                    continue
-                if not layers:
-                    continue
-                m = metrics.compare_images(layers[core_apply.layer_names(technique)[0]], ref, mask, box=box)
-                results.append({"method": method, "technique": technique, "mapping": name, "rel_rmse": m["rel_rmse"]})
-            _mark_best(results)
-            rows.extend(results)
+            variants = [(name, {"mapping": name}) for name in mapping.MAPPINGS.get(method, ())]
+            rows += _sweep(passes, desc, ref, mask, box, technique, method, variants)
     if "sta" in techniques:
         # STA has no physical scale (core/mapping.py): its scale s_T is what there is to calibrate,
         # with each thickness falloff.
-        results = []
-        for falloff in STA_FALLOFFS:
-            for scale in STA_SCALES:
-                label = f"{falloff}, scale={scale:g}"
-                try:
-                    layers = core_apply.apply(passes, desc, "sta", scale=scale, falloff=falloff)
-                except (ValueError, KeyError) as exc:
-                    rows.append({"method": "any", "technique": "sta", "mapping": label, "error": str(exc)})
-                    continue
-                if not layers:
-                    continue
-                m = metrics.compare_images(layers[core_apply.layer_names("sta")[0]], ref, mask, box=box)
-                results.append({"method": "any", "technique": "sta", "mapping": label, "rel_rmse": m["rel_rmse"]})
-        _mark_best(results)
-        rows.extend(results)
+        variants = [
+            (f"{falloff}, scale={scale:g}", {"scale": scale, "falloff": falloff})
+            for falloff in STA_FALLOFFS
+            for scale in STA_SCALES
+        ]
+        rows += _sweep(passes, desc, ref, mask, box, "sta", "any", variants)
     return {
         "definition": "Each mapping from the Principled BSDF inputs to the technique's parameters (core/mapping.py),"
         " applied to this scene's passes, and STA's scale s_T; relative RMSE against the reference as above.",
