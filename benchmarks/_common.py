@@ -1,8 +1,12 @@
-"""What the benchmarks share: timing (fastest of several runs) and their command-line options."""
+"""What the benchmarks share: timing (fastest of several runs), their command-line options and
+their results file."""
 
 from __future__ import annotations
 
+import json
 import time
+
+from sss_lab.core._files import write_text
 
 
 def fastest(fn, repeat: int, *, warm_up: bool = False) -> float:
@@ -34,3 +38,9 @@ def resolution(parser, text: str) -> tuple[int, int]:
     if width < 1 or height < 1:
         parser.error(f"--resolution: expected a positive width and height, got {text!r}")
     return width, height
+
+
+def write_results(path: str, data: dict) -> None:
+    """Write the figures as JSON (atomically) and say where, as every command here does."""
+    write_text(path, json.dumps(data, indent=2) + "\n")
+    print(f"Saved: {path}")

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import os
 import platform
@@ -38,7 +37,7 @@ import time
 
 import numpy as np
 
-from benchmarks._common import add_options, fastest, resolution
+from benchmarks._common import add_options, fastest, resolution, write_results
 from benchmarks.speed import D_SU
 
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "compositor.json")
@@ -196,10 +195,7 @@ def main(argv=None) -> int:
         },
         "techniques": results,
     }
-    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-    with open(args.out, "w", encoding="utf-8") as fh:
-        json.dump(data, fh, indent=2)
-    print(f"Saved: {args.out}")
+    write_results(args.out, data)
     return 0
 
 

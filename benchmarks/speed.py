@@ -19,13 +19,12 @@ Writes ``benchmarks/results/speed.json``.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 
 import numpy as np
 
-from benchmarks._common import add_options, fastest, resolution
+from benchmarks._common import add_options, fastest, resolution, write_results
 from sss_lab.core import kernels
 from sss_lab.core.burley import burley
 from sss_lab.core.ssss import ssss
@@ -127,10 +126,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     width, height = resolution(parser, args.resolution)
     data = run(width, height, args.repeat)
-    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-    with open(args.out, "w", encoding="utf-8") as fh:
-        json.dump(data, fh, indent=2)
-    print(f"Saved: {args.out}")
+    write_results(args.out, data)
     return 0
 
 

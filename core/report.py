@@ -56,10 +56,6 @@ def pareto_front(entries: list[dict], *, error_key: str = "rel_rmse") -> list[st
     return front
 
 
-def _atomic_write(path: str, text: str) -> None:
-    write_text(path, text)
-
-
 def _fmt(value, digits: int = 4) -> str:
     if value is None:
         return "—"
@@ -337,8 +333,8 @@ def write_report(
         "rows": ["tone-mapped image", "relative luminance error (black 0, white at error_scale_white)"],
     }
     svg = pareto_svg(data.get("entries", []), data["pareto"])
-    _atomic_write(os.path.join(out_dir, "pareto.svg"), svg)
-    _atomic_write(os.path.join(out_dir, "metrics.json"), json.dumps(data, indent=2, sort_keys=True))
-    _atomic_write(os.path.join(out_dir, "report.md"), _markdown(data))
-    _atomic_write(os.path.join(out_dir, "report.html"), _html(data, svg))
+    write_text(os.path.join(out_dir, "pareto.svg"), svg)
+    write_text(os.path.join(out_dir, "metrics.json"), json.dumps(data, indent=2, sort_keys=True))
+    write_text(os.path.join(out_dir, "report.md"), _markdown(data))
+    write_text(os.path.join(out_dir, "report.html"), _html(data, svg))
     return data

@@ -75,37 +75,25 @@ def scene_materials(scene) -> list:
     return [found[name] for name in sorted(found)]
 
 
-#: Where the thickness bake stores its settings (operators/bake.py META_KEY).
-_THICKNESS_META = "sss_lab_thickness"
-
-
-def _distances(meta) -> list[float]:
-    meta = meta.to_dict() if hasattr(meta, "to_dict") else meta
-    if not isinstance(meta, dict):
-        return []
-    if "distance_su" in meta:
-        return [float(meta["distance_su"])]
-    return [d for value in meta.values() for d in _distances(value)]
-
-
 def bake_distance(scene, material) -> float:
     """The largest thickness-bake distance (scene units) among the scene's baked maps of
     ``material``: the metadata of its objects' meshes (attribute target) and of the images in its
     node tree (image target); 0 when none was baked by SSS Lab."""
+    from .bake import thickness_metadata
+
     found = []
     for obj in scene.objects:
         if obj.type != "MESH" or obj.hide_render:
             continue
         if any(slot.material == material for slot in obj.material_slots):
-            meta = obj.data.get(_THICKNESS_META)
-            if meta is not None:
-                found += _distances(meta)
+            found += [meta.get("distance_su", 0.0) for meta in (thickness_metadata(obj.data) or {}).values()]
     if material.node_tree is not None:
         for node in material.node_tree.nodes:
             image = getattr(node, "image", None)
-            if image is not None and image.get(_THICKNESS_META) is not None:
-                found += _distances(image.get(_THICKNESS_META))
-    return max((d for d in found if d > 0), default=0.0)
+            meta = thickness_metadata(image) if image is not None else None
+            if meta:
+                found.append(meta.get("distance_su", 0.0))
+    return max((float(d) for d in found if d > 0), default=0.0)
 
 
 def sss_materials(scene) -> list[MaterialSSS]:
