@@ -17,6 +17,7 @@ reference code); the weights of each channel sum to 1, so a kernel never adds or
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -241,6 +242,13 @@ def preintegrated_kernel(
     radius = TRUNCATION * dmax if radius_su is None else float(radius_su)
     if not (np.isfinite(radius) and radius > 0):
         raise ValueError(f"radius_su: expected a finite length > 0, got {radius_su!r}")
+    return _preintegrated(n, tuple(float(v) for v in d), radius, method)
+
+
+@functools.lru_cache(maxsize=64)
+def _preintegrated(n: int, d: tuple[float, float, float], radius: float, method: str) -> SeparableKernel:
+    """The kernel itself, built once per parameter set: the integrals cost tens of milliseconds,
+    and apply asks for the same kernel for every frame. Its arrays are read-only, as it is shared."""
     offsets = tap_offsets(n, radius)
     edges = footprints(offsets)
     weights = np.zeros((n, 3))
@@ -250,10 +258,13 @@ def preintegrated_kernel(
         if d[c] <= 0 or d[c] * TRUNCATION < 1e-3 * (edges[centre + 1] - edges[centre]):
             weights[centre, c] = 1.0
             continue
-        m = _cell_integrals(edges, float(d[c]))
+        m = _cell_integrals(edges, d[c])
         k = m.sum(axis=1) if method == "marginal" else np.abs(np.linalg.svd(m)[0][:, 0])
         weights[:, c] = k / k.sum()
-    return SeparableKernel(offsets, weights, "preintegrated")
+    kernel = SeparableKernel(offsets, weights, "preintegrated")
+    kernel.offsets_su.setflags(write=False)
+    kernel.weights.setflags(write=False)
+    return kernel
 
 
 def make_kernel(kernel_type: str, n_taps: int, *, d_su=None, **artist) -> SeparableKernel:
