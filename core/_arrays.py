@@ -7,7 +7,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-#: Depth at or beyond this is background (Cycles writes 1e10 there, REFERENCES.md section 2).
+#: Depth at or beyond this is background (Cycles writes 1e10 there, docs/references.md §2).
 BACKGROUND_DEPTH = 1e9
 
 
@@ -35,7 +35,7 @@ def image(x, name: str, channels: int | None = 3) -> np.ndarray:
     """``x`` as float32 (H, W, C) (or (H, W) when ``channels`` is None); ValueError otherwise.
 
     float16 and float64 inputs are converted (computing in half floats would overflow at 65504,
-    REFERENCES.md section 5); the caller's array is never written to.
+    docs/references.md §5); the caller's array is never written to.
     """
     a = np.asarray(x)
     if a.dtype.kind not in "fiub":

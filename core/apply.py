@@ -1,9 +1,9 @@
 """Apply a technique to rendered passes: plan, compute, composite. No Blender needed.
 
 The passes come from a render with the SSS materials rendered as plain diffuse (Subsurface
-Weight 0, REFERENCES.md section 7), so their diffuse light is in the Diffuse passes:
+Weight 0, docs/references.md §7), so their diffuse light is in the Diffuse passes:
 Combined = ... + Diffuse Color x (Diffuse Direct + Diffuse Indirect) + ... (the Diffuse
-Direct/Indirect passes exclude the BSDF colour, REFERENCES.md section 2). Rebuilding:
+Direct/Indirect passes exclude the BSDF colour, docs/references.md §2). Rebuilding:
 
 - SSSS and Burley scatter the diffuse light; on the pixels of a scattering material the image
   becomes Combined - albedo x (Direct + Indirect) + scattered, where ``scattered`` is the
@@ -35,7 +35,7 @@ from .techniques import TECHNIQUES, check_technique, get_technique
 #: thickness AOV (``SceneDescription.thickness_aov``, "Thickness" by default). The render
 #: operator enables exactly these (see ``required_passes``). Combined is what the result is
 #: composited onto; the Object Index lets Burley reject samples from other objects (EEVEE Next
-#: does the same, REFERENCES.md section 1).
+#: does the same, docs/references.md §1).
 THICKNESS = "Thickness"
 REQUIRED_PASSES: dict[str, tuple[str, ...]] = {
     "sta": ("Combined", "Diffuse Color", "Normal", "Position", "Material Index", THICKNESS),
@@ -321,8 +321,8 @@ def plan(
             widest_px = max(mp.kernel_su) * ppu_nearest
             mp.unchanged_channels = tuple(c for c, r in enumerate(mp.kernel_su) if r * ppu_nearest <= 1.0)
             if widest_px <= 1.0:
-                # EEVEE Next skips a pixel whose whole footprint is at most one pixel (REFERENCES.md
-                # section 1); here even the material's nearest pixel is that small.
+                # EEVEE Next skips a pixel whose whole footprint is at most one pixel (docs/references.md
+                # §1); here even the material's nearest pixel is that small.
                 mp.skip = (
                     f"its kernel is at most one pixel wide ({widest_px:.3g} px at the nearest depth"
                     f" {mp.nearest_depth:.4g}): scattering would not change it"

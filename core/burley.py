@@ -1,7 +1,7 @@
 """Christensen-Burley normalized diffusion gathered along a golden-angle spiral, in NumPy.
 
 Christensen & Burley, Pixar memo 15-04 (2015); Golubev, SIGGRAPH 2018 course, and the
-estimator shared by HDRP, EEVEE Next and Unreal (REFERENCES.md section 1). For each pixel of
+estimator shared by HDRP, EEVEE Next and Unreal (docs/references.md §1). For each pixel of
 the mask, n samples:
 
 - radius r_i = P^{-1}(u_i) d_max with u_i = (i + 0.5) / n (stratified: never 0 or 1) and the

@@ -1,6 +1,6 @@
 """Reading and writing Blender's multilayer OpenEXR files (OpenEXR 3.5 Python API).
 
-Layouts read (REFERENCES.md section 7, and a probe render with bpy 5.2.3):
+Layouts read (docs/references.md §7, and a probe render with bpy 5.2.3):
 
 - Blender 5.2 writes one part per pass. The part is named ``<view layer>.<pass>`` (for example
   ``ViewLayer.Diffuse Direct``) and its channels are ``<view layer>.<pass>.<channel>``: colour
@@ -16,7 +16,7 @@ text between the last two dots the pass, the rest the view layer (which may hold
 layers this project adds, ``SSSLab.burley.Image``, read back as view layer ``SSSLab.burley``).
 
 Every array handed out is float32 (half and uint channels are converted on read, so that no
-arithmetic ever happens in half precision, REFERENCES.md section 5), rows run top to bottom
+arithmetic ever happens in half precision, docs/references.md §5), rows run top to bottom
 (image row 0 is the top of the picture; Blender's ``Image.pixels`` run bottom to top), and
 pixels are never clamped. Files are written in float32 only, atomically, and never over an
 input.

@@ -1,6 +1,6 @@
 """The slide deck's visual-fidelity table, measured instead of asserted.
 
-The deck (``shared/seeds``, section 04) rates each technique on three properties. Here each is a
+The slide deck (docs/references.md §12, its section 04) rates each technique on three properties. Here each is a
 number from one synthetic experiment: a flat, fully masked, white (albedo 1) surface seen by an
 orthographic camera, lit only along one vertical line of pixels.
 

@@ -1,15 +1,15 @@
 """Separable SSS kernels: tap offsets and per-channel weights (no Blender).
 
 Both kernels of Jimenez et al., "Separable Subsurface Scattering" (Computer Graphics Forum
-34(6), 2015; reference code iryoku/separable-sss), REFERENCES.md section 3:
+34(6), 2015; reference code iryoku/separable-sss), docs/references.md §3:
 
 - ``artist_kernel``: the sum of five Gaussians fit to skin (d'Eon 2007), each channel widened by
   its falloff, the centre tap blended towards identity by the strength, as in the reference code.
 - ``preintegrated_kernel``: built offline from the Burley profile (``core.profiles``): the 2-D
   profile integrated over each pair of tap footprints, then reduced to one 1-D kernel per
   channel: by default its marginal (exact line and edge spread), or the first
-  singular vector (a rank-1 least-squares fit). REFERENCES.md marks the paper's exact
-  construction unverified; both readings are here and measured.
+  singular vector (a rank-1 least-squares fit). The paper does not spell
+  out its exact construction (docs/references.md §3); both readings are here and measured.
 
 Offsets are shared by the channels and denser near the centre (quadratic spacing, as in the
 reference code); the weights of each channel sum to 1, so a kernel never adds or removes light.
@@ -30,7 +30,7 @@ KERNEL_TYPES = ("preintegrated", "artist")
 #: (variance mm^2, weight) of the skin profile's Gaussians (d'Eon 2007 via Jimenez et al. 2015);
 #: the narrowest term (0.233 at 0.0064) is left to the strength, as in the reference code.
 SKIN_GAUSSIANS = ((0.0484, 0.100), (0.187, 0.118), (0.567, 0.113), (1.99, 0.358), (7.41, 0.078))
-#: The reference demo's per-channel falloff and strength (REFERENCES.md section 3).
+#: The reference demo's per-channel falloff and strength (docs/references.md §3).
 DEMO_FALLOFF = (1.0, 0.37, 0.3)
 DEMO_STRENGTH = (0.48, 0.41, 0.28)
 

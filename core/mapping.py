@@ -3,7 +3,7 @@
 So that the passes are driven by the same material that Cycles renders, every technique reads
 its scattering distance from the material's Subsurface Radius x Subsurface Scale, Base Color
 and (for the Skin method) Subsurface IOR, through the convention of the material's subsurface
-method in Cycles (Blender 5.2; Cycles ``kernel/closure/bssrdf.h``, REFERENCES.md section 2):
+method in Cycles (Blender 5.2; Cycles ``kernel/closure/bssrdf.h``, docs/references.md §2):
 
 - BURLEY: Cycles' ``bssrdf_setup_radius`` scales the radius by 1 / (4 pi) and uses the result as
   the profile's d, with no albedo fit (the ``bssrdf_burley_fitting`` function is no longer
@@ -40,12 +40,12 @@ MAPPINGS: dict[str, tuple[str, ...]] = {
 assert set(MAPPINGS) == set(SUBSURFACE_METHODS)
 
 #: STA's parameters (Barre-Brisebois & Bouchard 2011; three.js defaults for distortion, power and
-#: ambient, REFERENCES.md section 4). Scale 1 makes the translucency as bright as a Lambertian
+#: ambient, docs/references.md §4). Scale 1 makes the translucency as bright as a Lambertian
 #: surface facing the light; STA has no physical scale, the comparison calibrates it.
 STA_DEFAULTS = {"distortion": 0.1, "power": 2.0, "scale": 1.0, "ambient": 0.0}
-#: SSSS: 17 taps is Unreal's medium quality (REFERENCES.md section 3).
+#: SSSS: 17 taps is Unreal's medium quality (docs/references.md §3).
 SSSS_DEFAULTS = {"kernel_type": "preintegrated", "n_taps": 17}
-#: Burley: 32 samples (EEVEE Next uses 16 per temporal sample, HDRP 20/40/80; section 1).
+#: Burley: 32 samples (EEVEE Next uses 16 per temporal sample, HDRP 20/40/80; docs/references.md §1).
 BURLEY_DEFAULTS = {"n_samples": 32}
 
 

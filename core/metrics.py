@@ -1,6 +1,6 @@
 """Error metrics of a technique's image against the Cycles random-walk reference.
 
-Definitions (also printed in every report, REFERENCES.md section 8):
+Definitions (also printed in every report, docs/references.md §8):
 
 - ``rmse``: root mean square difference over the masked pixels and the three colour channels,
   on linear scene-referred RGB, after an optional ``box``×``box`` mean downsampling of both

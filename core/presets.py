@@ -7,7 +7,7 @@ channel R, G, B): the diffuse reflectance R_d becomes the Base Color and the dif
 path l_d = 1 / sigma_tr (in mm) becomes Radius x Scale. Reading l_d as the Principled BSDF's
 radius ("the average distance light scatters below the surface") is the usual way these
 measurements are entered into a renderer; Cycles' subsurface methods then interpret the radius
-each in their own way (REFERENCES.md section 2; ``core/mapping.py``).
+each in their own way (docs/references.md §2; ``core/mapping.py``).
 
 Wax and jade have no measurement in that paper: their values are an artistic choice (a look,
 not a measurement), and their ``source`` says so.

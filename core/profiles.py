@@ -4,11 +4,11 @@ Source: Christensen & Burley, "Approximate Reflectance Profiles for Efficient Su
 Scattering", Pixar technical memo 15-04 (2015), equations (3) and (5)-(8); Golubev, "Efficient
 Screen-Space Subsurface Scattering Using Burley's Normalized Diffusion in Real-Time" (SIGGRAPH
 2018) for the closed-form inverse CDF; Cycles ``kernel/closure/bssrdf.h`` for the truncation
-(REFERENCES.md section 1).
+(docs/references.md §1).
 
 The profile R(r) = A (e^{-r/d} + e^{-r/3d}) / (8 pi d r) has a pole at r = 0, so everything here
 works in the polar measure (r R(r), finite) or with the radial pdf, as every production
-implementation does (REFERENCES.md section 5). ``d`` is the shape parameter in scene units.
+implementation does (docs/references.md §5). ``d`` is the shape parameter in scene units.
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ def burley_icdf(xi, d=1.0):
 
 def burley_transmittance(thickness, d, albedo=1.0):
     """Light through a slab of ``thickness``: T(t) = (A/4)(e^{-t/d} + 3 e^{-t/3d})
-    (HDRP's ComputeTransmittanceDisney, REFERENCES.md section 4); T(0) = A, 1 - CDF at t."""
+    (HDRP's ComputeTransmittanceDisney, docs/references.md §4); T(0) = A, 1 - CDF at t."""
     t = _check_r(thickness)
     d = _check_d(d)
     e3 = np.exp(-t / (3.0 * d))

@@ -6,7 +6,7 @@ so that the NumPy passes run on any machine with Python and NumPy (a render-farm
 Blender included). ``operators/render_passes.py`` fills it from a Blender scene; ``core``
 reads it.
 
-Conventions (DESIGN.md): lengths in scene units, colours linear, matrices row-major 4x4
+Conventions: lengths in scene units, colours linear, matrices row-major 4x4
 object-to-world as Blender's ``matrix_world`` (a camera looks down its local -Z, a sun or spot
 light shines down its local -Z).
 """
@@ -25,7 +25,7 @@ SCENE_DESCRIPTION_VERSION = 1
 CAMERA_TYPES = ("PERSP", "ORTHO")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 LIGHT_TYPES = ("SUN", "POINT", "SPOT", "AREA")
-#: Blender 5.2's Principled BSDF subsurface methods (REFERENCES.md section 2).
+#: Blender 5.2's Principled BSDF subsurface methods (docs/references.md §2).
 SUBSURFACE_METHODS = ("BURLEY", "RANDOM_WALK", "RANDOM_WALK_SKIN", "RANDOM_WALK_LEGACY")
 
 _IDENTITY = (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0)
@@ -134,7 +134,7 @@ class Camera:
         """Screen footprint: pixels per scene unit at each pixel, from planar view depth.
 
         ``depth`` is (H, W) planar view z as Blender's Depth pass writes it (1e10 for
-        background). Perspective: focal_px / z (REFERENCES.md section 1, "Screen footprint").
+        background). Perspective: focal_px / z (docs/references.md §1, "Screen footprint").
         Orthographic: constant. Returns float32 (H, W); 0 where depth is not finite or <= 0.
         """
         z = np.asarray(depth, dtype=np.float32)
@@ -210,7 +210,7 @@ class Light:
 
 @dataclass(frozen=True)
 class MaterialSSS:
-    """A material's subsurface inputs as the Principled BSDF holds them (REFERENCES.md section 2).
+    """A material's subsurface inputs as the Principled BSDF holds them (docs/references.md §2).
 
     ``index`` is the material's Pass Index, the value of the Material Index pass on its pixels.
     """

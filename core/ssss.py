@@ -1,7 +1,7 @@
 """Separable subsurface scattering (SSSS): two 1-D per-channel convolutions, in NumPy.
 
 Jimenez et al., "Separable Subsurface Scattering", Computer Graphics Forum 34(6), 2015, and
-its reference code (iryoku/separable-sss), REFERENCES.md section 3. The diffuse light is
+its reference code (iryoku/separable-sss), docs/references.md §3. The diffuse light is
 filtered horizontally, then vertically, with a kernel from ``core.kernels``; the taps are laid
 out in scene units and projected to pixels at each pixel's depth (``Camera.pixels_per_unit``:
 perspective and orthographic), and read with linear interpolation along the pass.

@@ -1,7 +1,7 @@
 """Simple translucency approximation (STA), in NumPy.
 
 Barre-Brisebois & Bouchard, "Approximating Translucency for a Fast, Cheap and Convincing
-Subsurface Scattering Look", GDC 2011 / GPU Pro 2 (REFERENCES.md section 4). Per light:
+Subsurface Scattering Look", GDC 2011 / GPU Pro 2 (docs/references.md §4). Per light:
 
     L_T   = normalize(L + d_T N)                 (the seed deck and three.js normalize it)
     T_dir = s_T max(0, V . -L_T)^p_T
@@ -127,7 +127,7 @@ def sta(
     x = D sqrt(1 - t) (the bake's AO of a slab is (x / D)^2, ``core/thickness.py``, with D =
     ``thickness_distance_su``), and each channel is scaled by the Burley transmittance
     T_c(x) = (e^{-x/d_c} + 3 e^{-x/3d_c}) / 4 for the profile shape ``d_su`` (HDRP's
-    ComputeTransmittanceDisney, REFERENCES.md section 4; the albedo is applied as before): thin
+    ComputeTransmittanceDisney, docs/references.md §4; the albedo is applied as before): thin
     parts pass every channel, thicker ones mostly the channel that scatters furthest.
 
     ``albedo`` (H, W, 3) Diffuse Color; ``normal`` (H, W, 3) world-space normals; ``position``

@@ -2,7 +2,7 @@
 
 A perspective camera at the origin looks down -Z (identity ``matrix_world``) at a plane at
 z = -6 and two spheres; two sun lights (a key light from the front left, a back light). The
-passes follow Cycles' conventions (REFERENCES.md section 2): Depth is planar view z with 1e10
+passes follow Cycles' conventions (docs/references.md §2): Depth is planar view z with 1e10
 on the background, Object and Material Index are 0 there, Diffuse Direct/Indirect exclude the
 BSDF colour and Diffuse Color holds it, Combined = Diffuse Color x (Direct + Indirect) + a
 constant glossy term, alpha 1 on geometry and 0 on the background. Rows run top to bottom.

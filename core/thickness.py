@@ -1,7 +1,7 @@
 """Thickness maps: settings, conventions and the analytic expectation of a baked map.
 
 The map is ambient occlusion with the normals flipped inwards (Barré-Brisebois & Bouchard,
-GDC 2011; REFERENCES.md section 4), baked by Cycles' Ambient Occlusion shader node with
+GDC 2011; docs/references.md §4), baked by Cycles' Ambient Occlusion shader node with
 ``inside`` set. Pure Python and NumPy: the Blender side lives in ``operators/bake.py``.
 
 What Cycles computes (``intern/cycles/kernel/svm/ao.h``, ``svm_ao``, Blender 4.x/5.x): with

@@ -3,7 +3,7 @@
 ``compare(scene, out_dir)`` renders
 
 - the reference: the scene as it is (its own subsurface method, normally Random Walk), fixed
-  seed, adaptive sampling off (REFERENCES.md section 8), cached by a fingerprint of the scene
+  seed, adaptive sampling off (docs/references.md §8), cached by a fingerprint of the scene
   and the settings so that a second run of an unchanged scene does not render it again;
 - the noise floor: the same reference with another seed, compared with the same metric;
 - peers: Cycles at lower sample counts, and Cycles' own Christensen-Burley method;

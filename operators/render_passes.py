@@ -6,14 +6,14 @@ line call it); the operator ``bpy.ops.sss_lab.render_passes`` wraps it for the p
 What it does, per call, through ``SceneState`` (everything is put back afterwards, also when a
 render or a save fails):
 
-- Cycles, the given samples, adaptive sampling off (a fixed sample count, REFERENCES.md section
-  8), the given seed, no denoising (Combined must hold the same noise as the diffuse passes the
+- Cycles, the given samples, adaptive sampling off (a fixed sample count, docs/references.md §8),
+  the given seed, no denoising (Combined must hold the same noise as the diffuse passes the
   techniques subtract from it), no time limit, optionally a WxH resolution at 100 %.
 - Only the chosen view layer renders, with exactly the passes of
   ``core.apply.required_passes`` for the techniques switched on and every other pass, shader
   AOV and light group switched off (so a file holds what the techniques read, nothing else).
 - Every Principled BSDF of the scene's materials renders as plain diffuse: Subsurface Weight 0
-  (its links cut), the way a real-time engine sees the material (REFERENCES.md section 7: the
+  (its links cut), the way a real-time engine sees the material (docs/references.md §7: the
   subsurface light would otherwise be inside the Diffuse passes).
 - Material Pass Index = the index ``describe.sss_materials`` gives each subsurface material
   (1, 2, ... in name order), 0 for every other material, so the Material Index pass matches

@@ -70,7 +70,7 @@ def _render_passes(path, color_depth="32"):
     thickness.name, thickness.type = "Thickness", "VALUE"
 
     settings = scene.render.image_settings
-    settings.media_type = "MULTI_LAYER_IMAGE"  # before file_format (REFERENCES.md section 7)
+    settings.media_type = "MULTI_LAYER_IMAGE"  # before file_format (docs/references.md §7)
     settings.file_format = "OPEN_EXR_MULTILAYER"
     settings.color_depth = color_depth
     scene.render.filepath = str(path)
@@ -112,7 +112,7 @@ def test_reads_a_real_blender_render(tmp_path, color_depth):
     interior = on_sphere & pad[:-2, 1:-1] & pad[2:, 1:-1] & pad[1:-1, :-2] & pad[1:-1, 2:]
     assert interior.sum() > 100
     np.testing.assert_array_equal(p["Thickness"][interior], 0.25)
-    # Background: depth 1e10 and index 0 (REFERENCES.md section 2).
+    # Background: depth 1e10 and index 0 (docs/references.md §2).
     assert (p["Depth"][~on_sphere] == np.float32(1e10)).all()
     assert (p["Object Index"][~on_sphere] == 0).all()
     # Rows run top to bottom: the sphere is in the upper part of the picture.

@@ -52,7 +52,7 @@ class Recorder:
 
 class StubMapping:
     """Parameters as core.mapping would give them; Burley's d is the Christensen-Burley method's
-    radius / (4 pi) (REFERENCES.md section 2)."""
+    radius / (4 pi) (docs/references.md §2)."""
 
     @staticmethod
     def burley_d(material, *, mapping=None):
@@ -113,8 +113,8 @@ def test_plan_lists_each_material_with_its_reason(stub, scene_passes):
         assert mp.pixels == int((arrays["Material Index"] == index).sum())
         z = arrays["Depth"][arrays["Material Index"] == index]
         assert mp.median_depth == pytest.approx(float(np.median(z)), rel=1e-6)
-        # Kernel radius: Burley truncated at 16 d (REFERENCES.md section 1), d = radius / 4 pi
-        # from the stand-in mapping, times focal length in pixels over depth (section 1).
+        # Kernel radius: Burley truncated at 16 d (docs/references.md §1), d = radius / 4 pi
+        # from the stand-in mapping, times focal length in pixels over depth (docs/references.md §1).
         d = np.array(mp.material.radius) / (4 * math.pi)
         focal = 35.0 / 36.0 * 48  # lens 35 mm over a 36 mm sensor across 48 pixels
         np.testing.assert_allclose(mp.kernel_px, 16 * d * focal / np.median(z), rtol=1e-5)  # float32 depth

@@ -2,7 +2,7 @@
 
 The synthetic files are written with the raw OpenEXR API (not with ``write_layers``), using the
 part and channel names a bpy 5.2.3 render wrote (tests/blender/test_exr_render.py reads a
-real one) and the single-part, short-name layout REFERENCES.md section 7 describes for 4.5.
+real one) and the single-part, short-name layout docs/references.md §7 describes for 4.5.
 """
 
 import os
