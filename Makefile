@@ -14,6 +14,7 @@ demo: venv
 test: venv
 	$(PY) -m ruff check .
 	$(PY) -m ruff format --check .
+	@bash tools/ensure_chromium.sh
 	$(PY) -m pytest tests
 
 lint: venv

@@ -83,8 +83,9 @@ def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, heigh
 
     colours = {"technique": "#1f77b4", "cycles": "#d62728", "baseline": "#7f7f7f"}
     out = [
-        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" font-family="sans-serif"'
-        ' font-size="11">',
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {width} {height}"'
+        ' font-family="sans-serif" font-size="12" role="img">',
+        "<title>Relative RMSE against time; the Pareto front is joined</title>",
         f'<rect x="0" y="0" width="{width}" height="{height}" fill="white"/>',
         f'<line x1="{left}" y1="{height - bottom}" x2="{width - right}" y2="{height - bottom}" stroke="black"/>',
         f'<line x1="{left}" y1="{top}" x2="{left}" y2="{height - bottom}" stroke="black"/>',
@@ -115,7 +116,9 @@ def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, heigh
         x, y = sx(e["time_s"]["total"]), sy(e["metrics"]["rel_rmse"])
         colour = colours.get(e.get("kind"), "black")
         out.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{colour}"/>')
-        out.append(f'<text x="{x + 6:.1f}" y="{y - 6:.1f}">{html.escape(e["name"])}</text>')
+        # Labels of points in the right third end at the point, so that they stay inside the plot.
+        side = f'x="{x - 6:.1f}" text-anchor="end"' if x > left + (width - left - right) * 2 / 3 else f'x="{x + 6:.1f}"'
+        out.append(f'<text {side} y="{y - 6:.1f}">{html.escape(e["name"])}</text>')
     out.append("</svg>")
     return "\n".join(out)
 
@@ -212,56 +215,81 @@ def _markdown(data: dict) -> str:
 
 
 _MD_IMAGE = re.compile(r"!\[([^\]]*)\]\(([^)]+)\)")
+_MD_BOLD = re.compile(r"\*\*(.+?)\*\*")
 
 
-def _html_cell(text: str) -> str:
+def _html_text(text: str) -> str:
+    """Escaped text, with Markdown's **bold** as <strong>."""
+    return _MD_BOLD.sub(r"<strong>\1</strong>", html.escape(text))
+
+
+def _html_cell(text: str, tag: str = "td") -> str:
     """A table cell: Markdown images become <img>, everything else is escaped text."""
     m = _MD_IMAGE.fullmatch(text)
     if m:
         alt, src = (html.escape(g, quote=True) for g in m.groups())
-        return f'<img src="{src}" alt="{alt}" width="128" style="image-rendering: pixelated">'
-    return html.escape(text)
+        return f'<{tag}><img src="{src}" alt="{alt}" width="128"></{tag}>'
+    return f"<{tag}>{html.escape(text)}</{tag}>"
+
+
+#: The page's style. Wide content (tables, the plot, the grid) scrolls inside its own box, so
+#: the page itself never scrolls sideways on a phone and the text keeps its size.
+_STYLE = (
+    "body{font-family:sans-serif;font-size:16px;line-height:1.4;max-width:1100px;margin:0 auto;padding:0 12px 2em}"
+    "h1{font-size:1.5em}h2{font-size:1.25em;margin-top:1.5em}p,li{overflow-wrap:anywhere}"
+    ".wide{overflow-x:auto;margin:1em 0}table{border-collapse:collapse}"
+    "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right;vertical-align:top}"
+    "th{background:#f4f4f4}td:first-child,th:first-child{text-align:left}"
+    "img{image-rendering:pixelated}.wide>svg{display:block}"
+)
 
 
 def _html(data: dict, svg: str) -> str:
     # The Markdown is the single source of the text; the HTML shows it as tables plus the pictures.
-    rows = []
-    for line in _markdown(data).splitlines():
-        if line.startswith("# "):
-            rows.append(f"<h1>{html.escape(line[2:])}</h1>")
-        elif line.startswith("## "):
-            rows.append(f"<h2>{html.escape(line[3:])}</h2>")
-        elif line.startswith("|---"):
+    lines = _markdown(data).splitlines()
+    body: list[str] = []
+    block = ""  # the open element that groups lines: "table", "ul" or ""
+
+    def open_block(kind: str) -> None:
+        nonlocal block
+        if block == kind:
+            return
+        if block:
+            body.append("</table></div>" if block == "table" else "</ul>")
+        if kind:
+            body.append('<div class="wide"><table>' if kind == "table" else "<ul>")
+        block = kind
+
+    for k, line in enumerate(lines):
+        if line.startswith("|---"):
             continue
-        elif line.startswith("| "):
+        if line.startswith("| "):
+            open_block("table")
+            header = k + 1 < len(lines) and lines[k + 1].startswith("|---")
             cells = [c.strip() for c in line.strip("|").split("|")]
-            rows.append("<tr>" + "".join(f"<td>{_html_cell(c)}</td>" for c in cells) + "</tr>")
+            body.append("<tr>" + "".join(_html_cell(c, "th" if header else "td") for c in cells) + "</tr>")
+            continue
+        if line.startswith("- "):
+            open_block("ul")
+            body.append(f"<li>{_html_text(line[2:])}</li>")
+            continue
+        open_block("")
+        if line.startswith("# "):
+            body.append(f"<h1>{html.escape(line[2:])}</h1>")
+        elif line.startswith("## "):
+            body.append(f"<h2>{html.escape(line[3:])}</h2>")
         elif line.startswith("![error"):
-            rows.append(svg)
+            body.append(f'<div class="wide">{svg}</div>')
         elif line.startswith("![images]"):
-            rows.append('<p><img src="grid.png" alt="images" style="image-rendering: pixelated; max-width: 100%"></p>')
-        elif line.startswith("- "):
-            rows.append(f"<li>{html.escape(line[2:])}</li>")
+            body.append('<div class="wide"><img src="grid.png" alt="images"></div>')
         elif line.strip():
-            rows.append(f"<p>{html.escape(line)}</p>")
-    body, in_table = [], False
-    for r in rows:
-        if r.startswith("<tr>") and not in_table:
-            body.append("<table>")
-            in_table = True
-        if not r.startswith("<tr>") and in_table:
-            body.append("</table>")
-            in_table = False
-        body.append(r)
-    if in_table:
-        body.append("</table>")
-    style = (
-        "body{font-family:sans-serif;max-width:1100px;margin:2em auto}table{border-collapse:collapse}"
-        "td{border:1px solid #ccc;padding:2px 8px;text-align:right}td:first-child{text-align:left}"
-    )
+            body.append(f"<p>{_html_text(line)}</p>")
+    open_block("")
+    title = html.escape(f"SSS Lab report: {data.get('scene', {}).get('name', '')}")
     return (
-        f"<!doctype html><html><head><meta charset='utf-8'><title>SSS Lab report</title><style>{style}</style>"
-        f"</head><body>{''.join(body)}</body></html>\n"
+        "<!doctype html><html lang='en'><head><meta charset='utf-8'>"
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>"
+        f"<title>{title}</title><style>{_STYLE}</style></head><body>{''.join(body)}</body></html>\n"
     )
 
 

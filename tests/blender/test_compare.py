@@ -118,6 +118,15 @@ def test_report_numbers_are_the_json_numbers(reports):
             assert os.path.getsize(os.path.join(folder, name, f)) > 0
 
 
+def test_report_pages_open_in_a_browser(reports, report_page):
+    """The real comparisons' report pages in headless Chromium: every picture loads, the plot
+    draws every measured entry, no console error, readable at phone and desktop widths."""
+    folder = reports[1]
+    for name in reports[0]:
+        where = os.path.join(folder, name)
+        assert report_page.problems(where, report_page.inspect(where)) == [], name
+
+
 def test_reference_cache_is_reused_and_invalidated_when_the_scene_changes(blends, tmp_path):
     scene = _open(blends["head_frontlit"])
     kw = dict(samples=4, seed=0, resolution=(32, 32), method=None, log=lambda s: None)
