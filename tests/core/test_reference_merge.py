@@ -1,0 +1,158 @@
+"""Merging a reference rendered as N seeds × S samples (``core/reference.py``), without Blender.
+
+The statistical checks use synthetic Monte Carlo images: a fixed "true" image plus independent
+Gaussian noise of variance s²/n for a render of n samples, the model the merge assumes. With
+128 × 128 × 3 values, an RMSE is estimated to about sqrt(1 / (2 · 49152)) ≈ 0.3 % (one standard
+deviation of a Gaussian sample's RMSE); the tolerances below are 3 %, ten of those.
+"""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from sss_lab.core import metrics
+from sss_lab.core import reference as ref
+from sss_lab.core.errors import InputError
+
+SIZE = 128
+SIGMA = 0.5  # per-sample standard deviation of the synthetic renders
+
+
+def _truth():
+    y, x = np.mgrid[0:SIZE, 0:SIZE] / SIZE
+    rgb = np.stack([0.5 + 0.4 * x, 0.3 + 0.2 * y, 0.2 + 0.1 * x * y], axis=-1)
+    return np.concatenate([rgb, np.ones((SIZE, SIZE, 1))], axis=-1).astype(np.float32)
+
+
+def _render(truth, samples, seed):
+    """A synthetic render: the truth plus noise of variance SIGMA²/samples (alpha noiseless)."""
+    rng = np.random.default_rng(seed)
+    out = truth.astype(np.float64).copy()
+    out[..., :3] += rng.normal(0.0, SIGMA / math.sqrt(samples), size=truth[..., :3].shape)
+    return out.astype(np.float32)
+
+
+def _parts(n, s, first_seed=0):
+    t = _truth()
+    return [ref.ReferencePart(_render(t, s, seed), s, seed) for seed in range(first_seed, first_seed + n)]
+
+
+def test_merge_is_the_sample_weighted_mean():
+    a = np.full((2, 3, 4), 1.0, np.float32)
+    b = np.full((2, 3, 4), 2.0, np.float32)
+    merged = ref.merge_parts([ref.ReferencePart(a, 3, 0), ref.ReferencePart(b, 1, 7)])
+    np.testing.assert_allclose(merged.image, 1.25, rtol=0, atol=1e-7)  # (3·1 + 1·2) / 4
+    assert merged.samples == 4 and merged.seeds == (0, 7)
+    assert merged.half_samples == (3, 1) and merged.half_seeds == ((0,), (7,))
+    assert merged.image.dtype == np.float32
+
+
+def test_halves_split_the_samples_evenly():
+    a, b = ref.split_halves(_parts(8, 4))
+    assert len(a) == len(b) == 4 and not {p.seed for p in a} & {p.seed for p in b}
+    a, b = ref.split_halves(_parts(5, 4))
+    assert sorted((len(a), len(b))) == [2, 3]
+    uneven = [ref.ReferencePart(np.zeros((1, 1, 3)), n, seed) for seed, n in enumerate((8, 4, 2, 2))]
+    a, b = ref.split_halves(uneven)
+    assert sum(p.samples for p in a) == sum(p.samples for p in b) == 8
+
+
+def test_merged_reference_matches_one_render_of_all_samples_within_its_noise_floor():
+    n, s = 8, 16
+    t = _truth()
+    merged = ref.merge_parts(_parts(n, s))
+    single = _render(t, n * s, seed=1000)
+    floor = ref.noise_floor(merged)
+    # The floor read from the halves equals the two-seed floor of the comparison: the metric
+    # between two independent references of n·s samples.
+    second = _render(t, n * s, seed=2000)
+    two_seed = metrics.compare_images(second, single)["rel_rmse"]
+    assert floor["rel_rmse"] == pytest.approx(two_seed, rel=0.03)
+    # Merged against one render of n·s samples: both unbiased with the same variance, so their
+    # difference is exactly as large as the noise floor (expected ratio 1).
+    diff = metrics.compare_images(merged.image, single)["rel_rmse"]
+    assert diff == pytest.approx(floor["rel_rmse"], rel=0.03)
+    # And the merge has the noise of n·s samples, not of s: it is sqrt(n) closer to the truth.
+    assert metrics.compare_images(merged.image, t)["rmse"] == pytest.approx(SIGMA / math.sqrt(n * s), rel=0.03)
+
+
+def test_the_check_sees_a_changed_scene():
+    """The match above is not automatic: parts of another image (a scene 30 % brighter) land far
+    outside the floor."""
+    t = _truth()
+    merged = ref.merge_parts(ref.ReferencePart(p.image * 1.3, p.samples, p.seed) for p in _parts(8, 16))
+    single = _render(t, 128, seed=1000)
+    floor = ref.noise_floor(merged)["rel_rmse"]
+    assert metrics.compare_images(merged.image, single)["rel_rmse"] > 2 * floor
+
+
+def test_weights_give_the_least_noise_for_unequal_parts():
+    """One part of 1 sample and seven of 16: the weighted mean has the noise of 113 samples; the
+    plain mean of the eight images would have sqrt(113 (1 + 7/16) / 64) = 1.59 times more."""
+    t = _truth()
+    parts = [ref.ReferencePart(_render(t, 1, 0), 1, 0)] + _parts(7, 16, first_seed=1)
+    merged = ref.merge_parts(parts)
+    weighted = metrics.compare_images(merged.image, t)["rmse"]
+    assert weighted == pytest.approx(SIGMA / math.sqrt(113), rel=0.03)
+    plain = metrics.compare_images(np.mean([p.image for p in parts], axis=0), t)["rmse"]
+    assert plain / weighted == pytest.approx(math.sqrt(113 * (1 + 7 / 16) / 64), rel=0.03)
+
+
+def test_noise_floor_scale_for_unequal_halves():
+    assert ref.halves_scale((8, 8)) == pytest.approx(1 / math.sqrt(2))
+    assert ref.halves_scale((12, 4)) == pytest.approx(math.sqrt(2 * 12 * 4) / 16)
+    one = ref.merge_parts(_parts(1, 16))
+    assert one.halves is None and ref.noise_floor(one) is None
+
+
+def test_bad_parts_are_refused_with_the_value_named():
+    img = np.zeros((4, 4, 4), np.float32)
+    with pytest.raises(InputError, match="same seed 3"):
+        ref.merge_parts([ref.ReferencePart(img, 4, 3), ref.ReferencePart(img, 4, 3)])
+    with pytest.raises(InputError, match="differs"):
+        ref.merge_parts([ref.ReferencePart(img, 4, 0), ref.ReferencePart(np.zeros((4, 5, 4)), 4, 1)])
+    with pytest.raises(InputError, match="samples"):
+        ref.merge_parts([ref.ReferencePart(img, 0, 0)])
+    with pytest.raises(InputError, match="at least one"):
+        ref.merge_parts([])
+
+
+def test_nan_stays_visible_in_the_merge():
+    a = np.ones((2, 2, 3), np.float32)
+    b = a.copy()
+    b[0, 0, 0] = np.nan
+    merged = ref.merge_parts([ref.ReferencePart(a, 1, 0), ref.ReferencePart(b, 1, 1)])
+    assert np.isnan(merged.image[0, 0, 0]) and np.isfinite(merged.image[1:]).all()
+
+
+def test_merged_file_round_trip(tmp_path):
+    merged = ref.merge_parts(_parts(4, 8))
+    out = tmp_path / "reference.exr"
+    written = ref.write_merged(str(out), merged, {"frame": 1})
+    assert written == [str(out), str(tmp_path / "reference.json")]
+    back = ref.read_merged(str(out))
+    np.testing.assert_array_equal(back.image, merged.image)
+    np.testing.assert_array_equal(back.halves[0], merged.halves[0])
+    assert back.samples == 32 and back.half_samples == (16, 16) and back.seeds == (0, 1, 2, 3)
+    meta = json.loads((tmp_path / "reference.json").read_text())
+    assert meta["frame"] == 1 and meta["noise_floor_whole_image"]["rel_rmse"] > 0
+    with pytest.raises(FileExistsError):
+        ref.write_merged(str(out), merged)
+
+
+def test_parts_from_files_must_agree(tmp_path):
+    from sss_lab.core import exr
+
+    paths = []
+    for seed, frame in ((0, 1), (1, 2)):
+        path = tmp_path / f"p{seed}.exr"
+        exr.write_layers(str(path), {"ViewLayer.Combined": _render(_truth(), 4, seed)})
+        (tmp_path / f"p{seed}.json").write_text(json.dumps({"samples": 4, "seed": seed, "frame": frame}))
+        paths.append(str(path))
+    with pytest.raises(InputError, match="differ in frame"):
+        ref.read_parts(paths)
+    (tmp_path / "p1.json").unlink()
+    with pytest.raises(InputError, match="p1.json"):
+        ref.read_part(paths[1])
