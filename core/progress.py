@@ -1,0 +1,79 @@
+"""Progress lines for long jobs on render farms: one line per event, elapsed time and ETA.
+
+Farm logs are read line by line (no carriage-return bars), and farm managers pick up the files a
+task wrote from Blender's own form ``Saved: '<path>'`` (``docs/references.md §10``): every
+command of SSS Lab prints written files in that one form, through ``saved_line``.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+
+
+def saved_line(path: str | os.PathLike) -> str:
+    """``Saved: '<absolute path>'``, the form Blender prints for every file it writes."""
+    return f"Saved: '{os.path.abspath(os.fspath(path))}'"
+
+
+def format_seconds(seconds: float) -> str:
+    """``4.2 s`` under a minute, ``3:07`` under an hour, ``1:02:03`` above."""
+    if seconds < 60:
+        return f"{seconds:.1f} s"
+    whole = round(seconds)
+    hours, rest = divmod(whole, 3600)
+    minutes, secs = divmod(rest, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
+
+
+class Progress:
+    """Counts the items of a job (frames, seeds) as they finish or are skipped.
+
+    The ETA is the mean time of the items done so far times the items left; skipped items
+    (``--skip-existing``) take no time and count neither way, so a resumed chunk does not
+    promise a too-early end.
+    """
+
+    def __init__(self, total: int, *, clock: Callable[[], float] = time.monotonic):
+        if total < 0:
+            raise ValueError(f"total: expected an integer >= 0, got {total!r}")
+        self.total = total
+        self.done = 0
+        self.skipped = 0
+        self._clock = clock
+        self._start = clock()
+
+    @property
+    def elapsed(self) -> float:
+        return self._clock() - self._start
+
+    @property
+    def eta(self) -> float | None:
+        """Seconds left, or None before the first item has been done (nothing to go by)."""
+        left = self.total - self.done - self.skipped
+        if left <= 0:
+            return 0.0
+        if self.done == 0:
+            return None
+        return self.elapsed / self.done * left
+
+    def position(self) -> str:
+        """``[i/n]``: the item being worked on."""
+        return f"[{min(self.done + self.skipped + 1, self.total)}/{self.total}]"
+
+    def finish(self) -> str:
+        """Count one item done; returns ``i/n, elapsed X, ETA Y``."""
+        self.done += 1
+        return self.status()
+
+    def skip(self) -> str:
+        self.skipped += 1
+        return self.status()
+
+    def status(self) -> str:
+        eta = self.eta
+        return (
+            f"{self.done + self.skipped}/{self.total}, elapsed {format_seconds(self.elapsed)}, "
+            f"ETA {'unknown' if eta is None else format_seconds(eta)}"
+        )

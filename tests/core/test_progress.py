@@ -1,0 +1,50 @@
+"""Farm progress lines (``core/progress.py``): elapsed time, ETA, and the one ``Saved:`` form."""
+
+import os
+
+import pytest
+
+from sss_lab.core.progress import Progress, format_seconds, saved_line
+
+
+class Clock:
+    def __init__(self):
+        self.now = 100.0
+
+    def __call__(self):
+        return self.now
+
+
+def test_eta_is_the_mean_time_of_done_items_times_the_items_left():
+    clock = Clock()
+    p = Progress(4, clock=clock)
+    assert p.position() == "[1/4]" and p.eta is None
+    clock.now += 10
+    assert p.finish() == "1/4, elapsed 10.0 s, ETA 30.0 s"
+    clock.now += 30  # a slow second frame: the mean is 20 s
+    assert p.finish() == "2/4, elapsed 40.0 s, ETA 40.0 s"
+    assert p.position() == "[3/4]"
+
+
+def test_skipped_items_take_no_time_and_shorten_the_eta():
+    clock = Clock()
+    p = Progress(4, clock=clock)
+    assert p.skip() == "1/4, elapsed 0.0 s, ETA unknown"
+    p.skip()
+    clock.now += 5
+    assert p.finish() == "3/4, elapsed 5.0 s, ETA 5.0 s"
+    clock.now += 5
+    assert p.finish().endswith("ETA 0.0 s")
+
+
+def test_long_durations_read_as_clock_times():
+    assert format_seconds(4.25) == "4.2 s"
+    assert format_seconds(187) == "3:07"
+    assert format_seconds(3723) == "1:02:03"
+    with pytest.raises(ValueError, match="total"):
+        Progress(-1)
+
+
+def test_saved_line_is_blenders_form_with_an_absolute_path(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert saved_line("out/a b.exr") == f"Saved: '{os.path.join(tmp_path, 'out', 'a b.exr')}'"
