@@ -155,7 +155,8 @@ class SSSLabSettings(bpy.types.PropertyGroup):
             }
         if technique == "ssss":
             return {"n_taps": int(self.ssss_taps), "kernel_type": self.ssss_kernel}
-        if technique == "burley":
+        if technique in ("burley", "combined"):
+            # The combined technique's diffusion is Burley's: it shares the Burley rows of the panel.
             return {"n_samples": self.burley_samples, "random_rotation": self.burley_random_rotation}
         raise ValueError(f"unknown technique {technique!r}; expected one of: {', '.join(TECHNIQUES)}")
 

@@ -49,6 +49,18 @@ REQUIRED_PASSES: dict[str, tuple[str, ...]] = {
         "Material Index",
         "Object Index",
     ),
+    "combined": (
+        "Combined",
+        "Diffuse Direct",
+        "Diffuse Indirect",
+        "Diffuse Color",
+        "Depth",
+        "Material Index",
+        "Object Index",
+        "Normal",
+        "Position",
+        THICKNESS,
+    ),
 }
 
 ALBEDO_MODES = _arrays.ALBEDO_MODES
@@ -93,6 +105,8 @@ class MaterialPlan:
     unchanged_channels: tuple[int, ...] = ()
     #: Why the material is left as it is, or None when the technique is applied to it.
     skip: str | None = None
+    #: What the technique does differently on this material, and why (printed by ``explain``).
+    notes: list[str] = field(default_factory=list)
 
     @property
     def applied(self) -> bool:
@@ -148,6 +162,10 @@ class Plan:
                 lines.append(f"    channel {small}: kernel at most one pixel even at the nearest depth: left as it is")
             if mp.samples is not None:
                 lines.append(f"    samples per pixel: {mp.samples}")
+            fit = m.fit.get(self.technique)
+            if fit:
+                lines.append("    " + _fit_line(fit))
+            lines += [f"    {note}" for note in mp.notes]
             shown = {k: v for k, v in mp.params.items() if _printable(v)}
             if shown:
                 lines.append("    parameters: " + ", ".join(f"{k}={_fmt(v)}" for k, v in sorted(shown.items())))
@@ -163,6 +181,19 @@ class Plan:
             + (f" ({', '.join(repr(m.material.name) for m in applied)})" if applied else "")
         )
         return "\n".join(lines)
+
+
+def _fit_line(fit: dict) -> str:
+    """One line on a material's fit: its values and how well it held on the held-out pixels."""
+    values = ", ".join(f"{k}={_fmt(v)}" for k, v in sorted(fit.items()) if k != "info")
+    info = fit.get("info") or {}
+    line = f"fitted to Cycles: {values}"
+    if "heldout_before" in info and "heldout_after" in info:
+        line += (
+            f" (Cycles random walk at {info.get('samples', '?')} samples; held-out error"
+            f" {info['heldout_before']:.3g} -> {info['heldout_after']:.3g})"
+        )
+    return line + "; cleared by the panel's Clear Fit"
 
 
 def _printable(value) -> bool:
@@ -304,6 +335,13 @@ def plan(
             mp.skip = f"no pixel on screen has Material Index {material.index}"
             continue
         mp.params = _material_params(material, technique, mapping, options)
+        if technique == "combined" and not mp.params.get("thickness_distance_su"):
+            # The map cannot be read as a thickness without the bake's distance: diffusion only.
+            mp.params["transmission_scale"] = 0.0
+            mp.notes.append(
+                "no light from behind: the material's thickness map has no bake distance (bake it with"
+                " SSS Lab's Bake Thickness); diffusion only"
+            )
         mp.samples = _samples(technique, mp.params, func)
         mp.kernel_su = _kernel_su(technique, material, mp.params, mapping)
         if depth is not None:
@@ -319,8 +357,11 @@ def plan(
             )
             mp.kernel_px = tuple(r * ppu_median for r in mp.kernel_su)
             widest_px = max(mp.kernel_su) * ppu_nearest
-            mp.unchanged_channels = tuple(c for c, r in enumerate(mp.kernel_su) if r * ppu_nearest <= 1.0)
-            if widest_px <= 1.0:
+            # A fitted gain or the light from behind still change a material whose kernel is tiny.
+            adds_light = technique == "combined" or "gain" in mp.params
+            if not adds_light:
+                mp.unchanged_channels = tuple(c for c, r in enumerate(mp.kernel_su) if r * ppu_nearest <= 1.0)
+            if widest_px <= 1.0 and not adds_light:
                 # EEVEE Next skips a pixel whose whole footprint is at most one pixel (docs/references.md
                 # §1); here even the material's nearest pixel is that small.
                 mp.skip = (
@@ -395,7 +436,8 @@ def apply(
     albedo_raw = passes["Diffuse Color"]
     albedo = _clean(albedo_raw)
     ok = _finite(rgb) & _finite(albedo_raw)
-    if technique == "sta":
+    inputs = {}
+    if technique in ("sta", "combined"):
         thickness_raw = passes[scene.thickness_aov]
         normal_raw, position_raw = passes["Normal"], passes["Position"]
         ok &= _finite(thickness_raw) & _finite(normal_raw) & _finite(position_raw)
@@ -408,7 +450,7 @@ def apply(
             "lights": scene.lights,
             "thickness_convention": scene.thickness_convention,
         }
-    else:
+    if technique != "sta":
         direct, indirect = passes["Diffuse Direct"], passes["Diffuse Indirect"]
         depth_raw = passes["Depth"]
         ok &= _finite(direct) & _finite(indirect) & _finite(depth_raw)
@@ -416,14 +458,14 @@ def apply(
         original = albedo * diffuse  # the diffuse light Combined holds on these pixels
         pre, tech_albedo = _arrays.split_albedo(albedo, albedo_mode)
         tech_diffuse = diffuse if pre is None else pre * diffuse
-        inputs = {
+        inputs |= {
             "diffuse": tech_diffuse,
             "albedo": tech_albedo,
             # Invalid depth becomes background (1e10), which gives and receives no light.
             "depth": np.where(np.isfinite(depth_raw), depth_raw, np.float32(1e10)).astype(np.float32),
             "camera": scene.camera,
         }
-        if technique == "burley":
+        if technique in ("burley", "combined"):
             inputs["object_id"] = _clean(passes["Object Index"])
     nonfinite = 0
     for mp in p.applied:
@@ -434,10 +476,15 @@ def apply(
             continue
         kwargs = dict(inputs)
         kwargs.update(mp.params)
+        gain = kwargs.pop("gain", None)
         kwargs["mask"] = mask
         out = np.asarray(_call(func, kwargs), dtype=np.float32)
         if out.shape != rgb.shape:
             raise ValueError(f"{technique} returned shape {out.shape}; expected {rgb.shape}")
+        if gain is not None:
+            # The fitted per-channel energy (core/fit_params.py): on the material's light after the
+            # technique (for STA, on the light it adds).
+            out = out * np.asarray(gain, np.float32)
         good = mask & _finite(out)
         nonfinite += int((mask & ~good).sum())
         if technique == "sta":

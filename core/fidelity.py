@@ -126,6 +126,9 @@ def measure(technique: str, material: MaterialSSS, *, mapping=None) -> dict:
         mid = line_part[n // 2]
     else:
         params = _mapping.technique_params(material, technique, mapping=mapping)
+        if technique == "combined":
+            # Its diffusion alone: no light from behind on the lit line.
+            params |= {"transmission_scale": 0.0, "normal": None, "position": None, "thickness": None, "lights": ()}
         out = np.asarray(
             func(diffuse=diffuse, albedo=albedo, depth=depth, mask=mask, camera=camera, **params), dtype=np.float64
         )

@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from .fit_params import fitted
 from .profiles import ALBEDO_SCALINGS, MIN_RADIUS, albedo_scaling
 from .scene import SUBSURFACE_METHODS, MaterialSSS
 from .techniques import check_technique
@@ -47,6 +48,9 @@ STA_DEFAULTS = {"distortion": 0.1, "power": 2.0, "scale": 1.0, "ambient": 0.0}
 SSSS_DEFAULTS = {"kernel_type": "preintegrated", "n_taps": 17}
 #: Burley: 32 samples (EEVEE Next uses 16 per temporal sample, HDRP 20/40/80; docs/references.md §1).
 BURLEY_DEFAULTS = {"n_samples": 32}
+#: The combined technique (core/combined.py): Burley's diffusion at its default samples; the
+#: transmission's d is the diffusion's unless fitted.
+COMBINED_DEFAULTS = {"diffusion": "burley", "n_samples": 32}
 
 
 def _dipole_rd(alpha_prime, fourthird_a):
@@ -125,18 +129,34 @@ def burley_d(material: MaterialSSS, *, mapping=None) -> tuple[float, float, floa
     return tuple(float(v) for v in d)
 
 
-def technique_params(material: MaterialSSS, technique: str, *, mapping=None) -> dict:
+def technique_params(material: MaterialSSS, technique: str, *, mapping=None, use_fit: bool = True) -> dict:
     """Keyword parameters of ``technique`` for ``material`` (without the passes).
 
     Burley and SSSS get ``d_su``, the profile's d per channel in scene units; SSSS builds its
     kernel from it (``core.kernels``), reaching 16 d like Burley (the truncation shared with
-    Cycles).
+    Cycles). When the material carries a fit for ``technique`` (``MaterialSSS.fit``, made by
+    ``core/fit.py``) and ``use_fit`` is true, its values replace the defaults: d times
+    ``d_scale``, the transmission's scale and d, STA's scale, and ``gain`` (applied by
+    ``core.apply`` to the technique's result, not passed to the function).
     """
     check_technique(technique)
     d = burley_d(material, mapping=mapping)
+    fit = fitted(material.fit, technique) if use_fit else {}
+    if "d_scale" in fit:
+        d = tuple(v * fit["d_scale"] for v in d)
     if technique == "sta":
         # d and the bake distance serve the "burley" falloff; the paper's "map" ignores them.
-        return {**STA_DEFAULTS, "d_su": d, "thickness_distance_su": material.thickness_distance}
-    if technique == "ssss":
-        return {**SSSS_DEFAULTS, "d_su": d}
-    return {**BURLEY_DEFAULTS, "d_su": d}
+        params = {**STA_DEFAULTS, "d_su": d, "thickness_distance_su": material.thickness_distance}
+    elif technique == "ssss":
+        params = {**SSSS_DEFAULTS, "d_su": d}
+    elif technique == "combined":
+        params = {
+            **COMBINED_DEFAULTS,
+            "d_su": d,
+            "thickness_distance_su": material.thickness_distance,
+            "transmission_d_su": d,
+        }
+    else:
+        params = {**BURLEY_DEFAULTS, "d_su": d}
+    params.update({k: v for k, v in fit.items() if k != "d_scale"})
+    return params

@@ -227,6 +227,10 @@ class MaterialSSS:
     #: The thickness bake's maximum distance D (scene units) of the material's objects, 0 when
     #: unknown: with it a translucency value tau reads back as a slab thickness D sqrt(1 - tau).
     thickness_distance: float = 0.0
+    #: Parameters fitted against Cycles per technique (``core/fit.py``): technique name ->
+    #: {"gain": (R, G, B), "d_scale": k, ...}; empty when the material was never fitted. Not
+    #: hashed (a dict), compared like the other fields.
+    fit: dict = field(default_factory=dict, hash=False)
 
     def __post_init__(self):
         if not isinstance(self.index, int) or isinstance(self.index, bool) or self.index < 1:
@@ -243,6 +247,9 @@ class MaterialSSS:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"material {self.name!r} {name}: expected a finite number >= 0, got {v!r}")
+        from .fit_params import check_fit
+
+        object.__setattr__(self, "fit", check_fit(self.fit, f"material {self.name!r}"))
 
     @property
     def scatters(self) -> bool:

@@ -15,6 +15,12 @@ TECHNIQUES: dict[str, tuple[str, str, str, str]] = {
     "sta": ("sta", "sta", "STA", "Simple translucency: back-lighting times a baked thickness map"),
     "ssss": ("ssss", "ssss", "SSSS", "Separable SSS: two 1-D per-channel convolutions"),
     "burley": ("burley", "burley", "Burley", "Christensen-Burley normalized diffusion, golden-angle spiral"),
+    "combined": (
+        "combined",
+        "combined",
+        "Combined",
+        "Burley diffusion of the visible light plus Burley transmittance of the light from behind",
+    ),
 }
 
 

@@ -43,6 +43,7 @@ DEFAULT_QUALITIES: dict[str, tuple[dict, ...]] = {
     "sta": ({}, {"falloff": "burley"}),
     "ssss": ({"n_taps": 11}, {"n_taps": 17}, {"n_taps": 25}),
     "burley": ({"n_samples": 8}, {"n_samples": 16}, {"n_samples": 32}, {"n_samples": 64}),
+    "combined": ({"diffusion": "ssss", "n_taps": 11}, {"n_samples": 16}, {"n_samples": 32}),
 }
 
 
@@ -355,16 +356,17 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         )
     notes: list[str] = []
     techniques = tuple(settings.techniques)
-    if "sta" in techniques:
+    needs_thickness = tuple(t for t in techniques if t in ("sta", "combined"))
+    if needs_thickness:
         from .render_passes import thickness_aov_name, thickness_setup
 
         try:
             thickness_setup(scene, materials, thickness_aov_name(scene))
         except ValueError as exc:
             # Checked before anything renders: the other techniques still get their report.
-            techniques = tuple(t for t in techniques if t != "sta")
-            notes.append(f"STA not run: {exc}")
-            log(f"STA not run: {exc}")
+            techniques = tuple(t for t in techniques if t not in needs_thickness)
+            notes.append(f"{', '.join(needs_thickness)} not run: {exc}")
+            log(f"{', '.join(needs_thickness)} not run: {exc}")
             if not techniques:
                 raise
         settings = dataclasses.replace(settings, techniques=techniques)
@@ -496,6 +498,7 @@ def _summary(order: list[str], entries: list[dict]) -> list[str]:
         "sta": {},
         "ssss": {"n_taps": mapping.SSSS_DEFAULTS["n_taps"]},
         "burley": {"n_samples": mapping.BURLEY_DEFAULTS["n_samples"]},
+        "combined": {"n_samples": mapping.COMBINED_DEFAULTS["n_samples"]},
     }
     picked = ["no SSS"]
     for technique in TECHNIQUES:

@@ -116,6 +116,11 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
     Raises ValueError (no camera, no subsurface material) with a clear message.
     """
     check_technique(technique)
+    if technique not in COMPOSITOR_PASSES:
+        raise ValueError(
+            f"the {technique} technique has no compositor group: its light from behind needs every light's"
+            " direction per pixel and the slab thickness, which the groups do not compute; use Apply instead"
+        )
     layer = view_layer or bpy.context.view_layer
     if layer is None or layer.name not in scene.view_layers:
         layer = scene.view_layers[0]

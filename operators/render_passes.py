@@ -434,7 +434,8 @@ def render_passes(
         )
     aov_name = thickness_aov_name(scene)
     convention = "translucency"
-    if "sta" in techniques:
+    needs_thickness = any(aov_name in required_passes(t, aov_name) for t in techniques)
+    if needs_thickness:
         convention, without = thickness_setup(scene, materials, aov_name)
         if without:
             say(f"no thickness map in {', '.join(repr(n) for n in without)}: STA reads thickness 0 there")
@@ -477,7 +478,7 @@ def render_passes(
         for vl in scene.view_layers:
             if vl.use != (vl == layer):
                 st.set(vl, "use", vl == layer)
-        _set_passes(st, scene, layer, names, aov_name if "sta" in techniques else None)
+        _set_passes(st, scene, layer, names, aov_name if needs_thickness else None)
         other_sss = _zero_subsurface(st, scene)
         if other_sss:
             say(

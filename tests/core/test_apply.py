@@ -60,6 +60,8 @@ class StubMapping:
 
     @staticmethod
     def technique_params(material, technique, *, mapping=None):
+        if technique == "combined":
+            return {"d_su": StubMapping.burley_d(material), "n_samples": 32, "thickness_distance_su": 1.0}
         if technique == "burley":
             return {"d_su": StubMapping.burley_d(material), "n_samples": 32}
         if technique == "ssss":
@@ -76,6 +78,8 @@ def stub(monkeypatch):
         "thickness_convention",
         "ssss": "diffuse, albedo, depth, mask, camera, radius_su",
         "burley": "diffuse, albedo, depth, mask, camera, d_su, object_id, n_samples",
+        "combined": "diffuse, albedo, depth, mask, camera, d_su, object_id, n_samples, normal, position, thickness, "
+        "lights, thickness_distance_su",
     }
     funcs = {}
     for name, params in signatures.items():

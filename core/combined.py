@@ -1,0 +1,217 @@
+"""Diffusion plus transmission: light entering through visible surfaces and light from behind.
+
+SSSS and Burley redistribute the irradiance the camera sees; they add nothing for light that
+enters on the far side of an object (docs/references.md §9). STA adds that light but colours it
+with the albedo, where random walk filters it through the medium (thin green jade glows
+saturated green, not pale). Real-time engines combine the two (HDRP's diffusion profile with
+``ComputeTransmittanceDisney``, EEVEE Next likewise, docs/references.md §4 and §9):
+
+    out = A x diffusion(E)                                (Burley or SSSS, the visible light)
+        + s_tr x sum_lights (E_L / pi) max(0, -N . L) x T_c(x)     (light from behind)
+
+- ``diffusion`` is ``core.burley.burley`` or ``core.ssss.ssss`` with the material's d per
+  channel (docs/references.md §1); it conserves the visible diffuse light.
+- The transmitted term is the irradiance the back of the object receives from each light
+  (Lambert's cosine against the reversed visible normal, E_L as in ``core.sta.light_at``: sun,
+  point, spot and area lights), divided by pi (a diffuse exit), times the per-channel Burley
+  transmittance T_c(x) = (e^{-x/d_c} + 3 e^{-x/(3 d_c)}) / 4 through the slab thickness x read
+  back from the baked map, x = D sqrt(1 - t) with D the bake distance (``core/thickness.py``:
+  a slab of thickness x bakes to AO (x / D)^2). The channels that scatter further pass more
+  light: the colour comes from the medium, not from the albedo.
+- No double counting: a light contributes to the transmitted term only where the visible
+  surface faces away from it (N . L < 0), which is exactly where it adds nothing to the Diffuse
+  Direct pass that the diffusion redistributes; the two terms meet at zero at the terminator.
+
+``transmission_scale`` s_tr and ``transmission_d_su`` (d per channel for the transmittance,
+the diffusion's d by default) are what ``calibrate`` fits against Cycles per material
+(``core/fit.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import _arrays
+from .burley import burley
+from .scene import Camera, Light
+from .ssss import ssss
+from .sta import THICKNESS_CONVENTIONS, _norm, light_at
+
+#: The diffusion part: Burley's spiral gather or the separable filter (faster at large kernels).
+DIFFUSIONS = ("burley", "ssss")
+
+
+def slab_thickness(translucency: np.ndarray, distance_su: float) -> np.ndarray:
+    """Slab thickness (scene units) that a baked translucency value t stands for: D sqrt(1 - t)
+    (the bake's AO of a slab of thickness x < D is (x / D)^2, ``core/thickness.py``)."""
+    t = np.clip(np.asarray(translucency, np.float32), np.float32(0.0), np.float32(1.0))
+    return np.float32(distance_su) * np.sqrt(np.float32(1.0) - t)
+
+
+def burley_transmittance_rgb(x_su: np.ndarray, d_su) -> np.ndarray:
+    """Per-channel Burley transmittance (..., 3), float32, through thickness ``x_su`` (...):
+    T_c = (e^{-x/d_c} + 3 e^{-x/(3 d_c)}) / 4 (docs/references.md §4); T_c(0) = 1. A channel
+    with d_c = 0 passes light only where x = 0."""
+    d = _arrays.rgb_lengths(d_su, "transmission_d_su")
+    x = np.asarray(x_su, np.float32)
+    out = np.empty(x.shape + (3,), np.float32)
+    for c in range(3):
+        if d[c] > 0:
+            e3 = np.exp(-x / np.float32(3.0 * d[c]))
+            out[..., c] = np.float32(0.25) * (e3 * e3 * e3 + np.float32(3.0) * e3)
+        else:
+            out[..., c] = (x == 0).astype(np.float32)
+    return out
+
+
+def back_irradiance(*, normal, position, mask, lights) -> np.ndarray:
+    """Irradiance from behind over pi, (H, W, 3) float32: sum over lights of light colour x
+    E_L max(0, -N . L) / pi on ``mask``, 0 elsewhere and where an input is not finite.
+
+    ``normal`` (H, W, 3) world-space normals of the visible surface; ``position`` (H, W, 3)
+    world positions; ``lights``: ``core.scene.Light`` entries (irradiance as ``core.sta``)."""
+    n = _arrays.image(normal, "normal")
+    shape = n.shape[:2]
+    p = _arrays.image(position, "position")
+    _arrays.same_size(shape, position=p)
+    m = _arrays.mask_array(mask, shape) & _arrays.finite_pixels(n, p)
+    out = np.zeros(shape + (3,), np.float32)
+    idx = np.flatnonzero(m)
+    if not idx.size:
+        return out
+    nr = n.reshape(-1, 3)[idx]
+    pr = p.reshape(-1, 3)[idx]
+    nx, ny, nz, _ = _norm(nr[:, 0], nr[:, 1], nr[:, 2])
+    acc = np.zeros((idx.size, 3), np.float32)
+    for light in lights:
+        if not isinstance(light, Light):
+            raise ValueError(f"lights: expected core.scene.Light entries, got {type(light).__name__}")
+        if light.energy <= 0:
+            continue
+        lx, ly, lz, e = light_at(light, pr[:, 0], pr[:, 1], pr[:, 2])
+        back = np.maximum(-(nx * lx + ny * ly + nz * lz), np.float32(0.0)) * e * np.float32(1.0 / math.pi)
+        acc += back[:, None] * np.asarray(light.color, np.float32)[None, :]
+    out.reshape(-1, 3)[idx] = acc
+    return out
+
+
+def transmission(
+    *,
+    normal,
+    position,
+    thickness,
+    mask,
+    lights,
+    d_su,
+    thickness_distance_su: float,
+    transmission_scale: float = 1.0,
+    thickness_convention: str = "translucency",
+) -> np.ndarray:
+    """The light from behind alone, float32 (H, W, 3): ``transmission_scale`` x
+    ``back_irradiance`` x T_c(x), with x = ``slab_thickness`` of the map (scene units).
+
+    ``thickness`` (H, W) baked map in ``thickness_convention`` ("translucency": 1 = thin);
+    ``d_su`` the transmittance's d per channel (scene units); ``thickness_distance_su`` the
+    bake's distance D (> 0: without it the map cannot be read as a thickness)."""
+    if thickness_convention not in THICKNESS_CONVENTIONS:
+        raise ValueError(
+            f"thickness_convention: {thickness_convention!r} is not one of {', '.join(THICKNESS_CONVENTIONS)}"
+        )
+    distance = _arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
+    scale = _arrays.positive_finite(transmission_scale, "transmission_scale")
+    _arrays.rgb_lengths(d_su, "transmission_d_su")
+    t = _arrays.image(thickness, "thickness", None)
+    e = back_irradiance(normal=normal, position=position, mask=mask, lights=lights)
+    _arrays.same_size(e.shape[:2], thickness=t)
+    ok = np.isfinite(t)
+    tt = np.where(ok, t, np.float32(0.0))
+    if thickness_convention == "thickness":
+        tt = np.float32(1.0) - tt
+    tr = burley_transmittance_rgb(slab_thickness(tt, distance), d_su)
+    out = e * tr
+    out[~ok] = 0.0
+    if scale != 1.0:
+        out *= np.float32(scale)
+    return out
+
+
+def combined(
+    *,
+    diffuse,
+    albedo,
+    depth,
+    mask,
+    camera: Camera,
+    d_su,
+    normal,
+    position,
+    thickness,
+    lights,
+    thickness_distance_su: float,
+    object_id=None,
+    diffusion: str = "burley",
+    n_samples: int = 32,
+    n_taps: int = 17,
+    random_rotation: bool = False,
+    seed: int = 0,
+    transmission_scale: float = 1.0,
+    transmission_d_su=None,
+    thickness_convention: str = "translucency",
+    albedo_mode: str = "post",
+) -> np.ndarray:
+    """Diffusion of the visible light plus transmission of the light from behind, float32 (H, W, 3).
+
+    Inputs as ``core.burley.burley`` (``diffuse``, ``albedo``, ``depth``, ``mask``, ``camera``,
+    ``d_su``, ``object_id``) and ``transmission`` (``normal``, ``position``, ``thickness``,
+    ``lights``, ``thickness_distance_su``, ``thickness_convention``). ``diffusion`` "burley"
+    (``n_samples``, ``random_rotation``, ``seed``) or "ssss" (``n_taps``, pre-integrated
+    kernel). ``transmission_d_su`` None uses ``d_su``. Returns, like Burley and SSSS, the
+    albedo-applied scattered light on the mask (plus the transmitted light) and albedo x diffuse
+    elsewhere. Formula, sources and why nothing is counted twice: the module docstring.
+    """
+    if diffusion not in DIFFUSIONS:
+        raise ValueError(f"diffusion: {diffusion!r} is not one of {', '.join(DIFFUSIONS)}")
+    d = _arrays.rgb_lengths(d_su, "d_su")
+    d_tr = d if transmission_d_su is None else _arrays.rgb_lengths(transmission_d_su, "transmission_d_su")
+    if diffusion == "burley":
+        out = burley(
+            diffuse=diffuse,
+            albedo=albedo,
+            depth=depth,
+            mask=mask,
+            camera=camera,
+            d_su=tuple(d),
+            object_id=object_id,
+            n_samples=n_samples,
+            random_rotation=random_rotation,
+            seed=seed,
+            albedo_mode=albedo_mode,
+        )
+    else:
+        out = ssss(
+            diffuse=diffuse,
+            albedo=albedo,
+            depth=depth,
+            mask=mask,
+            camera=camera,
+            n_taps=n_taps,
+            d_su=tuple(d),
+            albedo_mode=albedo_mode,
+        )
+    scale = _arrays.positive_finite(transmission_scale, "transmission_scale")
+    if scale > 0:
+        m = _arrays.mask_array(mask, out.shape[:2])
+        out += transmission(
+            normal=normal,
+            position=position,
+            thickness=thickness,
+            mask=m,
+            lights=lights,
+            d_su=tuple(d_tr),
+            thickness_distance_su=thickness_distance_su,
+            transmission_scale=scale,
+            thickness_convention=thickness_convention,
+        )
+    return out

@@ -1,0 +1,474 @@
+"""Fit each subsurface material's technique parameters to a Cycles random-walk render.
+
+What is left once the techniques are correct is mostly per material: energy per channel (light
+entering through surfaces the camera does not see, Cycles' albedo inversion against Lambert)
+and light from behind (docs/references.md §9). Given the passes, their scene description, a
+random-walk render of the same view (a few dozen samples are enough) and the Material Index
+mask, ``fit_scene`` finds per material and technique the parameters of ``core/fit_params.py``
+that minimize the squared error over the material's pixels:
+
+    model = Combined - A E + g_c S_c(k) + s T_c(f_c)        (per channel c)
+
+with S(k) the technique's albedo-applied light with d times k (Burley, SSSS, the combined
+technique's diffusion), g the per-channel gain, and for the combined technique T(f) its light
+from behind with the transmission d per channel times f_c and the scale s (``core/combined.py``);
+STA: Combined + s x its term at scale 1.
+
+Robust to Monte Carlo noise (docs/references.md §8):
+- both images are averaged over ``box`` x ``box`` blocks; only blocks entirely inside the
+  material count (the noise of a block mean falls with its pixel count, the smooth SSS
+  differences stay);
+- a random ``holdout`` share of the blocks (fixed seed) is left out of the fit and measures
+  it: a fit that does not lower the held-out error over-fits the noise (or the model cannot
+  explain the material) and is rejected, the material left unchanged;
+- the parameters are bounded (``fit_params.PARAMETERS``; k and f searched on a grid of
+  factors of sqrt(2) from 1/4 to 4, then k refined between its neighbours) and pulled towards
+  "no change" by a ridge term of weight ``regularization`` relative to each basis' energy, so
+  that a direction the pixels barely see (a channel with no light, no light from behind) stays
+  at its default.
+For each k (one technique run) and each f the problem is linear in (g, s): its normal equations
+come from a few dot products per channel, so the whole grid costs little more than the
+technique runs. NumPy only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import apply as core_apply
+from .combined import back_irradiance, burley_transmittance_rgb, slab_thickness
+from .errors import InputError
+from .fit_params import FIT_PARAMETERS, INFO, PARAMETERS
+from .metrics import box_downsample
+from .scene import MaterialSSS, SceneDescription
+
+#: Search grid for d's scale k and the transmission's per-channel factors f: sqrt(2) steps, 1/4..4.
+GRID = tuple(2.0 ** (i / 2.0) for i in range(-4, 5))
+#: Fewest blocks inside a material for a fit (with the default 25 % held out: 24 to fit, 8 to check).
+MIN_BLOCKS = 32
+#: Below this share of the target's energy a basis (light from behind, STA's term) counts as
+#: absent on the material: its parameters keep their defaults.
+_ABSENT = 1e-6
+
+
+class FitError(InputError):
+    """A material cannot be fitted; the message names it and says why (it is left unchanged)."""
+
+
+@dataclass
+class FitResult:
+    """One material's fit for one technique."""
+
+    material: str
+    index: int
+    technique: str
+    #: The fitted values (``core/fit_params.py`` names) plus ``info`` (provenance).
+    params: dict
+    #: Relative RMSE (block means, see the module docstring) before (the unfitted mapping) and
+    #: after the fit, on the blocks it was fitted on and on the held-out ones.
+    train_before: float
+    train_after: float
+    heldout_before: float
+    heldout_after: float
+    blocks: int
+    heldout_blocks: int
+    at_bounds: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    seconds: float = 0.0
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    def summary(self) -> str:
+        values = ", ".join(f"{k}={_fmt(v)}" for k, v in self.params.items() if k != INFO)
+        line = (
+            f"{self.material!r} {self.technique}: {values}; held-out error {self.heldout_before:.4g} ->"
+            f" {self.heldout_after:.4g} ({self.blocks} blocks, {self.heldout_blocks} held out, {self.seconds:.1f} s)"
+        )
+        if self.at_bounds:
+            line += f"; at its bound: {', '.join(self.at_bounds)}"
+        return line + "".join(f"; {n}" for n in self.notes)
+
+
+def _fmt(v) -> str:
+    if isinstance(v, (tuple, list)):
+        return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+    return f"{v:.4g}"
+
+
+def _rel_rmse(residual: np.ndarray, target: np.ndarray) -> float:
+    mean = float(np.mean(target))
+    if residual.size == 0 or mean <= 0:
+        return math.nan
+    return float(np.sqrt(np.mean(residual * residual))) / mean
+
+
+def _blocks(image: np.ndarray, keep: np.ndarray, box: int) -> np.ndarray:
+    """(N, 3) float64 block means of ``image`` (H, W, 3) over the blocks ``keep`` (h, w)."""
+    return box_downsample(np.asarray(image[..., :3], np.float64), box)[keep]
+
+
+def _material_mask(passes, material: MaterialSSS, reference: np.ndarray) -> np.ndarray:
+    index = core_apply._index_map(passes)
+    ok = index == material.index
+    for name in ("Combined", "Diffuse Color"):
+        ok &= core_apply._finite(passes[name][..., :3])
+    ok &= core_apply._finite(reference[..., :3])
+    return ok
+
+
+def _check_inputs(passes, scene: SceneDescription, reference, technique: str) -> np.ndarray:
+    if technique not in FIT_PARAMETERS:
+        raise FitError(f"fit: no fit exists for technique {technique!r}; expected one of: {', '.join(FIT_PARAMETERS)}")
+    if not isinstance(scene, SceneDescription):
+        raise FitError(f"scene: expected a SceneDescription, got {type(scene).__name__}")
+    ref = np.asarray(reference, np.float32)
+    if ref.ndim != 3 or ref.shape[2] < 3 or ref.shape[:2] != passes.shape:
+        raise FitError(
+            f"reference: expected an image of the passes' size {passes.shape[1]}x{passes.shape[0]} with RGB,"
+            f" got shape {ref.shape}"
+        )
+    return ref
+
+
+def heldout_blocks(count: int, *, holdout: float, seed: int) -> np.ndarray:
+    """Which of ``count`` blocks (in row-major order of the material's blocks) are held out: a
+    random ``holdout`` share drawn with ``seed`` (every fourth block if the draw takes none or all)."""
+    held = np.random.default_rng(seed).random(count) < holdout
+    if held.all() or not held.any():
+        held = np.arange(count) % 4 == 0
+    return held
+
+
+def fit_material(
+    passes,
+    scene: SceneDescription,
+    reference,
+    material: MaterialSSS,
+    technique: str,
+    *,
+    box: int = 4,
+    holdout: float = 0.25,
+    seed: int = 0,
+    regularization: float = 0.05,
+    samples: int | None = None,
+) -> FitResult:
+    """Fit ``technique``'s parameters of ``material`` (its pass index on ``passes``) to
+    ``reference`` (H, W, 3 or 4, the Cycles render of the same view). Raises FitError with one
+    line naming the material and the reason when it cannot be fitted: too few pixels, no bake
+    distance for the combined technique, a fit that does not converge or does not hold on the
+    held-out blocks. ``samples``: the reference's sample count, kept in the provenance."""
+    start = time.perf_counter()
+    ref = _check_inputs(passes, scene, reference, technique)
+    if not 0.0 < holdout < 1.0:
+        raise FitError(f"holdout: expected a share between 0 and 1, got {holdout!r}")
+    name = material.name or str(material.index)
+    if not material.scatters:
+        raise FitError(f"material {name!r}: no subsurface scattering (Subsurface Weight, Radius or Scale is 0)")
+    mask = _material_mask(passes, material, ref)
+    pixels = int(mask.sum())
+    keep = box_downsample(mask.astype(np.float64), box) >= 1.0
+    count = int(keep.sum())
+    if count < MIN_BLOCKS:
+        raise FitError(
+            f"material {name!r} covers {pixels} pixels, {count} blocks of {box}x{box} inside it: too few to fit"
+            f" (at least {MIN_BLOCKS} needed; render larger or move the camera closer); left unchanged"
+        )
+    plain = dataclasses.replace(material, fit={})
+    single = dataclasses.replace(scene, materials=(plain,))
+    held = heldout_blocks(count, holdout=holdout, seed=seed)
+    train = ~held
+
+    combined_rgb = passes["Combined"][..., :3]
+    target = _blocks(ref, keep, box)
+    if technique == "sta":
+        base = _blocks(combined_rgb, keep, box)
+        layers = core_apply.apply(passes, single, "sta", scale=1.0)
+        basis = _blocks(layers[core_apply.layer_names("sta")[1]], keep, box)
+        return _finish_sta(material, name, base, basis, target, train, held, regularization, samples, start, count)
+
+    albedo = core_apply._clean(passes["Diffuse Color"])
+    original = albedo * (core_apply._clean(passes["Diffuse Direct"]) + core_apply._clean(passes["Diffuse Indirect"]))
+    rest = _blocks(combined_rgb - original, keep, box)
+    y = target - rest
+    d0 = np.asarray(core_apply._mapping().burley_d(plain), np.float64)
+    params0 = core_apply._mapping().technique_params(plain, technique)
+
+    # Light from behind (combined only): E_back per channel and slab thickness, at full size.
+    trans = None
+    notes = []
+    if technique == "combined":
+        distance = float(params0.get("thickness_distance_su") or 0.0)
+        if distance <= 0:
+            raise FitError(
+                f"material {name!r}: its thickness map has no bake distance, so the light from behind cannot be"
+                " fitted (bake thickness with SSS Lab first); left unchanged"
+            )
+        e_back = back_irradiance(
+            normal=core_apply._clean(passes["Normal"]),
+            position=core_apply._clean(passes["Position"]),
+            mask=mask,
+            lights=scene.lights,
+        )
+        t_raw = core_apply._clean(passes[scene.thickness_aov])
+        t_map = t_raw if t_raw.ndim == 2 else t_raw[..., 0]
+        if scene.thickness_convention == "thickness":
+            t_map = 1.0 - t_map
+        x = slab_thickness(t_map, distance)
+        d_tr0 = np.asarray(params0.get("transmission_d_su", d0), np.float64)
+        # trans[i] (N, 3): the light from behind at scale 1 with every channel's d times GRID[i].
+        trans = np.stack([_blocks(e_back * burley_transmittance_rgb(x, tuple(d_tr0 * f)), keep, box) for f in GRID])
+        if float(np.sum(trans[:, train] ** 2)) <= _ABSENT * float(np.sum(y[train] ** 2)):
+            trans = None
+            notes.append("no light from behind on its pixels: transmission left at its defaults")
+
+    def diffusion(k: float) -> np.ndarray:
+        options = {"d_su": tuple(d0 * k)}
+        if technique == "combined":
+            options["transmission_scale"] = 0.0
+        layers = core_apply.apply(passes, single, technique, **options)
+        term = layers[core_apply.layer_names(technique)[1]] if layers else 0.0
+        return _blocks(original + term, keep, box)
+
+    solver = _Solver(y, train, trans, regularization)
+    evaluated: dict[float, tuple] = {}
+
+    def evaluate(k: float):
+        if k not in evaluated:
+            evaluated[k] = solver.solve(diffusion(k), k)
+        return evaluated[k]
+
+    for k in GRID:
+        evaluate(k)
+    best_k = min(evaluated, key=lambda k: evaluated[k][0])
+    # Refine between the best grid point's neighbours (a quarter octave either side).
+    for k in (best_k * 2.0**-0.25, best_k * 2.0**0.25):
+        if GRID[0] <= k <= GRID[-1]:
+            evaluate(k)
+    best_k = min(evaluated, key=lambda k: evaluated[k][0])
+    objective, g, s, f_idx, model = evaluated[best_k]
+    if not (math.isfinite(objective) and np.all(np.isfinite(model)) and np.all(np.isfinite(g))):
+        raise FitError(f"material {name!r} {technique}: the fit did not converge (non-finite error); left unchanged")
+    default = solver.default_model()
+    result = FitResult(
+        material=name,
+        index=material.index,
+        technique=technique,
+        params={},
+        train_before=_rel_rmse((default - y)[train], target[train]),
+        train_after=_rel_rmse((model - y)[train], target[train]),
+        heldout_before=_rel_rmse((default - y)[held], target[held]),
+        heldout_after=_rel_rmse((model - y)[held], target[held]),
+        blocks=int(train.sum()),
+        heldout_blocks=int(held.sum()),
+        notes=notes,
+    )
+    params = {"gain": tuple(float(v) for v in g), "d_scale": float(best_k)}
+    if technique == "combined" and trans is not None:
+        d_tr0 = np.asarray(params0.get("transmission_d_su", d0), np.float64)
+        params["transmission_scale"] = float(s)
+        params["transmission_d_su"] = tuple(float(d_tr0[c] * GRID[f_idx[c]]) for c in range(3))
+    _bounds(params, result)
+    if best_k in (GRID[0], GRID[-1]):
+        result.at_bounds.append("d_scale")
+    if trans is not None and any(i in (0, len(GRID) - 1) for i in f_idx):
+        result.at_bounds.append("transmission_d_su")
+    return _accept(result, params, samples, pixels, start)
+
+
+def _bounds(params: dict, result: FitResult) -> None:
+    for key in ("gain", "transmission_scale"):
+        if key not in params:
+            continue
+        _, lo, hi = PARAMETERS[key]
+        values = params[key] if isinstance(params[key], tuple) else (params[key],)
+        if any(v <= lo + 1e-9 or v >= hi - 1e-9 for v in values):
+            result.at_bounds.append(key)
+
+
+def _accept(result: FitResult, params: dict, samples, pixels: int, start: float) -> FitResult:
+    if not (math.isfinite(result.heldout_after) and math.isfinite(result.heldout_before)):
+        raise FitError(
+            f"material {result.material!r} {result.technique}: the fit did not converge (no finite error on the"
+            " held-out pixels); left unchanged"
+        )
+    if result.heldout_after >= result.heldout_before:
+        raise FitError(
+            f"material {result.material!r} {result.technique}: the fit does not hold on the held-out pixels (error"
+            f" {result.heldout_before:.4g} before, {result.heldout_after:.4g} after): it would fit the noise;"
+            " left unchanged (render the fit with more samples)"
+        )
+    result.seconds = time.perf_counter() - start
+    params[INFO] = {
+        "samples": samples,
+        "heldout_before": result.heldout_before,
+        "heldout_after": result.heldout_after,
+        "pixels": pixels,
+    }
+    result.params = params
+    return result
+
+
+def _finish_sta(material, name, base, basis, target, train, held, regularization, samples, start, count):
+    y = target - base
+    bb = float(np.sum(basis[train] ** 2))
+    if bb <= _ABSENT * float(np.sum(y[train] ** 2)):
+        raise FitError(f"material {name!r} sta: no light from behind on its pixels, nothing to fit; left unchanged")
+    _, lo, hi = PARAMETERS["scale"]
+    s = (float(np.sum(basis[train] * y[train])) + regularization * bb) / (bb * (1.0 + regularization))
+    s = min(max(s, lo), hi)
+    result = FitResult(
+        material=name,
+        index=material.index,
+        technique="sta",
+        params={},
+        train_before=_rel_rmse((basis - y)[train], target[train]),
+        train_after=_rel_rmse((s * basis - y)[train], target[train]),
+        heldout_before=_rel_rmse((basis - y)[held], target[held]),
+        heldout_after=_rel_rmse((s * basis - y)[held], target[held]),
+        blocks=int(train.sum()),
+        heldout_blocks=int(held.sum()),
+    )
+    if s in (lo, hi):
+        result.at_bounds.append("scale")
+    return _accept(result, {"scale": s}, samples, int(count), start)
+
+
+class _Solver:
+    """Per k: the gains g (3) and transmission scale s minimizing, over the training blocks,
+    sum_c |y_c - g_c S_c - s T_c(f_c)|^2 + lam sum_c |S_c|^2 (g_c - 1)^2 + lam |T|^2 (s - 1)^2
+    + lam_k |y|^2 (log2 k)^2, for every f on the grid (from dot products), bounded."""
+
+    def __init__(self, y, train, trans, regularization):
+        self.y = y
+        self.train = train
+        self.trans = trans
+        self.lam = float(regularization)
+        self.yy = np.sum(y[train] ** 2, axis=0)
+        # A factor 2 on d costs as much as a residual of 5 % of the target's energy, times lam.
+        self.lam_k = 0.05 * self.lam * float(self.yy.sum())
+        if trans is not None:
+            t = trans[:, train]  # (F, N, 3)
+            self.tt = np.sum(t * t, axis=1)  # (F, 3)
+            self.ty = np.sum(t * y[train][None], axis=1)  # (F, 3)
+        self._default = None
+
+    def solve(self, s_blocks: np.ndarray, k: float):
+        y, tr, lam = self.y, self.train, self.lam
+        st = s_blocks[tr]
+        ss = np.sum(st * st, axis=0)  # (3,)
+        sy = np.sum(st * y[tr], axis=0)
+        glo, ghi = PARAMETERS["gain"][1:]
+        penalty_k = self.lam_k * math.log2(k) ** 2
+        if k == 1.0:
+            self._default = s_blocks
+        if self.trans is None:
+            g = np.where(ss > 0, (sy + lam * ss) / np.maximum(ss * (1.0 + lam), 1e-300), 1.0)
+            g = np.clip(g, glo, ghi)
+            sse = self.yy - 2 * g * sy + g * g * ss
+            obj = float(np.sum(sse + lam * ss * (g - 1) ** 2)) + penalty_k
+            return obj, g, 1.0, (GRID.index(1.0),) * 3, s_blocks * g
+        # Combined: for each channel's f index (F,) the dot products S.T_c(f), then every combination.
+        t = self.trans[:, tr]  # (F, N, 3)
+        st_f = np.sum(t * st[None], axis=1)  # (F, 3)
+        n_f = len(GRID)
+        ii, jj, ll = np.meshgrid(np.arange(n_f), np.arange(n_f), np.arange(n_f), indexing="ij")
+        combos = np.stack([ii.ravel(), jj.ravel(), ll.ravel()], axis=1)  # (C, 3)
+        c_idx = np.arange(3)[None, :]
+        st_c = st_f[combos, c_idx]  # (C, 3)
+        tt_c = self.tt[combos, c_idx]
+        ty_c = self.ty[combos, c_idx]
+        tt_sum = tt_c.sum(axis=1)
+        a = np.zeros((len(combos), 4, 4))
+        b = np.zeros((len(combos), 4))
+        for c in range(3):
+            a[:, c, c] = ss[c] * (1.0 + lam)
+            a[:, c, 3] = a[:, 3, c] = st_c[:, c]
+            b[:, c] = sy[c] + lam * ss[c]
+        a[:, 3, 3] = tt_sum * (1.0 + lam)
+        b[:, 3] = ty_c.sum(axis=1) + lam * tt_sum
+        a[:, range(4), range(4)] += 1e-12 * (np.abs(a[:, range(4), range(4)]).max(axis=1, keepdims=True) + 1e-300)
+        x = np.linalg.solve(a, b[..., None])[..., 0]
+        g = np.clip(x[:, :3], glo, ghi)
+        slo, shi = PARAMETERS["transmission_scale"][1:]
+        s = np.clip(x[:, 3], slo, shi)
+        sse = (
+            self.yy[None]
+            - 2 * g * sy[None]
+            - 2 * s[:, None] * ty_c
+            + g * g * ss[None]
+            + 2 * g * s[:, None] * st_c
+            + (s * s)[:, None] * tt_c
+        )
+        log_f = np.log2(np.asarray(GRID))[combos]
+        obj = (
+            sse.sum(axis=1)
+            + lam * np.sum(ss[None] * (g - 1) ** 2, axis=1)
+            + lam * tt_sum * (s - 1) ** 2
+            + self.lam_k * np.sum(log_f**2, axis=1) / 3.0
+            + penalty_k
+        )
+        best = int(np.argmin(obj))
+        f_idx = tuple(int(v) for v in combos[best])
+        trans_best = self.trans[list(f_idx), :, [0, 1, 2]].T  # (N, 3)
+        model = s_blocks * g[best] + s[best] * trans_best
+        return float(obj[best]), g[best], float(s[best]), f_idx, model
+
+    def default_model(self) -> np.ndarray:
+        """The unfitted model (k = 1, g = 1, s = 1, f = 1) minus the rest: S(1) + T(1)."""
+        s1 = self._default  # k = 1 is on the grid, always evaluated
+        if self.trans is None:
+            return s1
+        return s1 + self.trans[GRID.index(1.0)]
+
+
+def fit_scene(
+    passes,
+    scene: SceneDescription,
+    reference,
+    *,
+    techniques=("burley",),
+    log=None,
+    **options,
+) -> tuple[list[FitResult], list[str]]:
+    """Fit every scattering material on screen for each of ``techniques``.
+
+    Returns (results, problems): one ``FitResult`` per fitted (material, technique), and one line
+    per material and technique that could not be fitted (it stays as it was). Raises FitError
+    when no material of the scene scatters light. ``options`` go to ``fit_material``.
+    """
+    scattering = [m for m in scene.materials if m.scatters]
+    if not scattering:
+        raise FitError("no material in the scene scatters light (Subsurface Weight > 0): nothing to fit")
+    results, problems = [], []
+    for material in scattering:
+        for technique in techniques:
+            try:
+                r = fit_material(passes, scene, reference, material, technique, **options)
+            except FitError as exc:
+                problems.append(str(exc))
+                if log:
+                    log(f"  {exc}")
+                continue
+            results.append(r)
+            if log:
+                log(f"  {r.summary()}")
+    return results, problems
+
+
+def with_fits(scene: SceneDescription, results: list[FitResult]) -> SceneDescription:
+    """``scene`` with each fitted material's ``fit`` updated (other techniques' fits kept)."""
+    by_index: dict[int, dict] = {}
+    for r in results:
+        by_index.setdefault(r.index, {})[r.technique] = r.params
+    materials = []
+    for m in scene.materials:
+        if m.index in by_index:
+            m = dataclasses.replace(m, fit={**m.fit, **by_index[m.index]})
+        materials.append(m)
+    return dataclasses.replace(scene, materials=tuple(materials))

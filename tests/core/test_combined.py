@@ -1,0 +1,134 @@
+"""core/combined.py: diffusion of the visible light plus Burley transmission of the light from
+behind (docs/references.md §4, §9). Expected values come from the closed forms of the module
+docstring, evaluated independently in float64 (``core.profiles.burley_transmittance``)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from sss_lab.core.burley import burley
+from sss_lab.core.combined import back_irradiance, combined, slab_thickness, transmission
+from sss_lab.core.profiles import burley_transmittance
+from sss_lab.core.scene import Camera, Light
+
+N = 24
+CAMERA = Camera(type="ORTHO", width_px=N, height_px=N, ortho_scale=1.0)  # looks down -Z from the origin
+D = (0.02, 0.008, 0.004)
+
+
+def _sun(direction, energy=3.0, color=(1.0, 1.0, 1.0)):
+    """A sun shining along ``direction``: its local -Z axis (row-major matrix_world)."""
+    z = -np.asarray(direction, float)
+    z /= np.linalg.norm(z)
+    x = np.cross([0.0, 1.0, 0.0] if abs(z[1]) < 0.9 else [1.0, 0.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = x, y, z
+    return Light(type="SUN", energy=energy, color=color, matrix_world=tuple(m.ravel()))
+
+
+def _slab(translucency=0.5):
+    """A flat surface facing the camera (+Z normal) at depth 2, uniformly lit from the front."""
+    rng = np.random.default_rng(3)
+    return {
+        "diffuse": (1.0 + 0.5 * rng.random((N, N, 3))).astype(np.float32),
+        "albedo": np.full((N, N, 3), (0.8, 0.6, 0.5), np.float32),
+        "depth": np.full((N, N), 2.0, np.float32),
+        "mask": np.ones((N, N), bool),
+        "camera": CAMERA,
+        "d_su": D,
+        "normal": np.broadcast_to(np.float32([0, 0, 1]), (N, N, 3)).copy(),
+        "position": np.zeros((N, N, 3), np.float32),
+        "thickness": np.full((N, N), translucency, np.float32),
+        "thickness_distance_su": 0.05,
+    }
+
+
+def test_without_light_from_behind_it_is_burley_exactly():
+    kw = _slab()
+    front = _sun((0.3, 0.0, -1.0))  # shines towards -Z: onto the visible side
+    out = combined(**kw, lights=(front,))
+    ref = burley(**{k: kw[k] for k in ("diffuse", "albedo", "depth", "mask", "camera", "d_su")})
+    np.testing.assert_array_equal(out, ref)
+    assert out.dtype == np.float32
+
+
+def test_light_from_behind_is_filtered_by_the_burley_transmittance():
+    kw = _slab(translucency=0.75)
+    back = _sun((0.0, 0.0, 1.0), energy=2.0)  # shines along +Z: through the slab towards the camera
+    term = transmission(
+        **{k: kw[k] for k in ("normal", "position", "thickness", "mask", "thickness_distance_su")},
+        lights=(back,),
+        d_su=D,
+    )
+    x = 0.05 * math.sqrt(1.0 - 0.75)  # slab law: translucency t = 1 - (x / D)^2
+    expected = [2.0 / math.pi * float(burley_transmittance(x, d)) for d in D]
+    np.testing.assert_allclose(term[5, 7], expected, rtol=1e-5)  # float32 exp
+    # The channel that scatters furthest passes the most light (colour from the medium)...
+    assert term[0, 0, 0] > term[0, 0, 1] > term[0, 0, 2] > 0
+    # ... and the albedo plays no part in it: combined adds exactly this term to Burley.
+    out = combined(**kw, lights=(back,))
+    diff = out - burley(**{k: kw[k] for k in ("diffuse", "albedo", "depth", "mask", "camera", "d_su")})
+    np.testing.assert_allclose(diff, term, rtol=1e-6, atol=1e-7)
+    kw["albedo"] = kw["albedo"] * 0.5
+    diff2 = combined(**kw, lights=(back,)) - burley(
+        **{k: kw[k] for k in ("diffuse", "albedo", "depth", "mask", "camera", "d_su")}
+    )
+    np.testing.assert_allclose(diff2, term, rtol=1e-6, atol=1e-7)
+
+
+def test_scale_distance_and_extremes():
+    kw = {k: v for k, v in _slab(translucency=1.0).items() if k in ("normal", "position", "thickness", "mask")}
+    back = _sun((0.0, 0.0, 1.0), energy=1.0, color=(1.0, 0.5, 0.25))
+    thin = transmission(**kw, lights=(back,), d_su=D, thickness_distance_su=0.05, transmission_scale=0.5)
+    # Zero thickness passes everything: T(0) = 1, times the light's colour, scale and 1/pi.
+    np.testing.assert_allclose(thin[3, 3], 0.5 / math.pi * np.array([1.0, 0.5, 0.25]), rtol=1e-6)
+    # Full thickness in the "thickness" convention is the translucency map's 0: x = D.
+    kw["thickness"] = np.ones((N, N), np.float32)
+    thick = transmission(**kw, lights=(back,), d_su=D, thickness_distance_su=0.05, thickness_convention="thickness")
+    expected = [c / math.pi * float(burley_transmittance(0.05, d)) for c, d in zip((1.0, 0.5, 0.25), D, strict=True)]
+    np.testing.assert_allclose(thick[3, 3], expected, rtol=1e-5)
+    # A channel with d = 0 lets light through only where the thickness is zero.
+    zero_d = transmission(
+        **kw, lights=(back,), d_su=(0.02, 0.0, 0.0), thickness_distance_su=0.05, thickness_convention="thickness"
+    )
+    assert zero_d[3, 3, 1] == 0 and zero_d[3, 3, 0] > 0
+    np.testing.assert_array_equal(slab_thickness(np.float32([0.0, 1.0, 2.0]), 2.0), [2.0, 0.0, 0.0])
+
+
+def test_terminator_has_no_double_counting():
+    """Each light adds to the transmission only where N . L < 0, where it adds nothing to the
+    visible diffuse light: on a half-cylinder of normals the two never overlap."""
+    angles = np.linspace(-math.pi / 2, math.pi / 2, N)
+    normal = np.zeros((N, N, 3), np.float32)
+    normal[..., 0] = np.sin(angles)[None, :]
+    normal[..., 2] = np.cos(angles)[None, :]
+    side = _sun((-1.0, 0.0, 0.0))  # shines along -X: lights normals with +X
+    back = back_irradiance(normal=normal, position=np.zeros_like(normal), mask=np.ones((N, N), bool), lights=(side,))
+    front = np.maximum(normal @ np.float32([1.0, 0.0, 0.0]), 0.0)
+    assert np.all((back[..., 0] == 0) | (front == 0))
+    assert back[:, : N // 2 - 1, 0].min() > 0 and front[:, N // 2 + 1 :].min() > 0
+
+
+def test_bad_input_names_the_value():
+    kw = _slab()
+    with pytest.raises(ValueError, match="diffusion: 'fast' is not one of burley, ssss"):
+        combined(**kw, lights=(), diffusion="fast")
+    kw["thickness_distance_su"] = 0.0
+    with pytest.raises(ValueError, match="thickness_distance_su: expected a finite number > 0"):
+        combined(**kw, lights=())
+    # Without the transmission the bake distance is not needed.
+    combined(**kw, lights=(), transmission_scale=0.0)
+    with pytest.raises(ValueError, match="transmission_d_su"):
+        combined(**{**_slab(), "transmission_d_su": (1.0, -1.0, 0.0)}, lights=())
+
+
+def test_ssss_diffusion_and_inputs_untouched():
+    kw = _slab()
+    copies = {k: v.copy() for k, v in kw.items() if isinstance(v, np.ndarray)}
+    out = combined(**kw, lights=(_sun((0.0, 0.0, 1.0)),), diffusion="ssss", n_taps=11)
+    assert out.dtype == np.float32 and np.all(np.isfinite(out))
+    for k, v in copies.items():
+        np.testing.assert_array_equal(kw[k], v)

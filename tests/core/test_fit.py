@@ -1,0 +1,129 @@
+"""core/fit.py: recovering known parameters from a synthetic "Cycles" image made with them,
+with and without Monte Carlo-like noise; the held-out check; the bad inputs.
+
+The synthetic scene is core/synthetic.py's plane and spheres (the Skin sphere, pass index 2,
+covers about 1900 pixels at 96 x 64). The reference is SSS Lab's own apply with the true fit,
+so the model can represent it exactly: a noise-free fit must find the true values on the grid.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from sss_lab.core import apply as core_apply
+from sss_lab.core import fit as fit_mod
+from sss_lab.core.exr import Passes
+from sss_lab.core.fit import FitError, fit_material, fit_scene, heldout_blocks, with_fits
+from sss_lab.core.scene import SceneDescription
+from sss_lab.core.synthetic import sphere_scene
+
+TRUTH = {
+    "burley": {"gain": (1.2, 0.9, 0.8), "d_scale": 2**-0.5},
+    "combined": {"gain": (1.2, 0.9, 0.8), "d_scale": 2**0.5, "transmission_scale": 0.5},
+}
+
+
+@pytest.fixture(scope="module")
+def synthetic():
+    arrays, scene = sphere_scene(96, 64)
+    mats = tuple(dataclasses.replace(m, thickness_distance=0.5) if m.scatters else m for m in scene.materials)
+    return Passes(arrays), dataclasses.replace(scene, materials=mats)
+
+
+def _reference(passes, scene, technique, fit):
+    materials = tuple(dataclasses.replace(m, fit={technique: fit}) if m.scatters else m for m in scene.materials)
+    true = dataclasses.replace(scene, materials=materials)
+    return core_apply.apply(passes, true, technique)[core_apply.layer_names(technique)[0]]
+
+
+def _skin(scene):
+    return scene.material(2)
+
+
+@pytest.mark.parametrize("technique", ["burley", "combined"])
+def test_noise_free_fit_finds_the_true_values(synthetic, technique):
+    passes, scene = synthetic
+    ref = _reference(passes, scene, technique, TRUTH[technique])
+    r = fit_material(passes, scene, ref, _skin(scene), technique, regularization=0.0)
+    # The true d_scale is on the search grid, the gains and scale are solved in closed form:
+    # float32 rendering of the reference is the only error left.
+    assert r.params["d_scale"] == pytest.approx(TRUTH[technique]["d_scale"], rel=1e-9)
+    np.testing.assert_allclose(r.params["gain"], TRUTH[technique]["gain"], rtol=1e-3)
+    if technique == "combined":
+        assert "transmission_d_su" in r.params  # the back light reaches the sphere's thin rim
+    assert r.heldout_after < 0.01 * r.heldout_before
+    assert r.params["info"]["heldout_after"] == r.heldout_after
+
+
+def test_noisy_fit_is_close_and_holds(synthetic):
+    passes, scene = synthetic
+    ref = _reference(passes, scene, "burley", TRUTH["burley"])
+    rng = np.random.default_rng(7)
+    noisy = ref.copy()
+    # 30 % multiplicative per-pixel noise: about what 16-32 samples of random walk leave.
+    noisy[..., :3] *= (1.0 + 0.3 * rng.standard_normal(ref[..., :3].shape)).astype(np.float32)
+    r = fit_material(passes, scene, noisy, _skin(scene), "burley")
+    # Tolerance: the ridge pulls g towards 1 by lam |g - 1| / (1 + lam) <= 0.05 x 0.2 / 1.05 = 0.0095,
+    # and the block means' noise (0.3 / 4 per block, ~70 blocks, 3 channels) adds about 0.01.
+    np.testing.assert_allclose(r.params["gain"], TRUTH["burley"]["gain"], atol=0.03)
+    assert r.heldout_after < 0.5 * r.heldout_before
+
+
+def test_a_fit_that_does_not_hold_is_rejected(synthetic):
+    """Training blocks say "twice as bright", held-out blocks say "as it is": the fit follows the
+    training blocks and is rejected by the held-out ones, with one line naming the material."""
+    passes, scene = synthetic
+    skin = _skin(scene)
+    default = _reference(passes, scene, "burley", {})
+    mask = core_apply._index_map(passes) == skin.index
+    keep = fit_mod.box_downsample(mask.astype(float), 4) >= 1.0
+    held = heldout_blocks(int(keep.sum()), holdout=0.25, seed=0)
+    train_blocks = np.zeros(keep.shape, bool)
+    train_blocks[keep] = ~held
+    train_pixels = np.kron(train_blocks, np.ones((4, 4), bool))
+    ref = default.copy()
+    ref[train_pixels, :3] *= 2.0
+    with pytest.raises(FitError, match="'Skin' burley: the fit does not hold on the held-out pixels"):
+        fit_material(passes, scene, ref, skin, "burley")
+
+
+def test_bad_inputs_give_one_clear_line(synthetic):
+    passes, scene = synthetic
+    ref = passes["Combined"]
+    wax = scene.material(3)  # about 460 pixels: 19 blocks of 4 x 4
+    with pytest.raises(FitError, match=r"material 'Wax' covers \d+ pixels.*too few to fit.*left unchanged"):
+        fit_material(passes, scene, ref, wax, "burley")
+    plain = dataclasses.replace(
+        scene, materials=tuple(dataclasses.replace(m, subsurface_weight=0.0) for m in scene.materials)
+    )
+    with pytest.raises(FitError, match="no material in the scene scatters light"):
+        fit_scene(passes, plain, ref)
+    no_bake = dataclasses.replace(_skin(scene), thickness_distance=0.0)
+    with pytest.raises(FitError, match="'Skin': its thickness map has no bake distance"):
+        fit_material(passes, scene, ref, no_bake, "combined")
+    with pytest.raises(FitError, match="reference: expected an image of the passes' size 96x64"):
+        fit_material(passes, scene, ref[:10], _skin(scene), "burley")
+    # fit_scene reports the material it could not fit and fits the others.
+    results, problems = fit_scene(passes, scene, _reference(passes, scene, "burley", TRUTH["burley"]))
+    assert [r.material for r in results] == ["Skin"] and len(problems) == 1 and "'Wax'" in problems[0]
+
+
+def test_the_fit_travels_in_the_scene_description_and_apply_uses_it(synthetic):
+    passes, scene = synthetic
+    ref = _reference(passes, scene, "burley", TRUTH["burley"])
+    results, _ = fit_scene(passes, scene, ref, techniques=("burley",), regularization=0.0)
+    fitted = with_fits(scene, results)
+    again = SceneDescription.from_json(fitted.to_json())
+    assert again.material(2).fit["burley"]["d_scale"] == pytest.approx(2**-0.5)
+    assert again.material(3).fit == {}
+    out = core_apply.apply(passes, again, "burley")["SSSLab.burley.Image"]
+    skin = core_apply._index_map(passes) == 2
+    np.testing.assert_allclose(out[skin], ref[skin], rtol=2e-3, atol=1e-5)
+    text = core_apply.plan(passes, again, "burley").explain()
+    assert "fitted to Cycles: d_scale=0.7071, gain=(1.2, 0.9, 0.8)" in text and "held-out error" in text
+    # Hand-edited values outside the bounds, or unknown names, are rejected with the bounds.
+    with pytest.raises(ValueError, match="fitted gain: .* is outside 0.25..4"):
+        dataclasses.replace(scene.material(2), fit={"burley": {"gain": (5.0, 1.0, 1.0)}})
+    with pytest.raises(ValueError, match="unknown parameter 'radius'"):
+        dataclasses.replace(scene.material(2), fit={"burley": {"radius": 1.0}})
