@@ -18,6 +18,7 @@ _MODULES = (
     ".operators.apply",
     ".operators.presets",
     ".operators.compare",
+    ".operators.calibrate",
     ".operators.compositor",
     ".addon.panels",
     ".addon.panel_bake",

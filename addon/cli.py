@@ -19,6 +19,7 @@ COMMANDS = (
     ".cli_bake",
     ".cli_render",
     ".cli_compare",
+    ".cli_calibrate",
 )
 
 

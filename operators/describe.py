@@ -54,11 +54,14 @@ def material_sss(material, index: int) -> MaterialSSS | None:
         value = socket.default_value
         values[key] = tuple(value)[:3] if key == "subsurface_radius" else float(value)
     base = node.inputs["Base Color"].default_value
+    from .calibrate import read_fit
+
     return MaterialSSS(
         index=index,
         name=material.name,
         method=node.subsurface_method,
         base_color=tuple(min(float(c), 1.0) for c in base[:3]),
+        fit=read_fit(material),
         **values,
     )
 

@@ -1,0 +1,247 @@
+"""Fit to Cycles: fit each subsurface material's technique parameters to a short random-walk render.
+
+``calibrate(scene)`` renders the scene's own view twice — Cycles random walk at a few dozen
+samples (fixed seed, adaptive sampling off, docs/references.md §8) and the passes the techniques
+need — fits per material and technique with ``core.fit.fit_scene``, and stores the fitted values
+on each material as custom properties ``sss_lab_fit_<technique>_<parameter>`` (plus
+``sss_lab_fit_<technique>_info``, a JSON string with the samples and the held-out errors). The
+scene description reads them back (``describe.material_sss``), so Render Passes, Apply, Compare
+and the command line use them with no extra option. The properties are shown and editable in the
+panel and cleared by Clear Fit.
+
+The scene is left as it was apart from the new properties (``SceneState``); a material that
+cannot be fitted (too few pixels, no bake distance, a fit that does not hold) keeps its old
+values, and the reason is one line in the result.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+
+import bpy
+
+from ..core import exr
+from ..core.apply import load_scene
+from ..core.errors import InputError
+from ..core.fit import fit_scene
+from ..core.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
+from .describe import sss_materials
+from .state import SceneState
+
+#: Custom-property prefix of the fitted values on a material.
+PREFIX = "sss_lab_fit_"
+#: The techniques ``calibrate`` fits by default: the two that the fit improves most.
+DEFAULT_TECHNIQUES = ("burley", "combined")
+
+
+def _key(technique: str, name: str) -> str:
+    return f"{PREFIX}{technique}_{name}"
+
+
+def read_fit(material) -> dict:
+    """The fit stored on ``material``'s custom properties, validated ({} when none).
+
+    A hand-edited value outside its bounds raises ValueError naming the material and the bounds."""
+    fit: dict = {}
+    keys = set(material.keys())
+    for technique, names in FIT_PARAMETERS.items():
+        params = {}
+        for name in names:
+            key = _key(technique, name)
+            if key in keys:
+                value = material[key]
+                params[name] = tuple(value) if hasattr(value, "__len__") else float(value)
+        if params:
+            info = material.get(_key(technique, INFO))
+            try:
+                params[INFO] = json.loads(info) if isinstance(info, str) else {}
+            except json.JSONDecodeError:
+                params[INFO] = {}
+            fit[technique] = params
+    return check_fit(fit, f"material {material.name!r}")
+
+
+def write_fit(material, technique: str, params: dict) -> None:
+    """Store ``params`` (``core/fit_params.py`` names, plus ``info``) on ``material`` for ``technique``,
+    replacing that technique's earlier fit."""
+    clear_fit(material, technique)
+    for name, value in params.items():
+        if name == INFO:
+            material[_key(technique, INFO)] = json.dumps(value, sort_keys=True)
+            continue
+        key = _key(technique, name)
+        material[key] = list(value) if isinstance(value, (tuple, list)) else float(value)
+        ui = material.id_properties_ui(key)
+        _, lo, hi = PARAMETERS[name]
+        ui.update(min=lo, max=hi, description=f"Fitted to Cycles by SSS Lab ({technique}); Clear Fit removes it")
+
+
+def clear_fit(material, technique: str | None = None) -> list[str]:
+    """Remove the fitted properties of ``technique`` (all techniques when None); returns the keys removed."""
+    prefix = PREFIX if technique is None else _key(technique, "")
+    removed = [k for k in material.keys() if k.startswith(prefix)]
+    for k in removed:
+        del material[k]
+    return removed
+
+
+def calibrate(
+    scene,
+    *,
+    techniques=DEFAULT_TECHNIQUES,
+    samples: int = 32,
+    pass_samples: int = 64,
+    resolution=None,
+    seed: int = 0,
+    box: int = 4,
+    log=print,
+) -> dict:
+    """Fit the scene's subsurface materials to Cycles random walk and store the fits on them.
+
+    Returns {"results": [FitResult.to_dict()], "problems": [one line each], "seconds": {"reference",
+    "passes", "fit"}}. Raises InputError (nothing changed) for bad arguments, a scene without a
+    camera or without subsurface materials.
+    """
+    from .compare import _render_combined
+    from .render_passes import parse_resolution, render_passes, thickness_aov_name, thickness_setup
+
+    techniques = tuple(techniques)
+    for t in techniques:
+        if t not in FIT_PARAMETERS:
+            raise InputError(f"methods: no fit exists for {t!r}; expected some of: {', '.join(FIT_PARAMETERS)}")
+    for name, value in (("samples", samples), ("pass_samples", pass_samples), ("box", box)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise InputError(f"{name}: expected an integer >= 1, got {value!r}")
+    if scene.camera is None:
+        raise InputError(f"scene {scene.name!r} has no active camera; set one in Scene Properties > Camera")
+    materials = sss_materials(scene)
+    if not materials:
+        raise InputError(
+            f"scene {scene.name!r} has no material with subsurface scattering (Subsurface Weight > 0): nothing to fit"
+        )
+    resolution = parse_resolution(resolution) if resolution is not None else None
+    problems: list[str] = []
+    needs_map = [t for t in techniques if t in ("sta", "combined")]
+    if needs_map:
+        try:
+            thickness_setup(scene, materials, thickness_aov_name(scene))
+        except ValueError as exc:
+            techniques = tuple(t for t in techniques if t not in needs_map)
+            problems.append(f"{', '.join(needs_map)} not fitted: {exc}")
+            log(problems[-1])
+            if not techniques:
+                raise InputError(problems[-1]) from None
+    seconds = {}
+    with tempfile.TemporaryDirectory(prefix="sss_lab_fit_") as tmp:
+        log(f"Cycles random walk, {samples} samples (seed {seed})")
+        ref_path = os.path.join(tmp, "reference.exr")
+        with SceneState() as state:
+            seconds["reference"] = _render_combined(
+                scene, samples=samples, seed=seed, resolution=resolution, path=ref_path, state=state
+            )
+        reference = exr.read_passes(ref_path)["Combined"]
+        log(f"Passes, {pass_samples} samples")
+        start = time.perf_counter()
+        written = render_passes(
+            scene,
+            os.path.join(tmp, "passes"),
+            techniques=techniques,
+            samples=pass_samples,
+            resolution=resolution,
+            seed=seed,
+            overwrite=True,
+            log=log,
+        )
+        seconds["passes"] = time.perf_counter() - start
+        exr_path = next(p for p in written if p.endswith(".exr"))
+        passes = exr.read_passes(exr_path)
+        desc = load_scene(exr_path)
+    start = time.perf_counter()
+    results, fit_problems = fit_scene(passes, desc, reference, techniques=techniques, box=box, samples=samples, log=log)
+    seconds["fit"] = time.perf_counter() - start
+    problems += fit_problems
+    for r in results:
+        material = bpy.data.materials.get(r.material)
+        if material is None:  # renamed while fitting: nothing to store it on
+            problems.append(f"material {r.material!r} no longer exists: its fit is not stored")
+            continue
+        write_fit(material, r.technique, r.params)
+    return {"results": [r.to_dict() for r in results], "problems": problems, "seconds": seconds}
+
+
+class SSS_LAB_OT_fit_to_cycles(bpy.types.Operator):
+    """Render a short Cycles random-walk image of this view and fit each subsurface material's
+    parameters (energy per channel, scale of d, light from behind) to it"""
+
+    bl_idname = "sss_lab.fit_to_cycles"
+    bl_label = "Fit to Cycles"
+    bl_options = {"REGISTER", "UNDO"}
+
+    samples: bpy.props.IntProperty(
+        name="Samples", min=1, default=32, description="Cycles random-walk samples of the image the fit is made on"
+    )
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self)
+
+    def execute(self, context):
+        try:
+            data = calibrate(context.scene, samples=self.samples, log=print)
+        except (InputError, ValueError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        for line in data["problems"]:
+            self.report({"WARNING"}, line)
+        for r in data["results"]:
+            errors = f"{r['heldout_before']:.3g} -> {r['heldout_after']:.3g}"
+            self.report({"INFO"}, f"{r['material']} {r['technique']}: held-out error {errors}")
+        if not data["results"]:
+            self.report({"ERROR"}, "no material could be fitted (see the warnings); nothing changed")
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+
+class SSS_LAB_OT_clear_fit(bpy.types.Operator):
+    """Remove the values fitted to Cycles from the active material (the unfitted mapping is used again)"""
+
+    bl_idname = "sss_lab.clear_fit"
+    bl_label = "Clear Fit"
+    bl_options = {"REGISTER", "UNDO"}
+
+    technique: bpy.props.StringProperty(name="Technique", default="", description="Only this technique's fit")
+
+    @classmethod
+    def poll(cls, context):
+        mat = getattr(context, "material", None) or getattr(context.object, "active_material", None)
+        return mat is not None and any(k.startswith(PREFIX) for k in mat.keys())
+
+    def execute(self, context):
+        mat = getattr(context, "material", None) or context.object.active_material
+        removed = clear_fit(mat, self.technique or None)
+        self.report({"INFO"}, f"{mat.name}: {len(removed)} fitted value(s) removed")
+        return {"FINISHED"}
+
+
+def draw_fit(layout, material) -> None:
+    """Rows of the fitted values of ``material`` (editable), with Clear Fit."""
+    keys = [k for k in material.keys() if k.startswith(PREFIX)]
+    if not keys:
+        layout.label(text=f"{material.name}: not fitted (Fit to Cycles)")
+        return
+    for technique, names in FIT_PARAMETERS.items():
+        shown = [n for n in names if _key(technique, n) in keys]
+        if not shown:
+            continue
+        box = layout.box()
+        row = box.row()
+        row.label(text=f"{material.name}: {technique} fit")
+        op = row.operator("sss_lab.clear_fit", text="", icon="X")
+        op.technique = technique
+        for name in shown:
+            box.prop(material, f'["{_key(technique, name)}"]', text=name.replace("_", " ").title())
+
+
+classes = (SSS_LAB_OT_fit_to_cycles, SSS_LAB_OT_clear_fit)
