@@ -34,6 +34,11 @@ def _modules():
     return [importlib.import_module(name, root) for name in _MODULES]
 
 
+def compositor_render():
+    """The render handlers of the compositor path (registered with the classes)."""
+    return importlib.import_module(".operators.compositor_render", __package__.rpartition(".")[0])
+
+
 def register():
     import bpy
 
@@ -49,6 +54,7 @@ def register():
                 bpy.utils.register_class(cls)
                 _registered.append(cls)
         properties.attach()
+        compositor_render().register_handlers()
         global _cli_handle
         _cli_handle = bpy.utils.register_cli_command(cli.BLENDER_COMMAND, cli.blender_command)
     except Exception:
@@ -65,6 +71,7 @@ def unregister():
     if _cli_handle is not None:
         bpy.utils.unregister_cli_command(_cli_handle)
         _cli_handle = None
+    compositor_render().unregister_handlers()
     properties.detach()
     while _registered:
         bpy.utils.unregister_class(_registered.pop())

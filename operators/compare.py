@@ -250,6 +250,8 @@ def _render_combined(scene, *, samples: int, seed: int, resolution, path: str, s
     """Render ``scene`` with Cycles to a float32 multilayer EXR at ``path``; returns seconds."""
     cy = scene.cycles
     state.set(scene.render, "engine", "CYCLES")
+    # Cycles' own image: no compositor (SSS Lab's node groups there would change the materials and the image).
+    state.set(scene.render, "use_compositing", False)
     state.set(cy, "samples", samples)
     state.set(cy, "seed", seed)
     state.set(cy, "use_adaptive_sampling", False)

@@ -15,8 +15,12 @@ changes, on purpose and for good (it is a set-up, undoable with Ctrl+Z, not a te
   Material Index, as with ``render_passes``.
 
 Not changed: the materials' subsurface settings. Cycles puts its own subsurface light into the
-Diffuse passes, so a material rendered with Subsurface Weight > 0 would be scattered twice; the
-function warns about those (render them with Subsurface Weight 0 for the compositor techniques).
+Diffuse passes, so the groups need the materials rendered as plain diffuse: the render handlers
+of ``compositor_render`` do that around every render of the scene (Subsurface Weight 0 while it
+renders, put back after, as Render Passes does), and the set-up switches on Lock Interface for
+them. Each subsurface material keeps the weight the set-up saw (custom property
+``sss_lab_subsurface_weight``), so that a set-up run again after the weight was set to 0 (by
+hand, as the compositor path once required) still finds the material.
 """
 
 from __future__ import annotations
@@ -29,6 +33,9 @@ from ..core.techniques import TECHNIQUES, check_technique
 from ..nodes import setup as chain
 from .describe import describe_scene, principled_node, sss_materials
 from .render_passes import PASS_FLAGS, thickness_aov_name, thickness_setup
+
+#: Custom property on a material: the Subsurface Weight the last compositor set-up saw.
+KEPT_WEIGHT = "sss_lab_subsurface_weight"
 
 #: Passes each technique's groups read (the masks need the Material Index).
 COMPOSITOR_PASSES = {
@@ -108,6 +115,26 @@ def _set_pass_indices(materials) -> tuple[list[str], list[str]]:
     return changed, warnings
 
 
+def _keep_weights(materials) -> list[str]:
+    """Store each subsurface material's Subsurface Weight on it (``KEPT_WEIGHT``); notes for the
+    materials that read 0 and were found by a weight kept earlier."""
+    notes = []
+    for m in materials:
+        mat = bpy.data.materials.get(m.name)
+        node = principled_node(mat)
+        socket = node.inputs.get("Subsurface Weight") if node is not None else None
+        if socket is None or not mat.is_editable:
+            continue
+        if socket.default_value > 0 or socket.is_linked:
+            mat[KEPT_WEIGHT] = float(socket.default_value)
+        else:
+            notes.append(
+                f"{m.name}: Subsurface Weight is 0; using {m.subsurface_weight:g}, the weight the last set-up saw "
+                "(it need not be 0: SSS Lab renders the material as plain diffuse for the node groups)"
+            )
+    return notes
+
+
 def setup_compositor(scene, technique: str, *, options: dict | None = None, view_layer=None) -> dict:
     """Insert ``technique``'s node groups into ``scene``'s compositor; returns a report dict
     (technique, groups, nodes, passes_enabled, pass_indices, notes, warnings).
@@ -129,13 +156,14 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
             f"the compositor groups read Cycles passes (Material Index, Diffuse Direct/Indirect); scene "
             f"{scene.name!r} renders with {scene.render.engine}: set Render Engine to Cycles"
         )
-    materials = sss_materials(scene)
+    materials = sss_materials(scene, kept_weight=lambda mat: mat.get(KEPT_WEIGHT))
     if not materials:
         raise ValueError(
             f"scene {scene.name!r} has no material with subsurface scattering (Subsurface Weight, Radius and "
-            "Scale > 0 on a Principled BSDF): nothing to set up"
+            "Scale > 0 on a Principled BSDF): nothing to set up (keep the materials' Subsurface Weight: SSS Lab "
+            "renders them as plain diffuse for the node groups by itself)"
         )
-    warnings = []
+    warnings, notes = [], []
     extra = {}
     aov = None
     if technique == "sta":
@@ -152,14 +180,14 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
     changed, index_warnings = _set_pass_indices(materials)
     warnings += index_warnings
     enabled = _enable_passes(layer, COMPOSITOR_PASSES[technique], aov)
-    for m in materials:
-        node = principled_node(bpy.data.materials.get(m.name))
-        weight = node.inputs.get("Subsurface Weight") if node is not None else None
-        if weight is not None and (weight.is_linked or weight.default_value > 0):
-            warnings.append(
-                f"{m.name}: Subsurface Weight > 0, so Cycles' own subsurface light is in the Diffuse passes and "
-                "would be scattered twice; render it with Subsurface Weight 0 for the compositor"
-            )
+    notes += _keep_weights(materials)
+    if not scene.render.use_lock_interface:
+        scene.render.use_lock_interface = True
+        notes.append("Lock Interface switched on: SSS Lab changes the materials' Subsurface Weight while rendering")
+    notes.append(
+        f"at render time the {len(materials)} subsurface material(s) render as plain diffuse (Subsurface Weight 0) "
+        "and get their weights back after the render"
+    )
     scale = {}
     if technique != "sta":
         depths = material_depths(scene, desc.camera)
@@ -179,7 +207,7 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
     for link in [lk for lk in tree.links if lk.from_socket == image]:
         tree.links.remove(link)
     location = (rl.location[0] + 300.0, rl.location[1])
-    output, notes = chain.build_chain(
+    output, chain_notes = chain.build_chain(
         tree,
         rl,
         image=image,
@@ -202,7 +230,7 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
         "passes_enabled": enabled,
         "pass_indices": changed,
         "pixels_per_unit": {m.name: scale[m.index] for m in materials if m.index in scale},
-        "notes": notes,
+        "notes": notes + chain_notes,
         "warnings": warnings,
     }
 

@@ -99,12 +99,19 @@ def bake_distance(scene, material) -> float:
     return max((float(d) for d in found if d > 0), default=0.0)
 
 
-def sss_materials(scene) -> list[MaterialSSS]:
+def sss_materials(scene, *, kept_weight=None) -> list[MaterialSSS]:
     """The scene's materials with subsurface scattering, indexed 1, 2, ... in name order, each
-    with its thickness-bake distance when it has a baked map."""
+    with its thickness-bake distance when it has a baked map.
+
+    ``kept_weight(material)``: for a material whose Subsurface Weight reads 0, a weight kept
+    elsewhere (the compositor set-up keeps the one it saw) or None; default: none."""
     result = []
     for material in scene_materials(scene):
         info = material_sss(material, len(result) + 1)
+        if info is not None and not info.scatters and kept_weight is not None:
+            weight = kept_weight(material)
+            if weight:
+                info = dataclasses.replace(info, subsurface_weight=float(weight))
         if info is not None and info.scatters:
             result.append(dataclasses.replace(info, thickness_distance=bake_distance(scene, material)))
     return result

@@ -207,10 +207,12 @@ def _rendered_materials(scene) -> list:
     return [found[k] for k in sorted(found)]
 
 
-def _zero_subsurface(st: SceneState, scene) -> list[str]:
-    """Render every Principled BSDF of the scene's materials with Subsurface Weight 0."""
+def zero_subsurface(st: SceneState, scene) -> tuple[list[str], list[str]]:
+    """Render every Principled BSDF of the scene's materials with Subsurface Weight 0 (links
+    cut); ``st`` puts them back. Returns (materials changed, materials with a Subsurface
+    Scattering node, which still scatters)."""
     seen: set = set()
-    other_sss = []
+    other_sss, changed = [], []
     for mat in _rendered_materials(scene):
         if not mat.is_editable:
             if any(
@@ -242,9 +244,11 @@ def _zero_subsurface(st: SceneState, scene) -> list[str]:
 
                     tree.links.remove(link)
                     st.on_restore(relink)
+                    changed.append(mat.name)
                 if socket.default_value != 0.0:
                     st.set_input(node, "Subsurface Weight", 0.0)
-    return sorted(set(other_sss))
+                    changed.append(mat.name)
+    return sorted(set(changed)), sorted(set(other_sss))
 
 
 def _material_indices(st: SceneState, scene, materials: list) -> None:
@@ -479,7 +483,7 @@ def render_passes(
             if vl.use != (vl == layer):
                 st.set(vl, "use", vl == layer)
         _set_passes(st, scene, layer, names, aov_name if needs_thickness else None)
-        other_sss = _zero_subsurface(st, scene)
+        _, other_sss = zero_subsurface(st, scene)
         if other_sss:
             say(
                 f"material(s) {', '.join(map(repr, other_sss))} use a Subsurface Scattering node, which SSS Lab "
