@@ -476,7 +476,9 @@ def apply(
             continue
         kwargs = dict(inputs)
         kwargs.update(mp.params)
-        gain = kwargs.pop("gain", None)
+        # A technique that takes the fitted gain applies it itself (the combined technique, to its
+        # diffusion only); for the others it scales their result below.
+        gain = None if "gain" in _accepted(func)[0] else kwargs.pop("gain", None)
         kwargs["mask"] = mask
         out = np.asarray(_call(func, kwargs), dtype=np.float32)
         if out.shape != rgb.shape:

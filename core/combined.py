@@ -22,9 +22,9 @@ saturated green, not pale). Real-time engines combine the two (HDRP's diffusion 
   surface faces away from it (N . L < 0), which is exactly where it adds nothing to the Diffuse
   Direct pass that the diffusion redistributes; the two terms meet at zero at the terminator.
 
-``transmission_scale`` s_tr and ``transmission_d_su`` (d per channel for the transmittance,
-the diffusion's d by default) are what ``calibrate`` fits against Cycles per material
-(``core/fit.py``).
+``transmission_scale`` s_tr (one number, or one per channel: the fit's tint of the transmitted
+light) and ``transmission_d_su`` (d per channel for the transmittance, the diffusion's d by
+default) are what ``calibrate`` fits against Cycles per material (``core/fit.py``).
 """
 
 from __future__ import annotations
@@ -106,7 +106,7 @@ def transmission(
     lights,
     d_su,
     thickness_distance_su: float,
-    transmission_scale: float = 1.0,
+    transmission_scale=1.0,
     thickness_convention: str = "translucency",
 ) -> np.ndarray:
     """The light from behind alone, float32 (H, W, 3): ``transmission_scale`` x
@@ -120,7 +120,7 @@ def transmission(
             f"thickness_convention: {thickness_convention!r} is not one of {', '.join(THICKNESS_CONVENTIONS)}"
         )
     distance = _arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
-    scale = _arrays.positive_finite(transmission_scale, "transmission_scale")
+    scale = _arrays.rgb_lengths(transmission_scale, "transmission_scale").astype(np.float32)
     _arrays.rgb_lengths(d_su, "transmission_d_su")
     t = _arrays.image(thickness, "thickness", None)
     e = back_irradiance(normal=normal, position=position, mask=mask, lights=lights)
@@ -132,8 +132,8 @@ def transmission(
     tr = burley_transmittance_rgb(slab_thickness(tt, distance), d_su)
     out = e * tr
     out[~ok] = 0.0
-    if scale != 1.0:
-        out *= np.float32(scale)
+    if np.any(scale != 1):
+        out *= scale
     return out
 
 
@@ -156,8 +156,9 @@ def combined(
     n_taps: int = 17,
     random_rotation: bool = False,
     seed: int = 0,
-    transmission_scale: float = 1.0,
+    transmission_scale=1.0,
     transmission_d_su=None,
+    gain=(1.0, 1.0, 1.0),
     thickness_convention: str = "translucency",
     albedo_mode: str = "post",
 ) -> np.ndarray:
@@ -167,7 +168,9 @@ def combined(
     ``d_su``, ``object_id``) and ``transmission`` (``normal``, ``position``, ``thickness``,
     ``lights``, ``thickness_distance_su``, ``thickness_convention``). ``diffusion`` "burley"
     (``n_samples``, ``random_rotation``, ``seed``) or "ssss" (``n_taps``, pre-integrated
-    kernel). ``transmission_d_su`` None uses ``d_su``. Returns, like Burley and SSSS, the
+    kernel). ``transmission_d_su`` None uses ``d_su``. ``gain`` (R, G, B) multiplies the
+    diffusion's light on the mask (the fitted energy, ``core/fit_params.py``), not the transmitted
+    light, whose level is ``transmission_scale``. Returns, like Burley and SSSS, the
     albedo-applied scattered light on the mask (plus the transmitted light) and albedo x diffuse
     elsewhere. Formula, sources and why nothing is counted twice: the module docstring.
     """
@@ -200,9 +203,12 @@ def combined(
             d_su=tuple(d),
             albedo_mode=albedo_mode,
         )
-    scale = _arrays.positive_finite(transmission_scale, "transmission_scale")
-    if scale > 0:
-        m = _arrays.mask_array(mask, out.shape[:2])
+    g = _arrays.rgb_lengths(gain, "gain").astype(np.float32)
+    m = _arrays.mask_array(mask, out.shape[:2])
+    if np.any(g != 1):
+        out[m] *= g
+    scale = _arrays.rgb_lengths(transmission_scale, "transmission_scale")
+    if scale.max() > 0:
         out += transmission(
             normal=normal,
             position=position,
@@ -211,7 +217,7 @@ def combined(
             lights=lights,
             d_su=tuple(d_tr),
             thickness_distance_su=thickness_distance_su,
-            transmission_scale=scale,
+            transmission_scale=tuple(scale),
             thickness_convention=thickness_convention,
         )
     return out

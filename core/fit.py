@@ -7,11 +7,11 @@ random-walk render of the same view (a few dozen samples are enough) and the Mat
 mask, ``fit_scene`` finds per material and technique the parameters of ``core/fit_params.py``
 that minimize the squared error over the material's pixels:
 
-    model = Combined - A E + g_c S_c(k) + s T_c(f_c)        (per channel c)
+    model = Combined - A E + g_c S_c(k) + s_c T_c(f_c)      (per channel c)
 
 with S(k) the technique's albedo-applied light with d times k (Burley, SSSS, the combined
 technique's diffusion), g the per-channel gain, and for the combined technique T(f) its light
-from behind with the transmission d per channel times f_c and the scale s (``core/combined.py``);
+from behind with the transmission d per channel times f_c and the scale s_c (``core/combined.py``);
 STA: Combined + s x its term at scale 1.
 
 Robust to Monte Carlo noise (docs/references.md §8):
@@ -271,7 +271,7 @@ def fit_material(
     params = {"gain": tuple(float(v) for v in g), "d_scale": float(best_k)}
     if technique == "combined" and trans is not None:
         d_tr0 = np.asarray(params0.get("transmission_d_su", d0), np.float64)
-        params["transmission_scale"] = float(s)
+        params["transmission_scale"] = tuple(float(v) for v in s)
         params["transmission_d_su"] = tuple(float(d_tr0[c] * GRID[f_idx[c]]) for c in range(3))
     _bounds(params, result)
     if best_k in (GRID[0], GRID[-1]):
@@ -340,9 +340,10 @@ def _finish_sta(material, name, base, basis, target, train, held, regularization
 
 
 class _Solver:
-    """Per k: the gains g (3) and transmission scale s minimizing, over the training blocks,
-    sum_c |y_c - g_c S_c - s T_c(f_c)|^2 + lam sum_c |S_c|^2 (g_c - 1)^2 + lam |T|^2 (s - 1)^2
-    + lam_k |y|^2 (log2 k)^2, for every f on the grid (from dot products), bounded."""
+    """Per k: the gains g_c and transmission scales s_c minimizing, over the training blocks and
+    for each channel c, |y_c - g_c S_c - s_c T_c(f_c)|^2 + lam |S_c|^2 (g_c - 1)^2
+    + lam |T_c|^2 (s_c - 1)^2 + lam_k (log2 f_c)^2 / 3, plus lam_k (log2 k)^2, for every f on the
+    grid (2 x 2 normal equations from dot products), bounded."""
 
     def __init__(self, y, train, trans, regularization):
         self.y = y
@@ -372,52 +373,32 @@ class _Solver:
             g = np.clip(g, glo, ghi)
             sse = self.yy - 2 * g * sy + g * g * ss
             obj = float(np.sum(sse + lam * ss * (g - 1) ** 2)) + penalty_k
-            return obj, g, 1.0, (GRID.index(1.0),) * 3, s_blocks * g
-        # Combined: for each channel's f index (F,) the dot products S.T_c(f), then every combination.
+            return obj, g, np.ones(3), (GRID.index(1.0),) * 3, s_blocks * g
+        # Combined: per channel c and factor f, the 2 x 2 normal equations of (g_c, s_c).
         t = self.trans[:, tr]  # (F, N, 3)
         st_f = np.sum(t * st[None], axis=1)  # (F, 3)
-        n_f = len(GRID)
-        ii, jj, ll = np.meshgrid(np.arange(n_f), np.arange(n_f), np.arange(n_f), indexing="ij")
-        combos = np.stack([ii.ravel(), jj.ravel(), ll.ravel()], axis=1)  # (C, 3)
-        c_idx = np.arange(3)[None, :]
-        st_c = st_f[combos, c_idx]  # (C, 3)
-        tt_c = self.tt[combos, c_idx]
-        ty_c = self.ty[combos, c_idx]
-        tt_sum = tt_c.sum(axis=1)
-        a = np.zeros((len(combos), 4, 4))
-        b = np.zeros((len(combos), 4))
-        for c in range(3):
-            a[:, c, c] = ss[c] * (1.0 + lam)
-            a[:, c, 3] = a[:, 3, c] = st_c[:, c]
-            b[:, c] = sy[c] + lam * ss[c]
-        a[:, 3, 3] = tt_sum * (1.0 + lam)
-        b[:, 3] = ty_c.sum(axis=1) + lam * tt_sum
-        a[:, range(4), range(4)] += 1e-12 * (np.abs(a[:, range(4), range(4)]).max(axis=1, keepdims=True) + 1e-300)
-        x = np.linalg.solve(a, b[..., None])[..., 0]
-        g = np.clip(x[:, :3], glo, ghi)
+        tt, ty = self.tt, self.ty
+        a11 = ss[None] * (1.0 + lam)
+        a22 = tt * (1.0 + lam)
+        det = a11 * a22 - st_f * st_f
+        b1 = sy[None] + lam * ss[None]
+        b2 = ty + lam * tt
+        ok = np.abs(det) > 1e-12 * np.maximum(a11 * a22, 1e-300)
+        safe = np.where(ok, det, 1.0)
+        g = np.where(ok, (b1 * a22 - b2 * st_f) / safe, np.where(ss[None] > 0, b1 / np.maximum(a11, 1e-300), 1.0))
+        s = np.where(ok, (a11 * b2 - st_f * b1) / safe, 1.0)
         slo, shi = PARAMETERS["transmission_scale"][1:]
-        s = np.clip(x[:, 3], slo, shi)
-        sse = (
-            self.yy[None]
-            - 2 * g * sy[None]
-            - 2 * s[:, None] * ty_c
-            + g * g * ss[None]
-            + 2 * g * s[:, None] * st_c
-            + (s * s)[:, None] * tt_c
-        )
-        log_f = np.log2(np.asarray(GRID))[combos]
-        obj = (
-            sse.sum(axis=1)
-            + lam * np.sum(ss[None] * (g - 1) ** 2, axis=1)
-            + lam * tt_sum * (s - 1) ** 2
-            + self.lam_k * np.sum(log_f**2, axis=1) / 3.0
-            + penalty_k
-        )
-        best = int(np.argmin(obj))
-        f_idx = tuple(int(v) for v in combos[best])
-        trans_best = self.trans[list(f_idx), :, [0, 1, 2]].T  # (N, 3)
-        model = s_blocks * g[best] + s[best] * trans_best
-        return float(obj[best]), g[best], float(s[best]), f_idx, model
+        g = np.clip(g, glo, ghi)
+        s = np.clip(s, slo, shi)
+        sse = self.yy[None] - 2 * g * sy[None] - 2 * s * ty + g * g * ss[None] + 2 * g * s * st_f + s * s * tt
+        log_f = np.log2(np.asarray(GRID))[:, None]
+        obj_fc = sse + lam * ss[None] * (g - 1) ** 2 + lam * tt * (s - 1) ** 2 + self.lam_k * log_f**2 / 3.0
+        f_idx = tuple(int(v) for v in np.argmin(obj_fc, axis=0))
+        cols = [0, 1, 2]
+        g_best, s_best = g[list(f_idx), cols], s[list(f_idx), cols]
+        trans_best = self.trans[list(f_idx), :, cols].T  # (N, 3)
+        model = s_blocks * g_best + s_best * trans_best
+        return float(obj_fc[list(f_idx), cols].sum()) + penalty_k, g_best, s_best, f_idx, model
 
     def default_model(self) -> np.ndarray:
         """The unfitted model (k = 1, g = 1, s = 1, f = 1) minus the rest: S(1) + T(1)."""

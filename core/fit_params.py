@@ -9,8 +9,9 @@ side stores it on the material as custom properties (``sss_lab_fit_<technique>_<
   see, Cycles' albedo inversion, docs/references.md §9). For STA it multiplies the added light.
 - ``d_scale``: multiplies the profile's d of every channel (Burley, SSSS, the combined
   technique's diffusion).
-- ``transmission_scale`` and ``transmission_d_su`` (R, G, B, scene units): the combined
-  technique's light from behind (``core/combined.py``).
+- ``transmission_scale`` (R, G, B) and ``transmission_d_su`` (R, G, B, scene units): the
+  combined technique's light from behind (``core/combined.py``); a single number is read as
+  the same for the three channels.
 - ``scale``: STA's s_T.
 
 Anything else in the dict (``info``: samples, errors) is provenance and never read by a technique.
@@ -25,7 +26,7 @@ import math
 PARAMETERS: dict[str, tuple[int, float, float]] = {
     "gain": (3, 0.25, 4.0),
     "d_scale": (1, 0.25, 4.0),
-    "transmission_scale": (1, 0.0, 16.0),
+    "transmission_scale": (3, 0.0, 16.0),
     "transmission_d_su": (3, 0.0, 1e6),
     "scale": (1, 0.0, 64.0),
 }
@@ -46,6 +47,8 @@ def check_value(name: str, value, where: str):
     """``value`` as a float or a 3-tuple of floats within the bounds of ``name``; ValueError naming
     ``where``, the parameter, the value and the bounds otherwise."""
     count, lo, hi = PARAMETERS[name]
+    if count == 3 and isinstance(value, (int, float)) and not isinstance(value, bool):
+        value = (value, value, value)
     try:
         values = [float(v) for v in value] if count == 3 else [float(value)]
     except (TypeError, ValueError):

@@ -132,3 +132,13 @@ def test_ssss_diffusion_and_inputs_untouched():
     assert out.dtype == np.float32 and np.all(np.isfinite(out))
     for k, v in copies.items():
         np.testing.assert_array_equal(kw[k], v)
+
+
+def test_fitted_gain_scales_the_diffusion_only():
+    kw = _slab(translucency=0.75)
+    back = (_sun((0.0, 0.0, 1.0), energy=2.0),)
+    plain = combined(**kw, lights=back)
+    gained = combined(**kw, lights=back, gain=(2.0, 1.0, 0.5))
+    only = {k: kw[k] for k in ("normal", "position", "thickness", "mask", "thickness_distance_su")}
+    term = transmission(**only, lights=back, d_su=D)
+    np.testing.assert_allclose(gained - term, (plain - term) * np.float32([2.0, 1.0, 0.5]), rtol=1e-6, atol=1e-6)
