@@ -31,6 +31,9 @@ def atomic_write(path: str, write: Callable[[str], None], *, overwrite: bool = T
     ``path`` is never replaced. On any failure no partial file is left behind.
     """
     path = os.fspath(path)
+    if (os.path.lexists(path) and not os.path.isfile(path)) or os.path.isdir(path):
+        kind = "a folder" if os.path.isdir(path) else "not a regular file (a device, pipe or dangling link)"
+        raise FileExistsError(f"{path} is {kind}; refusing to write over it (choose a file name)")
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + os.path.basename(path) + ".", suffix=".tmp")

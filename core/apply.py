@@ -27,6 +27,7 @@ import numpy as np
 
 from . import _arrays
 from .exr import Passes
+from .extent import kernel_warning, mask_extent_px
 from .profiles import TRUNCATION
 from .scene import MaterialSSS, SceneDescription
 from .techniques import TECHNIQUES, check_technique, get_technique
@@ -107,6 +108,8 @@ class MaterialPlan:
     skip: str | None = None
     #: What the technique does differently on this material, and why (printed by ``explain``).
     notes: list[str] = field(default_factory=list)
+    #: Said when the kernel reaches beyond the material on screen or the image (core.extent).
+    warning: str | None = None
 
     @property
     def applied(self) -> bool:
@@ -166,6 +169,8 @@ class Plan:
             if fit:
                 lines.append("    " + _fit_line(fit))
             lines += [f"    {note}" for note in mp.notes]
+            if mp.warning:
+                lines.append(f"    warning: {mp.warning}")
             shown = {k: v for k, v in mp.params.items() if _printable(v)}
             if shown:
                 lines.append("    parameters: " + ", ".join(f"{k}={_fmt(v)}" for k, v in sorted(shown.items())))
@@ -356,6 +361,7 @@ def plan(
                 float(v) for v in cam.pixels_per_unit(np.array([mp.median_depth, mp.nearest_depth], np.float32))
             )
             mp.kernel_px = tuple(r * ppu_median for r in mp.kernel_su)
+            mp.warning = kernel_warning(max(mp.kernel_px), mask_extent_px(index == material.index), passes.shape)
             widest_px = max(mp.kernel_su) * ppu_nearest
             # A fitted gain or the light from behind still change a material whose kernel is tiny.
             adds_light = technique == "combined" or "gain" in mp.params
@@ -529,9 +535,15 @@ def parse_methods(text: str) -> list[str]:
     return out
 
 
+#: The most frames one run takes: a range beyond it is a typing slip (1-100000000), not a job.
+MAX_FRAMES = 100_000
+
+
 def parse_frames(text: str) -> list[int]:
-    """``"1-5"``, ``"7"``, ``"1-3,8"`` -> sorted frame numbers (inclusive ranges)."""
+    """``"1-5"``, ``"7"``, ``"1-3,8"`` -> sorted frame numbers (inclusive ranges), at most
+    ``MAX_FRAMES`` of them (checked before any list is built)."""
     frames: set[int] = set()
+    total = 0
     for chunk in str(text).split(","):
         chunk = chunk.strip()
         m = re.fullmatch(r"(-?\d+)(?:\s*(?:-|\.\.)\s*(-?\d+))?", chunk)
@@ -541,6 +553,12 @@ def parse_frames(text: str) -> list[int]:
         b = int(m.group(2)) if m.group(2) is not None else a
         if b < a:
             raise ValueError(f"frames: range {chunk!r} ends before it starts")
+        total += b - a + 1
+        if total > MAX_FRAMES:
+            raise ValueError(
+                f"frames: {text!r} holds more than {MAX_FRAMES} frames, the most one run takes; split the range, "
+                "or leave --frames out to take every existing file"
+            )
         frames.update(range(a, b + 1))
     return sorted(frames)
 
@@ -605,12 +623,29 @@ def load_scene(exr_path: str, scene_path: str | None = None) -> SceneDescription
     if not os.path.isfile(path):
         hint = "" if scene_path else " (the render writes it beside the EXR; or pass --scene PATH)"
         raise FileNotFoundError(f"{path}: no scene description{hint}")
-    with open(path, encoding="utf-8") as fh:
-        text = fh.read()
+    return read_scene_file(path)
+
+
+def read_scene_file(path: str) -> SceneDescription:
+    """A scene description JSON file, checked (``SceneDescription.from_dict``); InputError names
+    the file and what is wrong, also for a file that is not JSON text at all (an EXR, say)."""
+    from .errors import InputError
+    from .exr import EXR_MAGIC
+
+    with open(path, "rb") as fh:
+        raw = fh.read()
+    if raw.startswith(EXR_MAGIC):
+        raise InputError(f"{path}: is an OpenEXR file, not a scene description; pass the .json written beside the EXR")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(
+            f"{path}: not a scene description (not UTF-8 text: byte {exc.start}); pass the .json written beside the EXR"
+        ) from None
     try:
         return SceneDescription.from_json(text)
     except ValueError as exc:
-        raise ValueError(f"{path}: {exc}") from None
+        raise InputError(f"{path}: {exc}") from None
 
 
 @dataclass
@@ -658,6 +693,13 @@ def apply_file(
     out_path = os.fspath(out_path) if out_path else default_output(path)
     if os.path.abspath(out_path) == os.path.abspath(path):
         raise FileExistsError(f"{out_path} is the input file; refusing to overwrite it")
+    # The scene description is an input too (sidecar or --scene): never written over, however spelled.
+    inputs = [path, scene_path or sidecar_path(path)]
+    for source in inputs:
+        if os.path.exists(out_path) and os.path.exists(source) and os.path.samefile(out_path, source):
+            raise FileExistsError(f"{out_path} is an input of this computation ({source}); refusing to overwrite it")
+    if not out_path.lower().endswith(".exr"):
+        raise ValueError(f"--out {out_path!r}: the output is a multilayer OpenEXR file; give it the .exr suffix")
     result = FileResult(path=path, out_path=out_path)
     contents = read_layers(path)
     passes = passes_from_contents(contents, view_layer)
@@ -678,6 +720,8 @@ def apply_file(
         return result
     if explain:
         return result
+    if os.path.isdir(out_path):
+        raise FileExistsError(f"{out_path} is a folder; give the output a file name (--out FOLDER/NAME.exr)")
     if os.path.exists(out_path) and not overwrite:
         raise FileExistsError(f"{out_path} already exists; refusing to overwrite it (use --overwrite or --out)")
     layers = dict(contents.layers)
@@ -691,6 +735,8 @@ def apply_file(
     header["sss_lab.scene"] = scene.to_json()
     header["sss_lab.methods"] = ",".join(result.plans)
     header["sss_lab.albedo_mode"] = albedo_mode
-    write_layers(out_path, layers, header, channels=channels, overwrite=overwrite, inputs=[path])
+    write_layers(
+        out_path, layers, header, channels=channels, overwrite=overwrite, inputs=inputs, windows=contents.windows
+    )
     result.written = True
     return result

@@ -16,3 +16,8 @@ class SSSLabError(Exception):
 
 class InputError(SSSLabError, ValueError):
     """A value, file or scene the user gave is not what was expected; the message says which."""
+
+
+class DamagedFileError(InputError):
+    """A file exists but cannot be read completely: truncated, damaged, or not of the expected
+    format. The message names the file, the part that failed and what to do."""

@@ -24,13 +24,18 @@ input.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
+import tempfile
+import threading
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ._files import atomic_write
+from .errors import DamagedFileError, InputError, SSSLabError
 
 #: Blender 4.x short pass names (``RE_PASSNAME_*`` in Blender's ``DNA_scene_types.h`` and the
 #: Cycles pass names of ``blender/sync.cpp``) -> the names Blender 5.x writes. AOVs, light
@@ -199,6 +204,55 @@ def _user_header(header: Mapping) -> dict:
     return out
 
 
+#: (x min, y min, x max, y max), inclusive, as OpenEXR's box2i: a data or display window.
+Window = tuple[int, int, int, int]
+
+#: What to do about a file that cannot be read completely.
+_REDO = "render the passes again (or copy the file again from where it was rendered)"
+
+# OpenEXR's C++ library prints its warnings on file descriptor 2; they are collected around a
+# read (and folded into the error message) so that a damaged file gives one line, not ten.
+_STDERR_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _collect_stderr():
+    lines: list[str] = []
+    with _STDERR_LOCK, tempfile.TemporaryFile() as tmp:
+        try:
+            sys.stderr.flush()
+        except (AttributeError, ValueError, OSError):
+            pass
+        saved = os.dup(2)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            lines.extend(line.strip() for line in tmp.read().decode("utf-8", "replace").splitlines() if line.strip())
+
+
+def _window(value) -> Window | None:
+    try:
+        lo, hi = value
+        return (int(lo[0]), int(lo[1]), int(hi[0]), int(hi[1]))
+    except (TypeError, ValueError, IndexError):
+        return None
+
+
+def _window_size(window: Window) -> tuple[int, int]:
+    """(height, width) of a window."""
+    return window[3] - window[1] + 1, window[2] - window[0] + 1
+
+
+def _type_name(pixels: np.ndarray) -> str:
+    """OpenEXR's name of the pixel type a channel was stored as, from the array it reads into."""
+    names = {np.float16: "HALF", np.float32: "FLOAT", np.uint32: "UINT"}
+    return names.get(pixels.dtype.type, str(pixels.dtype).upper())
+
+
 @dataclass
 class ExrContents:
     """Every layer of an EXR file, as read by ``read_layers``.
@@ -206,7 +260,9 @@ class ExrContents:
     ``layers`` maps the full layer name (``'ViewLayer.Diffuse Direct'``) to float32 pixels,
     (H, W) for one channel or (H, W, C); ``channels`` maps it to its channel letters in
     array order; ``half`` holds the layers that were stored as half floats; ``header`` the
-    descriptive attributes of the first part (Blender puts its metadata there).
+    descriptive attributes of the first part (Blender puts its metadata there). ``types`` maps
+    each layer to the pixel types its channels were stored as (``HALF``, ``FLOAT``, ``UINT``);
+    ``data_window`` and ``display_window`` are the file's windows (``write_layers`` keeps them).
     """
 
     path: str
@@ -215,6 +271,9 @@ class ExrContents:
     header: dict
     parts: int
     half: set[str] = field(default_factory=set)
+    types: dict[str, frozenset] = field(default_factory=dict)
+    data_window: Window | None = None
+    display_window: Window | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -229,46 +288,130 @@ class ExrContents:
             seen.setdefault(split_layer(layer)[0], None)
         return list(seen)
 
+    @property
+    def windows(self) -> tuple[Window, Window] | None:
+        """(data window, display window), for ``write_layers(windows=...)``; None when unknown."""
+        if self.data_window is None or self.display_window is None:
+            return None
+        return self.data_window, self.display_window
+
+
+#: The first four bytes of every OpenEXR file.
+EXR_MAGIC = bytes((0x76, 0x2F, 0x31, 0x01))
+
+
+def _first_reason(lines: list[str], fallback: str) -> str:
+    for line in lines:
+        text = line.removeprefix("Warning:").strip()
+        if text:
+            return text[:200]
+    return fallback
+
+
+def _declared_parts(OpenEXR, path: str):
+    """[(part name, {channel names}, data window)] as the file's header declares them."""
+    with open(path, "rb") as fh:
+        magic = fh.read(4)
+    if magic != EXR_MAGIC:
+        what = "it is empty" if not magic else "it does not start with the OpenEXR signature"
+        if magic[:1] in (b"{", b"["):
+            what += " (it looks like JSON text)"
+        raise DamagedFileError(
+            f"{path}: not a readable OpenEXR file ({what}); pass the multilayer EXR that Blender rendered"
+        )
+    with _collect_stderr():
+        try:
+            exr = OpenEXR.File(path, header_only=True)
+            declared = []
+            for index in range(len(exr.parts)):
+                header = exr.header(index)
+                chans = {c.name for c in header.get("channels", ())}
+                declared.append((str(header.get("name", f"part {index}")), chans, _window(header.get("dataWindow"))))
+        except (RuntimeError, ValueError, TypeError, IndexError, KeyError) as exc:
+            raise DamagedFileError(
+                f"{path}: the OpenEXR header cannot be read ({_first_reason([str(exc)], 'unknown error')}); "
+                f"the file is truncated or damaged: {_REDO}"
+            ) from None
+    return declared
+
 
 def read_layers(path: str | os.PathLike) -> ExrContents:
     """Read every channel of an EXR file (any number of parts) into float32 layers.
 
-    Raises FileNotFoundError for a missing file and ValueError for a file OpenEXR cannot read
-    or whose parts differ in size or use subsampled channels.
+    The file's header is read first, and every part and channel it declares must come back
+    complete, with the size of its data window: OpenEXR's reader leaves out a part whose
+    pixels it cannot read (a truncated or damaged file) and only warns, so without this check a
+    damaged file would pass for one without that pass. Raises FileNotFoundError for a missing
+    file and ``DamagedFileError`` (a ValueError) naming the file, the part and what to do for a
+    file that is not an OpenEXR file, is truncated or damaged, or whose parts differ in size or
+    use subsampled channels.
     """
     OpenEXR = _import_openexr()
     path = os.fspath(path)
     if not os.path.isfile(path):
+        if os.path.isdir(path):
+            raise InputError(f"{path}: is a folder; expected a multilayer EXR file")
         raise FileNotFoundError(f"{path}: no such EXR file")
-    try:
-        exr = OpenEXR.File(path, separate_channels=True)
-    except RuntimeError as exc:
-        raise ValueError(f"{path}: not a readable OpenEXR file ({exc})") from None
+    declared = _declared_parts(OpenEXR, path)
+    with _collect_stderr() as lines:
+        try:
+            exr = OpenEXR.File(path, separate_channels=True)
+            read = [(exr.header(i), exr.channels(i)) for i in range(len(exr.parts))]
+        except (RuntimeError, ValueError, TypeError, IndexError, KeyError) as exc:
+            raise DamagedFileError(
+                f"{path}: the pixels cannot be read ({_first_reason(lines + [str(exc)], 'unknown error')}); "
+                f"the file is truncated or damaged: {_REDO}"
+            ) from None
+    got = {str(h.get("name", f"part {i}")): (h, ch) for i, (h, ch) in enumerate(read)}
+    for index, (name, chans, window) in enumerate(declared):
+        where = f"part {index} {name!r}" if len(declared) > 1 else "the image"
+        if name not in got or set(got[name][1]) != set(chans):
+            reason = _first_reason(lines, "the reader returned no pixels for it")
+            raise DamagedFileError(
+                f"{path}: {where} cannot be read completely ({reason}); the file is truncated or damaged: {_REDO}"
+            )
+        if window is not None:
+            expected = _window_size(window)
+            for full, channel in got[name][1].items():
+                if channel.pixels.shape[:2] != expected:
+                    raise DamagedFileError(
+                        f"{path}: {where} channel {full!r} read back {channel.pixels.shape[:2]} pixels; its header "
+                        f"declares {expected}: the file is damaged: {_REDO}"
+                    )
     grouped: dict[str, dict[str, np.ndarray]] = {}
     half: set[str] = set()
+    types: dict[str, set] = {}
     shape = None
     header: dict = {}
-    n_parts = len(exr.parts)
-    for index in range(n_parts):
-        part_header = exr.header(index)
+    data_window = display_window = None
+    for index, (part_header, part_channels) in enumerate(read):
         if index == 0:
             header = _user_header(part_header)
-        for full, channel in exr.channels(index).items():
+            data_window = _window(part_header.get("dataWindow"))
+            display_window = _window(part_header.get("displayWindow"))
+        elif _window(part_header.get("dataWindow")) != data_window:
+            raise InputError(
+                f"{path}: part {index} {part_header.get('name')!r} has the data window "
+                f"{_window(part_header.get('dataWindow'))}, the first part {data_window}: SSS Lab needs every pass "
+                "over the same pixels; render the passes again into one file"
+            )
+        for full, channel in part_channels.items():
             if (channel.xSampling, channel.ySampling) != (1, 1):
-                raise ValueError(f"{path}: channel {full!r} is subsampled; SSS Lab reads full-resolution channels only")
+                raise InputError(f"{path}: channel {full!r} is subsampled; SSS Lab reads full-resolution channels only")
             pixels = channel.pixels
             if pixels.ndim != 2:
-                raise ValueError(f"{path}: channel {full!r} has shape {pixels.shape}; expected (height, width)")
+                raise InputError(f"{path}: channel {full!r} has shape {pixels.shape}; expected (height, width)")
             if shape is None:
                 shape = pixels.shape
             elif pixels.shape != shape:
-                raise ValueError(f"{path}: channel {full!r} is {pixels.shape}, other channels are {shape}")
+                raise InputError(f"{path}: channel {full!r} is {pixels.shape}, other channels are {shape}")
             layer, letter = split_channel(full)
             if pixels.dtype == np.float16:
                 half.add(layer)
+            types.setdefault(layer, set()).add(_type_name(pixels))
             grouped.setdefault(layer, {})[letter] = pixels
     if not grouped:
-        raise ValueError(f"{path}: the file holds no channels")
+        raise InputError(f"{path}: the file holds no channels; pass the multilayer EXR that Blender rendered")
     layers: dict[str, np.ndarray] = {}
     channels: dict[str, tuple[str, ...]] = {}
     for layer, by_letter in grouped.items():
@@ -280,10 +423,20 @@ def read_layers(path: str | os.PathLike) -> ExrContents:
         arr.flags.writeable = False
         layers[layer] = arr
         channels[layer] = order
-    return ExrContents(path=path, layers=layers, channels=channels, header=header, parts=n_parts, half=half)
+    return ExrContents(
+        path=path,
+        layers=layers,
+        channels=channels,
+        header=header,
+        parts=len(read),
+        half=half,
+        types={k: frozenset(v) for k, v in types.items()},
+        data_window=data_window,
+        display_window=display_window,
+    )
 
 
-class MissingPassError(KeyError):
+class MissingPassError(SSSLabError, KeyError):
     """A pass a computation needs is not in the file; the message says how to enable it."""
 
     def __str__(self) -> str:  # KeyError would print the repr of the message
@@ -372,6 +525,43 @@ class Passes(Mapping):
         return self._arrays[name]
 
 
+#: Passes that hold integers and may be stored as UINT channels.
+_INTEGER_PASSES = frozenset({"Object Index", "Material Index"})
+
+
+def expected_channels(pass_name: str) -> tuple[frozenset, frozenset] | None:
+    """(channel letters a known pass must have, letters it may have besides), or None for passes
+    SSS Lab does not know (AOVs, light groups), whose channels are taken as they are."""
+    letters = PASS_CHANNELS.get(pass_name)
+    if letters is None and pass_name in PASS_HINTS:
+        letters = "RGBA"
+    if letters is None:
+        return None
+    optional = frozenset("A") if "A" in letters else frozenset()
+    return frozenset(letters) - optional, optional
+
+
+def _check_pass(contents: ExrContents, layer: str, pass_name: str) -> None:
+    """A known pass must have its channels and (but for the index passes) float pixels."""
+    want = expected_channels(pass_name)
+    if want is None or layer not in contents.channels:
+        return
+    required, optional = want
+    have = contents.channels[layer]
+    missing = sorted(required - set(have))
+    if missing:
+        raise InputError(
+            f"{contents.path}: layer {layer!r} has the channels {', '.join(have)}; the {pass_name} pass needs "
+            f"{', '.join(sorted(required))} (missing {', '.join(missing)}). The file was edited or written by another "
+            "program: render the passes again with Blender's multilayer EXR output"
+        )
+    if pass_name not in _INTEGER_PASSES and "UINT" in contents.types.get(layer, ()):
+        raise InputError(
+            f"{contents.path}: layer {layer!r} is stored as UINT (integer) channels; the {pass_name} pass needs "
+            "HALF or FLOAT channels. Save it as a float EXR (Blender: Output Properties > Output > Color Depth)"
+        )
+
+
 def passes_from_contents(contents: ExrContents, view_layer: str | None = None) -> Passes:
     """The ``Passes`` of one view layer of a file read by ``read_layers``.
 
@@ -392,12 +582,13 @@ def passes_from_contents(contents: ExrContents, view_layer: str | None = None) -
     for layer, arr in contents.layers.items():
         vl, pass_name = split_layer(layer)
         if vl == view_layer:
-            raw[pass_name or "Combined"] = (arr, layer in contents.half)
+            raw[pass_name or "Combined"] = (arr, layer in contents.half, layer)
     arrays = {}
-    for name, (arr, was_half) in raw.items():
+    for name, (arr, was_half, layer) in raw.items():
         canonical = SHORT_PASS_NAMES.get(name, name)
         if canonical != name and canonical in raw:
             canonical = name
+        _check_pass(contents, layer, canonical)
         arrays[canonical] = arr
         if was_half:
             half.add(canonical)
@@ -424,6 +615,10 @@ def _same_file(a: str, b: str) -> bool:
         return os.path.abspath(a) == os.path.abspath(b)
 
 
+def _box(window: Window) -> tuple[np.ndarray, np.ndarray]:
+    return np.array(window[:2], np.int32), np.array(window[2:], np.int32)
+
+
 def write_layers(
     path: str | os.PathLike,
     layers: Mapping[str, np.ndarray],
@@ -432,6 +627,7 @@ def write_layers(
     channels: Mapping[str, Iterable[str]] | None = None,
     overwrite: bool = False,
     inputs: Iterable[str | os.PathLike] = (),
+    windows: tuple[Window, Window] | None = None,
 ) -> str:
     """Write ``layers`` as a multilayer EXR, one part per layer as Blender 5.2 does.
 
@@ -444,7 +640,10 @@ def write_layers(
     The file is written to a temporary file in the same folder and moved into place with
     ``os.replace``, so readers never see a partial file. An existing ``path`` raises
     FileExistsError unless ``overwrite``; a ``path`` that is one of ``inputs`` is never
-    replaced, even with ``overwrite``. Returns the path written.
+    replaced, even with ``overwrite``. ``windows`` (data window, display window), as
+    ``ExrContents.windows`` gives them, keeps an input's placement (a render border or crop); the
+    data window must be the layers' size. By default both are (0, 0)..(W - 1, H - 1). Returns the
+    path written.
     """
     OpenEXR = _import_openexr()
     path = os.fspath(path)
@@ -482,6 +681,12 @@ def write_layers(
             f"{name}.{letter}": np.ascontiguousarray(arr[:, :, c], dtype=np.float32) for c, letter in enumerate(letters)
         }
         part_header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+        if windows is not None:
+            data_window, display_window = windows
+            if _window_size(data_window) != shape:
+                raise ValueError(f"windows: the data window {data_window} is not the layers' size {shape}")
+            part_header["dataWindow"] = _box(data_window)
+            part_header["displayWindow"] = _box(display_window)
         if index == 0 and header:
             part_header.update(_user_header(header))
         parts.append(OpenEXR.Part(part_header, pixels, name))

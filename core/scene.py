@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import MISSING, asdict, dataclass, field, fields
 
 import numpy as np
 
@@ -32,12 +32,27 @@ _IDENTITY = (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.
 
 
 def _matrix(values, what: str) -> np.ndarray:
-    m = np.asarray(values, dtype=np.float64)
+    try:
+        m = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        m = np.zeros(0)
     if m.shape == (16,):
         m = m.reshape(4, 4)
     if m.shape != (4, 4) or not np.all(np.isfinite(m)):
         raise ValueError(f"{what}: expected 16 finite numbers (a row-major 4x4 matrix), got {values!r}")
     return m
+
+
+def _invertible(m: np.ndarray, what: str) -> None:
+    """The 3x3 part of an object-to-world matrix must keep three independent axes: a camera or a
+    light whose scale is 0 along some axis has no defined view or light direction."""
+    sv = np.linalg.svd(m[:3, :3], compute_uv=False)
+    if not (sv[0] > 0 and sv[-1] > 1e-9 * sv[0]):
+        raise ValueError(
+            f"{what}: the matrix is degenerate (its 3x3 part has rank < 3, singular values "
+            f"{np.round(sv, 6).tolist()}); "
+            "expected an object-to-world matrix with non-zero scale on every axis"
+        )
 
 
 def _choice(value: str, allowed: tuple[str, ...], what: str) -> None:
@@ -92,7 +107,9 @@ class Camera:
                 raise ValueError(f"camera {name}: expected an integer >= 1, got {v!r}")
         for name in ("lens_mm", "sensor_width_mm", "sensor_height_mm", "ortho_scale", "clip_start", "clip_end"):
             _positive(getattr(self, name), f"camera {name}")
-        object.__setattr__(self, "matrix_world", tuple(_matrix(self.matrix_world, "camera matrix_world").ravel()))
+        m = _matrix(self.matrix_world, "camera matrix_world")
+        _invertible(m, "camera matrix_world")
+        object.__setattr__(self, "matrix_world", tuple(m.ravel()))
 
     def _fit_is_horizontal(self) -> bool:
         if self.sensor_fit == "AUTO":
@@ -192,9 +209,13 @@ class Light:
             raise ValueError(f"light {self.name!r} spot_size: expected 0 < angle <= pi rad, got {self.spot_size!r}")
         if not (0 <= self.spot_blend <= 1):
             raise ValueError(f"light {self.name!r} spot_blend: expected 0..1, got {self.spot_blend!r}")
-        object.__setattr__(
-            self, "matrix_world", tuple(_matrix(self.matrix_world, f"light {self.name!r} matrix_world").ravel())
-        )
+        for name in ("radius", "size", "size_y", "angle"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"light {self.name!r} {name}: expected a finite number >= 0, got {v!r}")
+        m = _matrix(self.matrix_world, f"light {self.name!r} matrix_world")
+        _invertible(m, f"light {self.name!r} matrix_world")
+        object.__setattr__(self, "matrix_world", tuple(m.ravel()))
 
     @property
     def position(self) -> np.ndarray:
@@ -250,6 +271,15 @@ class MaterialSSS:
         from .fit_params import check_fit
 
         object.__setattr__(self, "fit", check_fit(self.fit, f"material {self.name!r}"))
+        if not (math.isfinite(self.subsurface_ior) and self.subsurface_ior > 0):
+            raise ValueError(
+                f"material {self.name!r} subsurface_ior: expected a finite number > 0, got {self.subsurface_ior!r}"
+            )
+        if not (math.isfinite(self.subsurface_anisotropy) and -1 <= self.subsurface_anisotropy <= 1):
+            raise ValueError(
+                f"material {self.name!r} subsurface_anisotropy: expected a number in -1..1, "
+                f"got {self.subsurface_anisotropy!r}"
+            )
 
     @property
     def scatters(self) -> bool:
@@ -303,6 +333,9 @@ class SceneDescription:
 
     @classmethod
     def from_dict(cls, data: dict) -> SceneDescription:
+        """A scene description from JSON data, checked against the dataclasses' fields first:
+        unknown keys, wrong types and non-finite numbers are named with their place
+        (``materials[0].subsurface_radius``); ranges are checked by the classes themselves."""
         if not isinstance(data, dict):
             raise ValueError(f"scene description: expected a JSON object, got {type(data).__name__}")
         version = data.get("version")
@@ -311,11 +344,23 @@ class SceneDescription:
                 f"scene description version: expected {SCENE_DESCRIPTION_VERSION}, got {version!r}"
                 " (written by another SSS Lab version)"
             )
+        _check_fields(cls, data, "", required=("camera", "version"))
+        camera = _check_fields(Camera, data["camera"], "camera")
+        lights = data.get("lights", [])
+        materials = data.get("materials", [])
+        for key, items in (("lights", lights), ("materials", materials)):
+            if not isinstance(items, (list, tuple)):
+                raise ValueError(f"{key}: expected a JSON list, got {_kind(items)}")
         try:
-            camera = Camera(**data["camera"])
-            lights = tuple(Light(**light) for light in data.get("lights", ()))
-            materials = tuple(MaterialSSS(**m) for m in data.get("materials", ()))
-        except (KeyError, TypeError) as exc:
+            camera = Camera(**camera)
+            lights = tuple(
+                Light(**_check_fields(Light, item, f"lights[{i}]", required=("type",))) for i, item in enumerate(lights)
+            )
+            materials = tuple(
+                MaterialSSS(**_check_fields(MaterialSSS, item, f"materials[{i}]", required=("index",)))
+                for i, item in enumerate(materials)
+            )
+        except TypeError as exc:  # a value of the right JSON type the class still cannot take
             raise ValueError(f"scene description: malformed entry ({exc})") from None
         rest = {k: v for k, v in data.items() if k not in ("camera", "lights", "materials", "version")}
         return cls(camera=camera, lights=lights, materials=materials, **rest)
@@ -323,7 +368,94 @@ class SceneDescription:
     @classmethod
     def from_json(cls, text: str) -> SceneDescription:
         try:
-            data = json.loads(text)
+            data = json.loads(text, parse_constant=_reject_constant)
         except json.JSONDecodeError as exc:
             raise ValueError(f"scene description: not valid JSON ({exc})") from None
         return cls.from_dict(data)
+
+
+def _reject_constant(name: str):
+    raise ValueError(f"scene description: {name} is not a number JSON allows; expected a finite number")
+
+
+def _kind(value) -> str:
+    return {dict: "an object", list: "a list", str: "a string", bool: "true/false", type(None): "null"}.get(
+        type(value), f"the {type(value).__name__} {value!r}"
+    )
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
+def _field_kind(cls, f) -> str:
+    """What JSON value a dataclass field takes, from its default (or its name when it has none)."""
+    explicit = {"camera": "object", "type": "str", "index": "int"}
+    if f.name in explicit:
+        return explicit[f.name]
+    default = f.default_factory() if f.default_factory is not MISSING else f.default
+    if isinstance(default, bool):
+        return "bool"
+    if isinstance(default, int):
+        return "int"
+    if isinstance(default, float):
+        return "number"
+    if isinstance(default, str):
+        return "str"
+    if isinstance(default, dict):
+        return "object"
+    if isinstance(default, tuple) and len(default) == 16:
+        return "matrix"
+    if isinstance(default, tuple) and len(default) == 3:
+        return "rgb"
+    return "any"
+
+
+_EXPECTED = {
+    "int": "an integer",
+    "number": "a finite number",
+    "str": "a string",
+    "object": "a JSON object",
+    "matrix": "a list of 16 finite numbers (a row-major 4x4 matrix)",
+    "rgb": "a list of three finite numbers (R, G, B)",
+    "bool": "true or false",
+}
+
+
+def _type_ok(kind: str, v) -> bool:
+    if kind == "int":
+        return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+    if kind == "number":
+        return _is_number(v) and math.isfinite(v)
+    if kind == "str":
+        return isinstance(v, str)
+    if kind == "object":
+        return isinstance(v, dict)
+    if kind == "bool":
+        return isinstance(v, bool)
+    if kind in ("matrix", "rgb"):
+        n = 16 if kind == "matrix" else 3
+        return isinstance(v, (list, tuple)) and len(v) == n and all(_is_number(x) and math.isfinite(x) for x in v)
+    return True
+
+
+def _check_fields(cls, data, where: str, required: tuple[str, ...] = ()) -> dict:
+    """``data`` if it is a JSON object whose keys are ``cls``'s fields with values of their types."""
+    label = where or "scene description"
+    if not isinstance(data, dict):
+        raise ValueError(f"{label}: expected a JSON object, got {_kind(data)}")
+    known = {f.name: f for f in fields(cls)}
+    unknown = sorted(k for k in data if k not in known)
+    if unknown:
+        raise ValueError(
+            f"{label}: unknown key(s) {', '.join(map(repr, unknown))}; expected some of {', '.join(sorted(known))}"
+        )
+    missing = [k for k in required if k not in data]
+    if missing:
+        raise ValueError(f"{label}: missing key(s) {', '.join(map(repr, missing))}")
+    prefix = f"{where}." if where else ""
+    for key, value in data.items():
+        kind = _field_kind(cls, known[key])
+        if not _type_ok(kind, value):
+            raise ValueError(f"{prefix}{key}: expected {_EXPECTED[kind]}, got {_kind(value)}")
+    return data

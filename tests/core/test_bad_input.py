@@ -1,0 +1,295 @@
+"""Bad input to the NumPy side: damaged EXRs, scene descriptions that break the schema, outputs
+that would replace an input, and frame ranges without end. Each case is one a user met (a
+truncated copy, a hand-edited JSON, a units slip); each must give one clear error naming the
+file and what to do, and leave every input as it was."""
+
+import dataclasses
+import json
+import os
+
+import numpy as np
+import OpenEXR
+import pytest
+
+from sss_lab.core import apply as core_apply
+from sss_lab.core.errors import DamagedFileError, InputError, SSSLabError
+from sss_lab.core.exr import MissingPassError, read_layers, read_passes, write_layers
+from sss_lab.core.scene import SceneDescription
+from sss_lab.core.synthetic import sphere_scene, write_scene
+
+
+@pytest.fixture
+def scene_files(tmp_path):
+    arrays, scene = sphere_scene(width=32, height=24)
+    path = str(tmp_path / "passes.exr")
+    write_scene(path, arrays, scene)
+    return path, arrays, scene
+
+
+def _bytes(path):
+    with open(path, "rb") as fh:
+        return fh.read()
+
+
+def _parts(path):
+    return [OpenEXR.File(path, header_only=True).header(i)["name"] for i in range(len(OpenEXR.File(path).parts))]
+
+
+# --- EXR files ---
+
+
+def test_a_file_missing_its_last_byte_is_an_error_naming_the_part(scene_files, tmp_path):
+    path, _, _ = scene_files
+    data = _bytes(path)
+    cut = tmp_path / "cut.exr"
+    cut.write_bytes(data[:-1])
+    # What OpenEXR alone does: the last part is silently left out.
+    assert len(OpenEXR.File(str(cut), separate_channels=True).parts) == len(_parts(path)) - 1
+    with pytest.raises(DamagedFileError) as err:
+        read_layers(cut)
+    message = str(err.value)
+    last = _parts(path)[-1]
+    assert str(cut) in message and repr(last) in message and "truncated or damaged" in message
+    assert "render the passes again" in message
+    assert isinstance(err.value, SSSLabError) and isinstance(err.value, ValueError)
+
+
+def test_damaged_bytes_inside_a_compressed_part_are_an_error(scene_files, tmp_path):
+    path, _, _ = scene_files
+    data = bytearray(_bytes(path))
+    # Damage the middle third of the file (pixel data of the passes, ZIP-compressed).
+    for i in range(len(data) // 3, 2 * len(data) // 3, 7):
+        data[i] ^= 0x5A
+    bad = tmp_path / "bad.exr"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(DamagedFileError, match="bad.exr.*(cannot be read|damaged)"):
+        read_layers(bad)
+
+
+@pytest.mark.parametrize(
+    ("content", "expected"),
+    [
+        (b"", "it is empty"),
+        (b"hello, I am a text file", "does not start with the OpenEXR signature"),
+        (b'{"version": 1}', "looks like JSON"),
+    ],
+)
+def test_not_an_exr_at_all(tmp_path, content, expected):
+    path = tmp_path / "passes.exr"
+    path.write_bytes(content)
+    with pytest.raises(DamagedFileError, match=expected):
+        read_layers(path)
+
+
+def test_a_folder_or_a_missing_file(tmp_path):
+    with pytest.raises(InputError, match="is a folder"):
+        read_layers(tmp_path)
+    with pytest.raises(FileNotFoundError, match="no such EXR file"):
+        read_layers(tmp_path / "nothing.exr")
+
+
+def _write_channels(path, channels):
+    OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, channels).write(str(path))
+
+
+def _channels(arrays, drop=(), types=None):
+    letters = {"Combined": "RGBA", "Depth": "Z", "Normal": "XYZ", "Position": "XYZ"}
+    out = {}
+    for name, arr in arrays.items():
+        for c, letter in enumerate(letters.get(name, "X" if arr.ndim == 2 else "RGB")):
+            full = f"ViewLayer.{name}.{letter}"
+            if full in drop:
+                continue
+            plane = arr if arr.ndim == 2 else arr[..., c]
+            out[full] = plane.astype((types or {}).get(name, np.float32))
+    return out
+
+
+def test_a_colour_pass_missing_a_channel_is_named(tmp_path):
+    arrays, _ = sphere_scene(width=16, height=12)
+    path = tmp_path / "p.exr"
+    _write_channels(path, _channels(arrays, drop={"ViewLayer.Diffuse Color.B"}))
+    with pytest.raises(InputError) as err:
+        read_passes(path)
+    message = str(err.value)
+    assert "'ViewLayer.Diffuse Color'" in message and "missing B" in message and "render the passes again" in message
+
+
+def test_depth_stored_as_colour_is_named(tmp_path):
+    arrays, _ = sphere_scene(width=16, height=12)
+    channels = _channels({k: v for k, v in arrays.items() if k != "Depth"})
+    for letter in "RGB":
+        channels[f"ViewLayer.Depth.{letter}"] = arrays["Depth"]
+    path = tmp_path / "p.exr"
+    _write_channels(path, channels)
+    with pytest.raises(InputError, match=r"'ViewLayer.Depth' has the channels R, G, B; the Depth pass needs Z"):
+        read_passes(path)
+
+
+def test_integer_light_is_refused_but_integer_indices_are_read(tmp_path):
+    arrays, _ = sphere_scene(width=16, height=12)
+    path = tmp_path / "ok.exr"
+    _write_channels(path, _channels(arrays, types={"Material Index": np.uint32, "Object Index": np.uint32}))
+    passes = read_passes(path)
+    np.testing.assert_array_equal(passes["Material Index"], arrays["Material Index"])
+    bad = tmp_path / "bad.exr"
+    _write_channels(bad, _channels(arrays, types={"Diffuse Direct": np.uint32}))
+    with pytest.raises(InputError, match=r"'ViewLayer.Diffuse Direct' is stored as UINT .* needs HALF or FLOAT"):
+        read_passes(bad)
+
+
+def test_a_missing_part_names_the_pass_and_where_to_enable_it(tmp_path):
+    arrays, scene = sphere_scene(width=16, height=12)
+    del arrays["Diffuse Direct"]
+    path = str(tmp_path / "p.exr")
+    write_scene(path, arrays, scene)
+    with pytest.raises(MissingPassError) as err:
+        core_apply.apply_file(path, ["burley"])
+    assert "'Diffuse Direct' is missing" in str(err.value) and "use_pass_diffuse_direct" in str(err.value)
+    assert isinstance(err.value, SSSLabError)
+
+
+def test_data_and_display_windows_are_kept(tmp_path):
+    arrays, scene = sphere_scene(width=32, height=24)
+    # A render border: 32 x 24 pixels placed at (100, 40) in a 256 x 128 frame.
+    windows = ((100, 40, 131, 63), (0, 0, 255, 127))
+    path = str(tmp_path / "border.exr")
+    write_layers(path, {f"ViewLayer.{k}": v for k, v in arrays.items()}, windows=windows)
+    (tmp_path / "border.json").write_text(scene.to_json())
+    contents = read_layers(path)
+    assert contents.windows == windows
+    result = core_apply.apply_file(path, ["burley"])
+    out = read_layers(result.out_path)
+    assert out.windows == windows
+    header = OpenEXR.File(result.out_path, header_only=True).header(0)
+    assert tuple(header["dataWindow"][0]) == (100, 40) and tuple(header["displayWindow"][1]) == (255, 127)
+    with pytest.raises(ValueError, match="data window"):
+        write_layers(str(tmp_path / "x.exr"), {"A.Combined": arrays["Combined"]}, windows=((0, 0, 9, 9), windows[1]))
+
+
+def test_a_damaged_frame_of_a_sequence_fails_instead_of_skipping_a_technique(tmp_path):
+    arrays, scene = sphere_scene(width=24, height=16)
+    for frame in (1, 2):
+        write_scene(str(tmp_path / f"p_{frame:04d}.exr"), arrays, dataclasses.replace(scene, frame=frame))
+    damaged = tmp_path / "p_0002.exr"
+    damaged.write_bytes(_bytes(damaged)[:-1])  # the last part (Thickness, which STA reads) is lost
+    ok = core_apply.apply_file(str(tmp_path / "p_0001.exr"), ["sta", "ssss", "burley"], skip_missing=True)
+    assert ok.written and not ok.skipped
+    with pytest.raises(DamagedFileError, match="p_0002.exr"):
+        core_apply.apply_file(str(damaged), ["sta", "ssss", "burley"], skip_missing=True)
+
+
+# --- scene description JSON ---
+
+
+def _scene_dict():
+    return json.loads(sphere_scene(width=16, height=12)[1].to_json())
+
+
+def _load(data, tmp_path, name="scene.json"):
+    path = tmp_path / name
+    path.write_text(data if isinstance(data, str) else json.dumps(data))
+    return core_apply.read_scene_file(str(path))
+
+
+@pytest.mark.parametrize(
+    ("edit", "expected"),
+    [
+        (lambda d: d.update(extra_key=1), r"unknown key\(s\) 'extra_key'"),
+        (lambda d: d["camera"].update(focal=50), r"camera: unknown key\(s\) 'focal'"),
+        (lambda d: d["materials"][1].update(subsurface_radius="123"), r"subsurface_radius: expected a list of three"),
+        (lambda d: d["materials"][1].update(subsurface_radius=[1, 2]), r"materials\[1\].subsurface_radius: expected"),
+        (lambda d: d["materials"][1].update(subsurface_scale="0.01"), r"subsurface_scale: expected a finite number"),
+        (lambda d: d["materials"][1].update(index=1.0), r"materials\[1\].index: expected an integer"),
+        (lambda d: d["materials"][1].update(subsurface_ior=0), "subsurface_ior: expected a finite number > 0"),
+        (lambda d: d["materials"][1].update(subsurface_anisotropy=5), "subsurface_anisotropy: expected a number in"),
+        (lambda d: d["camera"].update(width_px=16.0), "camera.width_px: expected an integer"),
+        (lambda d: d["camera"].update(width_px="16"), "camera.width_px: expected an integer, got a string"),
+        (lambda d: d["camera"].update(matrix_world=[0.0] * 16), "camera matrix_world: the matrix is degenerate"),
+        (lambda d: d["camera"].update(matrix_world=[1.0] * 15), "camera.matrix_world: expected a list of 16"),
+        (lambda d: d["lights"][0].update(matrix_world=[0.0] * 16), "matrix_world: the matrix is degenerate"),
+        (lambda d: d["lights"][0].update(energy="3"), r"lights\[0\].energy: expected a finite number"),
+        (lambda d: d["lights"][0].update(size=-1.0), "size: expected a finite number >= 0"),
+        (lambda d: d.update(materials={"a": 1}), "materials: expected a JSON list"),
+        (lambda d: d.update(camera=None), "camera: expected a JSON object, got null"),
+        (lambda d: d.pop("camera"), r"missing key\(s\) 'camera'"),
+        (lambda d: d["lights"].append(5), r"lights\[2\]: expected a JSON object, got the int 5"),
+        (lambda d: d.update(frame="one"), "frame: expected an integer"),
+    ],
+)
+def test_schema_errors_name_the_field(tmp_path, edit, expected):
+    data = _scene_dict()
+    edit(data)
+    with pytest.raises(InputError, match=expected) as err:
+        _load(data, tmp_path)
+    assert str(tmp_path / "scene.json") in str(err.value)
+
+
+def test_non_finite_json_numbers_are_refused(tmp_path):
+    text = json.dumps(_scene_dict()).replace('"lens_mm": 35.0', '"lens_mm": NaN')
+    assert "NaN" in text
+    with pytest.raises(InputError, match="NaN is not a number JSON allows"):
+        _load(text, tmp_path)
+
+
+def test_a_valid_description_still_round_trips(tmp_path):
+    data = _scene_dict()
+    assert _load(data, tmp_path).to_dict() == SceneDescription.from_dict(data).to_dict()
+
+
+def test_an_exr_or_binary_file_given_as_the_scene(scene_files, tmp_path):
+    path, _, _ = scene_files
+    with pytest.raises(InputError, match="is an OpenEXR file, not a scene description"):
+        core_apply.read_scene_file(path)
+    blob = tmp_path / "blob.json"
+    blob.write_bytes(bytes([0xFF, 0xFE, 0x00, 0x95]))
+    with pytest.raises(InputError, match="not UTF-8 text"):
+        core_apply.read_scene_file(str(blob))
+
+
+# --- outputs ---
+
+
+def test_the_scene_description_is_never_replaced(scene_files, tmp_path):
+    path, _, scene = scene_files
+    sidecar = core_apply.sidecar_path(path)
+    before = _bytes(sidecar)
+    roundabout = os.path.join(str(tmp_path), ".", "..", tmp_path.name, "passes.json")
+    for spelling in (sidecar, roundabout):
+        with pytest.raises(FileExistsError, match="is an input"):
+            core_apply.apply_file(path, ["burley"], out_path=spelling, overwrite=True)
+    other = tmp_path / "other.json"
+    other.write_text(scene.to_json())
+    link = tmp_path / "link.exr"
+    os.symlink(other, link)
+    with pytest.raises(FileExistsError, match="is an input"):
+        core_apply.apply_file(path, ["burley"], out_path=str(link), scene_path=str(other), overwrite=True)
+    assert _bytes(sidecar) == before and other.read_text() == scene.to_json()
+
+
+def test_outputs_that_are_not_files(scene_files, tmp_path):
+    path, _, _ = scene_files
+    with pytest.raises(ValueError, match="give it the .exr suffix"):
+        core_apply.apply_file(path, ["burley"], out_path=str(tmp_path / "o.png"))
+    folder = tmp_path / "folder.exr"
+    folder.mkdir()
+    with pytest.raises(FileExistsError, match="is a folder"):
+        core_apply.apply_file(path, ["burley"], out_path=str(folder), overwrite=True)
+    fifo = tmp_path / "fifo.exr"
+    os.mkfifo(fifo)
+    with pytest.raises(FileExistsError, match="not a regular file"):
+        core_apply.apply_file(path, ["burley"], out_path=str(fifo), overwrite=True)
+    assert os.path.exists(fifo) and not os.path.isfile(fifo)
+    assert not [n for n in os.listdir(tmp_path) if n.endswith(".tmp")]
+
+
+# --- frame ranges ---
+
+
+def test_a_huge_frame_range_is_refused_at_once():
+    with pytest.raises(ValueError, match="more than 100000 frames"):
+        core_apply.parse_frames("1-100000000")
+    with pytest.raises(ValueError, match="more than 100000 frames"):
+        core_apply.parse_frames("1-60000,100001-160000")
+    assert core_apply.parse_frames("1-3,7") == [1, 2, 3, 7]
+    assert len(core_apply.parse_frames(f"1-{core_apply.MAX_FRAMES}")) == core_apply.MAX_FRAMES
