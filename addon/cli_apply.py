@@ -121,6 +121,10 @@ def run(args) -> int:
                 names = ", ".join(m.material.name or str(m.material.index) for m in applied) or "none on screen"
                 extra = f"; {p.nonfinite_pixels} NaN/Inf pixels left as they are" if p.nonfinite_pixels else ""
                 print(f"  {p.technique}: {len(applied)} material(s) computed ({names}){extra}")
+                for m in applied:
+                    if m.warning:
+                        name = m.material.name or m.material.index
+                        print(f"  {p.technique}: warning: material {name!r}: {m.warning}")
         if result.written:
             print(f"Saved: {os.path.abspath(result.out_path)}", flush=True)
     if failed:

@@ -26,6 +26,7 @@ import math
 import numpy as np
 
 from . import _arrays
+from .extent import group_extents
 from .profiles import TRUNCATION, burley_icdf
 from .scene import Camera
 
@@ -49,6 +50,29 @@ def spiral(n_samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 _TRUNCATION_CDF = 1.0 - 0.25 * math.exp(-TRUNCATION) - 0.75 * math.exp(-TRUNCATION / 3.0)
+
+
+def spiral_su(n_samples: int, d_max: float, reach_su: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(radii in scene units, angles, relative inverse pdf) of the stratified spiral of
+    ``spiral``, truncated at ``reach_su`` (at most 16 ``d_max``; less when the object is
+    smaller, ``core.extent``).
+
+    The radii follow the widest channel's profile restricted to [0, reach]: r_i = P^{-1}(u_i
+    P(reach)). The estimator is self-normalized, so restricting where it samples changes no
+    weight, only where the samples go. For reach much smaller than d the profile's radial pdf
+    is flat (P(r) = r / 2d - r^2 / 6d^2 + ...) and the radii are uniform in [0, reach]. The
+    inverse pdf is scaled by its largest value: constants cancel, and d_max may be far larger
+    than float32 holds.
+    """
+    t = min(reach_su / d_max, TRUNCATION)
+    c = -0.25 * math.expm1(-t) - 0.75 * math.expm1(-t / 3.0)  # P(t), accurate for tiny t too
+    u = (np.arange(n_samples) + 0.5) / n_samples * c
+    # Below 1e-6 the closed-form inverse loses its digits (1 - xi rounds to 1); P is linear there.
+    r_unit = 2.0 * u if c < 1e-6 else burley_icdf(u, 1.0)
+    r_su = r_unit * d_max
+    angles = np.arange(n_samples) * GOLDEN_ANGLE
+    inv_pdf = r_su / (np.exp(-r_unit) + np.exp(-r_unit / 3.0))
+    return r_su, angles, inv_pdf / inv_pdf.max()
 
 
 def _rotation(idx: np.ndarray, seed: int) -> np.ndarray:
@@ -105,7 +129,8 @@ def burley(
         return base
     scale = camera.pixels_per_unit(z)
     # Footprint of at most one pixel: nothing to gather (EEVEE Next skips these pixels).
-    ok &= TRUNCATION * dmax * scale > 1.0
+    with np.errstate(over="ignore"):
+        ok &= TRUNCATION * dmax * scale > 1.0
     if not ok.any():
         return base
     pre, post = _arrays.split_albedo(a, albedo_mode)
@@ -129,23 +154,22 @@ def burley(
     zkey = packed[:, 3]
     idflat = None if ids is None else np.rint(ids).astype(np.int64).ravel()
     sflat = scale.ravel()
-    r_unit, angles, inv_pdf = spiral(int(n_samples))
-    r_su = (r_unit * dmax).astype(f32)
-    r2 = r_su * r_su
-    cos_a = np.cos(angles).astype(f32)
-    sin_a = np.sin(angles).astype(f32)
-    inv_pdf = inv_pdf.astype(f32)
-    # exp(-r'/(3 d_c)); a channel with d_c = 0 keeps its light (handled by its footprint below).
-    inv3d = np.array([1.0 / (3.0 * v) if v > 0 else 0.0 for v in d], f32)
-    idx_all = np.flatnonzero(ok)
-    count = idx_all.size
-    result = np.empty((count, 3), f32)
-    n = r_su.size
+    # exp(-r'/(3 d_c)) per channel; a channel with d_c = 0 keeps its light (its footprint below).
+    # At least the smallest normal float32 (a d beyond float32 would round it to 0), so that a
+    # sample with r' = inf (off the object) still gets e^-inf = 0, never inf x 0 = NaN.
+    inv3d = np.array([max(1.0 / (3.0 * v), 1e-37) if v > 0 else 0.0 for v in d], f32)
+    reach_c = TRUNCATION * d  # each channel's own footprint, scene units (float64: d may be huge)
+    n = int(n_samples)
     block = max(128, _BLOCK_ELEMENTS // n)
     ones = np.ones(n, f32)
-    inv_dmax = f32(1.0 / dmax)
+    # The spiral reaches 16 d_max, or the object's extent when that is smaller (core.extent):
+    # beyond it there is nothing of the object to gather, so the result is unchanged by the
+    # bound and continuous as d grows; every backend gets the bounded spiral.
+    groups = group_extents(ok, scale, ids)
+    idx_all = np.concatenate([g for g, _ in groups])
+    result = np.empty((idx_all.size, 3), f32)
 
-    def run(start, stop):
+    def run(start, stop, r_su, r2, cos_a, sin_a, inv_pdf):
         idx = idx_all[start:stop]
         b = idx.size
         x0 = (idx % w).astype(f32)
@@ -182,15 +206,14 @@ def burley(
         rp *= rp
         rp += r2[None, :]
         np.sqrt(rp, out=rp)
-        # R_c(r') / pdf_area(r) up to constants: (e^{-r'/d} + e^{-r'/3d}) / r' x r / f(r), in units of d_max.
-        ratio = rp * inv_dmax
-        np.maximum(ratio, f32(1e-30), out=ratio)
+        # R_c(r') / pdf_area(r) up to constants: (e^{-r'/d} + e^{-r'/3d}) / r' x r / f(r).
+        ratio = np.maximum(rp, f32(1e-30))
         np.divide(inv_pdf[None, :], ratio, out=ratio)
         e3 = np.empty_like(rp)
         wgt = np.empty_like(rp)
         for c in range(3):
             centre = packed[idx, c]
-            if inv3d[c] == 0:
+            if d[c] <= 0:
                 result[start:stop, c] = centre
                 continue
             np.multiply(rp, -inv3d[c], out=e3)
@@ -202,11 +225,18 @@ def burley(
             den = wgt @ ones
             wgt *= g[..., c]
             num = wgt @ ones
-            small = (TRUNCATION / (3.0 * inv3d[c])) * s <= 1.0  # this channel's footprint <= 1 px
+            with np.errstate(over="ignore"):
+                small = reach_c[c] * s <= 1.0  # this channel's footprint <= 1 px
             keep = small | (den <= f32(1e-30))
             result[start:stop, c] = np.where(keep, centre, num / np.where(keep, f32(1.0), den))
 
-    _arrays.for_blocks(count, block, run)
+    start = 0
+    for group, extent_su in groups:
+        r_su64, angles, inv_pdf = spiral_su(n, dmax, min(TRUNCATION * dmax, extent_su))
+        r_su = r_su64.astype(f32)
+        args = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
+        _arrays.for_blocks(group.size, block, lambda a, b, o=start, args=args: run(o + a, o + b, *args))
+        start += group.size
     out = base
     flat = _arrays.pixel_rows(out)
     res = _arrays.as_rows(_arrays.pixel_rows(post)[idx_all])

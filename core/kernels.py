@@ -120,13 +120,16 @@ def artist_kernel(
     unit_su: float,
     falloff=DEMO_FALLOFF,
     strength=DEMO_STRENGTH,
+    radius_su: float | None = None,
 ) -> SeparableKernel:
     """The reference code's artist-friendly kernel.
 
     ``unit_su``: scene units per millimetre of the skin profile (the reference demo's width).
     ``falloff`` (R, G, B) widens each channel's profile (r / (0.001 + falloff)); ``strength``
     (R, G, B) in [0, 1] blends the centre tap towards identity (0 = no scattering). Taps span
-    +-2 mm (+-3 above 20 taps), as in the reference code.
+    +-2 mm (+-3 above 20 taps), as in the reference code; ``radius_su`` lays them over
+    +-radius_su scene units instead (a kernel bounded by the object, ``core.extent``), the
+    profile still evaluated at its own width.
     """
     n = check_taps(n_taps)
     if not (np.isfinite(unit_su) and unit_su >= 0):
@@ -140,6 +143,8 @@ def artist_kernel(
     if n == 1 or unit_su == 0:
         return identity_kernel()
     mm = tap_offsets(n, 3.0 if n > 20 else 2.0)
+    if radius_su is not None and radius_su < mm.max() * unit_su:
+        mm = mm * (float(radius_su) / (mm.max() * unit_su))
     edges = footprints(mm)
     area = np.diff(edges)
     rr = mm[:, None] / (0.001 + falloff[None, :])
@@ -174,13 +179,16 @@ def _gauss_nodes(m: int) -> tuple[np.ndarray, np.ndarray]:
     return 0.5 * (x + 1.0), 0.5 * w
 
 
-def _cell_integrals(edges: np.ndarray, d: float, sub: int = 12) -> np.ndarray:
+def _cell_integrals(edges: np.ndarray, d: float, sub: int = 12, *, relative: bool = False) -> np.ndarray:
     """(n, n) integrals of the area profile R(r) (unit albedo) over each footprint cell.
 
     Gauss-Legendre in each cell; the cell holding the pole at r = 0 is split four times towards
     it so that the 1/r singularity is integrated accurately (the rest of the cell is smooth).
     """
     n = edges.size - 1
+    # ``relative`` leaves out the constant 1 / (8 pi d): for a kernel that is normalized
+    # afterwards, where a very large d would make the products overflow or underflow.
+    norm = 1.0 if relative else 8.0 * math.pi * d
     xs, ws = _gauss_nodes(sub)
     pts, wts = [], []
     for i in range(n):
@@ -204,7 +212,7 @@ def _cell_integrals(edges: np.ndarray, d: float, sub: int = 12) -> np.ndarray:
             y, wy = pts[j], wts[j]
             r = np.hypot(x[:, None], y[None, :])
             e3 = np.exp(-r / (3.0 * d))
-            prof = (e3 * e3 * e3 + e3) / (8.0 * math.pi * d * r)
+            prof = (e3 * e3 * e3 + e3) / (r * norm)
             out[i, j] = out[j, i] = wx @ prof @ wy
     return out
 
@@ -258,7 +266,7 @@ def _preintegrated(n: int, d: tuple[float, float, float], radius: float, method:
         if d[c] <= 0 or d[c] * TRUNCATION < 1e-3 * (edges[centre + 1] - edges[centre]):
             weights[centre, c] = 1.0
             continue
-        m = _cell_integrals(edges, d[c])
+        m = _cell_integrals(edges, d[c], relative=True)
         k = m.sum(axis=1) if method == "marginal" else np.abs(np.linalg.svd(m)[0][:, 0])
         weights[:, c] = k / k.sum()
     kernel = SeparableKernel(offsets, weights, "preintegrated")
@@ -267,17 +275,38 @@ def _preintegrated(n: int, d: tuple[float, float, float], radius: float, method:
     return kernel
 
 
-def make_kernel(kernel_type: str, n_taps: int, *, d_su=None, **artist) -> SeparableKernel:
+def make_kernel(
+    kernel_type: str, n_taps: int, *, d_su=None, radius_su: float | None = None, **artist
+) -> SeparableKernel:
     """The kernel of ``kernel_type`` ("preintegrated" or "artist") for profile shape ``d_su``;
-    artist parameters not given are derived from ``d_su`` (``artist_params_from_d``)."""
+    artist parameters not given are derived from ``d_su`` (``artist_params_from_d``).
+    ``radius_su`` bounds how far the taps reach (by default the kernel's own reach)."""
     if kernel_type not in KERNEL_TYPES:
         raise ValueError(f"unknown kernel type {kernel_type!r}; expected one of: {', '.join(KERNEL_TYPES)}")
     if kernel_type == "preintegrated":
         if d_su is None:
             raise ValueError("d_su: the pre-integrated kernel needs the profile's d per channel (scene units)")
-        return preintegrated_kernel(n_taps, d_su=d_su)
+        if radius_su is not None:
+            d_max = float(np.max(_check_lengths(d_su)))
+            radius_su = radius_su if radius_su < TRUNCATION * d_max else None
+        return preintegrated_kernel(n_taps, d_su=d_su, radius_su=radius_su)
     params = artist_params_from_d(d_su) if d_su is not None else {}
     params.update({k: v for k, v in artist.items() if v is not None})
     if "unit_su" not in params:
         raise ValueError("unit_su: the artist kernel needs its width (scene units per mm of the profile) or d_su")
-    return artist_kernel(n_taps, **params)
+    return artist_kernel(n_taps, radius_su=radius_su, **params)
+
+
+def _check_lengths(d_su) -> np.ndarray:
+    d = np.broadcast_to(np.asarray(d_su, dtype=np.float64), (3,))
+    if np.any(~np.isfinite(d)) or np.any(d < 0):
+        raise ValueError(f"d_su: expected three finite lengths >= 0, got {d_su!r}")
+    return d
+
+
+def bounded(kernel: SeparableKernel, radius_su: float) -> SeparableKernel:
+    """A given kernel laid over +-``radius_su`` when it reaches farther (its weights kept): the
+    bound for a kernel that cannot be rebuilt from parameters (``core.extent``)."""
+    if kernel.radius_su <= radius_su or len(kernel) == 1:
+        return kernel
+    return SeparableKernel(kernel.offsets_su * (radius_su / kernel.radius_su), kernel.weights, kernel.kind)

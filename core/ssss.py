@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import _arrays
-from .kernels import SeparableKernel, check_taps, make_kernel
+from .extent import group_extents
+from .kernels import SeparableKernel, bounded, check_taps, make_kernel
 from .scene import Camera
 
 #: Pixels (times taps) per block: small enough to stay in the cache, large enough to amortize calls.
@@ -209,11 +210,13 @@ def ssss(
     z = _arrays.image(depth, "depth", None)
     _arrays.same_size(shape, albedo=a, depth=z)
     m = _arrays.mask_array(mask, shape)
+    given = kernel
+    artist = {"unit_su": unit_su, "falloff": falloff, "strength": strength}
     if kernel is None:
         check_taps(n_taps)
         if d_su is not None:
             _arrays.rgb_lengths(d_su, "d_su")
-        kernel = make_kernel(kernel_type, n_taps, d_su=d_su, unit_su=unit_su, falloff=falloff, strength=strength)
+        kernel = make_kernel(kernel_type, n_taps, d_su=d_su, **artist)
     elif not isinstance(kernel, SeparableKernel):
         raise ValueError(f"kernel: expected a core.kernels.SeparableKernel, got {type(kernel).__name__}")
 
@@ -223,6 +226,17 @@ def ssss(
         return base
     scale = camera.pixels_per_unit(z)
     ok &= scale > 0
+    if not ok.any():
+        return base
+    # Taps beyond the object's extent would all land off it and give their weight back to the
+    # centre (no scattering at all for a radius far too large): lay the kernel over the object
+    # instead (core.extent), rebuilt from its parameters, so that every backend filters with it.
+    ((_, extent_su),) = group_extents(ok, scale)
+    if kernel.radius_su > extent_su:
+        if given is None:
+            kernel = make_kernel(kernel_type, n_taps, d_su=d_su, radius_su=extent_su, **artist)
+        else:
+            kernel = bounded(given, extent_su)
     # Pixels whose whole kernel is within one pixel would not change: skip them (EEVEE Next does).
     ok &= kernel.radius_su * scale > 0.5
     if not ok.any():

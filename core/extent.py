@@ -1,0 +1,85 @@
+"""How far a scattering kernel can usefully reach: the object on screen bounds it (no Blender).
+
+Shared by the techniques that gather light from around a pixel (``core.burley``,
+``core.ssss``), before any backend (NumPy or compiled) runs, so that every backend sees the
+same bounded kernel.
+
+Why: light only moves within an object (the techniques reject samples from other objects,
+the background and the pixels the mask leaves out). A kernel much wider than the object puts
+its samples or taps off the object, and the estimators then give all the weight back to the
+centre pixel: a Subsurface Scale 1000 times too large (a common units slip) returned the input
+unchanged, while a slightly smaller one blurred strongly. Bounding the kernel's reach by the
+object's extent changes nothing the kernel could gather (there is nothing of the object beyond
+it), so the result is continuous in the radius, and as the radius grows it tends to the mean
+of the object's light, weighted as the profile weights distance (the Burley profile's area
+density tends to 1 / r for r much smaller than d). As the radius tends to 0 the footprint
+falls under one pixel and the input is kept as it is (the techniques' own rule).
+
+``group_extents`` measures each object's extent; ``kernel_warning`` is the sentence that says
+when the kernel exceeds the object or the image, for the plan and the command line.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def group_extents(
+    ok: np.ndarray, scale: np.ndarray, labels: np.ndarray | None = None
+) -> list[tuple[np.ndarray, float]]:
+    """[(flat pixel indices, extent in scene units)] for each group of the pixels ``ok``.
+
+    A group is the pixels sharing a ``labels`` value (object index), or all of ``ok``. Its
+    extent is the diagonal of its bounding box on screen plus one pixel, converted to scene
+    units at its farthest pixel (the smallest ``scale``, pixels per scene unit): no two pixels
+    of the group are farther apart than that, from any of them.
+    """
+    h, w = ok.shape
+    flat = np.flatnonzero(ok)
+    if flat.size == 0:
+        return []
+    if labels is None:
+        groups = [flat]
+    else:
+        lab = np.rint(np.asarray(labels, dtype=np.float64).ravel()[flat]).astype(np.int64)
+        order = np.argsort(lab, kind="stable")
+        cuts = np.flatnonzero(np.diff(lab[order])) + 1
+        groups = np.split(flat[order], cuts)
+    sflat = np.asarray(scale, dtype=np.float64).ravel()
+    out = []
+    for idx in groups:
+        y, x = idx // w, idx % w
+        diag_px = math.hypot(float(x.max() - x.min()), float(y.max() - y.min())) + 1.0
+        smallest = float(sflat[idx].min())
+        extent = diag_px / smallest if smallest > 0 else math.inf
+        out.append((np.sort(idx), extent))
+    return out
+
+
+def mask_extent_px(mask: np.ndarray) -> float:
+    """Diagonal of the bounding box of ``mask`` in pixels (plus one), 0 for an empty mask."""
+    ys, xs = np.nonzero(mask)
+    if ys.size == 0:
+        return 0.0
+    return math.hypot(float(xs.max() - xs.min()), float(ys.max() - ys.min())) + 1.0
+
+
+def kernel_warning(kernel_px: float, object_px: float, image_shape: tuple[int, int]) -> str | None:
+    """A warning when a kernel reaching ``kernel_px`` pixels exceeds the object's extent on
+    screen (``object_px``, its bounding-box diagonal) or the image; None otherwise."""
+    if not (kernel_px > 0) or object_px <= 0:
+        return None
+    h, w = image_shape
+    screen = math.hypot(w, h)
+    if kernel_px > screen:
+        where = f"the image ({screen:.0f} px diagonal)"
+    elif kernel_px > object_px:
+        where = f"the material on screen ({object_px:.0f} px across)"
+    else:
+        return None
+    return (
+        f"the kernel reaches {kernel_px:.3g} px, beyond {where}: the result tends to the material's mean light "
+        "(is Subsurface Scale in the scene's units?)"
+    )
