@@ -10,6 +10,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import traceback
+
+from ..core.errors import SSSLabError, describe_os_error
 
 #: Command modules, relative to this package, in the order ``--help`` lists them.
 COMMANDS = (
@@ -23,8 +26,12 @@ COMMANDS = (
 )
 
 
-class CommandError(Exception):
+class CommandError(SSSLabError):
     """A failure to report as one clear line (no traceback), with exit status 2."""
+
+
+#: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
+EXIT_INTERRUPTED = 130
 
 
 def require_bpy():
@@ -47,22 +54,43 @@ def build_parser(prog: str = "python -m sss_lab") -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
+    debug_help = "on an error, show the Python traceback after the one-line message"
+    parser.add_argument("--debug", action="store_true", help=debug_help)
     for name in COMMANDS:
         importlib.import_module(name, __package__).add_parser(sub)
+    for command in sub.choices.values():  # also after the command: sss_lab apply ... --debug
+        command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=debug_help)
     return parser
 
 
+def _one_line(exc: BaseException) -> str:
+    text = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+    if isinstance(exc, OSError) and not isinstance(exc, SSSLabError) and exc.strerror:
+        text = describe_os_error(exc)
+    return " ".join(text.split()) or type(exc).__name__
+
+
 def main(argv: list[str] | None = None, *, prog: str = "python -m sss_lab") -> int:
+    """Run one command. Errors SSS Lab raises on purpose (``SSSLabError``), bad values and files,
+    and the operating system's refusals (a full or read-only disk) end as one line on stderr
+    with a non-zero exit: 2 for bad input, 1 for a failure to write or run, 130 for Ctrl-C.
+    Anything else is a bug and keeps its traceback. ``--debug`` shows the traceback always."""
     parser = build_parser(prog)
     args = parser.parse_args(argv)
+    debug = getattr(args, "debug", False)
     try:
         return int(args.run(args) or 0)
-    except CommandError as exc:
-        print(f"sss_lab {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except (ValueError, FileNotFoundError, FileExistsError) as exc:
-        print(f"sss_lab {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    except KeyboardInterrupt:
+        if debug:
+            traceback.print_exc()
+        print(f"sss_lab {args.command}: interrupted (Ctrl-C)", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (SSSLabError, ValueError, OSError) as exc:
+        if debug:
+            traceback.print_exc()
+        print(f"sss_lab {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+        failed_to_write = isinstance(exc, OSError) and not isinstance(exc, (FileNotFoundError, FileExistsError))
+        return 1 if failed_to_write else 2
 
 
 #: The id of the command the extension registers with Blender: ``blender --command sss_lab ...``.

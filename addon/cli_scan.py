@@ -21,7 +21,14 @@ def open_blend(path: str, scene_name: str | None = None):
         raise CommandError(f"{path!r} does not exist or is not a file (expected a .blend file)")
     if not path.endswith(".blend"):
         raise CommandError(f"{path!r} is not a .blend file")
-    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
+    try:
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
+    except RuntimeError as exc:  # Blender's "File format is not supported", "Missing DNA block", ...
+        reason = " ".join(str(exc).replace("Error:", " ").split()) or "unknown error"
+        raise CommandError(
+            f"{path!r} cannot be opened as a .blend file ({reason[:200]}): it is damaged, truncated or not a "
+            "Blender file; open it in Blender to check, or use its backup (.blend1)"
+        ) from None
     if scene_name is None:
         return bpy.context.scene
     scene = bpy.data.scenes.get(scene_name)

@@ -21,3 +21,29 @@ class InputError(SSSLabError, ValueError):
 class DamagedFileError(InputError):
     """A file exists but cannot be read completely: truncated, damaged, or not of the expected
     format. The message names the file, the part that failed and what to do."""
+
+
+class OutputError(SSSLabError, OSError):
+    """An output could not be written (a full or read-only disk, no permission); the message
+    names the file and what to do. Nothing partial is left under the output's name."""
+
+    def __str__(self) -> str:  # OSError would prefix "[Errno N]"
+        return self.strerror or super().__str__()
+
+
+def describe_os_error(exc: OSError, path: str | None = None) -> str:
+    """One line for an operating-system error on ``path``: the file, the cause, what to do."""
+    import errno
+
+    where = path or exc.filename or ""
+    cause = exc.strerror or str(exc)
+    hints = {
+        errno.ENOSPC: "the disk is full: free some space (or write elsewhere with --out) and run again",
+        errno.EDQUOT: "the disk quota is used up: free some space (or write elsewhere with --out) and run again",
+        errno.EROFS: "the file system is read-only: write elsewhere with --out",
+        errno.EACCES: "no permission to write there: write elsewhere with --out",
+        errno.EPERM: "no permission to write there: write elsewhere with --out",
+    }
+    hint = hints.get(exc.errno)
+    text = f"{where}: {cause}" if where else cause
+    return f"{text}; {hint}" if hint else text

@@ -12,6 +12,7 @@ import OpenEXR
 import pytest
 
 from sss_lab.core import exr
+from sss_lab.core.errors import OutputError
 from sss_lab.core.exr import MissingPassError, Passes, read_layers, read_passes, write_layers
 
 H, W = 5, 7
@@ -269,7 +270,8 @@ def test_write_is_atomic_when_writing_fails(tmp_path, monkeypatch):
             raise RuntimeError("disk full")
 
     monkeypatch.setattr(OpenEXR, "File", Exploding)
-    with pytest.raises(RuntimeError, match="disk full"):
+    # The writer's RuntimeError becomes one OutputError (an OSError) naming the file.
+    with pytest.raises(OutputError, match=r"new.exr: could not be written \(disk full\)"):
         write_layers(path, {"ViewLayer.Depth": np.ones((2, 2), np.float32)})
     assert os.listdir(tmp_path) == []  # neither the target nor the partial temporary file
 

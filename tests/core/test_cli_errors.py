@@ -1,0 +1,108 @@
+"""The command line's error contract: an error SSS Lab raises on purpose, a bad file, a full or
+read-only disk and Ctrl-C each end as one line on stderr and a non-zero exit; ``--debug``
+adds the traceback; no temporary file is left. Run in-process on the NumPy-only command."""
+
+import errno
+import os
+import shutil
+
+import OpenEXR
+import pytest
+
+from sss_lab.addon import cli
+from sss_lab.core import apply as core_apply
+from sss_lab.core.synthetic import sphere_scene, write_scene
+
+
+@pytest.fixture
+def passes(tmp_path):
+    arrays, scene = sphere_scene(width=24, height=16)
+    path = str(tmp_path / "passes.exr")
+    write_scene(path, arrays, scene)
+    return path
+
+
+def _run(capsys, *argv):
+    code = cli.main(list(map(str, argv)))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _leftovers(folder):
+    return [n for n in os.listdir(folder) if n.endswith(".tmp")]
+
+
+def test_a_damaged_input_is_one_line(passes, tmp_path, capsys):
+    data = open(passes, "rb").read()
+    (tmp_path / "cut.exr").write_bytes(data[:-1])
+    (tmp_path / "cut.json").write_bytes(open(core_apply.sidecar_path(passes), "rb").read())
+    code, _, err = _run(capsys, "apply", tmp_path / "cut.exr", "--method", "burley")
+    assert code == 1  # apply's own contract: the file failed
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("sss_lab apply: error: ") and "cut.exr" in lines[0] and "truncated" in lines[0]
+    assert "Traceback" not in err and "Warning:" not in err  # OpenEXR's own warnings are folded in
+    assert not os.path.exists(tmp_path / "cut.sss.exr")
+
+
+def test_an_error_outside_the_frame_loop_is_one_line_and_debug_adds_the_traceback(passes, capsys):
+    code, _, err = _run(capsys, "apply", passes, "--method", "burley", "--frames", "1-100000000")
+    assert code == 2 and err.count("\n") == 1 and "more than 100000 frames" in err
+    code, _, err = _run(capsys, "--debug", "apply", passes, "--method", "burley", "--frames", "1-100000000")
+    assert code == 2 and "Traceback" in err and err.strip().endswith("every existing file")
+    code, _, err = _run(capsys, "apply", passes, "--method", "burley", "--frames", "1-100000000", "--debug")
+    assert code == 2 and "Traceback" in err
+
+
+def test_a_full_disk_is_one_line_and_leaves_no_temporary_file(passes, tmp_path, capsys, monkeypatch):
+    # OpenEXR reports a write that ran out of space as a RuntimeError; the free space says why.
+    class FullDisk:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def write(self, filename):
+            with open(filename, "wb") as fh:
+                fh.write(b"the first bytes")
+            raise RuntimeError("Cannot write image file: error writing chunk")
+
+    real_file = OpenEXR.File
+    monkeypatch.setattr(
+        OpenEXR, "File", lambda *a, **k: real_file(*a, **k) if a and isinstance(a[0], str) else FullDisk()
+    )
+    monkeypatch.setattr(shutil, "disk_usage", lambda folder: shutil._ntuple_diskusage(1 << 30, 1 << 30, 0))
+    code, out, err = _run(capsys, "apply", passes, "--method", "burley")
+    assert code == 1 and "Saved" not in out
+    (line,) = [x for x in err.splitlines() if "error:" in x]
+    assert "passes.sss.exr: No space left on device; the disk is full" in line
+    assert _leftovers(tmp_path) == [] and not os.path.exists(tmp_path / "passes.sss.exr")
+
+
+def test_a_read_only_folder_is_one_line(passes, tmp_path, capsys, monkeypatch):
+    import tempfile
+
+    def refuse(*args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system", kwargs.get("dir"))
+
+    monkeypatch.setattr(tempfile, "mkstemp", refuse)
+    code, _, err = _run(capsys, "apply", passes, "--method", "burley")
+    assert code == 1
+    assert "passes.sss.exr: Read-only file system; the file system is read-only: write elsewhere with --out" in err
+    assert "Traceback" not in err
+
+
+def test_ctrl_c_exits_130_with_one_line(passes, capsys, monkeypatch):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(core_apply, "apply_file", interrupted)
+    code, _, err = _run(capsys, "apply", passes, "--method", "burley")
+    assert code == cli.EXIT_INTERRUPTED == 130
+    assert err.strip() == "sss_lab apply: interrupted (Ctrl-C)"
+
+
+def test_a_bug_keeps_its_traceback(passes, capsys, monkeypatch):
+    def bug(*args, **kwargs):
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setattr(core_apply, "parse_methods", bug)
+    with pytest.raises(ZeroDivisionError):
+        cli.main(["apply", passes, "--method", "burley"])
