@@ -64,6 +64,59 @@ def _fmt(value, digits: int = 4) -> str:
     return str(value)
 
 
+#: Label metrics for 12 px sans-serif text: average advance per character and line height (px).
+_CHAR_W, _LINE_H = 7.0, 14.0
+
+
+def _label_box(tx: float, ty: float, anchor: str, text: str) -> tuple[float, float, float, float]:
+    w = _CHAR_W * len(text)
+    x0 = tx - w if anchor == "end" else tx
+    return (x0, ty - _LINE_H + 3, x0 + w, ty + 3)
+
+
+def _overlaps(a, b) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def place_labels(points, texts, bounds) -> list[tuple[float, float, str, bool]]:
+    """Positions for the labels of ``points`` so that no two labels overlap and none covers a
+    point: (x, y, text-anchor, whether a leader line joins it to its point).
+
+    Greedy, points in order: beside the point (right, or left in the plot's right third) just
+    above or below it, then moved further up or down in steps of one line (with a leader line)
+    until the label's box is free and inside ``bounds`` (x0, y0, x1, y1). A label that finds
+    no free place keeps the nearest position inside the plot.
+    """
+    x_min, y_min, x_max, y_max = bounds
+    placed: list[tuple[float, float, float, float]] = []
+    dots = [(x - 4, y - 4, x + 4, y + 4) for x, y in points]
+    out = []
+    for (x, y), text in zip(points, texts, strict=True):
+        right_third = x > x_min + (x_max - x_min) * 2 / 3
+        sides = [("end", x - 6), ("start", x + 6)] if right_third else [("start", x + 6), ("end", x - 6)]
+        choice = None
+        for step in range(0, 40):
+            for dy in (-6.0, 16.0) if step == 0 else (-6.0 - step * _LINE_H, 16.0 + step * _LINE_H):
+                for anchor, tx in sides:
+                    box = _label_box(tx, y + dy, anchor, text)
+                    if box[0] < x_min or box[2] > x_max + 20 or box[1] < 0 or box[3] > y_max + 4:
+                        continue
+                    if any(_overlaps(box, b) for b in placed) or any(_overlaps(box, d) for d in dots):
+                        continue
+                    choice = (tx, y + dy, anchor, step > 0, box)
+                    break
+                if choice:
+                    break
+            if choice:
+                break
+        if choice is None:
+            anchor, tx = sides[0]
+            choice = (tx, min(max(y - 6.0, y_min + _LINE_H), y_max), anchor, False, _label_box(tx, y - 6, anchor, text))
+        placed.append(choice[4])
+        out.append(choice[:4])
+    return out
+
+
 def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, height: int = 400) -> str:
     """Relative RMSE (y) against total time (x, log scale) as an SVG document."""
     pts = [e for e in entries if e["metrics"].get("rel_rmse") is not None and e["time_s"].get("total")]
@@ -112,13 +165,16 @@ def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, heigh
     if len(chain) > 1:
         path = " ".join(f"{sx(e['time_s']['total']):.1f},{sy(e['metrics']['rel_rmse']):.1f}" for e in chain)
         out.append(f'<polyline points="{path}" fill="none" stroke="#2ca02c" stroke-width="1.5"/>')
-    for e in pts:
-        x, y = sx(e["time_s"]["total"]), sy(e["metrics"]["rel_rmse"])
+    xy = [(sx(e["time_s"]["total"]), sy(e["metrics"]["rel_rmse"])) for e in pts]
+    labels = place_labels(xy, [e["name"] for e in pts], (left, top, width - right, height - bottom))
+    for e, (x, y), (tx, ty, anchor, leader) in zip(pts, xy, labels, strict=True):
         colour = colours.get(e.get("kind"), "black")
         out.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{colour}"/>')
-        # Labels of points in the right third end at the point, so that they stay inside the plot.
-        side = f'x="{x - 6:.1f}" text-anchor="end"' if x > left + (width - left - right) * 2 / 3 else f'x="{x + 6:.1f}"'
-        out.append(f'<text {side} y="{y - 6:.1f}">{html.escape(e["name"])}</text>')
+        if leader:
+            out.append(
+                f'<line x1="{x:.1f}" y1="{y:.1f}" x2="{tx:.1f}" y2="{ty - 4:.1f}" stroke="#999" stroke-width="0.8"/>'
+            )
+        out.append(f'<text x="{tx:.1f}" y="{ty:.1f}" text-anchor="{anchor}">{html.escape(e["name"])}</text>')
     out.append("</svg>")
     return "\n".join(out)
 

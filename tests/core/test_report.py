@@ -68,3 +68,37 @@ def test_incomplete_report_says_so(tmp_path):
 def test_missing_reference_image_is_named(tmp_path):
     with pytest.raises(ValueError, match="Cycles"):
         write_report(str(tmp_path), {}, {"a": np.ones((2, 2, 3))}, reference="Cycles")
+
+
+def test_pareto_labels_do_not_overprint_when_points_cluster():
+    # SSSS and Burley at nearly the same time and error (what the compare report met): every
+    # label gets its own box, none covers a point, all stay inside the picture.
+    import re
+
+    from sss_lab.core.report import _label_box, _overlaps, pareto_svg
+
+    names = ["SSSS taps=11", "SSSS taps=17", "SSSS taps=25", "Burley samples=16", "Burley samples=32", "STA"]
+    entries = [
+        {
+            "name": n,
+            "kind": "technique",
+            "metrics": {"rel_rmse": 0.120 + 0.001 * i},
+            "time_s": {"total": 3.0 + 0.01 * i},
+        }
+        for i, n in enumerate(names)
+    ]
+    entries.append({"name": "no SSS", "kind": "baseline", "metrics": {"rel_rmse": 0.2}, "time_s": {"total": 2.9}})
+    svg = pareto_svg(entries, ["no SSS"])
+    texts = re.findall(r'<text x="([\d.]+)" y="([\d.]+)" text-anchor="(start|end)">([^<]+)</text>', svg)
+    labels = {t[3]: _label_box(float(t[0]), float(t[1]), t[2], t[3]) for t in texts if t[3] in {*names, "no SSS"}}
+    assert set(labels) == {*names, "no SSS"}
+    boxes = list(labels.values())
+    for i, a in enumerate(boxes):
+        assert 0 <= a[0] and a[2] <= 640 + 20 and 0 <= a[1] and a[3] <= 400
+        assert not any(_overlaps(a, b) for b in boxes[i + 1 :])
+    dots = [
+        (float(x) - 4, float(y) - 4, float(x) + 4, float(y) + 4)
+        for x, y in re.findall(r'<circle cx="([\d.]+)" cy="([\d.]+)"', svg)
+    ]
+    assert len(dots) == 7
+    assert not any(_overlaps(a, d) for a in boxes for d in dots)
