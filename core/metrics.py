@@ -12,9 +12,15 @@ Definitions (also printed in every report, docs/references.md §8):
   then the sRGB transfer curve), averaged over the masked pixels. 1 is identical.
 
 Pixels where either image is not finite are left out and counted in ``nonfinite``.
+
+``split_error`` splits a technique's error into **bias** (what stays with noise-free passes) and
+**pass noise** (what the Monte Carlo noise of its input passes adds), from the errors measured
+with passes at two sample counts.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -106,6 +112,23 @@ def compare_images(image: np.ndarray, reference: np.ndarray, mask: np.ndarray | 
         "ssim": float(np.mean(luma_ssim[ssim_pixels])),
         "box": box,
     }
+
+
+def split_error(error: float, error_high: float, samples: int, samples_high: int) -> tuple[float, float]:
+    """(bias, pass noise) of a technique whose error is ``error`` with passes of ``samples``
+    samples and ``error_high`` with passes of ``samples_high`` (> ``samples``) samples.
+
+    Independent errors add in quadrature, and the passes' noise variance falls as 1 / samples
+    (Monte Carlo), so error² = bias² + noise² and error_high² = bias² + noise² · samples /
+    samples_high; hence noise² = (error² − error_high²) / (1 − samples / samples_high) and
+    bias² = error² − noise², each clipped to [0, error²] (the reference's own noise stays in the
+    bias; with a noisy reference error_high can exceed error, and then all of it is bias).
+    """
+    if not (isinstance(samples, int) and isinstance(samples_high, int) and 0 < samples < samples_high):
+        raise ValueError(f"samples: expected 0 < samples < samples_high, got {samples!r} and {samples_high!r}")
+    noise2 = max(error**2 - error_high**2, 0.0) / (1.0 - samples / samples_high)
+    noise2 = min(noise2, error**2)
+    return math.sqrt(error**2 - noise2), math.sqrt(noise2)
 
 
 def error_map(image: np.ndarray, reference: np.ndarray) -> np.ndarray:

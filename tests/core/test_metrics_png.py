@@ -128,3 +128,20 @@ def test_heat_and_grid():
     assert g.shape == (5, 7, 3)
     with pytest.raises(ValueError, match="encode_png"):
         encode_png(np.zeros((2, 2, 3), np.float32))
+
+
+def test_split_error_recovers_bias_and_pass_noise():
+    import math
+
+    from sss_lab.core.metrics import split_error
+
+    # Errors built from a known bias and a pass noise whose variance falls as 1 / samples.
+    bias, noise = 0.08, 0.05
+    error = math.hypot(bias, noise)
+    error_high = math.sqrt(bias**2 + noise**2 * 64 / 256)
+    b, n = split_error(error, error_high, 64, 256)
+    assert math.isclose(b, bias, rel_tol=1e-9) and math.isclose(n, noise, rel_tol=1e-9)
+    # A noisy reference can make the high-sample error larger: all of it is then bias.
+    assert split_error(0.1, 0.11, 64, 256) == (0.1, 0.0)
+    with pytest.raises(ValueError, match="samples"):
+        split_error(0.1, 0.1, 256, 64)
