@@ -358,7 +358,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         )
     notes: list[str] = []
     techniques = tuple(settings.techniques)
-    needs_thickness = tuple(t for t in techniques if t in ("sta", "combined"))
+    needs_thickness = tuple(t for t in techniques if core_apply.THICKNESS in core_apply.REQUIRED_PASSES[t])
     if needs_thickness:
         from .render_passes import thickness_aov_name, thickness_setup
 
@@ -367,8 +367,9 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         except ValueError as exc:
             # Checked before anything renders: the other techniques still get their report.
             techniques = tuple(t for t in techniques if t not in needs_thickness)
-            notes.append(f"{', '.join(needs_thickness)} not run: {exc}")
-            log(f"{', '.join(needs_thickness)} not run: {exc}")
+            for t in needs_thickness:  # one note per technique, each by its label
+                notes.append(f"{TECHNIQUES[t][2]} not run: {exc}")
+                log(notes[-1])
             if not techniques:
                 raise
         settings = dataclasses.replace(settings, techniques=techniques)
