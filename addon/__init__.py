@@ -13,13 +13,13 @@ import importlib
 _MODULES = (
     ".addon.properties",
     ".operators.scan",
-    ".operators.bake",
-    ".operators.render_passes",
+    ".operators.thickness",
+    ".operators.render",
     ".operators.apply",
     ".operators.presets",
-    ".operators.compare",
-    ".operators.calibrate",
-    ".operators.compositor",
+    ".operators.comparison",
+    ".operators.fit",
+    ".operators.compositing",
     ".addon.panels",
     ".addon.panel_bake",
 )
@@ -36,13 +36,14 @@ def _modules():
 
 def compositor_render():
     """The render handlers of the compositor path (registered with the classes)."""
-    return importlib.import_module(".operators.compositor_render", __package__.rpartition(".")[0])
+    return importlib.import_module(".blender.compositor_render", __package__.rpartition(".")[0])
 
 
 def register():
     import bpy
 
-    from . import cli, compat, properties
+    from ..blender import compat
+    from . import cli, properties
 
     if not compat.is_supported():
         raise RuntimeError(

@@ -13,6 +13,7 @@ import sys
 import traceback
 
 from ..core.errors import SSSLabError, describe_os_error
+from ..core.techniques import TECHNIQUES, check_technique
 
 #: Command modules, relative to this package, in the order ``--help`` lists them.
 COMMANDS = (
@@ -24,6 +25,28 @@ COMMANDS = (
     ".cli_compare",
     ".cli_calibrate",
 )
+
+
+#: Exit status of the command line when no material of the scene scatters (nothing written).
+EXIT_NOTHING_TO_DO = 3
+
+
+def parse_methods(text: str) -> list[str]:
+    """``"burley"``, ``"sta,ssss"`` or ``"all"`` -> technique names; ValueError lists the known ones."""
+    names = [t.strip() for t in str(text).split(",") if t.strip()]
+    if not names:
+        raise ValueError(f"method: expected one of {', '.join(TECHNIQUES)} or all, got {text!r}")
+    if names == ["all"]:
+        return list(TECHNIQUES)
+    out = []
+    for name in names:
+        try:
+            check_technique(name)
+        except ValueError:
+            raise ValueError(f"unknown method {name!r}; expected one of: {', '.join(TECHNIQUES)}, all") from None
+        if name not in out:
+            out.append(name)
+    return out
 
 
 class CommandError(SSSLabError):

@@ -1,7 +1,7 @@
 """``python -m sss_lab apply PASSES.exr --method ...``: apply techniques to rendered passes.
 
 Needs only NumPy and OpenEXR (a render-farm node without Blender). Parses and reports; the
-work is ``core.apply.apply_file``. Prints one ``Saved: PATH`` line per written file (render
+work is ``core.sequence.apply_file``. Prints one ``Saved: PATH`` line per written file (render
 farms read it), progress per frame on stdout, and errors on stderr. Exit status: 0 done,
 1 some frames failed (the others are written), 2 bad arguments or input, 3 no material of
 the scene scatters light (nothing written).
@@ -47,7 +47,7 @@ def add_parser(subparsers):
 
 def _outputs(args, frames):
     """Output path per (frame, input path); ValueError when a sequence would share one output."""
-    from ..core.apply import default_output, frame_path, is_sequence
+    from ..core.sequence import default_output, frame_path, is_sequence
 
     if args.out is None:
         return [default_output(path) for _, path in frames]
@@ -57,18 +57,11 @@ def _outputs(args, frames):
 
 
 def run(args) -> int:
-    from ..core.apply import (
-        EXIT_NOTHING_TO_DO,
-        apply_file,
-        frame_path,
-        parse_frames,
-        parse_methods,
-        sequence_frames,
-    )
+    from ..core.apply import ALBEDO_MODES
+    from ..core.sequence import apply_file, frame_path, parse_frames, sequence_frames
+    from .cli import EXIT_NOTHING_TO_DO, parse_methods
 
     techniques = parse_methods(args.method)
-    from ..core.apply import ALBEDO_MODES
-
     if args.albedo_mode not in ALBEDO_MODES:
         raise ValueError(f"--albedo-mode: {args.albedo_mode!r} is not one of {', '.join(ALBEDO_MODES)}")
     frames = sequence_frames(args.passes, parse_frames(args.frames) if args.frames else None)

@@ -105,7 +105,7 @@ def run(args) -> int:
         if window is None:
             raise CommandError(f"cannot make scene {scene.name!r} active to bake it (no window); save it as active")
         window.scene = scene
-    from ..operators.bake import bake_thickness
+    from ..blender.bake import bake_thickness
 
     names = args.objects or _default_objects(bpy, scene)
     if not names:

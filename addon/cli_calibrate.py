@@ -48,7 +48,7 @@ def run(args) -> int:
     scene = open_blend(args.blend, args.scene)
     import bpy
 
-    from ..operators.calibrate import calibrate
+    from ..blender.calibrate import calibrate
 
     def log(line):
         print(f"calibrate: {line}", flush=True)

@@ -60,8 +60,8 @@ def run(args) -> int:
     from .cli_scan import open_blend
 
     scene = open_blend(args.blend, args.scene)
-    from ..core.apply import parse_methods
-    from ..operators.compare import CompareSettings, compare
+    from ..blender.compare import CompareSettings, compare
+    from .cli import parse_methods
 
     settings = CompareSettings(
         resolution=args.resolution,

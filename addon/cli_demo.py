@@ -1,7 +1,7 @@
 """``python -m sss_lab demo``: the main job on the bundled sample scene.
 
 Builds the default sample scene from ``sample_blends/build_scenes.py`` and runs the comparison
-on it (``operators/compare.py``): the Cycles random-walk reference, the passes the techniques
+on it (``blender/compare.py``): the Cycles random-walk reference, the passes the techniques
 need, every technique at several qualities, and the report folder with metrics.json,
 report.md, report.html, the image grid and the error-against-time plot.
 """
@@ -58,8 +58,8 @@ def run(args) -> int:
 
     import bpy
 
+    from ..blender.compare import CompareSettings, compare
     from ..core.scene import SUBSURFACE_METHODS
-    from ..operators.compare import CompareSettings, compare
 
     # Every subsurface method gets its mapping calibrated (one more cached reference each).
     settings = CompareSettings(

@@ -36,8 +36,8 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    from ..core.apply import EXIT_NOTHING_TO_DO, parse_frames, parse_methods
-    from .cli import CommandError, require_bpy
+    from ..core.sequence import parse_frames
+    from .cli import EXIT_NOTHING_TO_DO, CommandError, parse_methods, require_bpy
     from .cli_scan import open_blend
 
     require_bpy()
@@ -47,7 +47,7 @@ def run(args) -> int:
         raise CommandError(f"--samples: expected an integer >= 1, got {args.samples}")
     if args.seed is not None and args.seed < 0:
         raise CommandError(f"--seed: expected an integer >= 0, got {args.seed}")
-    from ..operators import render_passes as rp
+    from ..blender import render_passes as rp
 
     if args.resolution is not None:
         try:

@@ -39,7 +39,7 @@ def open_blend(path: str, scene_name: str | None = None):
 
 def run(args) -> int:
     scene = open_blend(args.blend, args.scene)
-    from ..operators.scan import scan_report
+    from ..blender.scan import scan_report
 
     for line in scan_report(scene):
         print(line)

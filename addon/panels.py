@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import bpy
 
+from ..blender.calibrate import PREFIX, fit_key
+from ..core.fit_params import FIT_PARAMETERS
+
 
 def draw_technique_parameters(layout, settings) -> None:
     """The chosen technique's parameters (their defaults come from ``core/mapping.py``)."""
@@ -22,6 +25,25 @@ def draw_technique_parameters(layout, settings) -> None:
         col.prop(settings, "burley_random_rotation")
     if settings.technique != "sta":
         layout.prop(settings, "albedo_mode")
+
+
+def draw_fit(layout, material) -> None:
+    """Rows of the fitted values of ``material`` (editable), with Clear Fit."""
+    keys = [k for k in material.keys() if k.startswith(PREFIX)]
+    if not keys:
+        layout.label(text=f"{material.name}: not fitted (Fit to Cycles)")
+        return
+    for technique, names in FIT_PARAMETERS.items():
+        shown = [n for n in names if fit_key(technique, n) in keys]
+        if not shown:
+            continue
+        box = layout.box()
+        row = box.row()
+        row.label(text=f"{material.name}: {technique} fit")
+        op = row.operator("sss_lab.clear_fit", text="", icon="X")
+        op.technique = technique
+        for name in shown:
+            box.prop(material, f'["{fit_key(technique, name)}"]', text=name.replace("_", " ").title())
 
 
 class SSS_LAB_PT_main(bpy.types.Panel):
@@ -59,8 +81,6 @@ class SSS_LAB_PT_main(bpy.types.Panel):
         layout.operator("sss_lab.fit_to_cycles", icon="DRIVER_DISTANCE")
         material = context.object.active_material if context.object is not None else None
         if material is not None:
-            from ..operators.calibrate import draw_fit
-
             draw_fit(layout.column(), material)
 
         layout.separator()

@@ -45,7 +45,7 @@ def main(argv=None) -> int:
     import bmesh
 
     from sss_lab.core.thickness import BakeSettings
-    from sss_lab.operators.bake import bake_thickness
+    from sss_lab.blender.bake import bake_thickness
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene

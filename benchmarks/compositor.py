@@ -56,7 +56,7 @@ def main(argv=None) -> int:
 
     import bpy
 
-    from sss_lab.addon import compat
+    from sss_lab.blender import compat
     from sss_lab.core import mapping
     from sss_lab.core.apply import apply
     from sss_lab.core.exr import Passes, read_layers, read_passes

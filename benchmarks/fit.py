@@ -37,7 +37,7 @@ def _turn(bpy, scene, degrees: float) -> None:
     """Turn the camera and the lights about the vertical axis through the subsurface objects' centre."""
     from mathutils import Matrix, Vector
 
-    from sss_lab.operators.describe import principled_node
+    from sss_lab.blender.describe import principled_node
 
     centres = []
     for obj in scene.objects:
@@ -57,10 +57,9 @@ def _turn(bpy, scene, degrees: float) -> None:
 
 
 def _frame(bpy, scene, work: str, label: str, args, log) -> dict:
-    from sss_lab.core import apply as core_apply
-    from sss_lab.core import exr
-    from sss_lab.operators.compare import cached_reference, scene_fingerprint
-    from sss_lab.operators.render_passes import render_passes
+    from sss_lab.blender.reference_cache import cached_reference, scene_fingerprint
+    from sss_lab.blender.render_passes import render_passes
+    from sss_lab.core import exr, sequence
 
     fingerprint = scene_fingerprint(scene)
     cache = os.path.join(args.cache, label)
@@ -85,7 +84,7 @@ def _frame(bpy, scene, work: str, label: str, args, log) -> dict:
     path = next(p for p in written if p.endswith(".exr"))
     return {
         "passes": exr.read_passes(path),
-        "scene": core_apply.load_scene(path),
+        "scene": sequence.load_scene(path),
         "reference": ref,
         "noisy": noisy,
         "seconds": {"reference": ref_s, "fit_render": noisy_s, "passes": passes_s},

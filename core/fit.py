@@ -41,10 +41,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import apply as core_apply
+from . import mapping as _mapping
 from .combined import back_irradiance, burley_transmittance_rgb, slab_thickness
 from .errors import InputError
 from .fit_params import FIT_PARAMETERS, INFO, PARAMETERS
 from .metrics import box_downsample
+from .plan import _index_map
 from .scene import MaterialSSS, SceneDescription
 
 #: Search grid for d's scale k and the transmission's per-channel factors f: sqrt(2) steps, 1/4..4.
@@ -114,7 +116,7 @@ def _blocks(image: np.ndarray, keep: np.ndarray, box: int) -> np.ndarray:
 
 
 def _material_mask(passes, material: MaterialSSS, reference: np.ndarray) -> np.ndarray:
-    index = core_apply._index_map(passes)
+    index = _index_map(passes)
     ok = index == material.index
     for name in ("Combined", "Diffuse Color"):
         ok &= core_apply._finite(passes[name][..., :3])
@@ -196,8 +198,8 @@ def fit_material(
     original = albedo * (core_apply._clean(passes["Diffuse Direct"]) + core_apply._clean(passes["Diffuse Indirect"]))
     rest = _blocks(combined_rgb - original, keep, box)
     y = target - rest
-    d0 = np.asarray(core_apply._mapping().burley_d(plain), np.float64)
-    params0 = core_apply._mapping().technique_params(plain, technique)
+    d0 = np.asarray(_mapping.burley_d(plain), np.float64)
+    params0 = _mapping.technique_params(plain, technique)
 
     # Light from behind (combined only): E_back per channel and slab thickness, at full size.
     trans = None

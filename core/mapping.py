@@ -16,7 +16,7 @@ method in Cycles (Blender 5.2; Cycles ``kernel/closure/bssrdf.h``, docs/referenc
 A random walk is a volume, not a profile: the Burley d that best matches it is uncertain, so it
 is a documented choice among the albedo scalings of Christensen & Burley (d = l / s(A),
 ``profiles.ALBEDO_SCALINGS``) or none (d = l). ``MAPPINGS`` lists the choices per method, the
-default first; the comparison (``operators/compare.py``) measures each against Cycles.
+default first; the comparison (``blender/compare.py``) measures each against Cycles.
 """
 
 from __future__ import annotations

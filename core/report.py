@@ -10,7 +10,7 @@ one folder:
 - ``grid.png``: no SSS / each technique / reference on the top rows, error heat maps below;
 - ``pareto.svg``: relative RMSE against time, the Pareto front joined.
 
-Nothing here renders or computes a technique: the caller (``operators/compare.py``) does.
+Nothing here renders or computes a technique: the caller (``blender/compare.py``) does.
 """
 
 from __future__ import annotations

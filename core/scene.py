@@ -3,7 +3,7 @@
 The passes alone do not say where the camera is, which lights shine, or which material
 scatters how far. This module holds that as frozen dataclasses that round-trip through JSON,
 so that the NumPy passes run on any machine with Python and NumPy (a render-farm node without
-Blender included). ``operators/render_passes.py`` fills it from a Blender scene; ``core``
+Blender included). ``blender/describe.py`` fills it from a Blender scene; ``core``
 reads it.
 
 Conventions: lengths in scene units, colours linear, matrices row-major 4x4

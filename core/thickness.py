@@ -2,7 +2,7 @@
 
 The map is ambient occlusion with the normals flipped inwards (Barré-Brisebois & Bouchard,
 GDC 2011; docs/references.md §4), baked by Cycles' Ambient Occlusion shader node with
-``inside`` set. Pure Python and NumPy: the Blender side lives in ``operators/bake.py``.
+``inside`` set. Pure Python and NumPy: the Blender side lives in ``blender/bake.py``.
 
 What Cycles computes (``intern/cycles/kernel/svm/ao.h``, ``svm_ao``, Blender 4.x/5.x): with
 ``inside`` the normal is negated; each of the node's N rays takes a point of the unit disk

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..addon import compat
+from ..blender import compat
 
 #: Custom property on a node group / image holding what SSS Lab built it from.
 META_KEY = "sss_lab"

@@ -2,7 +2,7 @@
 
 ``build_chain`` adds one group node per light (STA) or per scattering material (SSSS, Burley),
 chained Image -> Image, with the passes taken by name from a ``source`` node: a Render Layers
-node (``operators/compositor.py``) or an Image node holding a multilayer EXR (the tests, the
+node (``blender/compositor.py``) or an Image node holding a multilayer EXR (the tests, the
 benchmark), whose outputs carry the same pass names. Each node it adds is tagged with the
 custom property ``sss_lab``; ``remove_chain`` removes exactly those and reconnects whatever
 read the chain's result to the chain's input, so the user's own nodes are never deleted.
@@ -14,7 +14,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..addon import compat
+from ..blender import compat
 from ..core import mapping
 from ..core.scene import SceneDescription
 from ..core.techniques import check_technique

@@ -4,7 +4,7 @@ Per pixel, exactly the arithmetic of ``core.sta.sta`` (its docstring has the for
 direction and irradiance of one light (sun, point, spot or area, as ``core.sta.light_at``),
 L_T = normalize(L + distortion N), T_dir = scale max(0, V . -L_T)^power, and
 albedo x light colour x (E / pi) x t x (T_dir + ambient) on the mask. Several lights: chain one
-group per light (its Image output into the next one's Image input); ``operators/compositor.py``
+group per light (its Image output into the next one's Image input); ``blender/compositor.py``
 does that for the scene's lights.
 
 Inputs are the passes (Diffuse Color, Normal, Position, the thickness AOV), the mask, STA's

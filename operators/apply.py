@@ -1,9 +1,9 @@
-"""Apply a technique to a passes EXR from inside Blender and look at the result.
+"""``bpy.ops.sss_lab.apply``: apply a technique to a passes EXR and look at the result.
 
-``apply_passes(path, technique, ...)`` is the plain function: ``core.apply.apply_file`` (NumPy,
-the same code as ``python -m sss_lab apply``) writes ``<stem>.sss.exr`` beside the passes (the
-input layers plus ``SSSLab.<technique>.Image`` and ``.SSS``), and the result is loaded as a
-Blender image. The operator ``bpy.ops.sss_lab.apply`` takes the technique, its parameters and
+``blender.apply.apply_passes`` does the work: ``core.sequence.apply_file`` (NumPy, the same
+code as ``python -m sss_lab apply``) writes ``<stem>.sss.exr`` beside the passes (the input
+layers plus ``SSSLab.<technique>.Image`` and ``.SSS``), and the result is loaded as a Blender
+image. The operator ``bpy.ops.sss_lab.apply`` takes the technique, its parameters and
 the albedo mode from the SSS Lab panel (``scene.sss_lab``) and, by default, the file the last
 Render Passes wrote. The scene is not changed (the image is a new data-block, or the same one
 reloaded when applied again).
@@ -11,22 +11,11 @@ reloaded when applied again).
 
 from __future__ import annotations
 
-import os
-
 import bpy
 
-from ..core.apply import apply_file, default_output, layer_names
+from ..blender.apply import apply_passes
+from ..core.apply import layer_names
 from ..core.techniques import check_technique
-
-
-def load_result_image(path: str):
-    """The image data-block of ``path``: loaded, or reloaded when it is already there."""
-    path = os.path.abspath(path)
-    for image in bpy.data.images:
-        if image.filepath and os.path.abspath(bpy.path.abspath(image.filepath)) == path:
-            image.reload()
-            return image
-    return bpy.data.images.load(path, check_existing=False)
 
 
 def _show(context, image) -> bool:
@@ -38,39 +27,6 @@ def _show(context, image) -> bool:
             area.tag_redraw()
             return True
     return False
-
-
-def apply_passes(
-    path: str,
-    technique: str,
-    *,
-    out_path: str | None = None,
-    albedo_mode: str = "post",
-    overwrite: bool = True,
-    load: bool = True,
-    **options,
-):
-    """Apply ``technique`` to the passes file ``path``; returns (FileResult, image or None).
-
-    ``out_path`` defaults to ``<stem>.sss.exr`` beside the input, which is never overwritten.
-    Raises FileNotFoundError, ValueError or MissingPassError (a KeyError) with a clear message.
-    """
-    check_technique(technique)
-    path = os.path.abspath(bpy.path.abspath(path)) if path else ""
-    if not path:
-        raise ValueError("no passes file: render the passes first (Render Passes) or choose an EXR")
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"{path}: no such passes file (render the passes first, or choose an EXR)")
-    result = apply_file(
-        path,
-        [technique],
-        out_path=out_path or default_output(path),
-        albedo_mode=albedo_mode,
-        overwrite=overwrite,
-        **options,
-    )
-    image = load_result_image(result.out_path) if (load and result.written) else None
-    return result, image
 
 
 class SSS_LAB_OT_apply(bpy.types.Operator):

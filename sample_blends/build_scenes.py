@@ -24,11 +24,11 @@ Conventions shared by all scenes:
 - Every subsurface input of every material is set explicitly (Subsurface IOR too, although the
   Random Walk method reads the IOR input instead; a material without SSS has Weight 0).
 - SSS materials get pass indices 1, 2, ... in name order (the order in which
-  ``operators.describe.sss_materials`` numbers them), other materials 0; mesh objects get
+  ``blender.describe.sss_materials`` numbers them), other materials 0; mesh objects get
   object pass indices 1, 2, ... in name order.
 - Cycles on the CPU, 32 samples, fixed seed, adaptive sampling and denoising off, 128x128 (scale
   ``render.resolution_percentage`` or the resolution up for larger pictures).
-- The SSS meshes carry a baked thickness attribute "Thickness" (``operators/bake.py``,
+- The SSS meshes carry a baked thickness attribute "Thickness" (``blender/bake.py``,
   translucency convention, attribute target, few rays) wired into their materials as the Shader
   AOV "Thickness", and the view layer declares that AOV, so STA can run on the file as saved.
 """
@@ -43,12 +43,12 @@ import sys
 #: Rays per vertex for the thickness bake of the sample scenes: enough for a smooth map on
 #: these meshes (the bake's own noise is a binomial of this many rays, sigma <= 0.5/sqrt(64)).
 THICKNESS_SAMPLES = 64
-#: The thickness AOV the techniques read (core/apply.py THICKNESS).
+#: The thickness AOV the techniques read (core/plan.py THICKNESS).
 THICKNESS_AOV = "Thickness"
 
 
 def _nodes(idblock):
-    from sss_lab.addon import compat
+    from sss_lab.blender import compat
 
     compat.ensure_node_tree(idblock)
 
@@ -485,8 +485,8 @@ def _scatters(mat) -> bool:
 
 def _finish(scene) -> None:
     """Pass indices, the thickness AOV and the baked thickness of the SSS meshes."""
+    from sss_lab.blender.bake import bake_thickness
     from sss_lab.core.thickness import BakeSettings
-    from sss_lab.operators.bake import bake_thickness
 
     materials = {slot.material.name: slot.material for o in scene.objects for slot in o.material_slots if slot.material}
     index = 0

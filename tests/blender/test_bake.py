@@ -1,4 +1,4 @@
-"""Thickness baking (operators/bake.py) with Cycles on tiny meshes and images.
+"""Thickness baking (blender/bake.py, operators/thickness.py) with Cycles on tiny meshes and images.
 
 Expected values come from the closed form of core/thickness.py (derived there from how
 Cycles' AO node samples directions: cosine-weighted, returning the unoccluded fraction):
@@ -27,18 +27,13 @@ import bpy
 import numpy as np
 import pytest
 
-from sss_lab.addon import compat
+from sss_lab.blender import bake as bake_mod
+from sss_lab.blender import compat
+from sss_lab.blender.bake import BakeError, ThicknessBake, bake_thickness
+from sss_lab.blender.bake_nodes import NODE_AOV, NODE_NAME
+from sss_lab.blender.thickness import META_KEY, thickness_metadata
 from sss_lab.core.thickness import BakeSettings, binomial_sigma, slab_unoccluded_fraction
-from sss_lab.operators import bake as bake_mod
-from sss_lab.operators.bake import (
-    META_KEY,
-    NODE_AOV,
-    NODE_NAME,
-    BakeError,
-    ThicknessBake,
-    bake_thickness,
-    thickness_metadata,
-)
+from sss_lab.operators.thickness import SSS_LAB_OT_bake_thickness
 
 D = 0.5  # AO distance of the analytic tests, scene units
 
@@ -275,7 +270,7 @@ def test_attribute_target_bakes_the_mesh_with_its_modifiers_and_leaves_the_data_
     p = float(slab_unoccluded_fraction(0.25, D))
     sigma = float(binomial_sigma(p, rays))
     assert abs(float(v.mean()) - (1.0 - p)) <= 5 * sigma / math.sqrt(v.size)
-    # Vertices a modifier deletes have nothing baked: 0 (documented in operators/bake.py).
+    # Vertices a modifier deletes have nothing baked: 0 (documented in blender/bake.py).
     group = obj.vertex_groups.new(name="Keep")
     group.add([i for i, c in enumerate(co) if c[0] < 0.1], 1.0, "REPLACE")
     mask = obj.modifiers.new("Mask", "MASK")
@@ -617,7 +612,7 @@ class _WindowManager:
 def _modal_stand_in(job):
     """The operator's modal methods on a stand-in object: a background Blender has no event
     loop, so the timer and Esc events are sent by hand (invoke sets up the same state)."""
-    op = bake_mod.SSS_LAB_OT_bake_thickness
+    op = SSS_LAB_OT_bake_thickness
 
     class StandIn:
         modal, _end, _status, _report = op.modal, op._end, op._status, op._report

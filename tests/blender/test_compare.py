@@ -20,11 +20,12 @@ import re
 import bpy
 import pytest
 
-from sss_lab.addon import compat
 from sss_lab.addon.cli_demo import load_sample_scenes
+from sss_lab.blender import compare as compare_mod
+from sss_lab.blender import compat, reference_cache
+from sss_lab.blender.compare import CompareSettings, compare
+from sss_lab.blender.reference_cache import cached_reference
 from sss_lab.core import mapping
-from sss_lab.operators import compare as compare_mod
-from sss_lab.operators.compare import CompareSettings, cached_reference, compare
 
 pytestmark = pytest.mark.slow
 
@@ -239,18 +240,18 @@ def test_fingerprint_ignores_face_order_but_not_geometry():
     obj = bpy.data.objects.new("Grid", _mesh(faces, verts))
     scene = bpy.context.scene
     scene.collection.objects.link(obj)
-    first = compare_mod.scene_fingerprint(scene)
+    first = reference_cache.scene_fingerprint(scene)
     # The same faces listed in another order, each starting at another corner (as modifiers and
     # mesh builders may produce from run to run): the same scene, the same reference.
     original = obj.data
     obj.data = _mesh([f[1:] + f[:1] for f in reversed(faces)], verts)
-    assert compare_mod.scene_fingerprint(scene) == first
+    assert reference_cache.scene_fingerprint(scene) == first
     moved = list(verts)
     moved[4] = (1.0, 1.0, 0.25)
     obj.data = _mesh(faces, moved)
-    assert compare_mod.scene_fingerprint(scene) != first
+    assert reference_cache.scene_fingerprint(scene) != first
     obj.data = original
-    assert compare_mod.scene_fingerprint(scene) == first
+    assert reference_cache.scene_fingerprint(scene) == first
 
 
 def test_calibration_renders_a_reference_per_extra_method(blends, tmp_path):
@@ -274,7 +275,7 @@ def test_calibration_renders_a_reference_per_extra_method(blends, tmp_path):
 
 
 def test_scene_description_carries_the_thickness_bake_distance(blends):
-    from sss_lab.operators.describe import sss_materials
+    from sss_lab.blender.describe import sss_materials
 
     scene = _open(blends["backlit_thin"])
     by_name = {m.name: m for m in sss_materials(scene)}

@@ -6,7 +6,7 @@ import bpy
 import numpy as np
 import pytest
 
-from sss_lab.addon import compat
+from sss_lab.blender import compat
 from sss_lab.core.exr import read_layers, read_passes, write_layers
 
 W, H = 64, 48

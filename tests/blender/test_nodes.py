@@ -36,7 +36,7 @@ import bpy
 import numpy as np
 import pytest
 
-from sss_lab.addon import compat
+from sss_lab.blender import compat
 from sss_lab.core import burley as np_burley
 from sss_lab.core import mapping, ssss, sta
 from sss_lab.core.apply import apply

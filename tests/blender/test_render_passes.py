@@ -1,4 +1,4 @@
-"""Render passes (operators/render_passes.py), apply in Blender (operators/apply.py), presets and
+"""Render passes (blender/render_passes.py), apply in Blender (blender/apply.py), presets and
 the ``render`` command, on a tiny scene: 64 x 64 pixels, 4 Cycles samples.
 
 The scene: a UV sphere "Ball" (material "Skin", subsurface, thickness AOV fed by a Value node
@@ -18,12 +18,13 @@ import bpy
 import numpy as np
 import pytest
 
-from sss_lab.addon import compat
-from sss_lab.core.apply import load_scene, required_passes, sidecar_path
+from sss_lab.blender import compat
+from sss_lab.blender import render_passes as rp
+from sss_lab.blender.render_passes import NoSubsurfaceError, needed_passes, parse_resolution, render_passes
 from sss_lab.core.exr import read_layers, read_passes
+from sss_lab.core.plan import required_passes
 from sss_lab.core.presets import PRESETS, get_preset
-from sss_lab.operators import render_passes as rp
-from sss_lab.operators.render_passes import NoSubsurfaceError, needed_passes, parse_resolution, render_passes
+from sss_lab.core.sequence import load_scene, sidecar_path
 
 SIZE = 64
 SAMPLES = 4
@@ -316,8 +317,8 @@ def test_sta_without_a_thickness_map_asks_to_bake_first(tmp_path):
 
 
 def test_sta_reads_a_baked_thickness_map_and_its_convention(tmp_path):
+    from sss_lab.blender.bake import bake_thickness
     from sss_lab.core.thickness import BakeSettings
-    from sss_lab.operators.bake import bake_thickness
 
     scene = build_scene(thickness=False)
     settings = BakeSettings(target="attribute", convention="thickness", samples=4)
@@ -603,8 +604,7 @@ def test_cli_render(tmp_path, capsys):
 
 
 def test_cli_render_without_subsurface_writes_nothing(tmp_path, capsys):
-    from sss_lab.addon.cli import main
-    from sss_lab.core.apply import EXIT_NOTHING_TO_DO
+    from sss_lab.addon.cli import EXIT_NOTHING_TO_DO, main
 
     blend = _save(tmp_path, sss=False)
     out = tmp_path / "out"

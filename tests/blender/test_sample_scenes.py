@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from sss_lab.addon.cli_demo import load_sample_scenes
+from sss_lab.blender.describe import principled_node, sss_materials
 from sss_lab.core.exr import read_passes
-from sss_lab.operators.describe import principled_node, sss_materials
 
 scenes = load_sample_scenes()
 NAMES = list(scenes.SCENES)

@@ -3,9 +3,9 @@
 import bpy
 import pytest
 
-from sss_lab.addon import compat
-from sss_lab.operators.describe import describe_scene, sss_materials
-from sss_lab.operators.scan import scan_report
+from sss_lab.blender import compat
+from sss_lab.blender.describe import describe_scene, sss_materials
+from sss_lab.blender.scan import scan_report
 
 
 def _principled(name, weight, method="RANDOM_WALK"):

@@ -1,4 +1,4 @@
-"""core/apply.py: planning, compositing and the guards, on the analytic plane-and-spheres scene
+"""core/plan.py and core/apply.py: planning, compositing and the guards, on the analytic plane-and-spheres scene
 of core/synthetic.py (a plain material, index 1, and two scattering ones, indices 2 and 3).
 
 Compositing is checked with stand-in techniques whose output is known in closed form, so
@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 
 from sss_lab.core import apply as apply_mod
-from sss_lab.core.apply import REQUIRED_PASSES, apply, plan, required_passes
+from sss_lab.core import plan as plan_mod
+from sss_lab.core.apply import apply
 from sss_lab.core.exr import MissingPassError, Passes
+from sss_lab.core.plan import REQUIRED_PASSES, plan, required_passes
 from sss_lab.core.scene import MaterialSSS
 from sss_lab.core.synthetic import DEFAULT_MATERIALS, sphere_scene
 from sss_lab.core.techniques import TECHNIQUES
@@ -87,8 +89,9 @@ def stub(monkeypatch):
         namespace = {"rec": recorders[name]}
         exec(f"def f(*, {params}):\n    return rec(**{{k: v for k, v in locals().items() if k != 'rec'}})", namespace)
         funcs[name] = namespace["f"]
-    monkeypatch.setattr(apply_mod, "get_technique", lambda name: funcs[apply_mod.check_technique(name)])
-    monkeypatch.setattr(apply_mod, "_mapping", lambda: StubMapping)
+    for module in (plan_mod, apply_mod):
+        monkeypatch.setattr(module, "get_technique", lambda name: funcs[plan_mod.check_technique(name)])
+    monkeypatch.setattr(plan_mod, "_mapping", lambda: StubMapping)
     return recorders
 
 

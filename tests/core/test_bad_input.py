@@ -11,7 +11,7 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from sss_lab.core import apply as core_apply
+from sss_lab.core import sequence
 from sss_lab.core.errors import DamagedFileError, InputError, SSSLabError
 from sss_lab.core.exr import MissingPassError, read_layers, read_passes, write_layers
 from sss_lab.core.scene import SceneDescription
@@ -144,7 +144,7 @@ def test_a_missing_part_names_the_pass_and_where_to_enable_it(tmp_path):
     path = str(tmp_path / "p.exr")
     write_scene(path, arrays, scene)
     with pytest.raises(MissingPassError) as err:
-        core_apply.apply_file(path, ["burley"])
+        sequence.apply_file(path, ["burley"])
     assert "'Diffuse Direct' is missing" in str(err.value) and "use_pass_diffuse_direct" in str(err.value)
     assert isinstance(err.value, SSSLabError)
 
@@ -158,7 +158,7 @@ def test_data_and_display_windows_are_kept(tmp_path):
     (tmp_path / "border.json").write_text(scene.to_json())
     contents = read_layers(path)
     assert contents.windows == windows
-    result = core_apply.apply_file(path, ["burley"])
+    result = sequence.apply_file(path, ["burley"])
     out = read_layers(result.out_path)
     assert out.windows == windows
     header = OpenEXR.File(result.out_path, header_only=True).header(0)
@@ -173,10 +173,10 @@ def test_a_damaged_frame_of_a_sequence_fails_instead_of_skipping_a_technique(tmp
         write_scene(str(tmp_path / f"p_{frame:04d}.exr"), arrays, dataclasses.replace(scene, frame=frame))
     damaged = tmp_path / "p_0002.exr"
     damaged.write_bytes(_bytes(damaged)[:-1])  # the last part (Thickness, which STA reads) is lost
-    ok = core_apply.apply_file(str(tmp_path / "p_0001.exr"), ["sta", "ssss", "burley"], skip_missing=True)
+    ok = sequence.apply_file(str(tmp_path / "p_0001.exr"), ["sta", "ssss", "burley"], skip_missing=True)
     assert ok.written and not ok.skipped
     with pytest.raises(DamagedFileError, match="p_0002.exr"):
-        core_apply.apply_file(str(damaged), ["sta", "ssss", "burley"], skip_missing=True)
+        sequence.apply_file(str(damaged), ["sta", "ssss", "burley"], skip_missing=True)
 
 
 # --- scene description JSON ---
@@ -189,7 +189,7 @@ def _scene_dict():
 def _load(data, tmp_path, name="scene.json"):
     path = tmp_path / name
     path.write_text(data if isinstance(data, str) else json.dumps(data))
-    return core_apply.read_scene_file(str(path))
+    return sequence.read_scene_file(str(path))
 
 
 @pytest.mark.parametrize(
@@ -240,11 +240,11 @@ def test_a_valid_description_still_round_trips(tmp_path):
 def test_an_exr_or_binary_file_given_as_the_scene(scene_files, tmp_path):
     path, _, _ = scene_files
     with pytest.raises(InputError, match="is an OpenEXR file, not a scene description"):
-        core_apply.read_scene_file(path)
+        sequence.read_scene_file(path)
     blob = tmp_path / "blob.json"
     blob.write_bytes(bytes([0xFF, 0xFE, 0x00, 0x95]))
     with pytest.raises(InputError, match="not UTF-8 text"):
-        core_apply.read_scene_file(str(blob))
+        sequence.read_scene_file(str(blob))
 
 
 # --- outputs ---
@@ -252,33 +252,33 @@ def test_an_exr_or_binary_file_given_as_the_scene(scene_files, tmp_path):
 
 def test_the_scene_description_is_never_replaced(scene_files, tmp_path):
     path, _, scene = scene_files
-    sidecar = core_apply.sidecar_path(path)
+    sidecar = sequence.sidecar_path(path)
     before = _bytes(sidecar)
     roundabout = os.path.join(str(tmp_path), ".", "..", tmp_path.name, "passes.json")
     for spelling in (sidecar, roundabout):
         with pytest.raises(FileExistsError, match="is an input"):
-            core_apply.apply_file(path, ["burley"], out_path=spelling, overwrite=True)
+            sequence.apply_file(path, ["burley"], out_path=spelling, overwrite=True)
     other = tmp_path / "other.json"
     other.write_text(scene.to_json())
     link = tmp_path / "link.exr"
     os.symlink(other, link)
     with pytest.raises(FileExistsError, match="is an input"):
-        core_apply.apply_file(path, ["burley"], out_path=str(link), scene_path=str(other), overwrite=True)
+        sequence.apply_file(path, ["burley"], out_path=str(link), scene_path=str(other), overwrite=True)
     assert _bytes(sidecar) == before and other.read_text() == scene.to_json()
 
 
 def test_outputs_that_are_not_files(scene_files, tmp_path):
     path, _, _ = scene_files
     with pytest.raises(ValueError, match="give it the .exr suffix"):
-        core_apply.apply_file(path, ["burley"], out_path=str(tmp_path / "o.png"))
+        sequence.apply_file(path, ["burley"], out_path=str(tmp_path / "o.png"))
     folder = tmp_path / "folder.exr"
     folder.mkdir()
     with pytest.raises(FileExistsError, match="is a folder"):
-        core_apply.apply_file(path, ["burley"], out_path=str(folder), overwrite=True)
+        sequence.apply_file(path, ["burley"], out_path=str(folder), overwrite=True)
     fifo = tmp_path / "fifo.exr"
     os.mkfifo(fifo)
     with pytest.raises(FileExistsError, match="not a regular file"):
-        core_apply.apply_file(path, ["burley"], out_path=str(fifo), overwrite=True)
+        sequence.apply_file(path, ["burley"], out_path=str(fifo), overwrite=True)
     assert os.path.exists(fifo) and not os.path.isfile(fifo)
     assert not [n for n in os.listdir(tmp_path) if n.endswith(".tmp")]
 
@@ -288,8 +288,8 @@ def test_outputs_that_are_not_files(scene_files, tmp_path):
 
 def test_a_huge_frame_range_is_refused_at_once():
     with pytest.raises(ValueError, match="more than 100000 frames"):
-        core_apply.parse_frames("1-100000000")
+        sequence.parse_frames("1-100000000")
     with pytest.raises(ValueError, match="more than 100000 frames"):
-        core_apply.parse_frames("1-60000,100001-160000")
-    assert core_apply.parse_frames("1-3,7") == [1, 2, 3, 7]
-    assert len(core_apply.parse_frames(f"1-{core_apply.MAX_FRAMES}")) == core_apply.MAX_FRAMES
+        sequence.parse_frames("1-60000,100001-160000")
+    assert sequence.parse_frames("1-3,7") == [1, 2, 3, 7]
+    assert len(sequence.parse_frames(f"1-{sequence.MAX_FRAMES}")) == sequence.MAX_FRAMES

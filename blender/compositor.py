@@ -1,8 +1,9 @@
 """Set up the scene's compositor with a technique's node groups, reading from Render Layers.
 
 ``setup_compositor(scene, technique)`` is the plain function; ``bpy.ops.sss_lab.setup_compositor``
-wraps it for the panel (technique, parameters and albedo mode from ``scene.sss_lab``). What it
-changes, on purpose and for good (it is a set-up, undoable with Ctrl+Z, not a temporary change):
+(``operators/compositing.py``) wraps it for the panel (technique, parameters and albedo mode from
+``scene.sss_lab``). What it changes, on purpose and for good (it is a set-up, undoable with
+Ctrl+Z, not a temporary change):
 
 - the scene gets a compositor node group if it has none (5.x: ``scene.compositing_node_group``);
 - a Render Layers node for the view layer is reused, or added; the technique's group nodes are
@@ -28,11 +29,12 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..addon import compat
-from ..core.techniques import TECHNIQUES, check_technique
+from ..core.techniques import check_technique
 from ..nodes import setup as chain
-from .describe import describe_scene, principled_node, sss_materials
-from .render_passes import PASS_FLAGS, thickness_aov_name, thickness_setup
+from . import compat
+from .describe import describe_scene, principled_node, sss_materials, world_corners
+from .render_passes import PASS_FLAGS
+from .thickness import thickness_aov_name, thickness_setup
 
 #: Custom property on a material: the Subsurface Weight the last compositor set-up saw.
 KEPT_WEIGHT = "sss_lab_subsurface_weight"
@@ -45,12 +47,6 @@ COMPOSITOR_PASSES = {
 }
 
 
-def _world_corners(obj) -> np.ndarray:
-    m = np.array(obj.matrix_world, dtype=np.float64)
-    c = np.array([tuple(v) for v in obj.bound_box], dtype=np.float64)
-    return c @ m[:3, :3].T + m[:3, 3]
-
-
 def material_depths(scene, camera) -> dict[str, float]:
     """Material name -> planar view depth of the objects using it (median of their bounding-box
     centres; only objects in front of the camera)."""
@@ -60,7 +56,7 @@ def material_depths(scene, camera) -> dict[str, float]:
     for obj in scene.objects:
         if obj.type != "MESH" or obj.hide_render:
             continue
-        z = float((_world_corners(obj).mean(axis=0) - origin) @ forward)
+        z = float((world_corners(obj).mean(axis=0) - origin) @ forward)
         if z <= 0:
             continue
         for slot in obj.material_slots:
@@ -233,57 +229,3 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
         "notes": notes + chain_notes,
         "warnings": warnings,
     }
-
-
-_TECHNIQUE_ITEMS = [("PANEL", "From Panel", "The technique chosen in the SSS Lab panel")] + [
-    (name, label, desc) for name, (_, _, label, desc) in TECHNIQUES.items()
-]
-
-
-class SSS_LAB_OT_setup_compositor(bpy.types.Operator):
-    """Insert the technique's compositor node groups after Render Layers (the user's nodes are kept;
-    running it again replaces only SSS Lab's nodes)"""
-
-    bl_idname = "sss_lab.setup_compositor"
-    bl_label = "Set Up Compositor"
-    bl_options = {"REGISTER", "UNDO"}
-
-    technique: bpy.props.EnumProperty(name="Technique", items=_TECHNIQUE_ITEMS, default="PANEL", options={"SKIP_SAVE"})
-
-    @classmethod
-    def poll(cls, context):
-        return context.scene is not None
-
-    def execute(self, context):
-        scene = context.scene
-        settings = getattr(scene, "sss_lab", None)
-        technique = self.technique
-        if technique == "PANEL":
-            technique = settings.technique if settings is not None else "burley"
-        options = {}
-        if settings is not None:
-            options = dict(settings.technique_options(technique))
-            options["albedo_mode"] = settings.albedo_mode
-        try:
-            report = setup_compositor(scene, technique, options=options, view_layer=context.view_layer)
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        for line in report["warnings"]:
-            self.report({"WARNING"}, line)
-        for line in report["notes"]:
-            self.report({"INFO"}, line)
-        extra = []
-        if report["passes_enabled"]:
-            extra.append("passes on: " + ", ".join(report["passes_enabled"]))
-        if report["pass_indices"]:
-            extra.append("pass indices: " + ", ".join(report["pass_indices"]))
-        self.report(
-            {"INFO"},
-            f"{technique}: {len(report['nodes'])} node(s) in {report['tree']!r} ({', '.join(report['groups'])})"
-            + (f"; {'; '.join(extra)}" if extra else ""),
-        )
-        return {"FINISHED"}
-
-
-classes = (SSS_LAB_OT_setup_compositor,)

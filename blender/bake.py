@@ -1,7 +1,7 @@
 """Bake thickness maps: inverted-normal ambient occlusion per mesh, with Cycles.
 
 ``bake_thickness(context, objects, settings)`` is the plain function (scripts call it); the
-operator ``bpy.ops.sss_lab.bake_thickness`` wraps it, modal in the UI (one object per timer
+operator ``bpy.ops.sss_lab.bake_thickness`` (``operators/thickness.py``) wraps it, modal in the UI (one object per timer
 step, Esc cancels between objects, Blender's progress API) and blocking headless.
 
 How: a temporary material — Ambient Occlusion node (Inside, Only Local per setting) into an
@@ -26,12 +26,13 @@ Targets:
 A mesh used by several objects is baked once, with the first of them (transform, modifiers and
 surroundings of that object); the others report that they share it. The settings and the
 convention are stored with the result: ``mesh["sss_lab_thickness"][attribute name]`` or
-``image["sss_lab_thickness"]`` (read them back with ``thickness_metadata``).
+``image["sss_lab_thickness"]`` (read them back with ``blender.thickness.thickness_metadata``).
 
 With ``link_materials`` the result is added to the object's materials: an Attribute or UV Map +
 Image Texture node feeding a Shader AOV output named ``aov_name`` ("Thickness", the AOV the
 render passes read), so the map can be used right away. Nodes SSS Lab adds carry names that
-start with "SSS Lab Thickness" and are updated, not duplicated, by the next bake.
+start with "SSS Lab Thickness" and are updated, not duplicated, by the next bake (the shader nodes
+of the bake live in ``blender/bake_nodes.py``).
 
 Undo: the operator registers an undo step (attributes, images, material nodes); the image files
 written to disk stay.
@@ -48,18 +49,14 @@ from dataclasses import asdict, dataclass, field
 import bpy
 import numpy as np
 
-from ..addon import compat
 from ..core.thickness import IMAGE_FORMATS, BakeSettings, auto_distance_su, split_samples
+from . import compat
+from .bake_nodes import _add_map_nodes, _bake_material, _result_image, _use_material
+from .describe import world_corners
 from .state import SceneState
+from .thickness import META_KEY, thickness_metadata
 
-#: Custom property holding the bake settings, on the mesh (per attribute) or on the image.
-META_KEY = "sss_lab_thickness"
-#: Names of the nodes SSS Lab adds to materials.
-NODE_NAME = "SSS Lab Thickness"
-NODE_UV = "SSS Lab Thickness UV"
-NODE_AOV = "SSS Lab Thickness AOV"
 _TMP_ATTRIBUTE = "SSSLab_thickness_bake"
-_TMP_MATERIAL = "SSS Lab thickness bake (temporary)"
 
 STATUSES = ("baked", "shared", "skipped", "failed", "cancelled")
 
@@ -105,18 +102,6 @@ class _Item:
     sharers: list = field(default_factory=list)  # (object, warning or "")
 
 
-def thickness_metadata(idblock, attribute: str | None = None) -> dict | None:
-    """The settings stored with a baked map: ``image`` or (``mesh``, attribute name); None if
-    SSS Lab did not bake it."""
-    meta = idblock.get(META_KEY)
-    if meta is None:
-        return None
-    meta = meta.to_dict() if hasattr(meta, "to_dict") else dict(meta)
-    if attribute is not None:
-        meta = meta.get(attribute)
-    return dict(meta) if meta is not None else None
-
-
 def settings_from_scene(scene) -> BakeSettings:
     """The bake settings of the SSS Lab panel (``scene.sss_lab.bake``), or the defaults when
     the add-on's properties are not registered."""
@@ -135,12 +120,6 @@ def _context_parts(context):
     if context.scene is None or context.view_layer is None:
         raise BakeError("no active scene and view layer to bake in")
     return context, context.scene, context.view_layer
-
-
-def _world_corners(obj_eval) -> np.ndarray:
-    corners = np.array([tuple(c) for c in obj_eval.bound_box], dtype=np.float64)
-    m = np.array(obj_eval.matrix_world, dtype=np.float64)
-    return corners @ m[:3, :3].T + m[:3, 3]
 
 
 def _world_area(obj_eval) -> float:
@@ -296,7 +275,7 @@ class ThicknessBake:
             if s.distance_su > 0:
                 distance, auto = float(s.distance_su), False
             else:
-                distance, auto = auto_distance_su(_world_corners(obj_eval)), True
+                distance, auto = auto_distance_su(world_corners(obj_eval)), True
             by_mesh[key] = _Item(obj, mesh, distance, auto, len(mesh_eval.vertices), uv_map)
             self._queue.append(by_mesh[key])
         if s.target == "image" and self._queue:
@@ -638,114 +617,6 @@ def _stored_path(folder: str, filename: str, absolute: str) -> str:
     return folder.rstrip("/\\") + "/" + filename if folder.startswith("//") else absolute
 
 
-def _bake_material(s: BakeSettings, node_samples: int):
-    mat = bpy.data.materials.new(_TMP_MATERIAL)
-    compat.ensure_node_tree(mat)
-    tree = mat.node_tree
-    tree.nodes.clear()
-    ao = tree.nodes.new("ShaderNodeAmbientOcclusion")
-    ao.name = "AO"
-    ao.inside = True
-    ao.only_local = s.only_local
-    ao.samples = node_samples
-    emit = tree.nodes.new("ShaderNodeEmission")
-    emit.inputs["Strength"].default_value = 1.0
-    out = tree.nodes.new("ShaderNodeOutputMaterial")
-    value = ao.outputs["AO"]
-    if s.convention == "translucency":
-        invert = tree.nodes.new("ShaderNodeMath")
-        invert.operation = "SUBTRACT"
-        invert.inputs[0].default_value = 1.0
-        tree.links.new(value, invert.inputs[1])
-        value = invert.outputs[0]
-    tree.links.new(value, emit.inputs["Color"])
-    tree.links.new(emit.outputs["Emission"], out.inputs["Surface"])
-    image_node = tree.nodes.new("ShaderNodeTexImage")
-    image_node.name = "Image"
-    return mat
-
-
-def _use_material(st: SceneState, obj, material) -> None:
-    """Give every face of ``obj`` the bake material, for the duration of ``st``."""
-    if len(obj.material_slots) == 0:
-        obj.data.materials.append(material)
-        st.on_restore(lambda: compat.remove_last_material_slot(obj))
-        return
-    for slot in obj.material_slots:
-        st.set(slot, "material", material)
-
-
-def _result_image(mesh, s: BakeSettings):
-    """(image, created): the image the previous bake of this mesh made, emptied and resized, or
-    a new float image (linear, Non-Color)."""
-    name = f"{mesh.name}_thickness"
-    image = bpy.data.images.get(name)
-    created = None
-    if image is not None and image.library is None and thickness_metadata(image) is not None:
-        image.source = "GENERATED"
-        image.generated_type = "BLANK"
-        image.use_generated_float = True
-        image.generated_width = image.generated_height = s.resolution_px
-        image.generated_color = (0.0, 0.0, 0.0, 1.0)
-    else:
-        image = created = bpy.data.images.new(name, s.resolution_px, s.resolution_px, alpha=False, float_buffer=True)
-    image.colorspace_settings.name = "Non-Color"
-    return image, created
-
-
-def _node(tree, name: str, bl_idname: str, location):
-    node = tree.nodes.get(name)
-    if node is not None and node.bl_idname != bl_idname:
-        tree.nodes.remove(node)
-        node = None
-    if node is None:
-        node = tree.nodes.new(bl_idname)
-        node.name = name
-        node.location = location
-    node.label = name
-    return node
-
-
-def _add_map_nodes(mat, s: BakeSettings, image, uv_map: str) -> str:
-    """Add (or update) the nodes that read the map and feed the thickness AOV; returns a
-    warning or ''."""
-    compat.ensure_node_tree(mat)
-    tree = mat.node_tree
-    output = tree.get_output_node("CYCLES") or tree.get_output_node("ALL")
-    x, y = (output.location.x, output.location.y - 320.0) if output is not None else (0.0, -320.0)
-    if s.target == "attribute":
-        old_uv = tree.nodes.get(NODE_UV)
-        if old_uv is not None:
-            tree.nodes.remove(old_uv)
-        src = _node(tree, NODE_NAME, "ShaderNodeAttribute", (x - 400, y))
-        src.attribute_type = "GEOMETRY"
-        src.attribute_name = s.attribute_name
-        socket = src.outputs["Fac"]
-    else:
-        uv = _node(tree, NODE_UV, "ShaderNodeUVMap", (x - 640, y))
-        uv.uv_map = uv_map
-        src = _node(tree, NODE_NAME, "ShaderNodeTexImage", (x - 400, y))
-        src.image = image
-        src.interpolation = "Linear"
-        tree.links.new(uv.outputs["UV"], src.inputs["Vector"])
-        socket = src.outputs["Color"]
-    src.label = f"{NODE_NAME} ({s.convention})"
-    foreign = [
-        n
-        for n in tree.nodes
-        if n.bl_idname == "ShaderNodeOutputAOV" and n.name != NODE_AOV and n.aov_name == s.aov_name
-    ]
-    if foreign:
-        old = tree.nodes.get(NODE_AOV)
-        if old is not None:
-            tree.nodes.remove(old)
-        return f"material {mat.name!r} already writes the AOV {s.aov_name!r}: the map was added but not connected"
-    aov = _node(tree, NODE_AOV, "ShaderNodeOutputAOV", (x - 160, y))
-    aov.aov_name = s.aov_name
-    tree.links.new(socket, aov.inputs["Value"])
-    return ""
-
-
 def bake_thickness(
     context=None,
     objects: Iterable | None = None,
@@ -781,118 +652,3 @@ def bake_thickness(
     finally:
         job.finish()
     return job.results
-
-
-class SSSLabObjectName(bpy.types.PropertyGroup):
-    """One object name (``name``) for the operator's ``objects`` list."""
-
-
-class SSS_LAB_OT_bake_thickness(bpy.types.Operator):
-    """Bake a thickness map (inverted-normal ambient occlusion) for the selected meshes.
-    Undo removes the baked attributes, images and material nodes, not image files on disk"""
-
-    bl_idname = "sss_lab.bake_thickness"
-    bl_label = "Bake Thickness"
-    bl_options = {"REGISTER", "UNDO"}
-
-    objects: bpy.props.CollectionProperty(
-        type=SSSLabObjectName,
-        name="Objects",
-        description="Objects to bake, by name (empty: the selected objects)",
-        options={"SKIP_SAVE", "HIDDEN"},
-    )
-
-    _job = None
-    _timer = None
-
-    @classmethod
-    def poll(cls, context):
-        if context.mode != "OBJECT":
-            cls.poll_message_set("Switch to Object Mode to bake thickness")
-            return False
-        return context.scene is not None
-
-    def _new_job(self, context):
-        names = [item.name for item in self.objects] or None
-        return ThicknessBake(context, names, settings_from_scene(context.scene))
-
-    def execute(self, context):
-        names = [item.name for item in self.objects] or None
-        try:
-            results = bake_thickness(context, names, settings_from_scene(context.scene))
-        except ValueError as exc:  # BakeError, or a panel value out of range
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        return self._report(results)
-
-    def invoke(self, context, event):
-        if bpy.app.background or context.window is None:
-            return self.execute(context)
-        try:
-            self._job = self._new_job(context)
-            self._job.start()
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        wm = context.window_manager
-        wm.progress_begin(0, max(self._job.total, 1))
-        self._timer = wm.event_timer_add(0.01, window=context.window)
-        wm.modal_handler_add(self)
-        self._status(context)
-        return {"RUNNING_MODAL"}
-
-    def _status(self, context, text: str | None = None):
-        if context.workspace is None:
-            return
-        if text is None and self._job is not None:
-            text = f"Baking thickness {self._job.done + 1}/{self._job.total} (Esc: cancel after this object)"
-        context.workspace.status_text_set(text)
-
-    def modal(self, context, event):
-        if event.type == "ESC":
-            self._job.cancel()
-            return self._end(context, cancelled=True)
-        if event.type == "TIMER":
-            try:
-                more = self._job.step()
-            except BaseException:
-                self._end(context)
-                raise
-            context.window_manager.progress_update(self._job.done)
-            if not more:
-                return self._end(context)
-            self._status(context)
-        # Other input is held back: the batch changes the selection between steps.
-        return {"RUNNING_MODAL"}
-
-    def cancel(self, context):  # Blender ends the modal operator (file load, window closed)
-        if self._job is not None:
-            self._job.cancel()
-            self._end(context, cancelled=True)
-
-    def _end(self, context, cancelled: bool = False):
-        wm = context.window_manager
-        try:
-            self._job.finish()
-        finally:
-            if self._timer is not None:
-                wm.event_timer_remove(self._timer)
-                self._timer = None
-            wm.progress_end()
-            if context.workspace is not None:
-                context.workspace.status_text_set(None)
-        results = self._job.results
-        self._job = None
-        if cancelled:
-            self.report({"WARNING"}, "Thickness bake cancelled")
-        return self._report(results)
-
-    def _report(self, results: list[BakeResult]):
-        for r in results:
-            level = {"failed": "ERROR", "skipped": "WARNING", "cancelled": "WARNING"}.get(r.status, "INFO")
-            self.report({level}, str(r))
-        baked = [r for r in results if r.status in ("baked", "shared")]
-        return {"FINISHED"} if baked else {"CANCELLED"}
-
-
-classes = (SSSLabObjectName, SSS_LAB_OT_bake_thickness)

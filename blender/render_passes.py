@@ -1,7 +1,8 @@
 """Render the passes the techniques need: one multilayer EXR per frame plus its scene description.
 
 ``render_passes(scene, out_dir, techniques=...)`` is the plain function (scripts and the command
-line call it); the operator ``bpy.ops.sss_lab.render_passes`` wraps it for the panel.
+line call it); the operator ``bpy.ops.sss_lab.render_passes`` (``operators/render.py``) wraps it
+for the panel.
 
 What it does, per call, through ``SceneState`` (everything is put back afterwards, also when a
 render or a save fails):
@@ -10,17 +11,17 @@ render or a save fails):
   the given seed, no denoising (Combined must hold the same noise as the diffuse passes the
   techniques subtract from it), no time limit, optionally a WxH resolution at 100 %.
 - Only the chosen view layer renders, with exactly the passes of
-  ``core.apply.required_passes`` for the techniques switched on and every other pass, shader
+  ``core.plan.required_passes`` for the techniques switched on and every other pass, shader
   AOV and light group switched off (so a file holds what the techniques read, nothing else).
 - Every Principled BSDF of the scene's materials renders as plain diffuse: Subsurface Weight 0
   (its links cut), the way a real-time engine sees the material (docs/references.md §7: the
   subsurface light would otherwise be inside the Diffuse passes).
-- Material Pass Index = the index ``describe.sss_materials`` gives each subsurface material
+- Material Pass Index = the index ``blender.describe.sss_materials`` gives each subsurface material
   (1, 2, ... in name order), 0 for every other material, so the Material Index pass matches
   the scene description written beside the EXR. For Burley, mesh objects whose Pass Index is 0
   get a free one, so that every object has its own Object Index.
 - STA reads the thickness AOV (``SceneDescription.thickness_aov``, the panel's bake AOV name,
-  "Thickness" by default) that ``operators/bake.py`` wires into the materials. When STA is asked
+  "Thickness" by default) that ``blender/bake.py`` wires into the materials. When STA is asked
   for and no subsurface material has it, ``render_passes`` raises ValueError before rendering
   anything: bake thickness first, or leave STA out. (It does not skip STA silently: a
   render-farm job asked for STA passes should fail loudly rather than deliver files STA cannot
@@ -40,12 +41,14 @@ from collections.abc import Callable, Iterable
 import bpy
 import numpy as np
 
-from ..addon import compat
-from ..core.apply import frame_path, required_passes, sidecar_path
+from ..core.plan import required_passes
+from ..core.sequence import frame_path, sidecar_path
 from ..core.techniques import TECHNIQUES, check_technique
 from ..core.thickness import CONVENTIONS
-from .describe import describe_scene, scene_materials, sss_materials
+from . import compat
+from .describe import describe_scene, sss_materials, walk_trees
 from .state import SceneState
+from .thickness import thickness_aov_name, thickness_setup
 
 #: File name of the passes of one frame; ``####`` is the frame number.
 FILE_PATTERN = "passes_####.exr"
@@ -75,26 +78,6 @@ class NoSubsurfaceError(ValueError):
     """The scene has no material with subsurface scattering: there is nothing to render."""
 
 
-def parse_resolution(text) -> tuple[int, int]:
-    """``"640x480"`` or ``(640, 480)`` -> (640, 480); ValueError naming the bad value."""
-    if isinstance(text, str):
-        parts = text.lower().replace(" ", "").split("x")
-    else:
-        try:
-            parts = list(text)
-        except TypeError:
-            parts = [text]
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        w, h = (int(p) for p in parts)
-    except (TypeError, ValueError):
-        raise ValueError(f"resolution: expected WIDTHxHEIGHT like 640x480, got {text!r}") from None
-    if w < 1 or h < 1 or w > 65536 or h > 65536:
-        raise ValueError(f"resolution: expected 1..65536 pixels per side, got {text!r}")
-    return w, h
-
-
 def _check_techniques(techniques) -> list[str]:
     if isinstance(techniques, str):
         techniques = [techniques]
@@ -115,84 +98,6 @@ def needed_passes(techniques: Iterable[str], thickness_aov: str = "Thickness") -
             if name not in names:
                 names.append(name)
     return names
-
-
-def thickness_aov_name(scene) -> str:
-    """The thickness AOV: the panel's bake setting, or "Thickness" without the add-on."""
-    bake = getattr(getattr(scene, "sss_lab", None), "bake", None)
-    return (getattr(bake, "aov_name", "") or "Thickness").strip() or "Thickness"
-
-
-def _walk_trees(tree, seen: set):
-    """``tree`` and the node groups inside it, each once."""
-    if tree is None or tree.as_pointer() in seen:
-        return
-    seen.add(tree.as_pointer())
-    yield tree
-    for node in tree.nodes:
-        if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:
-            yield from _walk_trees(node.node_tree, seen)
-
-
-def _thickness_source(material, aov_name: str):
-    """The node that feeds ``material``'s thickness AOV, or None when nothing does."""
-    if material.node_tree is None:
-        return None
-    for node in material.node_tree.nodes:
-        if node.bl_idname == "ShaderNodeOutputAOV" and node.aov_name == aov_name and not node.mute:
-            for socket in (node.inputs.get("Value"), node.inputs.get("Color")):
-                if socket is not None and socket.is_linked:
-                    return socket.links[0].from_node
-    return None
-
-
-def _source_convention(scene, material, source) -> str | None:
-    """The convention stored with the baked map ``source`` reads, if SSS Lab baked it."""
-    from .bake import thickness_metadata
-
-    if source.bl_idname == "ShaderNodeTexImage" and source.image is not None:
-        meta = thickness_metadata(source.image)
-        return meta.get("convention") if meta else None
-    if source.bl_idname == "ShaderNodeAttribute":
-        for obj in scene.objects:
-            if obj.type == "MESH" and material.name in {s.material.name for s in obj.material_slots if s.material}:
-                meta = thickness_metadata(obj.data, source.attribute_name)
-                if meta:
-                    return meta.get("convention")
-    return None
-
-
-def thickness_setup(scene, materials: list, aov_name: str) -> tuple[str, list[str]]:
-    """(convention, names of subsurface materials without a thickness map) for STA.
-
-    ValueError when no subsurface material feeds the thickness AOV, or the maps disagree on
-    their convention.
-    """
-    by_name = {m.name: m for m in scene_materials(scene)}
-    conventions: dict[str, list[str]] = {}
-    missing = []
-    for info in materials:
-        mat = by_name[info.name]
-        source = _thickness_source(mat, aov_name)
-        if source is None:
-            missing.append(mat.name)
-            continue
-        conv = _source_convention(scene, mat, source) or "translucency"
-        conventions.setdefault(conv, []).append(mat.name)
-    if len(missing) == len(materials):
-        names = ", ".join(repr(n) for n in missing)
-        raise ValueError(
-            f"STA needs a baked thickness map, but no subsurface material ({names}) feeds the shader AOV "
-            f"{aov_name!r}: bake thickness first (Render tab > SSS Lab > Thickness Bake > Bake Thickness, "
-            "or python -m sss_lab bake-thickness), or render without STA (--methods ssss,burley)"
-        )
-    if len(conventions) > 1:
-        detail = "; ".join(f"{c}: {', '.join(names)}" for c, names in conventions.items())
-        raise ValueError(
-            f"the thickness maps use different conventions ({detail}); STA reads one convention per scene: "
-            "bake them again with the same convention"
-        )
-    return next(iter(conventions)), missing
 
 
 def _rendered_materials(scene) -> list:
@@ -219,7 +124,7 @@ def zero_subsurface(st: SceneState, scene) -> tuple[list[str], list[str]]:
                 node.bl_idname == _PRINCIPLED
                 and "Subsurface Weight" in node.inputs
                 and (node.inputs["Subsurface Weight"].is_linked or node.inputs["Subsurface Weight"].default_value > 0)
-                for tree in _walk_trees(mat.node_tree, set())
+                for tree in walk_trees(mat.node_tree, set())
                 for node in tree.nodes
             ):
                 raise ValueError(
@@ -227,7 +132,7 @@ def zero_subsurface(st: SceneState, scene) -> tuple[list[str], list[str]]:
                     "for the passes; make it local (Object > Relations > Make Local)"
                 )
             continue
-        for tree in _walk_trees(mat.node_tree, seen):
+        for tree in walk_trees(mat.node_tree, seen):
             for node in tree.nodes:
                 if node.bl_idname == "ShaderNodeSubsurfaceScattering" and not node.mute:
                     other_sss.append(mat.name)
@@ -406,7 +311,7 @@ def render_passes(
     """Render the passes ``techniques`` need for each frame into ``out_dir``.
 
     Writes ``passes_####.exr`` (multilayer, float32) and ``passes_####.json`` (the scene
-    description, ``core.apply.sidecar_path``) per frame and returns the paths written, EXR then
+    description, ``core.sequence.sidecar_path``) per frame and returns the paths written, EXR then
     JSON per frame. ``frames``: frame numbers (default: the current frame). ``samples``,
     ``seed``: Cycles samples and seed (default: the scene's). ``resolution``: ``"WxH"`` or
     (W, H) rendered at 100 % (default: the scene's). ``view_layer``: name or ViewLayer
@@ -560,101 +465,21 @@ def resolve_folder(path: str) -> str:
     return os.path.abspath(bpy.path.abspath(path))
 
 
-_TECHNIQUE_FLAGS = [(name, label, desc) for name, (_, _, label, desc) in TECHNIQUES.items()]
-
-
-class SSS_LAB_OT_render_passes(bpy.types.Operator):
-    """Render the passes the chosen techniques need (SSS materials as plain diffuse) into a
-    multilayer EXR per frame, with the scene description beside it. The scene is left as it was"""
-
-    bl_idname = "sss_lab.render_passes"
-    bl_label = "Render Passes"
-    bl_options = {"REGISTER"}
-
-    directory: bpy.props.StringProperty(
-        name="Output Folder",
-        description="Folder for passes_####.exr and .json (empty: the panel's Output folder)",
-        default="",
-        subtype="DIR_PATH",
-        options={"SKIP_SAVE"},
-    )
-    techniques: bpy.props.EnumProperty(
-        name="Techniques",
-        description="Techniques whose passes to render (none: the panel's choice)",
-        items=_TECHNIQUE_FLAGS,
-        options={"ENUM_FLAG", "SKIP_SAVE"},
-        default=set(),
-    )
-    samples: bpy.props.IntProperty(
-        name="Samples",
-        description="Cycles samples (-1: the panel's; 0: the scene's)",
-        default=-1,
-        min=-1,
-        options={"SKIP_SAVE"},
-    )
-    use_frame_range: bpy.props.BoolProperty(
-        name="Frame Range",
-        description="Render every frame of the scene's frame range (else the current frame)",
-        default=False,
-        options={"SKIP_SAVE"},
-    )
-    overwrite: bpy.props.BoolProperty(
-        name="Overwrite",
-        description="Replace passes files already in the folder",
-        default=True,
-        options={"SKIP_SAVE"},
-    )
-
-    @classmethod
-    def poll(cls, context):
-        return context.scene is not None
-
-    def execute(self, context):
-        scene = context.scene
-        settings = getattr(scene, "sss_lab", None)
-        techniques = sorted(self.techniques, key=list(TECHNIQUES).index) or (
-            settings.render_techniques() if settings is not None else list(TECHNIQUES)
-        )
-        samples = self.samples if self.samples >= 0 else (settings.render_samples if settings is not None else 0)
-        frames = list(range(scene.frame_start, scene.frame_end + 1)) if self.use_frame_range else None
-        wm = context.window_manager
-        notes = []
-
-        def log(line: str):
-            print(f"render-passes: {line}", flush=True)
-            if not line.startswith("[") and not line.startswith("frame "):
-                notes.append(line)
-
+def parse_resolution(text) -> tuple[int, int]:
+    """``"640x480"`` or ``(640, 480)`` -> (640, 480); ValueError naming the bad value."""
+    if isinstance(text, str):
+        parts = text.lower().replace(" ", "").split("x")
+    else:
         try:
-            folder = resolve_folder(self.directory or (settings.output_dir if settings is not None else ""))
-            wm.progress_begin(0, len(frames) if frames else 1)
-            try:
-                paths = render_passes(
-                    scene,
-                    folder,
-                    techniques=techniques,
-                    frames=frames,
-                    samples=samples or None,
-                    overwrite=self.overwrite,
-                    log=log,
-                    progress=lambda done, _total: wm.progress_update(done),
-                )
-            finally:
-                wm.progress_end()
-        except NoSubsurfaceError as exc:  # nothing to do: said, not an error
-            self.report({"WARNING"}, str(exc))
-            return {"CANCELLED"}
-        except (ValueError, FileExistsError, RuntimeError) as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        for line in notes:
-            warn = "thickness 0" in line or "does not model" in line
-            self.report({"WARNING"} if warn else {"INFO"}, line)
-        exrs = [p for p in paths if p.endswith(".exr")]
-        if settings is not None and exrs:
-            settings.passes_file = exrs[-1]
-        self.report({"INFO"}, f"Rendered the {', '.join(techniques)} passes of {len(exrs)} frame(s) into {folder}")
-        return {"FINISHED"}
-
-
-classes = (SSS_LAB_OT_render_passes,)
+            parts = list(text)
+        except TypeError:
+            parts = [text]
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        w, h = (int(p) for p in parts)
+    except (TypeError, ValueError):
+        raise ValueError(f"resolution: expected WIDTHxHEIGHT like 640x480, got {text!r}") from None
+    if w < 1 or h < 1 or w > 65536 or h > 65536:
+        raise ValueError(f"resolution: expected 1..65536 pixels per side, got {text!r}")
+    return w, h

@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..addon import compat
+import numpy as np
+
 from ..core.scene import Camera, Light, MaterialSSS, SceneDescription
+from . import compat
 
 _SUBSURFACE_INPUTS = {
     "subsurface_weight": "Subsurface Weight",
@@ -82,7 +84,7 @@ def bake_distance(scene, material) -> float:
     """The largest thickness-bake distance (scene units) among the scene's baked maps of
     ``material``: the metadata of its objects' meshes (attribute target) and of the images in its
     node tree (image target); 0 when none was baked by SSS Lab."""
-    from .bake import thickness_metadata
+    from .thickness import thickness_metadata  # thickness reads scene_materials from here
 
     found = []
     for obj in scene.objects:
@@ -180,3 +182,21 @@ def describe_scene(scene, materials: list[MaterialSSS] | None = None, **extra) -
         meta=meta,
         **extra,
     )
+
+
+def world_corners(obj_eval) -> np.ndarray:
+    """The eight corners of the bounding box of ``obj_eval`` in world space, (8, 3) float64."""
+    corners = np.array([tuple(c) for c in obj_eval.bound_box], dtype=np.float64)
+    m = np.array(obj_eval.matrix_world, dtype=np.float64)
+    return corners @ m[:3, :3].T + m[:3, 3]
+
+
+def walk_trees(tree, seen: set):
+    """``tree`` and the node groups inside it, each once."""
+    if tree is None or tree.as_pointer() in seen:
+        return
+    seen.add(tree.as_pointer())
+    yield tree
+    for node in tree.nodes:
+        if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:
+            yield from walk_trees(node.node_tree, seen)

@@ -23,8 +23,8 @@ from __future__ import annotations
 import bpy
 from bpy.app.handlers import persistent
 
-from ..addon import compat
 from ..nodes.setup import NODE_TAG
+from . import compat
 from .state import SceneState
 
 #: Scenes whose materials are changed for the render that is running (key: the scene's pointer).

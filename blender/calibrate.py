@@ -7,7 +7,8 @@ on each material as custom properties ``sss_lab_fit_<technique>_<parameter>`` (p
 ``sss_lab_fit_<technique>_info``, a JSON string with the samples and the held-out errors). The
 scene description reads them back (``describe.material_sss``), so Render Passes, Apply, Compare
 and the command line use them with no extra option. The properties are shown and editable in the
-panel and cleared by Clear Fit.
+panel and cleared by Clear Fit (``bpy.ops.sss_lab.fit_to_cycles`` and ``clear_fit``:
+``operators/fit.py``).
 
 The scene is left as it was apart from the new properties (``SceneState``); a material that
 cannot be fitted (too few pixels, no bake distance, a fit that does not hold) keeps its old
@@ -24,10 +25,10 @@ import time
 import bpy
 
 from ..core import exr
-from ..core.apply import load_scene
 from ..core.errors import InputError
 from ..core.fit import fit_scene
 from ..core.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
+from ..core.sequence import load_scene
 from .describe import sss_materials
 from .state import SceneState
 
@@ -37,7 +38,7 @@ PREFIX = "sss_lab_fit_"
 DEFAULT_TECHNIQUES = ("burley", "combined")
 
 
-def _key(technique: str, name: str) -> str:
+def fit_key(technique: str, name: str) -> str:
     return f"{PREFIX}{technique}_{name}"
 
 
@@ -50,12 +51,12 @@ def read_fit(material) -> dict:
     for technique, names in FIT_PARAMETERS.items():
         params = {}
         for name in names:
-            key = _key(technique, name)
+            key = fit_key(technique, name)
             if key in keys:
                 value = material[key]
                 params[name] = tuple(value) if hasattr(value, "__len__") else float(value)
         if params:
-            info = material.get(_key(technique, INFO))
+            info = material.get(fit_key(technique, INFO))
             try:
                 params[INFO] = json.loads(info) if isinstance(info, str) else {}
             except json.JSONDecodeError:
@@ -70,9 +71,9 @@ def write_fit(material, technique: str, params: dict) -> None:
     clear_fit(material, technique)
     for name, value in params.items():
         if name == INFO:
-            material[_key(technique, INFO)] = json.dumps(value, sort_keys=True)
+            material[fit_key(technique, INFO)] = json.dumps(value, sort_keys=True)
             continue
-        key = _key(technique, name)
+        key = fit_key(technique, name)
         material[key] = list(value) if isinstance(value, (tuple, list)) else float(value)
         ui = material.id_properties_ui(key)
         _, lo, hi = PARAMETERS[name]
@@ -81,7 +82,7 @@ def write_fit(material, technique: str, params: dict) -> None:
 
 def clear_fit(material, technique: str | None = None) -> list[str]:
     """Remove the fitted properties of ``technique`` (all techniques when None); returns the keys removed."""
-    prefix = PREFIX if technique is None else _key(technique, "")
+    prefix = PREFIX if technique is None else fit_key(technique, "")
     removed = [k for k in material.keys() if k.startswith(prefix)]
     for k in removed:
         del material[k]
@@ -105,8 +106,9 @@ def calibrate(
     "passes", "fit"}}. Raises InputError (nothing changed) for bad arguments, a scene without a
     camera or without subsurface materials.
     """
-    from .compare import _render_combined
-    from .render_passes import parse_resolution, render_passes, thickness_aov_name, thickness_setup
+    from .reference_cache import _render_combined
+    from .render_passes import parse_resolution, render_passes
+    from .thickness import thickness_aov_name, thickness_setup
 
     techniques = tuple(techniques)
     for t in techniques:
@@ -170,78 +172,3 @@ def calibrate(
             continue
         write_fit(material, r.technique, r.params)
     return {"results": [r.to_dict() for r in results], "problems": problems, "seconds": seconds}
-
-
-class SSS_LAB_OT_fit_to_cycles(bpy.types.Operator):
-    """Render a short Cycles random-walk image of this view and fit each subsurface material's
-    parameters (energy per channel, scale of d, light from behind) to it"""
-
-    bl_idname = "sss_lab.fit_to_cycles"
-    bl_label = "Fit to Cycles"
-    bl_options = {"REGISTER", "UNDO"}
-
-    samples: bpy.props.IntProperty(
-        name="Samples", min=1, default=32, description="Cycles random-walk samples of the image the fit is made on"
-    )
-
-    def invoke(self, context, event):
-        return context.window_manager.invoke_props_dialog(self)
-
-    def execute(self, context):
-        try:
-            data = calibrate(context.scene, samples=self.samples, log=print)
-        except (InputError, ValueError) as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        for line in data["problems"]:
-            self.report({"WARNING"}, line)
-        for r in data["results"]:
-            errors = f"{r['heldout_before']:.3g} -> {r['heldout_after']:.3g}"
-            self.report({"INFO"}, f"{r['material']} {r['technique']}: held-out error {errors}")
-        if not data["results"]:
-            self.report({"ERROR"}, "no material could be fitted (see the warnings); nothing changed")
-            return {"CANCELLED"}
-        return {"FINISHED"}
-
-
-class SSS_LAB_OT_clear_fit(bpy.types.Operator):
-    """Remove the values fitted to Cycles from the active material (the unfitted mapping is used again)"""
-
-    bl_idname = "sss_lab.clear_fit"
-    bl_label = "Clear Fit"
-    bl_options = {"REGISTER", "UNDO"}
-
-    technique: bpy.props.StringProperty(name="Technique", default="", description="Only this technique's fit")
-
-    @classmethod
-    def poll(cls, context):
-        mat = getattr(context, "material", None) or getattr(context.object, "active_material", None)
-        return mat is not None and any(k.startswith(PREFIX) for k in mat.keys())
-
-    def execute(self, context):
-        mat = getattr(context, "material", None) or context.object.active_material
-        removed = clear_fit(mat, self.technique or None)
-        self.report({"INFO"}, f"{mat.name}: {len(removed)} fitted value(s) removed")
-        return {"FINISHED"}
-
-
-def draw_fit(layout, material) -> None:
-    """Rows of the fitted values of ``material`` (editable), with Clear Fit."""
-    keys = [k for k in material.keys() if k.startswith(PREFIX)]
-    if not keys:
-        layout.label(text=f"{material.name}: not fitted (Fit to Cycles)")
-        return
-    for technique, names in FIT_PARAMETERS.items():
-        shown = [n for n in names if _key(technique, n) in keys]
-        if not shown:
-            continue
-        box = layout.box()
-        row = box.row()
-        row.label(text=f"{material.name}: {technique} fit")
-        op = row.operator("sss_lab.clear_fit", text="", icon="X")
-        op.technique = technique
-        for name in shown:
-            box.prop(material, f'["{_key(technique, name)}"]', text=name.replace("_", " ").title())
-
-
-classes = (SSS_LAB_OT_fit_to_cycles, SSS_LAB_OT_clear_fit)

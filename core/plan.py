@@ -1,0 +1,365 @@
+"""Plan a technique on rendered passes, without computing anything, and explain the plan.
+
+``plan`` decides which materials of the scene description a technique computes, with which
+parameters (``core.mapping.technique_params`` and the caller's options), how wide its kernel is
+in scene units and in pixels, and why every other material is left as it is;
+``Plan.explain()`` says so in words. ``core.apply.apply`` carries the plan out.
+"""
+
+from __future__ import annotations
+
+import inspect
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _arrays
+from .exr import Passes
+from .extent import kernel_warning, mask_extent_px
+from .profiles import TRUNCATION
+from .scene import MaterialSSS, SceneDescription
+from .techniques import TECHNIQUES, check_technique, get_technique
+
+#: Passes each technique reads, by their Blender 5.x names; ``THICKNESS`` stands for the scene's
+#: thickness AOV (``SceneDescription.thickness_aov``, "Thickness" by default). The render
+#: operator enables exactly these (see ``required_passes``). Combined is what the result is
+#: composited onto; the Object Index lets Burley reject samples from other objects (EEVEE Next
+#: does the same, docs/references.md §1).
+THICKNESS = "Thickness"
+
+
+REQUIRED_PASSES: dict[str, tuple[str, ...]] = {
+    "sta": ("Combined", "Diffuse Color", "Normal", "Position", "Material Index", THICKNESS),
+    "ssss": ("Combined", "Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Depth", "Material Index"),
+    "burley": (
+        "Combined",
+        "Diffuse Direct",
+        "Diffuse Indirect",
+        "Diffuse Color",
+        "Depth",
+        "Material Index",
+        "Object Index",
+    ),
+    "combined": (
+        "Combined",
+        "Diffuse Direct",
+        "Diffuse Indirect",
+        "Diffuse Color",
+        "Depth",
+        "Material Index",
+        "Object Index",
+        "Normal",
+        "Position",
+        THICKNESS,
+    ),
+}
+
+
+def required_passes(technique: str, thickness_aov: str = THICKNESS) -> tuple[str, ...]:
+    """The passes ``technique`` reads, with the thickness AOV under its scene name."""
+    names = REQUIRED_PASSES[check_technique(technique)]
+    return tuple(thickness_aov if n == THICKNESS else n for n in names)
+
+
+def _why(technique: str) -> str:
+    return f"the {TECHNIQUES[technique][2]} technique"
+
+
+@dataclass
+class MaterialPlan:
+    """What happens to one material of the scene description."""
+
+    material: MaterialSSS
+    #: Pixels whose Material Index is this material's pass index.
+    pixels: int = 0
+    #: Median and nearest planar depth over those pixels (scene units), None without a Depth pass.
+    median_depth: float | None = None
+    nearest_depth: float | None = None
+    #: Technique parameters for this material (from core.mapping, then the caller's options).
+    params: dict = field(default_factory=dict)
+    #: Kernel radius in scene units per channel (R, G, B), and in pixels at the median depth.
+    kernel_su: tuple[float, ...] | None = None
+    kernel_px: tuple[float, ...] | None = None
+    samples: int | None = None
+    #: Channels (0 R, 1 G, 2 B) whose kernel is at most one pixel even at the nearest depth:
+    #: composited unchanged, like a material whose every channel is that small.
+    unchanged_channels: tuple[int, ...] = ()
+    #: Why the material is left as it is, or None when the technique is applied to it.
+    skip: str | None = None
+    #: What the technique does differently on this material, and why (printed by ``explain``).
+    notes: list[str] = field(default_factory=list)
+    #: Said when the kernel reaches beyond the material on screen or the image (core.extent).
+    warning: str | None = None
+
+    @property
+    def applied(self) -> bool:
+        return self.skip is None
+
+
+@dataclass
+class Plan:
+    """Which materials a technique computes on a set of passes, with what, and why."""
+
+    technique: str
+    shape: tuple[int, int]
+    albedo_mode: str
+    materials: list[MaterialPlan]
+    #: Material Index values on screen that the scene description does not know (index -> pixels).
+    unknown_indices: dict[int, int] = field(default_factory=dict)
+    #: Pixels of applied materials with a NaN or Inf input, left as they are.
+    nonfinite_pixels: int = 0
+    options: dict = field(default_factory=dict)
+
+    @property
+    def applied(self) -> list[MaterialPlan]:
+        return [m for m in self.materials if m.applied]
+
+    @property
+    def scattering(self) -> list[MaterialPlan]:
+        """Materials of the scene description that scatter at all (Subsurface Weight > 0 ...)."""
+        return [m for m in self.materials if m.material.scatters]
+
+    def explain(self) -> str:
+        label = TECHNIQUES[self.technique][2]
+        h, w = self.shape
+        lines = [f"{label} ({self.technique}) on {w}x{h} pixels, albedo applied {self.albedo_mode}:"]
+        if not self.scattering:
+            lines.append("  no material in the scene description scatters light (Subsurface Weight > 0): nothing to do")
+        for mp in self.materials:
+            m = mp.material
+            head = f"  material {m.name or '?'!r} (pass index {m.index}, {m.method})"
+            if mp.skip:
+                lines.append(f"{head}: left as it is: {mp.skip}")
+                continue
+            lines.append(f"{head}: {label}, {mp.pixels} pixels")
+            if mp.median_depth is not None:
+                lines.append(f"    median depth {mp.median_depth:.4g} (nearest {mp.nearest_depth:.4g}) scene units")
+            if mp.kernel_su is not None:
+                su = " / ".join(f"{v:.4g}" for v in mp.kernel_su)
+                lines.append(f"    kernel radius R/G/B {su} scene units")
+            if mp.kernel_px is not None:
+                px = " / ".join(f"{v:.3g}" for v in mp.kernel_px)
+                lines.append(f"    kernel radius R/G/B {px} pixels at the median depth")
+            if mp.unchanged_channels:
+                small = ", ".join("RGB"[c] for c in mp.unchanged_channels)
+                lines.append(f"    channel {small}: kernel at most one pixel even at the nearest depth: left as it is")
+            if mp.samples is not None:
+                lines.append(f"    samples per pixel: {mp.samples}")
+            fit = m.fit.get(self.technique)
+            if fit:
+                lines.append("    " + _fit_line(fit))
+            lines += [f"    {note}" for note in mp.notes]
+            if mp.warning:
+                lines.append(f"    warning: {mp.warning}")
+            shown = {k: v for k, v in mp.params.items() if _printable(v)}
+            if shown:
+                lines.append("    parameters: " + ", ".join(f"{k}={_fmt(v)}" for k, v in sorted(shown.items())))
+        for index, count in sorted(self.unknown_indices.items()):
+            lines.append(
+                f"  pass index {index}: {count} pixels of a material the scene description does not list: left as is"
+            )
+        if self.nonfinite_pixels:
+            lines.append(f"  {self.nonfinite_pixels} pixels with NaN/Inf inputs: left as they are")
+        applied = self.applied
+        lines.append(
+            f"  => {len(applied)} of {len(self.materials)} materials computed"
+            + (f" ({', '.join(repr(m.material.name) for m in applied)})" if applied else "")
+        )
+        return "\n".join(lines)
+
+
+def _fit_line(fit: dict) -> str:
+    """One line on a material's fit: its values and how well it held on the held-out pixels."""
+    values = ", ".join(f"{k}={_fmt(v)}" for k, v in sorted(fit.items()) if k != "info")
+    info = fit.get("info") or {}
+    line = f"fitted to Cycles: {values}"
+    if "heldout_before" in info and "heldout_after" in info:
+        line += (
+            f" (Cycles random walk at {info.get('samples', '?')} samples; held-out error"
+            f" {info['heldout_before']:.3g} -> {info['heldout_after']:.3g})"
+        )
+    return line + "; cleared by the panel's Clear Fit"
+
+
+def _printable(value) -> bool:
+    if isinstance(value, (bool, int, float, str)):
+        return True
+    if isinstance(value, (tuple, list)) and len(value) <= 4:
+        return all(isinstance(v, (int, float)) for v in value)
+    return False
+
+
+def _fmt(value) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, (tuple, list)):
+        return "(" + ", ".join(_fmt(v) for v in value) + ")"
+    return repr(value) if isinstance(value, str) else str(value)
+
+
+def _check_inputs(passes: Passes, scene: SceneDescription, technique: str, albedo_mode: str) -> None:
+    check_technique(technique)
+    _arrays.check_albedo_mode(albedo_mode)
+    if not isinstance(scene, SceneDescription):
+        raise ValueError(f"scene: expected a SceneDescription, got {type(scene).__name__}")
+    h, w = passes.shape
+    cam = scene.camera
+    if (cam.width_px, cam.height_px) != (w, h):
+        raise ValueError(
+            f"the scene description is for {cam.width_px}x{cam.height_px} pixels but the passes are {w}x{h}:"
+            " they come from different renders"
+        )
+    for name in required_passes(technique, scene.thickness_aov):
+        passes.require(name, _why(technique))
+
+
+def _index_map(passes: Passes) -> np.ndarray:
+    """Material Index as integers; -1 where the pass is not finite (never matches a material)."""
+    raw = passes["Material Index"]
+    finite = np.isfinite(raw)
+    out = np.full(raw.shape, -1, dtype=np.int64)
+    out[finite] = np.rint(raw[finite]).astype(np.int64)
+    return out
+
+
+def _mapping():
+    from . import mapping
+
+    return mapping
+
+
+def _material_params(material: MaterialSSS, technique: str, mapping_table, options: dict) -> dict:
+    params = dict(_mapping().technique_params(material, technique, mapping=mapping_table))
+    params.update(options)
+    return params
+
+
+def _accepted(func) -> tuple[set[str], bool]:
+    sig = inspect.signature(func)
+    names = {p.name for p in sig.parameters.values() if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
+    var_kw = any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values())
+    return names, var_kw
+
+
+def _kernel_su(technique: str, material: MaterialSSS, params: dict, mapping_table) -> tuple[float, ...] | None:
+    """Kernel radius in scene units per channel: how far the technique gathers light."""
+    if technique == "sta":
+        return None  # local: no kernel
+    d = params.get("d_su")
+    if d is None and technique == "burley":
+        d = _mapping().burley_d(material, mapping=mapping_table)
+    if d is not None:
+        # Burley and SSSS's pre-integrated kernel both reach 16 d of the profile.
+        d = np.broadcast_to(np.asarray(d, dtype=np.float64), (3,))
+        return tuple(float(v) * TRUNCATION for v in d)
+    for key in ("radius_su", "width_su", "kernel_radius_su"):
+        if key in params:
+            r = np.broadcast_to(np.asarray(params[key], dtype=np.float64), (3,))
+            return tuple(float(v) for v in r)
+    return tuple(float(v) for v in material.radius)
+
+
+def _samples(technique: str, params: dict, func) -> int | None:
+    if technique == "sta":
+        return None
+    for key in ("n_samples", "n_taps", "taps", "samples"):
+        if key in params and params[key] is not None:
+            return int(params[key])
+    kernel = params.get("kernel")
+    if kernel is not None and hasattr(kernel, "__len__"):
+        return len(kernel)
+    sig = inspect.signature(func)
+    for key in ("n_samples", "n_taps", "taps"):
+        p = sig.parameters.get(key)
+        if p is not None and p.default is not inspect.Parameter.empty and p.default is not None:
+            return int(p.default)
+    return None
+
+
+def plan(
+    passes: Passes,
+    scene: SceneDescription,
+    technique: str,
+    *,
+    albedo_mode: str = "post",
+    mapping=None,
+    **options,
+) -> Plan:
+    """Decide, without computing, what ``apply`` will do.
+
+    Raises ValueError for an unknown technique or albedo mode, a scene description that does
+    not match the passes' size, or an option the technique does not take; MissingPassError
+    (a KeyError) naming any missing pass and how to enable it.
+    """
+    _check_inputs(passes, scene, technique, albedo_mode)
+    func = get_technique(technique)
+    accepted, var_kw = _accepted(func)
+    unknown = sorted(k for k in options if k not in accepted)
+    if unknown and not var_kw:
+        raise ValueError(
+            f"option(s) {', '.join(unknown)} not taken by {technique}; it takes: {', '.join(sorted(accepted))}"
+        )
+    index = _index_map(passes)
+    depth = passes.get("Depth")
+    counts = dict(zip(*np.unique(index[index > 0], return_counts=True), strict=True))
+    counts = {int(k): int(v) for k, v in counts.items()}
+    known = {m.index for m in scene.materials}
+    result = []
+    for material in scene.materials:
+        mp = MaterialPlan(material=material, pixels=counts.get(material.index, 0))
+        result.append(mp)
+        if not material.scatters:
+            if material.subsurface_weight <= 0:
+                mp.skip = "Subsurface Weight is 0 (a plain material)"
+            elif material.subsurface_scale <= 0:
+                mp.skip = "Subsurface Scale is 0 (no scattering distance)"
+            else:
+                mp.skip = "Subsurface Radius is 0 in every channel (no scattering distance)"
+            continue
+        if mp.pixels == 0:
+            mp.skip = f"no pixel on screen has Material Index {material.index}"
+            continue
+        mp.params = _material_params(material, technique, mapping, options)
+        if technique == "combined" and not mp.params.get("thickness_distance_su"):
+            # The map cannot be read as a thickness without the bake's distance: diffusion only.
+            mp.params["transmission_scale"] = 0.0
+            mp.notes.append(
+                "no light from behind: the material's thickness map has no bake distance (bake it with"
+                " SSS Lab's Bake Thickness); diffusion only"
+            )
+        mp.samples = _samples(technique, mp.params, func)
+        mp.kernel_su = _kernel_su(technique, material, mp.params, mapping)
+        if depth is not None:
+            z = depth[index == material.index]
+            z = z[np.isfinite(z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)]
+            if z.size:
+                mp.median_depth = float(np.median(z))
+                mp.nearest_depth = float(z.min())
+        if mp.kernel_su is not None and mp.median_depth is not None:
+            cam = scene.camera
+            ppu_median, ppu_nearest = (
+                float(v) for v in cam.pixels_per_unit(np.array([mp.median_depth, mp.nearest_depth], np.float32))
+            )
+            mp.kernel_px = tuple(r * ppu_median for r in mp.kernel_su)
+            mp.warning = kernel_warning(max(mp.kernel_px), mask_extent_px(index == material.index), passes.shape)
+            widest_px = max(mp.kernel_su) * ppu_nearest
+            # A fitted gain or the light from behind still change a material whose kernel is tiny.
+            adds_light = technique == "combined" or "gain" in mp.params
+            if not adds_light:
+                mp.unchanged_channels = tuple(c for c, r in enumerate(mp.kernel_su) if r * ppu_nearest <= 1.0)
+            if widest_px <= 1.0 and not adds_light:
+                # EEVEE Next skips a pixel whose whole footprint is at most one pixel (docs/references.md
+                # §1); here even the material's nearest pixel is that small.
+                mp.skip = (
+                    f"its kernel is at most one pixel wide ({widest_px:.3g} px at the nearest depth"
+                    f" {mp.nearest_depth:.4g}): scattering would not change it"
+                )
+    unknown_indices = {i: c for i, c in counts.items() if i not in known}
+    return Plan(
+        technique=technique,
+        shape=passes.shape,
+        albedo_mode=albedo_mode,
+        materials=result,
+        unknown_indices=unknown_indices,
+        options=dict(options),
+    )

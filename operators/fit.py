@@ -1,0 +1,64 @@
+"""``bpy.ops.sss_lab.fit_to_cycles`` and ``clear_fit``: the fit to Cycles (``blender.calibrate``) for the panel."""
+
+from __future__ import annotations
+
+import bpy
+
+from ..blender.calibrate import PREFIX, calibrate, clear_fit
+from ..core.errors import InputError
+
+
+class SSS_LAB_OT_fit_to_cycles(bpy.types.Operator):
+    """Render a short Cycles random-walk image of this view and fit each subsurface material's
+    parameters (energy per channel, scale of d, light from behind) to it"""
+
+    bl_idname = "sss_lab.fit_to_cycles"
+    bl_label = "Fit to Cycles"
+    bl_options = {"REGISTER", "UNDO"}
+
+    samples: bpy.props.IntProperty(
+        name="Samples", min=1, default=32, description="Cycles random-walk samples of the image the fit is made on"
+    )
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self)
+
+    def execute(self, context):
+        try:
+            data = calibrate(context.scene, samples=self.samples, log=print)
+        except (InputError, ValueError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        for line in data["problems"]:
+            self.report({"WARNING"}, line)
+        for r in data["results"]:
+            errors = f"{r['heldout_before']:.3g} -> {r['heldout_after']:.3g}"
+            self.report({"INFO"}, f"{r['material']} {r['technique']}: held-out error {errors}")
+        if not data["results"]:
+            self.report({"ERROR"}, "no material could be fitted (see the warnings); nothing changed")
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+
+class SSS_LAB_OT_clear_fit(bpy.types.Operator):
+    """Remove the values fitted to Cycles from the active material (the unfitted mapping is used again)"""
+
+    bl_idname = "sss_lab.clear_fit"
+    bl_label = "Clear Fit"
+    bl_options = {"REGISTER", "UNDO"}
+
+    technique: bpy.props.StringProperty(name="Technique", default="", description="Only this technique's fit")
+
+    @classmethod
+    def poll(cls, context):
+        mat = getattr(context, "material", None) or getattr(context.object, "active_material", None)
+        return mat is not None and any(k.startswith(PREFIX) for k in mat.keys())
+
+    def execute(self, context):
+        mat = getattr(context, "material", None) or context.object.active_material
+        removed = clear_fit(mat, self.technique or None)
+        self.report({"INFO"}, f"{mat.name}: {len(removed)} fitted value(s) removed")
+        return {"FINISHED"}
+
+
+classes = (SSS_LAB_OT_fit_to_cycles, SSS_LAB_OT_clear_fit)

@@ -1,0 +1,107 @@
+"""``bpy.ops.sss_lab.render_passes``: render the passes (``blender.render_passes``) for the panel."""
+
+from __future__ import annotations
+
+import bpy
+
+from ..blender.render_passes import NoSubsurfaceError, render_passes, resolve_folder
+from ..core.techniques import TECHNIQUES
+
+_TECHNIQUE_FLAGS = [(name, label, desc) for name, (_, _, label, desc) in TECHNIQUES.items()]
+
+
+class SSS_LAB_OT_render_passes(bpy.types.Operator):
+    """Render the passes the chosen techniques need (SSS materials as plain diffuse) into a
+    multilayer EXR per frame, with the scene description beside it. The scene is left as it was"""
+
+    bl_idname = "sss_lab.render_passes"
+    bl_label = "Render Passes"
+    bl_options = {"REGISTER"}
+
+    directory: bpy.props.StringProperty(
+        name="Output Folder",
+        description="Folder for passes_####.exr and .json (empty: the panel's Output folder)",
+        default="",
+        subtype="DIR_PATH",
+        options={"SKIP_SAVE"},
+    )
+    techniques: bpy.props.EnumProperty(
+        name="Techniques",
+        description="Techniques whose passes to render (none: the panel's choice)",
+        items=_TECHNIQUE_FLAGS,
+        options={"ENUM_FLAG", "SKIP_SAVE"},
+        default=set(),
+    )
+    samples: bpy.props.IntProperty(
+        name="Samples",
+        description="Cycles samples (-1: the panel's; 0: the scene's)",
+        default=-1,
+        min=-1,
+        options={"SKIP_SAVE"},
+    )
+    use_frame_range: bpy.props.BoolProperty(
+        name="Frame Range",
+        description="Render every frame of the scene's frame range (else the current frame)",
+        default=False,
+        options={"SKIP_SAVE"},
+    )
+    overwrite: bpy.props.BoolProperty(
+        name="Overwrite",
+        description="Replace passes files already in the folder",
+        default=True,
+        options={"SKIP_SAVE"},
+    )
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def execute(self, context):
+        scene = context.scene
+        settings = getattr(scene, "sss_lab", None)
+        techniques = sorted(self.techniques, key=list(TECHNIQUES).index) or (
+            settings.render_techniques() if settings is not None else list(TECHNIQUES)
+        )
+        samples = self.samples if self.samples >= 0 else (settings.render_samples if settings is not None else 0)
+        frames = list(range(scene.frame_start, scene.frame_end + 1)) if self.use_frame_range else None
+        wm = context.window_manager
+        notes = []
+
+        def log(line: str):
+            print(f"render-passes: {line}", flush=True)
+            if not line.startswith("[") and not line.startswith("frame "):
+                notes.append(line)
+
+        try:
+            folder = resolve_folder(self.directory or (settings.output_dir if settings is not None else ""))
+            wm.progress_begin(0, len(frames) if frames else 1)
+            try:
+                paths = render_passes(
+                    scene,
+                    folder,
+                    techniques=techniques,
+                    frames=frames,
+                    samples=samples or None,
+                    overwrite=self.overwrite,
+                    log=log,
+                    progress=lambda done, _total: wm.progress_update(done),
+                )
+            finally:
+                wm.progress_end()
+        except NoSubsurfaceError as exc:  # nothing to do: said, not an error
+            self.report({"WARNING"}, str(exc))
+            return {"CANCELLED"}
+        except (ValueError, FileExistsError, RuntimeError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        for line in notes:
+            warn = "thickness 0" in line or "does not model" in line
+            self.report({"WARNING"} if warn else {"INFO"}, line)
+        exrs = [p for p in paths if p.endswith(".exr")]
+        if settings is not None and exrs:
+            settings.passes_file = exrs[-1]
+        self.report({"INFO"}, f"Rendered the {', '.join(techniques)} passes of {len(exrs)} frame(s) into {folder}")
+        return {"FINISHED"}
+
+
+classes = (SSS_LAB_OT_render_passes,)
