@@ -29,7 +29,7 @@ import bpy
 import numpy as np
 
 from ..core import apply as core_apply
-from ..core import exr, fidelity, mapping, metrics, report
+from ..core import exr, fidelity, mapping, metrics, report, sequence
 from ..core.scene import SUBSURFACE_METHODS, SceneDescription
 from ..core.techniques import TECHNIQUES, check_technique
 from .describe import sss_materials
@@ -158,7 +158,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     timings["passes"] = time.perf_counter() - start
     exr_path = next(p for p in written if p.endswith(".exr"))
     passes = exr.read_passes(exr_path)
-    desc: SceneDescription = core_apply.load_scene(exr_path)
+    desc: SceneDescription = sequence.load_scene(exr_path)
     index = np.rint(np.nan_to_num(passes["Material Index"])).astype(np.int64)
     if index.ndim == 3:
         index = index[..., 0]
