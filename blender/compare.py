@@ -29,7 +29,7 @@ import bpy
 import numpy as np
 
 from ..core import apply as core_apply
-from ..core import exr, fidelity, mapping, metrics, report, sequence
+from ..core import exr, fidelity, mapping, metrics, plan, report, sequence
 from ..core.scene import SUBSURFACE_METHODS, SceneDescription
 from ..core.techniques import TECHNIQUES, check_technique
 from .describe import sss_materials
@@ -114,7 +114,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         )
     notes: list[str] = []
     techniques = tuple(settings.techniques)
-    needs_thickness = tuple(t for t in techniques if core_apply.THICKNESS in core_apply.REQUIRED_PASSES[t])
+    needs_thickness = tuple(t for t in techniques if plan.THICKNESS in plan.REQUIRED_PASSES[t])
     if needs_thickness:
         from .thickness import thickness_aov_name, thickness_setup
 

@@ -10,7 +10,7 @@ import OpenEXR
 import pytest
 
 from sss_lab.addon import cli
-from sss_lab.core import apply as core_apply
+from sss_lab.core import sequence
 from sss_lab.core.synthetic import sphere_scene, write_scene
 
 
@@ -35,7 +35,7 @@ def _leftovers(folder):
 def test_a_damaged_input_is_one_line(passes, tmp_path, capsys):
     data = open(passes, "rb").read()
     (tmp_path / "cut.exr").write_bytes(data[:-1])
-    (tmp_path / "cut.json").write_bytes(open(core_apply.sidecar_path(passes), "rb").read())
+    (tmp_path / "cut.json").write_bytes(open(sequence.sidecar_path(passes), "rb").read())
     code, _, err = _run(capsys, "apply", tmp_path / "cut.exr", "--method", "burley")
     assert code == 1  # apply's own contract: the file failed
     lines = err.strip().splitlines()
@@ -93,7 +93,7 @@ def test_ctrl_c_exits_130_with_one_line(passes, capsys, monkeypatch):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(core_apply, "apply_file", interrupted)
+    monkeypatch.setattr(sequence, "apply_file", interrupted)
     code, _, err = _run(capsys, "apply", passes, "--method", "burley")
     assert code == cli.EXIT_INTERRUPTED == 130
     assert err.strip() == "sss_lab apply: interrupted (Ctrl-C)"
@@ -103,6 +103,6 @@ def test_a_bug_keeps_its_traceback(passes, capsys, monkeypatch):
     def bug(*args, **kwargs):
         raise ZeroDivisionError("a bug")
 
-    monkeypatch.setattr(core_apply, "parse_methods", bug)
+    monkeypatch.setattr(cli, "parse_methods", bug)
     with pytest.raises(ZeroDivisionError):
         cli.main(["apply", passes, "--method", "burley"])
