@@ -7,9 +7,9 @@ import pytest
 
 from sss_lab.addon.cli import main
 from sss_lab.addon.cli_demo import load_sample_scenes
+from sss_lab.blender import calibrate as cal
+from sss_lab.blender.describe import sss_materials
 from sss_lab.core.errors import InputError
-from sss_lab.operators import calibrate as cal
-from sss_lab.operators.describe import sss_materials
 
 
 @pytest.fixture(scope="module")
