@@ -14,6 +14,7 @@ import traceback
 
 from ..core.errors import SSSLabError, describe_os_error
 from ..core.techniques import TECHNIQUES, check_technique
+from .interrupt import EXIT_INTERRUPTED, finished_summary, interrupt_guard
 
 #: Command modules, relative to this package, in the order ``--help`` lists them.
 COMMANDS = (
@@ -51,10 +52,6 @@ def parse_methods(text: str) -> list[str]:
 
 class CommandError(SSSLabError):
     """A failure to report as one clear line (no traceback), with exit status 2."""
-
-
-#: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
-EXIT_INTERRUPTED = 130
 
 
 def require_bpy():
@@ -102,11 +99,12 @@ def main(argv: list[str] | None = None, *, prog: str = "python -m sss_lab") -> i
     args = parser.parse_args(argv)
     debug = getattr(args, "debug", False)
     try:
-        return int(args.run(args) or 0)
+        with interrupt_guard(args.command):
+            return int(args.run(args) or 0)
     except KeyboardInterrupt:
         if debug:
             traceback.print_exc()
-        print(f"sss_lab {args.command}: interrupted (Ctrl-C)", file=sys.stderr)
+        print(f"sss_lab {args.command}: interrupted (Ctrl-C){finished_summary()}", file=sys.stderr)
         return EXIT_INTERRUPTED
     except (SSSLabError, ValueError, OSError) as exc:
         if debug:

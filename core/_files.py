@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import shutil
@@ -9,6 +10,47 @@ import tempfile
 from collections.abc import Callable
 
 from .errors import OutputError, describe_os_error
+
+#: Temporary files being written now; removed on failure, and by an interrupt that has to end
+#: the process at once (``addon/interrupt.py``), so that none survives.
+_PENDING: set[str] = set()
+#: Files this process finished writing, in order: reported after an interrupt.
+FINISHED: list[str] = []
+
+
+def pending_temporaries() -> list[str]:
+    return sorted(_PENDING)
+
+
+def remove_pending_temporaries() -> None:
+    for tmp in list(_PENDING):
+        _remove(tmp)
+        _PENDING.discard(tmp)
+
+
+@contextlib.contextmanager
+def temporary_beside(path: str, suffix: str = ".tmp"):
+    """A temporary file name beside ``path`` (same file system, so a move is atomic), removed
+    when the block fails; the block moves it into place itself. For writers that need to
+    choose the name (Blender's image and render savers keep the extension: pass it in
+    ``suffix``)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    try:
+        os.makedirs(folder, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + os.path.basename(path) + ".", suffix=suffix)
+    except OSError as exc:
+        raise OutputError(exc.errno, describe_os_error(exc, path)) from None
+    os.close(fd)
+    _PENDING.add(tmp)
+    try:
+        yield tmp
+    except BaseException:
+        _remove(tmp)
+        raise
+    finally:
+        _PENDING.discard(tmp)
+    if os.path.exists(path):
+        FINISHED.append(path)
 
 
 def _move_no_clobber(tmp: str, path: str) -> None:
@@ -39,18 +81,15 @@ def atomic_write(path: str, write: Callable[[str], None], *, overwrite: bool = T
         kind = "a folder" if os.path.isdir(path) else "not a regular file (a device, pipe or dangling link)"
         raise FileExistsError(f"{path} is {kind}; refusing to write over it (choose a file name)")
     folder = os.path.dirname(os.path.abspath(path))
+    with temporary_beside(path) as tmp:
+        _write_and_move(tmp, path, folder, write, overwrite)
+    return path
+
+
+def _write_and_move(tmp: str, path: str, folder: str, write: Callable[[str], None], overwrite: bool) -> None:
+    """Write ``tmp`` and move it to ``path``; the caller removes ``tmp`` on failure."""
     try:
-        os.makedirs(folder, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + os.path.basename(path) + ".", suffix=".tmp")
-    except OSError as exc:
-        raise OutputError(exc.errno, describe_os_error(exc, path)) from None
-    os.close(fd)
-    try:
-        try:
-            write(tmp)
-        except RuntimeError as exc:
-            # OpenEXR reports a failed write (a full disk among others) as a RuntimeError.
-            raise _write_failure(path, folder, exc) from None
+        write(tmp)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
@@ -58,19 +97,13 @@ def atomic_write(path: str, write: Callable[[str], None], *, overwrite: bool = T
             os.replace(tmp, path)
         else:
             _move_no_clobber(tmp, path)
-    except FileExistsError:
-        _remove(tmp)
-        raise
-    except OutputError:
-        _remove(tmp)
+    except RuntimeError as exc:
+        # OpenEXR reports a failed write (a full disk among others) as a RuntimeError.
+        raise _write_failure(path, folder, exc) from None
+    except (FileExistsError, OutputError):
         raise
     except OSError as exc:
-        _remove(tmp)
         raise OutputError(exc.errno, describe_os_error(exc, path)) from None
-    except BaseException:
-        _remove(tmp)
-        raise
-    return path
 
 
 def _remove(tmp: str) -> None:
@@ -89,20 +122,6 @@ def _write_failure(path: str, folder: str, exc: RuntimeError) -> OutputError:
     if full:
         return OutputError(errno.ENOSPC, describe_os_error(OSError(errno.ENOSPC, "No space left on device"), path))
     return OutputError(errno.EIO, f"{path}: could not be written ({exc}); nothing was left under its name")
-
-
-def open_for_writing_check(folder: str) -> None:
-    """Raise OutputError at once when ``folder`` cannot be written to (read-only, no permission):
-    before a long computation rather than after it."""
-    probe = os.path.join(folder, ".sss_lab_write_test")
-    try:
-        fd = os.open(probe, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600)
-    except FileExistsError:
-        return
-    except OSError as exc:
-        raise OutputError(exc.errno, describe_os_error(exc, folder)) from None
-    os.close(fd)
-    os.remove(probe)
 
 
 def write_bytes(path: str, data: bytes) -> str:

@@ -96,7 +96,7 @@ def test_ctrl_c_exits_130_with_one_line(passes, capsys, monkeypatch):
     monkeypatch.setattr(sequence, "apply_file", interrupted)
     code, _, err = _run(capsys, "apply", passes, "--method", "burley")
     assert code == cli.EXIT_INTERRUPTED == 130
-    assert err.strip() == "sss_lab apply: interrupted (Ctrl-C)"
+    assert err.strip().startswith("sss_lab apply: interrupted (Ctrl-C); ") and err.count("\n") == 1
 
 
 def test_a_bug_keeps_its_traceback(passes, capsys, monkeypatch):

@@ -1,0 +1,103 @@
+"""Ctrl-C for the command line: stop within seconds, exit 130, keep finished files, leave no
+temporary file.
+
+Python runs its SIGINT handler only in the main thread, between bytecodes. That is enough
+between renders: the KeyboardInterrupt unwinds, the operators' ``finally`` blocks put the
+scene back, and the entry point prints one line. During a Cycles render or bake the main
+thread sits in Blender's C code for as long as the render lasts; the interrupt, when Python
+finally sees it, is raised inside Cycles' own Python callback, where Blender catches and
+prints it, and the job ran to the end with exit 0.
+
+So the guard also watches from a second thread: the C-level part of Python's handler writes
+each signal's number to a pipe (``signal.set_wakeup_fd``) at once, whatever the main thread
+does. When SIGINT arrives the watcher gives the main thread ``GRACE_SECONDS`` to unwind by
+itself; if it has not finished by then (it is inside a render), the watcher removes the
+temporary files being written (``core._files``), says which files were finished, and ends
+the process with status 130. Nothing on disk needs putting back at that point: inputs are
+never written, and every output is moved into place whole or not at all.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+
+from ..core import _files
+
+#: Seconds the main thread gets to unwind after Ctrl-C before the process is ended for it.
+GRACE_SECONDS = 2.0
+#: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
+EXIT_INTERRUPTED = 130
+
+
+def finished_summary() -> str:
+    """'; N file(s) finished and kept (the last: PATH)' or '' when none was."""
+    done = _files.FINISHED
+    if not done:
+        return "; no file was finished"
+    return f"; {len(done)} file(s) finished and kept (the last: {done[-1]})"
+
+
+def _force_exit(command: str) -> None:
+    _files.remove_pending_temporaries()
+    try:
+        sys.stdout.flush()
+    except (OSError, ValueError):
+        pass
+    message = (
+        f"sss_lab {command}: interrupted (Ctrl-C) during a render or bake: stopped{finished_summary()}; "
+        "no partial file left\n"
+    )
+    try:
+        os.write(2, message.encode("utf-8", "replace"))
+    finally:
+        os._exit(EXIT_INTERRUPTED)
+
+
+@contextlib.contextmanager
+def interrupt_guard(command: str, grace: float = GRACE_SECONDS):
+    """Within the block, Ctrl-C raises KeyboardInterrupt in the main thread as usual, and ends
+    the process with status 130 when the main thread does not get back to Python within
+    ``grace`` seconds. Does nothing outside the main thread (signals go to the main thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(write_fd, False)
+    previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        previous_fd = signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
+    except ValueError:  # not the main interpreter
+        signal.signal(signal.SIGINT, previous_handler)
+        os.close(read_fd)
+        os.close(write_fd)
+        yield
+        return
+    done = threading.Event()
+
+    def watch():
+        while True:
+            try:
+                data = os.read(read_fd, 64)
+            except OSError:
+                return
+            if done.is_set() or not data:
+                return
+            if signal.SIGINT in data and not done.wait(grace):
+                _force_exit(command)
+
+    watcher = threading.Thread(target=watch, name="sss_lab-interrupt", daemon=True)
+    watcher.start()
+    try:
+        yield
+    finally:
+        done.set()
+        signal.set_wakeup_fd(previous_fd)
+        signal.signal(signal.SIGINT, previous_handler)
+        os.write(write_fd, b"\0")  # wake the watcher so that it ends
+        watcher.join(timeout=1.0)
+        os.close(write_fd)
+        os.close(read_fd)
