@@ -49,6 +49,7 @@ def register():
         raise RuntimeError(
             f"SSS Lab needs Blender {'.'.join(map(str, compat.MIN_VERSION))} or newer, this is {bpy.app.version_string}"
         )
+    _numba_cache_in_user_directory()
     try:
         for module in _modules():
             for cls in module.classes:
@@ -61,6 +62,19 @@ def register():
     except Exception:
         unregister()
         raise
+
+
+def _numba_cache_in_user_directory():
+    """The compiled kernels' cache goes to the extension's user directory (an installed
+    extension's own folder may not be writable); a package that is not an installed extension
+    (tests, the bpy module) keeps ``core.backend``'s user cache folder."""
+    import bpy
+
+    from ..core import backend
+
+    root = __package__.rpartition(".")[0]
+    if root.startswith("bl_ext."):
+        backend.set_cache_dir(bpy.utils.extension_path_user(root, path="numba", create=True))
 
 
 def unregister():

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from . import _arrays
+from . import _arrays, backend
 from .extent import group_extents
 from .profiles import TRUNCATION, burley_icdf
 from .scene import Camera
@@ -84,6 +84,7 @@ def _rotation(idx: np.ndarray, seed: int) -> np.ndarray:
     return (x >> np.uint64(40)).astype(np.float32) * np.float32(2.0 * math.pi / (1 << 24))
 
 
+@backend.checked("burley")
 def burley(
     *,
     diffuse,
@@ -137,6 +138,19 @@ def burley(
     light = e if pre is None else pre * e
     h, w = shape
     f32 = np.float32
+    # exp(-r'/(3 d_c)) per channel; a channel with d_c = 0 keeps its light (its footprint below).
+    # At least the smallest normal float32 (a d beyond float32 would round it to 0), so that a
+    # sample with r' = inf (off the object) still gets e^-inf = 0, never inf x 0 = NaN.
+    inv3d = np.array([max(1.0 / (3.0 * v), 1e-37) if v > 0 else 0.0 for v in d], f32)
+    reach_c = TRUNCATION * d  # each channel's own footprint, scene units (float64: d may be huge)
+    # The spiral reaches 16 d_max, or the object's extent when that is smaller (core.extent):
+    # beyond it there is nothing of the object to gather, so the result is unchanged by the
+    # bound and continuous as d grows; every backend gets the bounded spiral.
+    groups = group_extents(ok, scale, ids)
+    if backend.active() == "numba":
+        return _compiled(
+            light, z, ok, scale, ids, groups, int(n_samples), dmax, inv3d, reach_c, random_rotation, seed, post, base
+        )
     # Each pixel as one 16-byte item (r, g, b, depth key), plus a last item (0, 0, 0, inf) that
     # samples off the image or from another object read: one gather per sample fetches colour
     # and depth. Pixels that take no part have colour 0 (a NaN times a zero weight would still
@@ -154,18 +168,9 @@ def burley(
     zkey = packed[:, 3]
     idflat = None if ids is None else np.rint(ids).astype(np.int64).ravel()
     sflat = scale.ravel()
-    # exp(-r'/(3 d_c)) per channel; a channel with d_c = 0 keeps its light (its footprint below).
-    # At least the smallest normal float32 (a d beyond float32 would round it to 0), so that a
-    # sample with r' = inf (off the object) still gets e^-inf = 0, never inf x 0 = NaN.
-    inv3d = np.array([max(1.0 / (3.0 * v), 1e-37) if v > 0 else 0.0 for v in d], f32)
-    reach_c = TRUNCATION * d  # each channel's own footprint, scene units (float64: d may be huge)
     n = int(n_samples)
     block = max(128, _BLOCK_ELEMENTS // n)
     ones = np.ones(n, f32)
-    # The spiral reaches 16 d_max, or the object's extent when that is smaller (core.extent):
-    # beyond it there is nothing of the object to gather, so the result is unchanged by the
-    # bound and continuous as d grows; every backend gets the bounded spiral.
-    groups = group_extents(ok, scale, ids)
     idx_all = np.concatenate([g for g, _ in groups])
     result = np.empty((idx_all.size, 3), f32)
 
@@ -242,4 +247,49 @@ def burley(
     res = _arrays.as_rows(_arrays.pixel_rows(post)[idx_all])
     res *= result
     flat[idx_all] = res.reshape(-1).view(_arrays.RGB_ITEM)
+    return out
+
+
+def _compiled(light, z, ok, scale, ids, groups, n, dmax, inv3d, reach_c, random_rotation, seed, post, out):
+    """The gather as one compiled kernel (``core.compiled.burley_kernel``), into ``out``, with
+    the NumPy code's tables: one bounded spiral per object (``spiral_su``), the rotation."""
+    f32 = np.float32
+    c = np.ascontiguousarray
+    tables = np.empty((5, len(groups), n), f32)  # radius, radius^2, cos, sin, inverse pdf
+    group_map = np.zeros((1, 1), np.int32)
+    if len(groups) > 1:
+        group_map = np.zeros(ok.shape, np.int32)
+    for k, (group, extent_su) in enumerate(groups):
+        r_su64, angles, inv_pdf = spiral_su(n, dmax, min(TRUNCATION * dmax, extent_su))
+        r_su = r_su64.astype(f32)
+        tables[:, k] = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
+        if len(groups) > 1:
+            group_map.ravel()[group] = k
+    if random_rotation:
+        rot_cos = np.zeros(ok.shape, f32)
+        rot_sin = np.zeros(ok.shape, f32)
+        idx = np.flatnonzero(ok)
+        phi = _rotation(idx, seed)
+        rot_cos.ravel()[idx] = np.cos(phi)
+        rot_sin.ravel()[idx] = np.sin(phi)
+    else:  # a rotation by 0 (cos 1, sin 0) leaves the spiral's angles exactly as they are
+        rot_cos = np.ones((1, 1), f32)
+        rot_sin = np.zeros((1, 1), f32)
+    id_map = np.zeros(1, np.int64) if ids is None else np.rint(ids).astype(np.int64).ravel()
+    backend.run_kernel(
+        "burley_kernel",
+        c(light, dtype=f32),
+        c(z, dtype=f32),
+        ok,
+        c(scale, dtype=f32),
+        id_map,
+        group_map,
+        tables,
+        rot_cos,
+        rot_sin,
+        inv3d,
+        np.asarray(reach_c, np.float64),
+        c(post, dtype=f32),
+        out,
+    )
     return out

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _arrays
+from . import _arrays, backend
 from .extent import group_extents
 from .kernels import SeparableKernel, bounded, check_taps, make_kernel
 from .scene import Camera
@@ -171,6 +171,7 @@ def filter_1d(image, *, offsets_px, weights, axis: int, mask=None) -> np.ndarray
     return out
 
 
+@backend.checked("ssss")
 def ssss(
     *,
     diffuse,
@@ -249,6 +250,8 @@ def ssss(
     fs = np.float32(1.0 / (2.0 * kernel.radius_su)) if follow_surface else np.float32(0.0)
     key = np.full(shape, np.inf, np.float32)
     np.multiply(z, fs, out=key, where=ok)
+    if backend.active() == "numba":
+        return _compiled(light, key, ok, scale, kernel, post, base)
     idx = np.flatnonzero(ok)
     buf = np.empty((h * w + 1, 8), np.float32)
     # Pass 1, along rows. Pixels that take no part give no light (a NaN times a zero weight would
@@ -271,4 +274,25 @@ def ssss(
     twice *= _arrays.as_rows(_arrays.pixel_rows(post)[flat_of_t])
     out = base
     _arrays.pixel_rows(out)[flat_of_t] = twice.view(_arrays.RGB_ITEM).ravel()
+    return out
+
+
+def _compiled(light, key, ok, scale, kernel, post, out):
+    """Both passes as one compiled kernel (``core.compiled.ssss_kernel``), into ``out``."""
+    f32 = np.float32
+    taps = kernel.offsets_su != 0
+    c = np.ascontiguousarray
+    backend.run_kernel(
+        "ssss_kernel",
+        c(light, dtype=f32),
+        key,
+        ok,
+        c(scale, dtype=f32),
+        c(kernel.offsets_su[taps], dtype=f32),
+        c(kernel.weights[taps], dtype=f32),
+        kernel.weights.sum(axis=0).astype(f32),
+        c(post, dtype=f32),
+        np.empty(light.shape, f32),
+        out,
+    )
     return out

@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from . import _arrays
+from . import _arrays, backend
 from .scene import Camera, Light
 
 THICKNESS_CONVENTIONS = ("translucency", "thickness")
@@ -102,6 +102,7 @@ def _transmittance(translucency: np.ndarray, distance: float, d_c: np.ndarray) -
 _BLOCK = 1 << 16
 
 
+@backend.checked("sta")
 def sta(
     *,
     albedo,
@@ -169,6 +170,25 @@ def sta(
     out = np.zeros(a.shape, np.float32)
     lights = [light for light in lights if light.energy > 0]
     if not m.any() or not lights:
+        return out
+    if backend.active() == "numba":
+        _compiled(
+            a,
+            n,
+            p,
+            t,
+            m,
+            camera,
+            lights,
+            distortion,
+            power,
+            scale,
+            ambient,
+            thickness_convention,
+            out,
+            d_c if falloff == "burley" else None,
+            distance if falloff == "burley" else 0.0,
+        )
         return out
     rows = {name: _arrays.pixel_rows(arr) for name, arr in (("a", a), ("n", n), ("p", p))}
     flat_t = np.ascontiguousarray(t).ravel()
@@ -278,3 +298,34 @@ def sta(
 
     _arrays.for_blocks(idx.size, _BLOCK, run)
     return out
+
+
+def _compiled(a, n, p, t, m, camera, lights, distortion, power, scale, ambient, convention, out, d_c, distance):
+    """The per-pixel loop above as one compiled kernel (``core.compiled.sta_kernel``)."""
+    f32 = np.float32
+    c = np.ascontiguousarray
+    if camera.type == "ORTHO":
+        view = (-camera.forward).astype(f32)
+    else:
+        view = camera.position.astype(f32)
+    three_d = np.zeros(3, f32) if d_c is None else np.array([f32(3.0 * v) if v > 0 else 0.0 for v in d_c], f32)
+    backend.run_kernel(
+        "sta_kernel",
+        c(a),
+        c(n),
+        c(p),
+        c(t),
+        c(m),
+        backend.compiled().light_table(lights),
+        camera.type == "ORTHO",
+        view,
+        f32(distortion),
+        f32(power),
+        f32(scale),
+        f32(ambient),
+        convention == "thickness",
+        d_c is not None,
+        f32(distance),
+        three_d,
+        out,
+    )

@@ -1,0 +1,286 @@
+"""Which implementation runs the techniques: the compiled kernels (``core/compiled.py``, Numba)
+or the NumPy reference, and where the compiled code is cached (docs/references.md §11).
+
+- ``numba`` (the default when Numba loads): the fused per-pixel kernels.
+- ``numpy``: the readable reference, also used wherever Numba cannot load (one line on stderr
+  says so, once).
+- ``check``: both; the compiled result is returned after it has been compared with the
+  reference within ``tolerance`` (``BackendMismatch`` otherwise). The tests run in this mode.
+
+Chosen by the environment variable ``SSS_LAB_BACKEND`` or, in code, ``use("numpy")`` (a context
+manager) or ``set_backend``. The on-disk cache of compiled code is never the extension's own
+folder (it may not be writable): ``set_cache_dir`` (Blender's extension user directory, set at
+registration), else ``NUMBA_CACHE_DIR`` if set, else the user's cache directory.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import inspect
+import os
+import sys
+import threading
+import time
+
+import numpy as np
+
+from .errors import SSSLabError
+
+ENV = "SSS_LAB_BACKEND"
+BACKENDS = ("numba", "numpy", "check")
+
+#: Unit roundoff of float32 (2^-24): each float32 operation is exact to within this, relatively.
+U32 = 2.0**-24
+
+_lock = threading.Lock()
+_state = {"backend": None, "cache_dir": None, "module": None, "error": None, "load_s": None}
+_compile_s: dict[str, float] = {}
+
+
+class BackendMismatch(SSSLabError):
+    """The compiled kernel's result differs from the NumPy reference beyond ``tolerance``."""
+
+
+def _check(name: str) -> str:
+    if name not in BACKENDS:
+        raise ValueError(f"backend: {name!r} is not one of {', '.join(BACKENDS)}")
+    return name
+
+
+def set_backend(name: str | None) -> None:
+    """Choose the backend for this process (None: back to ``SSS_LAB_BACKEND`` or the default)."""
+    _state["backend"] = None if name is None else _check(name)
+
+
+def requested() -> str:
+    name = _state["backend"]
+    if name is None:
+        name = os.environ.get(ENV, "").strip().lower() or "numba"
+        if name not in BACKENDS:
+            raise ValueError(f"{ENV}: {name!r} is not one of {', '.join(BACKENDS)}")
+    return name
+
+
+def active() -> str:
+    """The backend the techniques run on now: ``requested()``, or ``numpy`` when Numba is missing."""
+    name = requested()
+    if name != "numpy" and compiled() is None:
+        return "numpy"
+    return name
+
+
+@contextlib.contextmanager
+def use(name: str):
+    """``with backend.use("numpy"): ...`` runs the techniques on that backend, then restores."""
+    before = _state["backend"]
+    set_backend(name)
+    try:
+        yield
+    finally:
+        _state["backend"] = before
+
+
+def user_cache_dir() -> str:
+    """The per-user cache folder of the platform (outside Blender), ``.../sss_lab/numba``."""
+    if sys.platform == "win32":
+        base = os.environ.get("LOCALAPPDATA") or os.path.expanduser("~\\AppData\\Local")
+    elif sys.platform == "darwin":
+        base = os.path.expanduser("~/Library/Caches")
+    else:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache")
+    return os.path.join(base, "sss_lab", "numba")
+
+
+def set_cache_dir(path: str) -> None:
+    """Where the compiled kernels are cached on disk; takes effect if they are not loaded yet."""
+    _state["cache_dir"] = os.fspath(path)
+
+
+def cache_dir() -> str:
+    return _state["cache_dir"] or os.environ.get("NUMBA_CACHE_DIR") or user_cache_dir()
+
+
+def compiled():
+    """The ``core.compiled`` module, loaded on first use; None where Numba cannot load."""
+    if _state["module"] is not None or _state["error"] is not None:
+        return _state["module"]
+    with _lock:
+        if _state["module"] is None and _state["error"] is None:
+            start = time.perf_counter()
+            try:
+                import numba
+
+                path = cache_dir()
+                os.makedirs(path, exist_ok=True)
+                # Numba picks a function's cache folder when it is decorated: point it at ours
+                # for the import of our kernels only, leaving other users of Numba as they were.
+                before = numba.config.CACHE_DIR
+                numba.config.CACHE_DIR = path
+                try:
+                    from . import compiled as module
+                finally:
+                    numba.config.CACHE_DIR = before
+            except Exception as exc:  # ImportError, or a broken LLVM: fall back, say so once
+                _state["error"] = f"{type(exc).__name__}: {exc}"
+                print(
+                    f"SSS Lab: Numba cannot load ({_state['error']}); using the NumPy implementations", file=sys.stderr
+                )
+                return None
+            _state["load_s"] = time.perf_counter() - start
+            _state["module"] = module
+    return _state["module"]
+
+
+def unavailable_reason() -> str | None:
+    """Why Numba could not load (None if it did or was not tried yet)."""
+    return _state["error"]
+
+
+def first_call_seconds() -> dict[str, float]:
+    """Seconds of each kernel's first call in this process (compiling it, or loading it from
+    the cache), and of importing Numba with the kernels (``import``)."""
+    out = dict(_compile_s)
+    if _state["load_s"] is not None:
+        out["import"] = _state["load_s"]
+    return out
+
+
+def run_kernel(name: str, *args) -> None:
+    """Call ``core.compiled.<name>(*args)``, timing its first call in this process."""
+    import numba
+
+    module = compiled()
+    kernel = getattr(module, name)
+    start = time.perf_counter()
+    with numba.parallel_chunksize(module.ROWS_PER_CHUNK):
+        kernel(*args)
+    _compile_s.setdefault(name, time.perf_counter() - start)
+
+
+def tolerance(terms: int, magnitude: np.ndarray) -> np.ndarray:
+    """Per-pixel bound on |compiled - reference| (float64, the shape of ``magnitude``).
+
+    Both compute the same float32 operations on the same values; they differ in the order of
+    the sums and in the exponential and power functions (each within a few units in the last
+    place). A float32 sum of k terms in any order is within (k - 1) u of the exact sum relative
+    to the sum of the terms' magnitudes (u = 2^-24; Higham, "Accuracy and Stability of Numerical
+    Algorithms", 2nd ed., §4.2), and so is each of the two compared results: hence 2 ``terms`` u
+    relative to the ``magnitude`` of the values summed (per pixel and channel), plus 16 u for
+    the functions and the products around the sums.
+    """
+    return (2.0 * terms + 16.0) * U32 * np.abs(np.asarray(magnitude, np.float64))
+
+
+def local_max(values: np.ndarray, radius: int) -> np.ndarray:
+    """Per pixel, the maximum of ``values`` (H, W, C) over a square window of at least
+    ``radius`` pixels on each side (non-finite values count as 0)."""
+    out = np.where(np.isfinite(values), np.abs(values), 0.0)
+    for axis in (0, 1):
+        reach = 0
+        while reach < min(radius, out.shape[axis]):
+            step = min(max(reach, 1), out.shape[axis] - 1)
+            if step <= 0:
+                break
+            shifted = out.copy()
+            lo = [slice(None)] * out.ndim
+            hi = [slice(None)] * out.ndim
+            lo[axis], hi[axis] = slice(step, None), slice(None, -step)
+            np.maximum(shifted[tuple(lo)], out[tuple(hi)], out=shifted[tuple(lo)])
+            np.maximum(shifted[tuple(hi)], out[tuple(lo)], out=shifted[tuple(hi)])
+            out = shifted
+            reach += step
+    return out
+
+
+def _gather_bound(args: dict, reference: np.ndarray, terms: int, radius_su: float) -> np.ndarray:
+    """SSSS and Burley: each result is the albedo after the scatter times a weighted average,
+    with non-negative weights, of the light before it within the footprint; its sums are made of
+    values up to the largest light there."""
+    from . import _arrays
+
+    a = _arrays.image(args["albedo"], "albedo")
+    e = _arrays.image(args["diffuse"], "diffuse")
+    pre, post = _arrays.split_albedo(a, args.get("albedo_mode", "post"))
+    light = e if pre is None else pre * e
+    with np.errstate(invalid="ignore", over="ignore"):
+        scale = args["camera"].pixels_per_unit(_arrays.image(args["depth"], "depth", None))
+    finite = scale[np.isfinite(scale)]
+    with np.errstate(over="ignore"):
+        reach_px = radius_su * float(finite.max()) if finite.size else 0.0
+    reach = int(min(reach_px, max(light.shape[:2]))) + 2
+    big = local_max(light, reach)
+    return tolerance(terms, np.abs(post) * big)
+
+
+def _bound_sta(args, reference):
+    # Per pixel, a sum over the lights of non-negative terms (the result itself is their size).
+    return tolerance(len(args["lights"]), reference)
+
+
+def _bound_ssss(args, reference):
+    from .kernels import make_kernel
+
+    kernel = args.get("kernel") or make_kernel(
+        args["kernel_type"],
+        args["n_taps"],
+        d_su=args["d_su"],
+        unit_su=args["unit_su"],
+        falloff=args["falloff"],
+        strength=args["strength"],
+    )
+    # Two passes of 2 samples per tap each (the second sums the first's rounded results).
+    return _gather_bound(args, reference, 2 * (2 * len(kernel) + 1), kernel.radius_su)
+
+
+def _bound_burley(args, reference):
+    from .profiles import TRUNCATION
+
+    d = float(np.max(np.asarray(args["d_su"], np.float64)))
+    # The weighted sum and the sum of the weights, n samples each.
+    return _gather_bound(args, reference, 2 * int(args["n_samples"]), TRUNCATION * d)
+
+
+_BOUNDS = {"sta": _bound_sta, "ssss": _bound_ssss, "burley": _bound_burley}
+
+
+def compare(name: str, reference: np.ndarray, result: np.ndarray, bound: np.ndarray) -> None:
+    """Raise ``BackendMismatch`` where ``result`` differs from ``reference`` by more than
+    ``bound``; NaN and infinities must sit at the same places with the same values."""
+    same_special = np.array_equal(np.isnan(reference), np.isnan(result)) and np.array_equal(
+        np.where(np.isinf(reference), reference, 0), np.where(np.isinf(result), result, 0)
+    )
+    finite = np.isfinite(reference) & np.isfinite(result)
+    diff = np.abs(result[finite].astype(np.float64) - reference[finite].astype(np.float64))
+    over = diff > bound[finite]
+    if not same_special or over.any():
+        worst = float((diff - bound[finite]).max()) if diff.size else 0.0
+        raise BackendMismatch(
+            f"{name}: compiled result differs from the NumPy reference: {int(over.sum())} values beyond the "
+            f"float32 bound (worst by {worst:.3g}); NaN/Inf at the same places: {same_special}"
+        )
+
+
+def checked(name: str):
+    """Decorator for the technique function ``name``: in ``check`` mode, run it on both
+    backends and compare them within the technique's bound (``_BOUNDS``)."""
+
+    def wrap(fn):
+        signature = inspect.signature(fn)
+
+        @functools.wraps(fn)
+        def run(**kwargs):
+            if requested() != "check" or compiled() is None:
+                return fn(**kwargs)
+            with use("numpy"):
+                reference = fn(**kwargs)
+            with use("numba"):
+                result = fn(**kwargs)
+            args = signature.bind(**kwargs)
+            args.apply_defaults()
+            compare(name, reference, result, _BOUNDS[name](args.arguments, reference))
+            return result
+
+        return run
+
+    return wrap

@@ -1,0 +1,139 @@
+"""The compiled kernels (core/compiled.py) and their switch (core/backend.py): the check mode
+really compares, Numba's absence falls back to NumPy with one line, the cache is outside the
+package, and the kernels keep the reference's results on the benchmark's scene."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import sss_lab
+from sss_lab.core import backend, kernels
+from sss_lab.core.burley import burley
+from sss_lab.core.ssss import ssss
+from sss_lab.core.sta import sta
+from sss_lab.core.synthetic import sphere_scene
+
+ROOT = os.path.dirname(os.path.abspath(sss_lab.__file__))
+
+
+def _scene(w=96, h=64):
+    passes, scene = sphere_scene(w, h)
+    albedo = passes["Diffuse Color"]
+    albedo[albedo.sum(axis=2) == 0] = 0.5
+    normal = passes["Normal"].copy()
+    normal[np.linalg.norm(normal, axis=2) == 0] = (0.0, 0.0, 1.0)
+    return passes, scene, albedo, normal
+
+
+def test_numba_loads_here():
+    # requirements.txt installs Numba: on this set-up the compiled kernels must be the default.
+    assert backend.compiled() is not None, backend.unavailable_reason()
+    with backend.use("numba"):
+        assert backend.active() == "numba"
+
+
+@pytest.mark.parametrize("rotation", (False, True))
+@pytest.mark.parametrize("mode", ("post", "pre-post"))
+def test_scene_with_masks_rotation_and_ids_matches_the_reference(rotation, mode):
+    # The autouse fixture runs each call on both backends and compares them.
+    passes, scene, albedo, normal = _scene()
+    diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]
+    depth = passes["Depth"]
+    mask = passes["Material Index"] > 0
+    d = (0.04, 0.016, 0.008)
+    out = burley(
+        diffuse=diffuse, albedo=albedo, depth=depth, mask=mask, camera=scene.camera, d_su=d,
+        object_id=passes["Object Index"], random_rotation=rotation, seed=3, albedo_mode=mode,
+    )  # fmt: skip
+    assert np.isfinite(out).all()
+    kernel = kernels.preintegrated_kernel(17, d_su=d)
+    ssss(diffuse=diffuse, albedo=albedo, depth=depth, mask=mask, camera=scene.camera, kernel=kernel, albedo_mode=mode)
+    sta(
+        albedo=albedo, normal=normal, position=passes["Position"], thickness=passes["Thickness"], mask=mask,
+        camera=scene.camera, lights=scene.lights, power=3.0 if rotation else 2.0,
+    )  # fmt: skip
+
+
+def test_check_mode_catches_a_kernel_that_differs(monkeypatch):
+    passes, scene, albedo, _ = _scene(32, 24)
+    diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]
+    kw = dict(
+        diffuse=diffuse, albedo=albedo, depth=passes["Depth"], mask=passes["Material Index"] > 0, camera=scene.camera
+    )
+    module = backend.compiled()
+    original = module.burley_kernel
+
+    def off_by_a_little(*args):
+        original(*args)
+        args[-1][...] *= np.float32(1.0001)  # 1e-4 relative: far above the float32 bound
+
+    monkeypatch.setattr(module, "burley_kernel", off_by_a_little)
+    with pytest.raises(backend.BackendMismatch, match="burley: compiled result differs"):
+        burley(d_su=(0.04, 0.016, 0.008), **kw)
+
+
+def test_without_numba_numpy_runs_and_one_line_says_so():
+    code = (
+        "import sys\n"
+        "class Block:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name.split('.')[0] in ('numba', 'llvmlite'):\n"
+        "            raise ImportError('blocked ' + name)\n"
+        "sys.meta_path.insert(0, Block())\n"
+        "import numpy as np\n"
+        "from sss_lab.core import backend\n"
+        "from sss_lab.core.scene import Camera\n"
+        "from sss_lab.core.burley import burley\n"
+        "e = np.ones((8, 8, 3), np.float32)\n"
+        "out = burley(diffuse=e, albedo=e, depth=np.full((8, 8), 2.0, np.float32), mask=np.ones((8, 8), bool),\n"
+        "             camera=Camera(type='ORTHO', width_px=8, height_px=8, ortho_scale=8.0), d_su=(1.0, 1.0, 1.0))\n"
+        "burley(diffuse=e, albedo=e, depth=np.full((8, 8), 2.0, np.float32), mask=np.ones((8, 8), bool),\n"
+        "       camera=Camera(type='ORTHO', width_px=8, height_px=8, ortho_scale=8.0), d_su=(1.0, 1.0, 1.0))\n"
+        "print(backend.active(), float(out.mean()))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split()[0] == "numpy" and float(proc.stdout.split()[1]) == pytest.approx(1.0, abs=1e-6)
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Numba cannot load" in lines[0] and "NumPy" in lines[0], proc.stderr
+
+
+def test_the_cache_is_written_outside_the_package(tmp_path):
+    code = (
+        "import numpy as np\n"
+        "from sss_lab.core import backend\n"
+        f"backend.set_cache_dir({str(tmp_path)!r})\n"
+        "from sss_lab.core.scene import Camera\n"
+        "from sss_lab.core.ssss import ssss\n"
+        "e = np.ones((8, 8, 3), np.float32)\n"
+        "with backend.use('numba'):\n"
+        "    ssss(diffuse=e, albedo=e, depth=np.full((8, 8), 2.0, np.float32), mask=np.ones((8, 8), bool),\n"
+        "         camera=Camera(type='ORTHO', width_px=8, height_px=8, ortho_scale=8.0), d_su=(1.0, 1.0, 1.0))\n"
+        "print(sorted(backend.first_call_seconds()))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert "ssss_kernel" in proc.stdout
+    cached = [name for _, _, files in os.walk(tmp_path) for name in files]
+    assert any(name.startswith("compiled.ssss_kernel") and name.endswith(".nbi") for name in cached), cached
+    in_package = [
+        n for _, _, files in os.walk(os.path.join(ROOT, "core")) for n in files if n.endswith((".nbi", ".nbc"))
+    ]
+    assert in_package == []
+
+
+def test_unknown_backend_names_the_value(monkeypatch):
+    with pytest.raises(ValueError, match="backend: 'gpu' is not one of numba, numpy, check"):
+        backend.set_backend("gpu")
+    monkeypatch.setenv(backend.ENV, "fast")
+    with backend.use("numba"):
+        assert backend.requested() == "numba"  # an explicit choice wins over the environment
+    backend.set_backend(None)
+    try:
+        with pytest.raises(ValueError, match="SSS_LAB_BACKEND: 'fast' is not one of"):
+            backend.requested()
+    finally:
+        backend.set_backend(None)
