@@ -13,7 +13,7 @@ import time
 import bpy
 import pytest
 
-from sss_lab.addon import compat
+from sss_lab.blender import compat
 from sss_lab.core.exr import read_passes
 
 #: Seconds from SIGINT to the end of the process: the grace period (2 s) plus the exit itself,
