@@ -32,19 +32,27 @@ COMMANDS = (
 EXIT_NOTHING_TO_DO = 3
 
 
-def parse_methods(text: str) -> list[str]:
-    """``"burley"``, ``"sta,ssss"`` or ``"all"`` -> technique names; ValueError lists the known ones."""
+def parse_methods(text: str, *, allow_auto: bool = False) -> list[str]:
+    """``"burley"``, ``"sta,ssss"`` or ``"all"`` -> technique names; ValueError lists the known ones.
+    With ``allow_auto`` (``apply``), ``"auto"`` alone: a technique chosen per material (``core/auto.py``)."""
     names = [t.strip() for t in str(text).split(",") if t.strip()]
     if not names:
         raise ValueError(f"method: expected one of {', '.join(TECHNIQUES)} or all, got {text!r}")
     if names == ["all"]:
         return list(TECHNIQUES)
+    if allow_auto and "auto" in names:
+        if names != ["auto"]:
+            raise ValueError(f"method: auto chooses per material and cannot be listed with others, got {text!r}")
+        return names
     out = []
     for name in names:
         try:
             check_technique(name)
         except ValueError:
-            raise ValueError(f"unknown method {name!r}; expected one of: {', '.join(TECHNIQUES)}, all") from None
+            raise ValueError(
+                f"unknown method {name!r}; expected one of: {', '.join(TECHNIQUES)}, all"
+                + (", auto" if allow_auto else "")
+            ) from None
         if name not in out:
             out.append(name)
     return out

@@ -9,6 +9,7 @@ the scene scatters light (nothing written).
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 import traceback
@@ -29,7 +30,15 @@ def add_parser(subparsers):
     p.add_argument(
         "--method",
         required=True,
-        help="technique: sta, ssss, burley, a comma-separated list, or all (those whose passes are present)",
+        help="technique: sta, ssss, burley, combined, a comma-separated list, all (those whose passes are present),"
+        " or auto (per material, the cheapest technique predicted to be within --max-error of the best)",
+    )
+    p.add_argument(
+        "--max-error",
+        type=float,
+        default=None,
+        help="with --method auto: how much worse than the best predicted error a cheaper choice may be (relative;"
+        " default 0.05)",
     )
     p.add_argument("--out", help="output EXR (with #### for a sequence); default: <input stem>.sss.exr")
     p.add_argument("--explain", action="store_true", help="print the plan (materials, kernels, samples) and stop")
@@ -61,7 +70,11 @@ def run(args) -> int:
     from ..core.sequence import apply_file, frame_path, parse_frames, sequence_frames
     from .cli import EXIT_NOTHING_TO_DO, parse_methods
 
-    techniques = parse_methods(args.method)
+    techniques = parse_methods(args.method, allow_auto=True)
+    if args.max_error is not None and techniques != ["auto"]:
+        raise ValueError(f"--max-error {args.max_error}: only --method auto takes it")
+    if args.max_error is not None and not (math.isfinite(args.max_error) and args.max_error >= 0):
+        raise ValueError(f"--max-error: expected a number >= 0 (0.05 = within 5 % of the best), got {args.max_error}")
     if args.albedo_mode not in ALBEDO_MODES:
         raise ValueError(f"--albedo-mode: {args.albedo_mode!r} is not one of {', '.join(ALBEDO_MODES)}")
     frames = sequence_frames(args.passes, parse_frames(args.frames) if args.frames else None)
@@ -87,6 +100,7 @@ def run(args) -> int:
                 overwrite=args.overwrite,
                 skip_missing=args.method.strip() == "all",
                 view_layer=args.view_layer,
+                max_error=args.max_error,
             )
         except (OSError, ValueError, KeyError) as exc:
             failed += 1
@@ -111,6 +125,9 @@ def run(args) -> int:
                 print("\n".join("  " + line for line in p.explain().splitlines()))
             else:
                 applied = p.applied
+                if p.technique == "auto":
+                    for c in p.choices:
+                        print(f"  auto: material {c.features.name!r}: {c.chosen} ({c.reason})")
                 names = ", ".join(m.material.name or str(m.material.index) for m in applied) or "none on screen"
                 extra = f"; {p.nonfinite_pixels} NaN/Inf pixels left as they are" if p.nonfinite_pixels else ""
                 print(f"  {p.technique}: {len(applied)} material(s) computed ({names}){extra}")

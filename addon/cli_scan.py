@@ -1,4 +1,5 @@
-"""``python -m sss_lab scan SCENE.blend``: list the scene's subsurface materials."""
+"""``python -m sss_lab scan SCENE.blend [--recommend]``: list the scene's subsurface materials, and with
+``--recommend`` the technique ``apply --method auto`` would choose for each (``blender/scan.py``)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,14 @@ def add_parser(subparsers):
     p = subparsers.add_parser("scan", help="list the subsurface materials of a .blend scene (needs bpy)")
     p.add_argument("blend", help="the .blend file to read (never written)")
     p.add_argument("--scene", help="scene name (default: the file's active scene)")
+    p.add_argument(
+        "--recommend",
+        action="store_true",
+        help="per material, the technique `apply --method auto` would choose and why (renders small passes once)",
+    )
+    p.add_argument("--resolution", help="with --recommend: WxH of that render (default: long side 160 px)")
+    p.add_argument("--samples", type=int, default=16, help="with --recommend: samples of that render (default 16)")
+    p.add_argument("--max-error", type=float, help="with --recommend: as apply --method auto (default 0.05)")
     p.set_defaults(run=run)
 
 
@@ -39,8 +48,13 @@ def open_blend(path: str, scene_name: str | None = None):
 
 def run(args) -> int:
     scene = open_blend(args.blend, args.scene)
-    from ..blender.scan import scan_report
+    from ..blender.scan import recommend, scan_report
 
     for line in scan_report(scene):
         print(line)
+    if args.recommend:
+        for line in recommend(
+            scene, resolution=args.resolution, samples=args.samples, max_error=args.max_error, log=None
+        ):
+            print(line)
     return 0

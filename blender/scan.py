@@ -15,3 +15,34 @@ def scan_report(scene) -> list[str]:
         radius = ", ".join(f"{r:.4g}" for r in m.radius)
         lines.append(f"  {m.name}: method {m.method}, weight {m.subsurface_weight:.3g}, radius x scale ({radius})")
     return lines
+
+
+def recommend(scene, *, resolution=None, samples: int = 16, max_error: float | None = None, log=None) -> list[str]:
+    """Per subsurface material of ``scene``, the technique ``apply --method auto`` would choose,
+    and why (``core.auto``): renders the passes of the scene's view once, small and at few samples
+    (``resolution`` "WxH", default the scene's scaled so that its long side is at most 160 px),
+    into a temporary folder; the scene is left as it was. Returns the lines to print."""
+    import tempfile
+
+    from ..core import auto, exr, sequence
+    from .render_passes import render_passes
+
+    if sss_materials(scene) == []:
+        return scan_report(scene)
+    if resolution is None:
+        r = scene.render
+        w, h = r.resolution_x * r.resolution_percentage // 100, r.resolution_y * r.resolution_percentage // 100
+        k = min(1.0, 160.0 / max(w, h, 1))
+        resolution = (max(int(w * k), 8), max(int(h * k), 8))
+    limit = auto.DEFAULT_MAX_ERROR if max_error is None else max_error
+    with tempfile.TemporaryDirectory(prefix="sss_lab_scan_") as folder:
+        written = render_passes(scene, folder, samples=samples, resolution=resolution, seed=0, log=log)
+        path = next(p for p in written if p.endswith(".exr"))
+        plan = auto.choose(exr.read_passes(path), sequence.load_scene(path), max_error=limit)
+    w, h = plan.shape[1], plan.shape[0]
+    lines = [
+        f"Recommendations (passes rendered at {w}x{h}, {samples} samples; what `apply --method auto` chooses at"
+        " that size):"
+    ]
+    lines += plan.explain().splitlines()[1:]
+    return lines

@@ -159,6 +159,7 @@ def apply_file(
     skip_missing: bool = False,
     view_layer: str | None = None,
     mapping=None,
+    max_error: float | None = None,
     **options,
 ) -> FileResult:
     """Apply ``techniques`` to one passes file and write ``out_path`` (default ``<stem>.sss.exr``).
@@ -168,8 +169,11 @@ def apply_file(
     metadata and adds the scene description (``sss_lab.scene``, JSON). With ``explain`` it only
     plans. When no material scatters, nothing is written (``nothing_to_do``). With
     ``skip_missing`` a technique whose passes are missing is skipped (reason in ``skipped``)
-    instead of raising, unless every technique is.
+    instead of raising, unless every technique is. The technique ``auto`` chooses one per material
+    (``core/auto.py``, within ``max_error`` of the best predicted error) and writes
+    ``SSSLab.auto.Image`` and ``SSSLab.auto.SSS``.
     """
+    from . import auto as _auto
     from .exr import MissingPassError, passes_from_contents, read_layers, write_layers
 
     path = os.fspath(path)
@@ -188,6 +192,14 @@ def apply_file(
     passes = passes_from_contents(contents, view_layer)
     result.scene = scene = scene if scene is not None else load_scene(path, scene_path)
     for technique in techniques:
+        if technique == _auto.AUTO:
+            if options:
+                raise ValueError(f"auto chooses each technique's parameters itself; it takes no {', '.join(options)}")
+            limit = _auto.DEFAULT_MAX_ERROR if max_error is None else max_error
+            result.plans[technique] = _auto.choose(
+                passes, scene, max_error=limit, albedo_mode=albedo_mode, mapping=mapping
+            )
+            continue
         try:
             result.plans[technique] = plan(
                 passes, scene, technique, albedo_mode=albedo_mode, mapping=mapping, **options
@@ -210,7 +222,10 @@ def apply_file(
     layers = dict(contents.layers)
     channels = dict(contents.channels)
     for technique, p in result.plans.items():
-        new = apply(passes, scene, technique, albedo_mode=albedo_mode, mapping=mapping, prepared=p, **options)
+        if technique == _auto.AUTO:
+            new = _auto.apply_auto(passes, scene, prepared=p)
+        else:
+            new = apply(passes, scene, technique, albedo_mode=albedo_mode, mapping=mapping, prepared=p, **options)
         for name in new:
             channels.pop(name, None)
         layers.update(new)

@@ -47,3 +47,22 @@ def test_sss_materials_are_read_with_their_method_and_radius(addon):
 def test_describe_scene_needs_a_camera(addon):
     with pytest.raises(ValueError, match="no active camera"):
         describe_scene(bpy.context.scene)
+
+
+def test_scan_recommend_renders_small_passes_and_leaves_the_scene_as_it_was(tmp_path, capsys):
+    from sss_lab.addon.cli import main
+    from sss_lab.addon.cli_demo import load_sample_scenes
+
+    blend = load_sample_scenes().build("backlit_thin", str(tmp_path / "backlit_thin.blend"))
+    before = open(blend, "rb").read()
+    assert main(["scan", blend, "--recommend", "--resolution", "48x48", "--samples", "4"]) == 0
+    out = capsys.readouterr().out
+    scene = bpy.context.scene
+    r = scene.render
+    assert (r.resolution_x, r.resolution_y) == (128, 128)  # the render's size was put back
+    assert open(blend, "rb").read() == before  # the file is only read
+    assert "Recommendations (passes rendered at 48x48, 4 samples" in out
+    for m in sss_materials(scene):
+        assert f"material {m.name!r}" in out
+    assert out.count("=> ") == len(sss_materials(scene))
+    assert "light from behind B" in out and "diffusion D" in out

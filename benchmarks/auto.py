@@ -1,0 +1,293 @@
+"""``apply --method auto`` validated leave-one-scene-out: ``.venv/bin/python -m benchmarks.auto``.
+
+For every scene (the fidelity suite, ``benchmarks/fidelity``, when it is present; else the four
+sample scenes with references rendered here, ``--source samples``):
+
+1. each technique at its default quality on the scene's passes, and no SSS: relative RMSE against
+   the scene's Cycles reference over the subsurface pixels after 2 x 2 box downsampling (the
+   measure ``compare`` and the fidelity suite use, docs/references.md §8), over the whole scene
+   and per material; apply time, fastest of ``--repeat`` runs;
+2. the features of every material (``core.auto.features``).
+
+Then, for each scene in turn, the auto model is learnt on the *other* scenes only
+(``core.auto.train``) and ``auto`` runs on the held-out scene with it, scored the same way, and
+timed the same way (its features and choice included). Per scene:
+
+- **regret** = auto's error / the error of the truly best single choice (the best of no SSS and
+  every technique at default quality, known only from the reference) - 1;
+- **time saved** = 1 - auto's time / the time of the most expensive technique on the scene (the
+  one with the largest measured time), and over the suite 1 - sum of auto's times / sum of the
+  most expensive ones.
+
+Nothing here knows a scene by name: every scene is scored the same way. ``--write-model`` stores
+the model learnt on all scenes as ``core/auto_model.json`` (what ``apply --method auto`` ships).
+Writes ``benchmarks/results/auto.json`` and prints a table. Timing on a loaded shared 2-core
+machine: indicative, fastest of the repeats.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import platform
+import statistics
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+RESULTS = os.path.join(ROOT, "benchmarks", "results", "auto.json")
+SAMPLE_SCENES = ("head_frontlit", "backlit_thin", "wax_marble", "depth_leak")
+BOX = 2
+
+
+class Scene:
+    """What the validation needs of one scene."""
+
+    def __init__(self, name, kind, passes, desc, reference):
+        self.name, self.kind = name, kind
+        self.passes, self.desc, self.reference = passes, desc, reference[..., :3]
+        index = np.rint(np.nan_to_num(passes["Material Index"])).astype(np.int64)
+        self.index = index[..., 0] if index.ndim == 3 else index
+        self.materials = [m for m in desc.materials if m.scatters and (self.index == m.index).any()]
+        self.mask = np.isin(self.index, [m.index for m in self.materials])
+
+    def error(self, image, mask=None) -> float:
+        from sss_lab.core import metrics
+
+        r = metrics.compare_images(image[..., :3], self.reference, self.mask if mask is None else mask, box=BOX)
+        return float("nan") if r["rel_rmse"] is None else float(r["rel_rmse"])
+
+
+def _fidelity_scenes(names, log):
+    from benchmarks.fidelity import run as fidelity
+    from benchmarks.fidelity import scenes as suite
+
+    out = []
+    for name in names or list(suite.SCENES):
+        log(f"{name}: loading (fidelity suite)")
+        data = fidelity.load_scene(name, log=log)
+        out.append(Scene(name, data.kind, data.passes, data.desc, data.reference))
+    return out
+
+
+def _sample_scenes(names, args, log):
+    import subprocess
+
+    import bpy
+
+    from sss_lab.blender.reference_cache import cached_reference, scene_fingerprint
+    from sss_lab.blender.render_passes import render_passes
+    from sss_lab.core import exr, sequence
+
+    names = list(names or SAMPLE_SCENES)
+    work = os.path.join(args.cache, "blends")
+    os.makedirs(work, exist_ok=True)
+    subprocess.run(
+        [sys.executable, os.path.join(ROOT, "sample_blends", "build_scenes.py"), *names, "--out", work],
+        check=True,
+        stdout=subprocess.DEVNULL,
+    )
+    out = []
+    for name in names:
+        log(f"{name}: rendering (sample scene)")
+        bpy.ops.wm.open_mainfile(filepath=os.path.join(work, f"{name}.blend"), load_ui=False)
+        scene = bpy.context.scene
+        fp = scene_fingerprint(scene)
+        ref, _, _ = cached_reference(
+            scene,
+            os.path.join(args.cache, name),
+            samples=args.reference_samples,
+            seed=0,
+            resolution=None,
+            method=None,
+            log=log,
+            fingerprint=fp,
+        )
+        folder = os.path.join(args.cache, name, "passes")
+        written = render_passes(scene, folder, samples=args.pass_samples, seed=7, overwrite=True, log=None)
+        path = next(p for p in written if p.endswith(".exr"))
+        kind = "back-lit" if "backlit" in name else "diffusion"  # the sample scenes' own classes
+        out.append(Scene(name, kind, exr.read_passes(path), sequence.load_scene(path), ref))
+    return out
+
+
+def _fastest(fn, repeat):
+    best, result = float("inf"), None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = fn()
+        best = min(best, time.perf_counter() - start)
+    return result, best
+
+
+def measure(scene: Scene, techniques, repeat: int) -> dict:
+    """Errors (scene and per material) and times of no SSS and each technique at default quality,
+    and the features of every material."""
+    from sss_lab.core import apply as core_apply
+    from sss_lab.core import auto
+
+    images = {auto.NONE: scene.passes["Combined"]}
+    seconds = {auto.NONE: 0.0}
+    for t in techniques:
+        try:
+            core_apply.plan(scene.passes, scene.desc, t)
+        except KeyError:  # its passes are missing on this scene
+            continue
+
+        def run(t=t):
+            return core_apply.apply(scene.passes, scene.desc, t)
+
+        layers, seconds[t] = _fastest(run, repeat)
+        images[t] = layers[core_apply.layer_names(t)[0]] if layers else scene.passes["Combined"]
+    errors = {t: scene.error(img) for t, img in images.items()}
+    per_material = []
+    for m in scene.materials:
+        mask = scene.index == m.index
+        f = auto.features(scene.passes, scene.desc, m)
+        per_material.append((f, {t: scene.error(img, mask) for t, img in images.items()}))
+    return {"errors": errors, "seconds": seconds, "materials": per_material}
+
+
+def run(scenes, *, techniques, repeat: int, max_error: float, log=print) -> dict:
+    from sss_lab.core import auto
+
+    measured = {}
+    for s in scenes:
+        log(f"{s.name}: measuring")
+        measured[s.name] = measure(s, techniques, repeat)
+        e = measured[s.name]["errors"]
+        log("  " + ", ".join(f"{t} {v:.4f}" for t, v in e.items()))
+    rows = []
+    for s in scenes:
+        train_samples = [x for o in scenes if o.name != s.name for x in measured[o.name]["materials"]]
+        model = auto.train(
+            train_samples, trained_on=[o.name for o in scenes if o.name != s.name], command="leave-one-scene-out"
+        )
+
+        def choose_and_apply(s=s, model=model):
+            plan = auto.choose(s.passes, s.desc, max_error=max_error, model=model, techniques=techniques)
+            return plan, auto.apply_auto(s.passes, s.desc, prepared=plan)
+
+        (plan, layers), t_auto = _fastest(choose_and_apply, repeat)
+        image = layers["SSSLab.auto.Image"] if layers else s.passes["Combined"]
+        err = s.error(image)
+        m = measured[s.name]
+        best = min(m["errors"], key=m["errors"].get)
+        priciest = max(m["seconds"], key=m["seconds"].get)
+        rows.append(
+            {
+                "scene": s.name,
+                "kind": s.kind,
+                "errors": m["errors"],
+                "seconds": m["seconds"],
+                "auto": {
+                    "error": err,
+                    "seconds": t_auto,
+                    "features_s": sum(c.features.seconds for c in plan.choices),
+                    "choices": {c.features.name: c.chosen for c in plan.choices},
+                    "predicted": {
+                        c.features.name: {k.name: k.predicted for k in c.candidates if k.excluded is None}
+                        for c in plan.choices
+                    },
+                },
+                "best": best,
+                "regret": err / m["errors"][best] - 1.0,
+                "most_expensive": priciest,
+                "time_saved": 1.0 - t_auto / m["seconds"][priciest] if m["seconds"][priciest] > 0 else None,
+                "features": [f.to_dict() for f, _ in m["materials"]],
+                "material_errors": {f.name: e for f, e in m["materials"]},
+            }
+        )
+        log(
+            f"{s.name}: auto chose {rows[-1]['auto']['choices']}: error {err:.4f}, best {best} "
+            f"{m['errors'][best]:.4f} (regret {rows[-1]['regret']:+.1%}); {t_auto:.3f} s vs {priciest} "
+            f"{m['seconds'][priciest]:.3f} s"
+        )
+    regrets = [r["regret"] for r in rows]
+    t_auto = sum(r["auto"]["seconds"] for r in rows)
+    t_max = sum(r["seconds"][r["most_expensive"]] for r in rows)
+    always = {}
+    for t in techniques:
+        errs = [r["errors"][t] / r["errors"][r["best"]] - 1.0 for r in rows if t in r["errors"]]
+        if errs:
+            always[t] = {"mean_regret": statistics.mean(errs), "median_regret": statistics.median(errs)}
+    full = auto.train(
+        [x for s in scenes for x in measured[s.name]["materials"]],
+        trained_on=[s.name for s in scenes],
+        command="python -m benchmarks.auto --write-model",
+    )
+    return {
+        "rows": rows,
+        "summary": {
+            "scenes": len(rows),
+            "mean_regret": statistics.mean(regrets),
+            "median_regret": statistics.median(regrets),
+            "max_regret": max(regrets),
+            "time_saved_total": 1.0 - t_auto / t_max if t_max > 0 else None,
+            "time_saved_median": statistics.median(r["time_saved"] for r in rows if r["time_saved"] is not None),
+            "always_one_technique": always,
+        },
+        "model": full,
+    }
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.auto", description=__doc__.split("\n\n")[0])
+    parser.add_argument("names", nargs="*", help="scenes (default: all of the source)")
+    parser.add_argument("--source", choices=("fidelity", "samples"), default=None, help="default: fidelity if present")
+    parser.add_argument("--max-error", type=float, default=None, help="auto's margin (default: core.auto's)")
+    parser.add_argument("--repeat", type=int, default=3, help="timed runs per case, fastest kept (default 3)")
+    parser.add_argument("--reference-samples", type=int, default=512, help="samples of the sample scenes' references")
+    parser.add_argument("--pass-samples", type=int, default=64, help="samples of the sample scenes' passes")
+    parser.add_argument("--cache", default=os.path.join(tempfile.gettempdir(), "sss_lab_auto_bench"))
+    parser.add_argument("--write-model", action="store_true", help="store the model learnt on all scenes")
+    parser.add_argument("--out", default=RESULTS)
+    args = parser.parse_args(argv)
+    import bpy
+
+    from benchmarks._common import write_results
+    from sss_lab.core import auto
+    from sss_lab.core.techniques import TECHNIQUES
+
+    source = args.source
+    if source is None:
+        source = "fidelity" if os.path.isdir(os.path.join(ROOT, "benchmarks", "fidelity")) else "samples"
+    start = time.perf_counter()
+    scenes = _fidelity_scenes(args.names, print) if source == "fidelity" else _sample_scenes(args.names, args, print)
+    max_error = auto.DEFAULT_MAX_ERROR if args.max_error is None else args.max_error
+    out = run(scenes, techniques=list(TECHNIQUES), repeat=args.repeat, max_error=max_error)
+    command = " ".join(["python -m benchmarks.auto", *(argv if argv is not None else sys.argv[1:])])
+    model = dataclasses.replace(out.pop("model"), command=command)
+    if args.write_model:
+        auto.save_model(model)
+        print(f"Saved: {auto.MODEL_PATH}")
+    data = {
+        "definition": __doc__.split("\n\n")[2].strip(),
+        "source": source,
+        "max_error": max_error,
+        "command": command,
+        "machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "note": "shared, loaded 2-core machine"},
+        "blender": bpy.app.version_string,
+        "total_seconds": time.perf_counter() - start,
+        "summary": out["summary"],
+        "model_all_scenes": model.to_dict(),
+        "scenes": out["rows"],
+    }
+    write_results(args.out, data)
+    s = out["summary"]
+    print(
+        f"{s['scenes']} scenes, leave-one-scene-out: regret mean {s['mean_regret']:+.1%}, median "
+        f"{s['median_regret']:+.1%}, max {s['max_regret']:+.1%}; time saved against the most expensive technique "
+        f"{s['time_saved_total']:.0%} (total), {s['time_saved_median']:.0%} (median)"
+    )
+    for t, v in s["always_one_technique"].items():
+        print(f"  always {t}: mean regret {v['mean_regret']:+.1%}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,568 @@
+"""Model only what the scene requires: choose a technique per material from cheap features.
+
+``choose`` looks at each subsurface material on a set of passes and measures, without running
+any technique, how much the two things SSS adds to a plain diffuse render matter there:
+
+- **diffusion** D: how much the material's visible diffuse light changes when it is spread over
+  its footprint. The irradiance (Diffuse Direct + Indirect) is averaged, per channel, over a box
+  of half-width 2.5 d (the mean distance light travels under the Burley profile,
+  docs/references.md §1) in pixels at each pixel's depth, inside the material only; D is the RMS
+  of albedo x (averaged - original) over the material's 2 x 2 blocks, relative to the mean of
+  Combined there (the measure ``compare`` uses, docs/references.md §8). A footprint under a pixel,
+  or a flatly lit material, gives D = 0 whatever the radius.
+- **light from behind** B: the light the combined technique's transmission would add
+  (``core/combined.py``: back irradiance x per-channel Burley transmittance through the baked
+  thickness), measured the same way. Needs the thickness map and its bake distance; without them
+  B is 0 and said so.
+- **energy** G, when the material carries a fit (``core/fit.py``): the light its fitted gain
+  adds or removes. A technique fitted for the material corrects it; the others (and no SSS) keep
+  it as error.
+
+A model (``Model``) predicts each technique's error from those numbers, error^2 = alpha D^2 +
+beta B^2 + gamma (+ G^2 for a technique without a fit), with non-negative coefficients learnt per
+technique by least squares on measured errors (``train``; ``benchmarks/auto.py`` learns them on
+the fidelity suite and validates the choice leave-one-scene-out; the shipped coefficients are in
+``auto_model.json`` beside this module, with the command that made them). ``choose`` then takes,
+per material, the cheapest candidate (no SSS included) whose predicted error is within
+``max_error`` (relative) of the best predicted error. The cost of a technique is its work
+estimate: pixels x (samples per pixel of its kernel + one per light for a technique that adds
+light from behind), from the plan (``core/plan.py``).
+
+``apply_auto`` carries the choice out: each material gets its chosen technique's result
+(``core.apply.apply``), composited into ``SSSLab.auto.Image`` / ``SSSLab.auto.SSS``.
+NumPy only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _arrays
+from . import apply as core_apply
+from .combined import transmission
+from .errors import InputError
+from .exr import MissingPassError, Passes
+from .fit_params import fitted
+from .mapping import burley_d
+from .metrics import box_downsample
+from .plan import Plan, _index_map, plan, required_passes
+from .scene import MaterialSSS, SceneDescription
+from .techniques import TECHNIQUES
+
+#: The name ``apply --method auto`` and the output layers (``SSSLab.auto.*``) use.
+AUTO = "auto"
+#: The candidate that leaves a material as it is (no SSS).
+NONE = "none"
+#: Default ``max_error``: a technique may be predicted up to 5 % worse than the best and still be
+#: chosen when it is cheaper.
+DEFAULT_MAX_ERROR = 0.05
+#: Mean distance light travels under the Burley profile of d: 2.5 d (the first moment of
+#: R(r) 2 pi r = (e^{-r/d} + e^{-r/(3d)}) / (4 d), docs/references.md §1).
+MEAN_DISTANCE = 2.5
+#: Widest box (pixels, half-width) the diffusion feature averages over; wider footprints change
+#: little more and would cost more than the feature is worth.
+MAX_BOX = 64
+#: Blocks of the error measure (as ``compare`` and the fidelity suite: 2 x 2).
+BOX = 2
+MODEL_PATH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "auto_model.json")
+
+
+@dataclass
+class Features:
+    """What ``choose`` measures on one material (see the module docstring)."""
+
+    name: str
+    index: int
+    pixels: int
+    #: The profile's d per channel (R, G, B) in pixels at the material's median depth.
+    footprint_px: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    diffusion: float = 0.0
+    back: float = 0.0
+    #: Light from behind over the visible diffuse light, summed over the material (a share).
+    back_share: float = 0.0
+    #: Median slab thickness read from the baked map over the mean d (None without a map).
+    thickness_over_d: float | None = None
+    energy: float = 0.0
+    #: Techniques the material carries a fit for.
+    fitted: tuple[str, ...] = ()
+    notes: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class Model:
+    """Per candidate: (alpha, beta, gamma) of error^2 = alpha D^2 + beta B^2 + gamma."""
+
+    coefficients: dict
+    #: What it was learnt on (scene names) and by which command.
+    trained_on: tuple[str, ...] = ()
+    command: str = ""
+
+    def predict(self, candidate: str, f: Features) -> float:
+        alpha, beta, gamma = self.coefficients[candidate]
+        e2 = alpha * f.diffusion**2 + beta * f.back**2 + gamma
+        if candidate not in f.fitted:
+            e2 += f.energy**2
+        return math.sqrt(max(e2, 0.0))
+
+    def to_dict(self) -> dict:
+        return {
+            "coefficients": {k: list(v) for k, v in self.coefficients.items()},
+            "trained_on": list(self.trained_on),
+            "command": self.command,
+            "definition": "relative error^2 = alpha D^2 + beta B^2 + gamma per candidate (core/auto.py)",
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict, where: str = "model") -> Model:
+        try:
+            coefficients = {str(k): tuple(float(x) for x in v) for k, v in dict(data["coefficients"]).items()}
+        except (KeyError, TypeError, ValueError):
+            raise InputError(f"{where}: expected {{'coefficients': {{candidate: [alpha, beta, gamma]}}}}") from None
+        for k, v in coefficients.items():
+            if len(v) != 3 or not all(math.isfinite(x) and x >= 0 for x in v):
+                raise InputError(f"{where}: coefficients of {k!r} must be three finite numbers >= 0, got {v}")
+        if NONE not in coefficients:
+            raise InputError(f"{where}: no coefficients for {NONE!r} (no SSS), which every choice compares against")
+        return cls(coefficients, tuple(data.get("trained_on", ())), str(data.get("command", "")))
+
+
+def load_model(path: str = MODEL_PATH) -> Model:
+    """The model stored at ``path`` (default: the one shipped beside this module)."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: cannot read the auto model ({exc})") from None
+    return Model.from_dict(data, path)
+
+
+# --- features ---------------------------------------------------------------------------------
+
+
+def _box_sum(a: np.ndarray, h: int) -> np.ndarray:
+    """Sum of ``a`` (H, W) over the (2h+1)^2 box around each pixel (clipped at the borders)."""
+    H, W = a.shape
+    s = np.zeros((H + 1, W + 1), np.float64)
+    s[1:, 1:] = np.cumsum(np.cumsum(a, axis=0), axis=1)
+    y0 = np.clip(np.arange(H) - h, 0, H)
+    y1 = np.clip(np.arange(H) + h + 1, 0, H)
+    x0 = np.clip(np.arange(W) - h, 0, W)
+    x1 = np.clip(np.arange(W) + h + 1, 0, W)
+    return s[y1][:, x1] - s[y0][:, x1] - s[y1][:, x0] + s[y0][:, x0]
+
+
+def _blurred(e: np.ndarray, mask: np.ndarray, h: int) -> np.ndarray:
+    """Mean of ``e`` (H, W) over the box of half-width ``h`` around each pixel, inside ``mask`` only."""
+    m = mask.astype(np.float64)
+    num = _box_sum(np.where(mask, e, 0.0), h)
+    den = _box_sum(m, h)
+    return np.where(den > 0, num / np.maximum(den, 1e-300), e)
+
+
+def _relative_rms(term: np.ndarray, mask: np.ndarray, base: np.ndarray) -> float:
+    """RMS of ``term`` (H, W, 3) over the 2 x 2 blocks inside ``mask``, over the mean of ``base``
+    there (the measure of ``core/metrics.py``)."""
+    if min(mask.shape) < BOX:
+        keep, t, b = mask, term, base
+    else:
+        keep = box_downsample(mask.astype(np.float64), BOX) >= 1.0
+        t, b = box_downsample(term, BOX), box_downsample(base, BOX)
+    if not keep.any():
+        keep, t, b = mask, term, base
+    mean = float(np.mean(b[keep]))
+    if not keep.any() or mean <= 0:
+        return 0.0
+    return float(np.sqrt(np.mean(t[keep] ** 2))) / mean
+
+
+class _Shared:
+    """The passes ``features`` reads, cleaned once per call of ``choose`` (not per material)."""
+
+    def __init__(self, passes: Passes, scene: SceneDescription):
+        self.index = _index_map(passes)
+        raw = passes["Combined"][..., :3]
+        self.finite = core_apply._finite(raw)
+        self.combined = core_apply._clean(raw)
+        self.albedo = core_apply._clean(passes["Diffuse Color"][..., :3])
+        if "Diffuse Direct" in passes and "Diffuse Indirect" in passes:
+            self.light = core_apply._clean(passes["Diffuse Direct"]) + core_apply._clean(passes["Diffuse Indirect"])
+        else:
+            self.light = None
+        self.depth = passes.get("Depth")
+        aov = scene.thickness_aov
+        self.missing_back = [p for p in ("Normal", "Position", aov) if p not in passes]
+        if not self.missing_back:
+            t = passes[aov]
+            self.thickness = core_apply._clean(t if t.ndim == 2 else t[..., 0])
+            self.normal = core_apply._clean(passes["Normal"])
+            self.position = core_apply._clean(passes["Position"])
+
+
+def _crop(mask: np.ndarray) -> tuple[slice, slice]:
+    """The bounding box of ``mask``, its start on even rows and columns (so that the 2 x 2 blocks
+    inside it are the blocks of the whole image, as the error measure takes them)."""
+    ys, xs = np.nonzero(mask)
+    y0, x0 = int(ys.min()) // BOX * BOX, int(xs.min()) // BOX * BOX
+    return slice(y0, int(ys.max()) + 1), slice(x0, int(xs.max()) + 1)
+
+
+def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, _shared=None) -> Features:
+    """The features of ``material`` on ``passes`` (module docstring); pure NumPy, no technique run."""
+    start = time.perf_counter()
+    sh = _shared or _Shared(passes, scene)
+    full_mask = (sh.index == material.index) & sh.finite
+    f = Features(name=material.name or str(material.index), index=material.index, pixels=int(full_mask.sum()))
+    f.fitted = tuple(t for t in material.fit if fitted(material.fit, t))
+    if not f.pixels:
+        f.notes.append("no pixel on screen")
+        return f
+    win = _crop(full_mask)
+    mask = full_mask[win]
+    combined = sh.combined[win]
+    albedo = sh.albedo[win]
+    e = None if sh.light is None else sh.light[win]
+    d = np.asarray(burley_d(material), np.float64)
+    scales = [fitted(material.fit, t).get("d_scale") for t in f.fitted]
+    scales = [v for v in scales if v]
+    if scales:
+        d = d * float(np.median(scales))
+    if e is None:
+        f.notes.append("no Diffuse Direct/Indirect passes: diffusion not measured")
+    z = None
+    if sh.depth is not None:
+        zs = sh.depth[win][mask]
+        zs = zs[np.isfinite(zs) & (zs > 0) & (zs < _arrays.BACKGROUND_DEPTH)]
+        z = float(np.median(zs)) if zs.size else None
+    if z is not None:
+        ppu = float(scene.camera.pixels_per_unit(np.array([z], np.float32))[0])
+        f.footprint_px = tuple(float(v) * ppu for v in d)
+    visible = albedo * e if e is not None else combined
+    # Light from behind, as the combined technique's transmission would add it.
+    light = None
+    tr_fit = next((fitted(material.fit, t) for t in f.fitted if "transmission_d_su" in fitted(material.fit, t)), {})
+    distance = material.thickness_distance
+    if sh.missing_back:
+        f.notes.append(f"no {', '.join(sh.missing_back)} pass: light from behind not measured")
+    elif not distance:
+        f.notes.append("the thickness map has no bake distance: light from behind not measured")
+    else:
+        t_map = sh.thickness[win]
+        light = transmission(
+            normal=sh.normal[win],
+            position=sh.position[win],
+            thickness=t_map,
+            mask=mask,
+            lights=scene.lights,
+            d_su=tuple(tr_fit.get("transmission_d_su", tuple(d))),
+            thickness_distance_su=distance,
+            transmission_scale=tr_fit.get("transmission_scale", 1.0),
+            thickness_convention=scene.thickness_convention,
+        )
+        t_lin = t_map if scene.thickness_convention == "translucency" else 1.0 - t_map
+        x = distance * np.sqrt(1.0 - np.clip(t_lin[mask], 0.0, 1.0))
+        if float(d.mean()) > 0:
+            f.thickness_over_d = float(np.median(x)) / float(d.mean())
+    # The error measure divides by the reference's mean, which holds the light from behind too.
+    base = combined if light is None else combined + light
+    if e is not None and z is not None:
+        change = np.zeros(e.shape, np.float32)
+        for c in range(3):
+            h = MEAN_DISTANCE * f.footprint_px[c]
+            if h < 0.5:
+                continue  # the light stays within its pixel
+            change[..., c] = _blurred(e[..., c], mask, min(int(round(h)), MAX_BOX)) - e[..., c]
+        f.diffusion = _relative_rms(np.where(mask[..., None], albedo * change, 0.0), mask, base)
+    if light is not None:
+        f.back = _relative_rms(light, mask, base)
+        total = float(np.sum(visible[mask]))
+        f.back_share = float(np.sum(light[mask])) / total if total > 0 else 0.0
+    gains = [fitted(material.fit, t).get("gain") for t in f.fitted]
+    gains = [np.asarray(g, np.float32) for g in gains if g is not None]
+    if gains and e is not None:
+        g = np.median(np.stack(gains), axis=0)
+        f.energy = _relative_rms(np.where(mask[..., None], visible * (g - 1.0), 0.0), mask, base)
+    f.seconds = time.perf_counter() - start
+    return f
+
+
+# --- the choice -------------------------------------------------------------------------------
+
+
+@dataclass
+class Candidate:
+    name: str
+    predicted: float
+    #: Work estimate: pixels x samples per pixel (0 for no SSS).
+    cost: float
+    #: Why it could not be chosen (missing passes, skipped by its plan...), None when it could.
+    excluded: str | None = None
+
+
+@dataclass
+class MaterialChoice:
+    """One material's features, its candidates and the one chosen, with the reason."""
+
+    material: MaterialSSS
+    features: Features
+    candidates: list[Candidate]
+    chosen: str
+    reason: str
+    #: Kept for the callers that read a plan's materials (``Plan.applied``-like).
+    warning: str | None = None
+
+    @property
+    def applied(self) -> bool:
+        return self.chosen != NONE
+
+
+@dataclass
+class AutoPlan:
+    """``choose``'s result; reads like a ``core.plan.Plan`` for the command line."""
+
+    shape: tuple[int, int]
+    max_error: float
+    choices: list[MaterialChoice]
+    #: The plans of the chosen techniques, restricted to the materials that chose them.
+    plans: dict[str, Plan]
+    model: Model
+    skipped_materials: list[str] = field(default_factory=list)
+    technique: str = AUTO
+    nonfinite_pixels: int = 0
+
+    @property
+    def scattering(self) -> list[MaterialChoice]:
+        return self.choices
+
+    @property
+    def applied(self) -> list[MaterialChoice]:
+        return [c for c in self.choices if c.applied]
+
+    def explain(self) -> str:
+        h, w = self.shape
+        lines = [
+            f"auto on {w}x{h} pixels: per material, the cheapest technique whose predicted error is within"
+            f" {100 * self.max_error:.0f} % of the best predicted error (model: {self.model.command or 'given'})"
+        ]
+        if not self.choices:
+            lines.append("  no material in the scene description scatters light on screen: nothing to do")
+        for line in self.skipped_materials:
+            lines.append(f"  {line}")
+        for c in self.choices:
+            f = c.features
+            lines.append(f"  material {f.name!r} (pass index {f.index}, {f.pixels} pixels): {c.chosen}")
+            fp = " / ".join(f"{v:.3g}" for v in f.footprint_px)
+            lines.append(f"    footprint d R/G/B {fp} px at the median depth")
+            lines.append(
+                f"    diffusion D {f.diffusion:.4f} (how much spreading the visible light over 2.5 d changes it)"
+            )
+            thick = "" if f.thickness_over_d is None else f", median thickness {f.thickness_over_d:.3g} d"
+            lines.append(
+                f"    light from behind B {f.back:.4f} ({100 * f.back_share:.1f} % of the visible diffuse light{thick})"
+            )
+            if f.fitted:
+                lines.append(f"    fitted for {', '.join(f.fitted)}; energy its fitted gain corrects G {f.energy:.4f}")
+            lines += [f"    {n}" for n in f.notes]
+            for cand in sorted(c.candidates, key=lambda k: k.cost):
+                if cand.excluded:
+                    lines.append(f"    {cand.name:9s} not a candidate: {cand.excluded}")
+                else:
+                    lines.append(
+                        f"    {cand.name:9s} predicted error {cand.predicted:.4f}, work {cand.cost:.3g} samples"
+                    )
+            lines.append(f"    => {c.chosen}: {c.reason}")
+            if c.warning:
+                lines.append(f"    warning: {c.warning}")
+        return "\n".join(lines)
+
+
+def _cost(technique: str, mp, lights: int) -> float:
+    """pixels x (samples per pixel + one per light when the technique adds light from behind)."""
+    per_pixel = float(mp.samples or 0)
+    if "Normal" in required_passes(technique):  # it reads the geometry to add light from behind
+        per_pixel += max(lights, 1)
+    return mp.pixels * max(per_pixel, 1.0)
+
+
+def choose(
+    passes: Passes,
+    scene: SceneDescription,
+    *,
+    max_error: float = DEFAULT_MAX_ERROR,
+    model: Model | None = None,
+    techniques=None,
+    albedo_mode: str = "post",
+    mapping=None,
+) -> AutoPlan:
+    """Per scattering material on screen, the technique to run (or none), and why.
+
+    ``techniques``: the candidates (default: every registered technique the model knows); one
+    whose passes are missing is not a candidate (said in the plan). ``max_error`` >= 0: how much
+    worse than the best predicted error (relative) a cheaper choice may be.
+    """
+    if not (isinstance(max_error, (int, float)) and math.isfinite(max_error) and max_error >= 0):
+        raise InputError(f"max_error: expected a number >= 0 (0.05 = within 5 % of the best), got {max_error!r}")
+    model = model or load_model()
+    names = list(techniques) if techniques is not None else [t for t in TECHNIQUES if t in model.coefficients]
+    plans: dict[str, Plan] = {}
+    missing: dict[str, str] = {}
+    for t in names:
+        try:
+            plans[t] = plan(passes, scene, t, albedo_mode=albedo_mode, mapping=mapping)
+        except MissingPassError as exc:
+            missing[t] = str(exc.args[0]) if exc.args else str(exc)
+    auto = AutoPlan(shape=passes.shape, max_error=float(max_error), choices=[], plans={}, model=model)
+    chosen_by: dict[str, set[int]] = {}
+    shared = _Shared(passes, scene)
+    for material in scene.materials:
+        name = material.name or str(material.index)
+        if not material.scatters:
+            auto.skipped_materials.append(f"material {name!r}: does not scatter light: left as it is")
+            continue
+        f = features(passes, scene, material, _shared=shared)
+        if not f.pixels:
+            auto.skipped_materials.append(f"material {name!r}: no pixel on screen: left as it is")
+            continue
+        cands = [Candidate(NONE, model.predict(NONE, f), 0.0)]
+        for t in names:
+            if t not in model.coefficients:
+                cands.append(Candidate(t, math.nan, math.nan, "the auto model has no coefficients for it"))
+                continue
+            if t in missing:
+                cands.append(Candidate(t, math.nan, math.nan, f"its passes are missing ({missing[t]})"))
+                continue
+            mp = next(m for m in plans[t].materials if m.material.index == material.index)
+            if mp.skip:
+                cands.append(Candidate(t, math.nan, math.nan, mp.skip))
+                continue
+            cands.append(Candidate(t, model.predict(t, f), _cost(t, mp, len(scene.lights))))
+        ok = [c for c in cands if c.excluded is None]
+        best = min(ok, key=lambda c: c.predicted)
+        limit = best.predicted * (1.0 + max_error)
+        within = [c for c in ok if c.predicted <= limit + 1e-12]
+        pick = min(within, key=lambda c: (c.cost, c.predicted))
+        if pick is best:
+            reason = f"the best predicted error ({best.predicted:.4f})"
+            if len(within) > 1:
+                reason += " and the cheapest within the margin"
+        else:
+            reason = (
+                f"cheapest within {100 * max_error:.0f} % of the best predicted error"
+                f" ({best.name} {best.predicted:.4f}); predicted {pick.predicted:.4f}"
+            )
+        reason += _why(f, pick.name)
+        mp_warning = None
+        if pick.name != NONE:
+            mp = next(m for m in plans[pick.name].materials if m.material.index == material.index)
+            mp_warning = mp.warning
+            chosen_by.setdefault(pick.name, set()).add(material.index)
+        auto.choices.append(MaterialChoice(material, f, cands, pick.name, reason, mp_warning))
+    for t, indices in chosen_by.items():
+        p = plans[t]
+        for mp in p.materials:
+            if mp.material.index not in indices and mp.skip is None:
+                mp.skip = "auto chose another technique for it"
+        auto.plans[t] = p
+    return auto
+
+
+def _why(f: Features, chosen: str) -> str:
+    """What the features say, in words."""
+    parts = []
+    if f.diffusion < 0.01:
+        parts.append("spreading its light over its footprint changes little")
+    if f.back < 0.01:
+        parts.append("little light from behind")
+    elif f.back > f.diffusion:
+        parts.append("light from behind outweighs the diffusion")
+    return f" ({'; '.join(parts)})" if parts else ""
+
+
+def apply_auto(passes: Passes, scene: SceneDescription, *, prepared: AutoPlan | None = None, **options) -> dict:
+    """Run each material's chosen technique; returns ``SSSLab.auto.Image`` and ``SSSLab.auto.SSS``
+    (as ``core.apply.apply``: float32, Combined untouched outside the computed materials), or {}
+    when no material scatters light on screen. ``options`` go to ``choose``."""
+    auto = prepared or choose(passes, scene, **options)
+    if not auto.choices:
+        return {}
+    combined = passes["Combined"]
+    image = np.array(combined, dtype=np.float32)
+    sss = np.zeros(combined.shape[:2] + (3,), np.float32)
+    nonfinite = 0
+    for t, p in auto.plans.items():
+        layers = core_apply.apply(passes, scene, t, albedo_mode=p.albedo_mode, prepared=p)
+        if layers:
+            sss += layers[core_apply.layer_names(t)[1]]
+        nonfinite += p.nonfinite_pixels
+    image[..., :3] += sss
+    auto.nonfinite_pixels = nonfinite
+    name_image, name_sss = core_apply.layer_names(AUTO)
+    return {name_image: image, name_sss: sss}
+
+
+# --- learning the model -----------------------------------------------------------------------
+
+
+def _nnls3(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Non-negative weighted least squares with three unknowns: every subset of active
+    coefficients solved exactly, the feasible one with the smallest residual kept."""
+    sw = np.sqrt(w)
+    xw, yw = x * sw[:, None], y * sw
+    best, best_r = np.zeros(x.shape[1]), float(np.sum(yw**2))
+    n = x.shape[1]
+    for bits in range(1, 2**n):
+        cols = [i for i in range(n) if bits >> i & 1]
+        coef, *_ = np.linalg.lstsq(xw[:, cols], yw, rcond=None)
+        if np.any(coef < 0):
+            continue
+        full = np.zeros(n)
+        full[cols] = coef
+        r = float(np.sum((xw @ full - yw) ** 2))
+        if r < best_r:
+            best, best_r = full, r
+    return best
+
+
+def train(samples, *, trained_on=(), command: str = "") -> Model:
+    """Learn the coefficients from measured errors.
+
+    ``samples``: (Features, {candidate: relative error}) pairs, one per material of a scene,
+    the candidates including ``NONE``. Each technique's error^2 is fitted to (D^2, B^2, 1) by
+    non-negative least squares, each material weighted by 1 / its no-SSS error^2 so that every
+    material counts alike whatever its scene's error level. The energy term is not learnt (no SSS
+    always keeps it, a fitted technique removes it): it is subtracted from the measured error^2
+    first."""
+    by_candidate: dict[str, list] = {}
+    for f, errors in samples:
+        none = errors.get(NONE)
+        if none is None or not math.isfinite(none) or none <= 0:
+            continue
+        for t, err in errors.items():
+            if err is None or not math.isfinite(err):
+                continue
+            e2 = err**2 - (0.0 if t in f.fitted else f.energy**2)
+            by_candidate.setdefault(t, []).append((f.diffusion**2, f.back**2, max(e2, 0.0), 1.0 / none**2))
+    if NONE not in by_candidate:
+        raise InputError("train: no sample with a finite no-SSS error: nothing to learn from")
+    coefficients = {}
+    for t, rows in by_candidate.items():
+        a = np.asarray(rows, np.float64)
+        x = np.column_stack([a[:, 0], a[:, 1], np.ones(len(a))])
+        coefficients[t] = tuple(float(v) for v in _nnls3(x, a[:, 2], a[:, 3]))
+    return Model(coefficients, tuple(trained_on), command)
+
+
+def save_model(model: Model, path: str = MODEL_PATH) -> None:
+    from ._files import write_text
+
+    write_text(path, json.dumps(model.to_dict(), indent=2) + "\n")

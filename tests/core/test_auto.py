@@ -1,0 +1,286 @@
+"""core/auto.py: the features, the choice, the composite and the learning of ``apply --method auto``.
+
+Expected values come from independent computations: a naive loop for the masked box average, the
+combined technique's own transmission for the light from behind, ``core.apply.apply`` per
+technique for the composite, and coefficients drawn at random for the learning."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from sss_lab.core import apply as core_apply
+from sss_lab.core import auto
+from sss_lab.core.errors import InputError
+from sss_lab.core.exr import Passes
+from sss_lab.core.mapping import burley_d
+from sss_lab.core.scene import Camera, MaterialSSS, SceneDescription
+from sss_lab.core.synthetic import sphere_scene
+
+#: The Burley profile's mean distance in units of d: the first moment of (e^{-r/d} + e^{-r/3d}) / (4 d),
+#: (d^2 + 9 d^2) / (4 d) = 2.5 d.
+MEAN_DISTANCE_CHECK = (1.0 + 9.0) / 4.0
+
+#: A model under which every technique is predicted by hand: no SSS keeps the diffusion and the
+#: light from behind; SSSS and Burley remove most of the diffusion; STA the light from behind.
+MODEL = auto.Model(
+    {
+        "none": (1.0, 1.0, 0.0),
+        "sta": (1.0, 0.3, 0.0),
+        "ssss": (0.2, 1.0, 0.0),
+        "burley": (0.19, 1.0, 0.0),
+        "combined": (0.19, 0.1, 0.0),
+    },
+    command="test",
+)
+
+
+def _scene(distance=0.5):
+    arrays, scene = sphere_scene(64, 48)
+    mats = tuple(dataclasses.replace(m, thickness_distance=distance) if m.scatters else m for m in scene.materials)
+    return arrays, dataclasses.replace(scene, materials=mats)
+
+
+def test_masked_box_average_matches_a_naive_loop():
+    rng = np.random.default_rng(1)
+    e = rng.random((13, 17))
+    mask = rng.random((13, 17)) < 0.7
+    h = 2
+    got = auto._blurred(e, mask, h)
+    for y in range(13):
+        for x in range(17):
+            ys, xs = slice(max(y - h, 0), y + h + 1), slice(max(x - h, 0), x + h + 1)
+            m = mask[ys, xs]
+            expected = e[ys, xs][m].mean() if m.any() else e[y, x]
+            assert got[y, x] == pytest.approx(expected, rel=1e-12)
+
+
+def _flat(n=32, light=None, d_su=0.01, ppu=100.0):
+    """A flat material facing an orthographic camera, ``ppu`` pixels per scene unit."""
+    camera = Camera(type="ORTHO", width_px=n, height_px=n, ortho_scale=n / ppu)
+    e = np.ones((n, n, 3), np.float32) if light is None else light
+    arrays = {
+        "Combined": np.concatenate([0.5 * e, np.ones((n, n, 1), np.float32)], axis=2),
+        "Diffuse Direct": e,
+        "Diffuse Indirect": np.zeros((n, n, 3), np.float32),
+        "Diffuse Color": np.full((n, n, 3), 0.5, np.float32),
+        "Depth": np.full((n, n), 2.0, np.float32),
+        "Material Index": np.ones((n, n), np.float32),
+        "Object Index": np.ones((n, n), np.float32),
+    }
+    m = MaterialSSS(
+        index=1,
+        name="M",
+        method="RANDOM_WALK",
+        base_color=(0.5, 0.5, 0.5),
+        subsurface_radius=(1, 1, 1),
+        subsurface_scale=d_su,
+    )
+    return Passes(arrays), SceneDescription(camera=camera, lights=(), materials=(m,))
+
+
+def test_diffusion_is_zero_on_flat_light_and_under_half_a_pixel():
+    passes, scene = _flat()
+    f = auto.features(passes, scene, scene.materials[0])
+    assert f.diffusion == pytest.approx(0.0, abs=1e-9)  # spreading uniform light changes nothing
+    edge = np.ones((32, 32, 3), np.float32)
+    edge[:, 16:] = 0.0
+    passes, scene = _flat(light=edge, d_su=0.001)  # d under 0.2 px: 2.5 d < 0.5 px
+    f = auto.features(passes, scene, scene.materials[0])
+    expected_px = burley_d(scene.materials[0])[0] * 100.0
+    assert f.footprint_px[0] == pytest.approx(expected_px, rel=1e-5)
+    assert MEAN_DISTANCE_CHECK * expected_px < 0.5
+    assert f.diffusion == 0.0
+
+
+def test_diffusion_grows_with_the_footprint_at_a_shadow_edge():
+    edge = np.ones((32, 32, 3), np.float32)
+    edge[:, 16:] = 0.0
+    values = []
+    for d in (0.004, 0.02, 0.06):
+        passes, scene = _flat(light=edge, d_su=d)
+        values.append(auto.features(passes, scene, scene.materials[0]).diffusion)
+    assert 0 < values[0] < values[1] < values[2]
+    # Independently: a box of half-width h = round(2.5 d) px; with albedo 0.5 the change at the
+    # columns next to the edge is 0.5 x (mean of the box - own value), the same in every channel.
+    passes, scene = _flat(light=edge, d_su=0.02)
+    h = round(MEAN_DISTANCE_CHECK * burley_d(scene.materials[0])[0] * 100.0)
+    assert h >= 2
+    blurred = np.array([edge[0, max(x - h, 0) : x + h + 1, 0].mean() for x in range(32)])
+    change = 0.5 * (blurred - edge[0, :, 0])
+    blocks = change.reshape(16, 2).mean(axis=1)  # 2 x 2 blocks (rows are all alike)
+    expected = math.sqrt(np.mean(blocks**2)) / np.mean(0.5 * edge[0, :, 0])
+    assert values[1] == pytest.approx(expected, rel=1e-6)
+
+
+def test_light_from_behind_is_the_combined_techniques_transmission():
+    arrays, scene = _scene()
+    passes = Passes(arrays)
+    wax = scene.materials[2]
+    f = auto.features(passes, scene, wax)
+    from sss_lab.core.combined import transmission
+
+    mask = np.rint(arrays["Material Index"]) == wax.index
+    term = transmission(
+        normal=arrays["Normal"],
+        position=arrays["Position"],
+        thickness=arrays["Thickness"],
+        mask=mask,
+        lights=scene.lights,
+        d_su=burley_d(wax),
+        thickness_distance_su=0.5,
+    ).astype(np.float64)
+    keep = auto.box_downsample(mask.astype(float), 2) >= 1
+    t = auto.box_downsample(term, 2)[keep]
+    # Relative to the mean of the image with that light (the reference's mean holds it too).
+    base = auto.box_downsample(arrays["Combined"][..., :3].astype(np.float64) + term, 2)[keep]
+    assert f.back > 0
+    assert f.back == pytest.approx(math.sqrt(np.mean(t**2)) / base.mean(), rel=1e-5)
+    # Without the bake distance it cannot be measured, and says so.
+    _, no_distance = _scene(distance=0.0)
+    g = auto.features(passes, no_distance, no_distance.materials[2])
+    assert g.back == 0.0 and any("bake distance" in n for n in g.notes)
+
+
+def test_choose_takes_the_cheapest_within_the_margin():
+    arrays, scene = _scene()
+    passes = Passes(arrays)
+    plan = auto.choose(passes, scene, model=MODEL, max_error=0.05)
+    for c in plan.choices:
+        ok = [k for k in c.candidates if k.excluded is None]
+        best = min(k.predicted for k in ok)
+        chosen = next(k for k in ok if k.name == c.chosen)
+        assert chosen.predicted <= best * 1.05 + 1e-12
+        # nothing cheaper was within the margin
+        assert all(k.cost >= chosen.cost or k.predicted > best * 1.05 for k in ok)
+    # Burley predicted at most 2.5 % better than SSSS (sqrt(0.19 / 0.2)) and costing about twice as
+    # much; the light from behind counted alike for all three: SSSS, on both materials.
+    even = auto.Model({"none": (1.0, 1.0, 0.0), "ssss": (0.2, 1.0, 0.0), "burley": (0.19, 1.0, 0.0)})
+    picked = auto.choose(passes, scene, model=even, max_error=0.05)
+    assert [c.chosen for c in picked.choices] == ["ssss", "ssss"], picked.explain()
+    assert [c.chosen for c in auto.choose(passes, scene, model=even, max_error=0.0).choices] == ["burley", "burley"]
+    # With no margin the best prediction wins.
+    strict = auto.choose(passes, scene, model=MODEL, max_error=0.0)
+    for c in strict.choices:
+        ok = [k for k in c.candidates if k.excluded is None]
+        assert c.chosen == min(ok, key=lambda k: k.predicted).name
+    text = plan.explain()
+    assert "material 'Skin'" in text and "diffusion D" in text and "light from behind B" in text
+    assert "material 'Plaster': does not scatter light" in text
+
+
+def test_a_huge_margin_leaves_everything_as_it_is():
+    arrays, scene = _scene()
+    plan = auto.choose(Passes(arrays), scene, model=MODEL, max_error=1e6)
+    assert [c.chosen for c in plan.choices] == ["none", "none"]
+    assert auto.apply_auto(Passes(arrays), scene, prepared=plan)["SSSLab.auto.SSS"].max() == 0.0
+
+
+def test_missing_passes_exclude_a_technique_with_the_reason():
+    arrays, scene = _scene()
+    del arrays["Thickness"]
+    plan = auto.choose(Passes(arrays), scene, model=MODEL)
+    for c in plan.choices:
+        excluded = {k.name: k.excluded for k in c.candidates if k.excluded}
+        assert set(excluded) == {"sta", "combined"}
+        assert all("Thickness" in why for why in excluded.values())
+        assert c.chosen not in excluded
+
+
+@pytest.mark.parametrize("bad", [-0.1, math.nan, math.inf, "5%"])
+def test_bad_margin_is_one_clear_error(bad):
+    arrays, scene = _scene()
+    with pytest.raises(InputError, match="max_error"):
+        auto.choose(Passes(arrays), scene, model=MODEL, max_error=bad)
+
+
+def test_the_composite_is_each_materials_chosen_technique():
+    arrays, scene = _scene()
+    passes = Passes(arrays)
+    # SSSS predicted better where the diffusion is small (Skin, D < 0.01), Burley where it is large
+    # (Wax, D > 0.2): a model made up so that the two materials choose differently.
+    model = auto.Model({"none": (1.0, 1.0, 0.0), "ssss": (0.5, 1.0, 0.0), "burley": (0.1, 1.0, 1e-4)})
+    plan = auto.choose(passes, scene, model=model, max_error=0.0, techniques=("ssss", "burley"))
+    chosen = {c.features.name: c.chosen for c in plan.choices}
+    assert chosen == {"Skin": "ssss", "Wax": "burley"}, plan.explain()
+    out = auto.apply_auto(passes, scene, prepared=plan)
+    index = np.rint(arrays["Material Index"])
+    for name, t in chosen.items():
+        ref = core_apply.apply(passes, scene, t)
+        sel = index == next(m.index for m in scene.materials if m.name == name)
+        np.testing.assert_array_equal(out["SSSLab.auto.SSS"][sel], ref[f"SSSLab.{t}.SSS"][sel])
+        np.testing.assert_array_equal(out["SSSLab.auto.Image"][sel], ref[f"SSSLab.{t}.Image"][sel])
+    rest = ~np.isin(index, [2, 3])
+    np.testing.assert_array_equal(out["SSSLab.auto.Image"][rest], arrays["Combined"][rest])
+
+
+def test_train_recovers_the_coefficients_it_was_made_from():
+    rng = np.random.default_rng(5)
+    truth = {"none": (1.0, 1.0, 0.001), "ssss": (0.3, 1.0, 0.002), "combined": (0.25, 0.0, 0.004)}
+    samples = []
+    for i in range(12):
+        f = auto.Features(name=f"m{i}", index=1, pixels=100, diffusion=float(rng.random()), back=float(rng.random()))
+        errors = {t: math.sqrt(a * f.diffusion**2 + b * f.back**2 + c) for t, (a, b, c) in truth.items()}
+        samples.append((f, errors))
+    model = auto.train(samples)
+    for t, coef in truth.items():
+        np.testing.assert_allclose(model.coefficients[t], coef, atol=1e-9)
+
+
+def test_model_validation_and_the_shipped_model():
+    with pytest.raises(InputError, match="none"):
+        auto.Model.from_dict({"coefficients": {"ssss": [1, 1, 0]}})
+    with pytest.raises(InputError, match=">= 0"):
+        auto.Model.from_dict({"coefficients": {"none": [1, -1, 0]}})
+    shipped = auto.load_model()
+    assert "none" in shipped.coefficients and shipped.trained_on and shipped.command
+
+
+def test_fitted_energy_counts_against_techniques_without_the_fit():
+    f = auto.Features(name="m", index=1, pixels=1, diffusion=0.1, energy=0.2, fitted=("burley",))
+    assert MODEL.predict("burley", f) == pytest.approx(math.sqrt(0.19 * 0.01))
+    assert MODEL.predict("none", f) == pytest.approx(math.sqrt(0.01 + 0.04))
+
+
+def _cli(*args):
+    from sss_lab.addon.cli import main
+
+    return main(["apply", *map(str, args)])
+
+
+def test_command_line_apply_auto_writes_the_auto_layers(tmp_path, capsys):
+    from sss_lab.core.exr import read_layers
+    from sss_lab.core.synthetic import write_scene
+
+    arrays, scene = _scene()
+    path = write_scene(str(tmp_path / "passes.exr"), arrays, scene)
+    assert _cli(path, "--method", "auto", "--explain") == 0
+    out = capsys.readouterr().out
+    assert "diffusion D" in out and "=>" in out and not (tmp_path / "passes.sss.exr").exists()
+    assert _cli(path, "--method", "auto", "--max-error", "0.1") == 0
+    out = capsys.readouterr().out
+    assert "auto: material 'Skin':" in out and "Saved:" in out
+    layers = read_layers(str(tmp_path / "passes.sss.exr")).layers
+    assert "SSSLab.auto.Image" in layers and "SSSLab.auto.SSS" in layers
+    expected = auto.apply_auto(Passes(arrays), scene, max_error=0.1)
+    np.testing.assert_array_equal(layers["SSSLab.auto.SSS"], expected["SSSLab.auto.SSS"])
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("--method", "burley", "--max-error", "0.1"), "only --method auto"),
+        (("--method", "auto,burley"), "cannot be listed with others"),
+        (("--method", "auto", "--max-error", "-1"), "--max-error: expected a number >= 0"),
+    ],
+)
+def test_command_line_auto_bad_arguments_are_one_line(tmp_path, capsys, args, message):
+    from sss_lab.core.synthetic import write_scene
+
+    arrays, scene = _scene()
+    path = write_scene(str(tmp_path / "passes.exr"), arrays, scene)
+    assert _cli(path, *args) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) <= 2
+    assert not (tmp_path / "passes.sss.exr").exists()
