@@ -23,26 +23,30 @@ MAX_FRAMES = 100_000
 
 
 def parse_frames(text: str) -> list[int]:
-    """``"1-5"``, ``"7"``, ``"1-3,8"`` -> sorted frame numbers (inclusive ranges), at most
+    """``"1-5"``, ``"7"``, ``"1-3,8"``, ``"1-9:2"`` -> sorted frame numbers (inclusive ranges;
+    ``:N`` every Nth frame, as Open Job Description writes a range with a step), at most
     ``MAX_FRAMES`` of them (checked before any list is built)."""
     frames: set[int] = set()
     total = 0
     for chunk in str(text).split(","):
         chunk = chunk.strip()
-        m = re.fullmatch(r"(-?\d+)(?:\s*(?:-|\.\.)\s*(-?\d+))?", chunk)
+        m = re.fullmatch(r"(-?\d+)(?:\s*(?:-|\.\.)\s*(-?\d+)(?:\s*:\s*(\d+))?)?", chunk)
         if not m:
-            raise ValueError(f"frames: {chunk!r} is not a frame or a range like 1-10")
+            raise ValueError(f"frames: {chunk!r} is not a frame or a range like 1-10 or 1-10:2")
         a = int(m.group(1))
         b = int(m.group(2)) if m.group(2) is not None else a
+        step = int(m.group(3)) if m.group(3) is not None else 1
         if b < a:
             raise ValueError(f"frames: range {chunk!r} ends before it starts")
-        total += b - a + 1
+        if step < 1:
+            raise ValueError(f"frames: step of {chunk!r} must be 1 or more")
+        total += (b - a) // step + 1
         if total > MAX_FRAMES:
             raise ValueError(
                 f"frames: {text!r} holds more than {MAX_FRAMES} frames, the most one run takes; split the range, "
                 "or leave --frames out to take every existing file"
             )
-        frames.update(range(a, b + 1))
+        frames.update(range(a, b + 1, step))
     return sorted(frames)
 
 
