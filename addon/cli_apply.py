@@ -1,8 +1,10 @@
 """``python -m sss_lab apply PASSES.exr --method ...``: apply techniques to rendered passes.
 
 Needs only NumPy and OpenEXR (a render-farm node without Blender). Parses and reports; the
-work is ``core.sequence.apply_file``. Prints one ``Saved: PATH`` line per written file (render
-farms read it), progress per frame on stdout, and errors on stderr. Exit status: 0 done,
+work is ``core.sequence.apply_file``. Prints one ``Saved: '<path>'`` line per written file (render
+farms read it), progress per frame with the elapsed time and the ETA on stdout, and errors on
+stderr. ``--skip-existing`` keeps the outputs already written (a re-queued farm chunk) and says
+which. Exit status: 0 done,
 1 some frames failed (the others are written), 2 bad arguments or input, 3 no material of
 the scene scatters light (nothing written).
 """
@@ -12,10 +14,13 @@ from __future__ import annotations
 import math
 import os
 import sys
+import time
 import traceback
 
 
 def add_parser(subparsers):
+    from .cli_options import add_existing
+
     p = subparsers.add_parser(
         "apply",
         help="apply SSS techniques to rendered passes (NumPy and OpenEXR only, no Blender needed)",
@@ -50,7 +55,7 @@ def add_parser(subparsers):
     )
     p.add_argument("--frames", help="frames of a #### pattern, e.g. 1-10 or 1-3,7 (default: every existing file)")
     p.add_argument("--view-layer", help="view layer to read (default: the first one in the file)")
-    p.add_argument("--overwrite", action="store_true", help="replace existing output files (never the input)")
+    add_existing(p, "output files (never the input)")
     p.set_defaults(run=run)
 
 
@@ -83,11 +88,18 @@ def run(args) -> int:
         if os.path.exists(path) and os.path.exists(out) and os.path.samefile(path, out):
             raise FileExistsError(f"the output {out} is the input; refusing to overwrite it")
 
+    from ..core.progress import Progress, saved_line
+
     failed = nothing = 0
     total = len(frames)
-    for number, ((frame, path), out) in enumerate(zip(frames, outputs, strict=True), 1):
-        label = f"[{number}/{total}] " + (f"frame {frame}: " if frame is not None else "") + path
-        print(label, flush=True)
+    progress = Progress(total)
+    for (frame, path), out in zip(frames, outputs, strict=True):
+        what = f"frame {frame}" if frame is not None else os.path.basename(path)
+        if args.skip_existing and not args.explain and os.path.exists(out):
+            print(f"apply: {progress.position()} {what}: skipped, {os.path.basename(out)} exists ({progress.skip()})")
+            continue
+        print(f"apply: {progress.position()} {what}: {path}", flush=True)
+        started = time.perf_counter()
         scene_path = frame_path(args.scene, frame) if args.scene and frame is not None else args.scene
         try:
             result = apply_file(
@@ -108,17 +120,20 @@ def run(args) -> int:
             if not message.startswith(path):
                 message = f"{path}: {message}"
             print(f"sss_lab apply: error: {message}", file=sys.stderr, flush=True)
+            progress.finish()
             continue
         except Exception:  # a bug: report it with its traceback, and go on with the other frames
             failed += 1
             print(f"sss_lab apply: internal error on {path}:", file=sys.stderr)
             traceback.print_exc()
+            progress.finish()
             continue
         for technique, reason in result.skipped.items():
             print(f"  {technique}: skipped: {reason}")
         if result.nothing_to_do:
             nothing += 1
             print("  no material in the scene description scatters light (Subsurface Weight > 0): nothing written")
+            progress.finish()
             continue
         for p in result.plans.values():
             if args.explain:
@@ -136,7 +151,8 @@ def run(args) -> int:
                         name = m.material.name or m.material.index
                         print(f"  {p.technique}: warning: material {name!r}: {m.warning}")
         if result.written:
-            print(f"Saved: {os.path.abspath(result.out_path)}", flush=True)
+            print(saved_line(result.out_path), flush=True)
+        print(f"apply: {what} done in {time.perf_counter() - started:.2f} s ({progress.finish()})", flush=True)
     if failed:
         print(f"sss_lab apply: {failed} of {total} file(s) failed", file=sys.stderr)
         return 1

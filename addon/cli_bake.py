@@ -3,7 +3,8 @@
 Reads SCENE.blend, bakes the named objects (default: every local mesh object the scene
 renders) and writes the result to OUT.blend. OUT may not be an existing file — the input
 least of all — unless ``--overwrite`` says so. Images go to ``--image-dir`` (default:
-``OUT_thickness/`` beside OUT), referenced relative to OUT.
+``OUT_thickness/`` beside OUT), referenced relative to OUT. Prints ``Saved: '<path>'`` for every
+file written (images, their JSON, OUT).
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ _FORMATS = {"exr": "OPEN_EXR", "png": "PNG"}
 
 
 def add_parser(subparsers):
+    from .cli_options import add_render_device
+
     p = subparsers.add_parser(
         "bake-thickness",
         help="bake thickness maps (inverted-normal AO) of a .blend scene into a new .blend (needs bpy)",
@@ -51,6 +54,7 @@ def add_parser(subparsers):
     p.add_argument("--format", choices=tuple(_FORMATS), default="exr", help="exr: float32; png: 16-bit")
     p.add_argument("--image-dir", help="folder for the images (default: OUT_thickness beside OUT)")
     p.add_argument("--no-materials", action="store_true", help="do not add the maps to the objects' materials")
+    add_render_device(p)
     p.set_defaults(run=run)
 
 
@@ -115,7 +119,11 @@ def run(args) -> int:
     def log(line):
         print(f"bake-thickness: {line}", flush=True)
 
-    results = bake_thickness(bpy.context, names, settings, log=log)
+    from ..core.progress import saved_line
+    from .cli_options import render_device
+
+    with render_device(args, scene, log):  # put back before saving: OUT keeps the scene's own settings
+        results = bake_thickness(bpy.context, names, settings, log=log)
     counts = {s: sum(r.status == s for r in results) for s in ("baked", "shared", "skipped", "failed", "cancelled")}
     base = os.path.dirname(bpy.data.filepath)
     for r in results:
@@ -127,6 +135,12 @@ def run(args) -> int:
                 pass
     os.makedirs(os.path.dirname(out), exist_ok=True)
     bpy.ops.wm.save_as_mainfile(filepath=out, copy=True, check_existing=False, relative_remap=True)
+    for r in results:
+        if r.status == "baked" and r.filepath:
+            print(saved_line(r.filepath))
+            if os.path.isfile(r.filepath + ".json"):
+                print(saved_line(r.filepath + ".json"))
+    print(saved_line(out))
     summary = ", ".join(f"{n} {s}" for s, n in counts.items() if n)
-    print(f"bake-thickness: wrote {out} ({summary}) in {time.perf_counter() - t0:.2f} s")
+    print(f"bake-thickness: {summary} in {time.perf_counter() - t0:.2f} s")
     return 1 if counts["failed"] else 0

@@ -13,6 +13,8 @@ from __future__ import annotations
 import json
 import os
 
+from ..core.progress import saved_line
+
 
 def add_parser(subparsers):
     from ..core.fit_params import FIT_PARAMETERS
@@ -67,7 +69,7 @@ def run(args) -> int:
     if data["results"]:
         os.makedirs(os.path.dirname(out), exist_ok=True)
         bpy.ops.wm.save_as_mainfile(filepath=out, copy=True, check_existing=False, relative_remap=True)
-        print(f"Saved: {out}", flush=True)
+        print(saved_line(out), flush=True)
     else:
         print("sss_lab calibrate: no material could be fitted; nothing written", flush=True)
     if args.json:

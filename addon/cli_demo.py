@@ -54,7 +54,9 @@ def run(args) -> int:
     os.makedirs(out, exist_ok=True)
     start = time.perf_counter()
     blend = scenes.build(name, os.path.join(out, f"{name}.blend"))
-    print(f"Saved: {blend}")
+    from ..core.progress import saved_line
+
+    print(saved_line(blend))
 
     import bpy
 

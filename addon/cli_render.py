@@ -3,16 +3,23 @@
 Reads SCENE.blend (never written), renders per frame a multilayer EXR ``passes_####.exr`` with
 exactly the passes the chosen techniques read, the subsurface materials rendered as plain
 diffuse, and writes the scene description beside it (``passes_####.json``). Prints one
-``Saved: PATH`` line per written file. Exit status: 0 done, 2 bad arguments or a scene it
-cannot render as asked, 3 no material scatters light (nothing written).
+``Saved: '<path>'`` line per written file and a progress line per frame with the elapsed time
+and the ETA. ``--skip-existing`` keeps the frames already written (a re-queued farm chunk) and
+says which. Exit status: 0 done, 2 bad arguments or a scene it cannot render as asked, 3 no
+material scatters light (nothing written).
 """
 
 from __future__ import annotations
 
+import json
+import os
+import re
 import sys
 
 
 def add_parser(subparsers):
+    from .cli_options import add_existing, add_render_device
+
     p = subparsers.add_parser(
         "render",
         help="render the passes the SSS techniques need from a .blend scene (needs bpy)",
@@ -31,8 +38,39 @@ def add_parser(subparsers):
         default="all",
         help="techniques whose passes to render: sta, ssss, burley, a comma-separated list, or all (default)",
     )
-    p.add_argument("--overwrite", action="store_true", help="replace passes files already in the folder")
+    add_existing(p, "frames")
+    add_render_device(p)
     p.set_defaults(run=run)
+
+
+def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | None) -> str | None:
+    """The passes file of ``frame`` when it and its scene description exist (then it is kept);
+    None when the frame must be rendered. CommandError when the kept frame was rendered for
+    other techniques or samples: skipping it would deliver files the job did not ask for."""
+    from ..blender.render_passes import FILE_PATTERN
+    from ..core.sequence import frame_path, sidecar_path
+    from .cli import CommandError
+
+    exr = os.path.join(out_dir, frame_path(FILE_PATTERN, frame))
+    if not (os.path.isfile(exr) and os.path.isfile(sidecar_path(exr))):
+        return None
+    try:
+        with open(sidecar_path(exr), encoding="utf-8") as fh:
+            meta = json.load(fh).get("meta", {})
+    except (OSError, ValueError, AttributeError) as exc:
+        raise CommandError(f"{sidecar_path(exr)}: not a readable scene description ({exc}); pass --overwrite") from None
+    missing = [t for t in techniques if t not in meta.get("techniques", [])]
+    if missing:
+        raise CommandError(
+            f"{exr} exists but holds no passes for {', '.join(missing)} (it was rendered for "
+            f"{', '.join(meta.get('techniques', [])) or 'unknown techniques'}); pass --overwrite or another --out"
+        )
+    if samples is not None and meta.get("samples") != samples:
+        raise CommandError(
+            f"{exr} exists but was rendered with {meta.get('samples')} samples, not {samples}; "
+            "pass --overwrite or another --out"
+        )
+    return exr
 
 
 def run(args) -> int:
@@ -57,25 +95,65 @@ def run(args) -> int:
     else:
         resolution = None
     scene = open_blend(args.blend, args.scene)
+    from ..core.progress import Progress
+    from .cli_options import render_device
 
     def log(line: str):
         print(line if line.startswith("Saved:") else f"render: {line}", flush=True)
 
+    # The render's own lines count the frames it renders; the command counts every frame of the
+    # chunk (kept ones too) and adds the elapsed time and the ETA to each frame's last line.
+    done_line = []
+
+    def render_log(line: str):
+        if re.match(r"\[\d+/\d+\] frame ", line):
+            line = progress.position() + line[line.index("]") + 1 :]
+        elif re.match(r"frame \S+ done in ", line):
+            done_line.append(line)
+            return
+        log(line)
+
+    def frame_done(_done: int, _total: int):
+        log(f"{done_line.pop() if done_line else 'frame done'} ({progress.finish()})")
+
+    out_dir = os.path.abspath(args.out)
+    frames = frames or [scene.frame_current]
+    progress = Progress(len(frames))
+    todo = frames
+    if args.skip_existing:
+        todo = []
+        for frame in frames:
+            kept = _finished(out_dir, frame, techniques, args.samples)
+            if kept is None:
+                todo.append(frame)
+            else:
+                log(
+                    f"{progress.position()} frame {frame}: skipped, {os.path.basename(kept)} exists ({progress.skip()})"
+                )
+        if not todo:
+            log(f"every frame exists in {out_dir}: nothing to render")
+            return 0
+
     try:
-        paths = rp.render_passes(
-            scene,
-            args.out,
-            techniques=techniques,
-            frames=frames,
-            samples=args.samples,
-            resolution=resolution,
-            seed=args.seed,
-            view_layer=args.view_layer,
-            overwrite=args.overwrite,
-            log=log,
-        )
+        with render_device(args, scene, log):
+            paths = rp.render_passes(
+                scene,
+                out_dir,
+                techniques=techniques,
+                frames=todo,
+                samples=args.samples,
+                resolution=resolution,
+                seed=args.seed,
+                view_layer=args.view_layer,
+                # With --skip-existing a frame with only one of its two files (a task killed
+                # between them) is rendered again.
+                overwrite=args.overwrite or args.skip_existing,
+                log=render_log,
+                progress=frame_done,
+            )
     except rp.NoSubsurfaceError as exc:
         print(f"sss_lab render: {exc}", file=sys.stderr)
         return EXIT_NOTHING_TO_DO
-    print(f"render: {len(paths) // 2} frame(s) written to {args.out}")
+    skipped = f", {progress.skipped} kept" if progress.skipped else ""
+    log(f"{len(paths) // 2} frame(s) written to {out_dir}{skipped}")
     return 0

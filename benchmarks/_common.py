@@ -7,6 +7,7 @@ import json
 import time
 
 from sss_lab.core._files import write_text
+from sss_lab.core.progress import saved_line
 
 
 def fastest(fn, repeat: int, *, warm_up: bool = False) -> float:
@@ -43,4 +44,4 @@ def resolution(parser, text: str) -> tuple[int, int]:
 def write_results(path: str, data: dict) -> None:
     """Write the figures as JSON (atomically) and say where, as every command here does."""
     write_text(path, json.dumps(data, indent=2) + "\n")
-    print(f"Saved: {path}")
+    print(saved_line(path))

@@ -42,6 +42,7 @@ import bpy
 import numpy as np
 
 from ..core.plan import required_passes
+from ..core.progress import saved_line
 from ..core.sequence import frame_path, sidecar_path
 from ..core.techniques import TECHNIQUES, check_technique
 from ..core.thickness import CONVENTIONS
@@ -359,7 +360,8 @@ def render_passes(
         existing = [p for _, exr in targets for p in (exr, sidecar_path(exr)) if os.path.exists(p)]
         if existing:
             raise FileExistsError(
-                f"{existing[0]} already exists; refusing to overwrite it (choose another folder, or overwrite)"
+                f"{existing[0]} already exists; refusing to overwrite it (choose another folder or overwrite; "
+                "on the command line --overwrite, or --skip-existing to keep the finished frames)"
             )
     os.makedirs(out_dir, exist_ok=True)
 
@@ -442,11 +444,11 @@ def render_passes(
                 if os.path.exists(tmp):
                     os.remove(tmp)
             written.append(exr)
-            say(f"Saved: {exr}")
+            say(saved_line(exr))
             json_path = sidecar_path(exr)
             _write_json(json_path, description.to_json())
             written.append(json_path)
-            say(f"Saved: {json_path}")
+            say(saved_line(json_path))
             say(f"frame {frame} done in {time.perf_counter() - t0:.2f} s")
             if progress is not None:
                 progress(number, len(targets))

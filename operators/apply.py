@@ -85,7 +85,7 @@ class SSS_LAB_OT_apply(bpy.types.Operator):
         where = "shown in the Image Editor" if shown else "open it in an Image Editor"
         self.report(
             {"INFO"},
-            f"Saved: {result.out_path}; image {image.name!r} (layer {layer_names(technique)[0].rpartition('.')[0]}), "
+            f"Saved: '{result.out_path}'; image {image.name!r} (layer {layer_names(technique)[0].rpartition('.')[0]}), "
             f"{where}",
         )
         return {"FINISHED"}

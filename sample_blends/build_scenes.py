@@ -533,7 +533,7 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default=os.path.dirname(os.path.abspath(__file__)), help="folder for the .blend files")
     args = parser.parse_args(argv)
     for name in args.names:
-        print("Saved:", build(name, os.path.join(args.out, f"{name}.blend")))
+        print(f"Saved: '{os.path.abspath(build(name, os.path.join(args.out, f'{name}.blend')))}'")
     return 0
 
 

@@ -6,7 +6,7 @@ default the user's cache folder ``.../sss_lab/wheels``), so that a fresh clone o
 machine, CI's included, builds without downloading; they are linked (or copied) into ./wheels,
 where the builder expects them. Then ``blender_ext.py build --split-platforms`` and ``validate``
 for each zip — the builder that ships inside the bpy wheel, the same code as
-``blender --command extension build``. Prints ``Saved: ZIP`` per zip.
+``blender --command extension build``. Prints ``Saved: '<zip>'`` per zip.
 """
 
 from __future__ import annotations
@@ -123,7 +123,7 @@ def main() -> int:
         if subprocess.run([sys.executable, tool, "validate", zip_path]).returncode != 0:
             return fail(f"blender_ext.py validate {os.path.basename(zip_path)} failed (see above)")
     for zip_path in zips:
-        print(f"Saved: {zip_path} ({os.path.getsize(zip_path) / 1e6:.1f} MB)")
+        print(f"Saved: '{os.path.abspath(zip_path)}' ({os.path.getsize(zip_path) / 1e6:.1f} MB)")
     return 0
 
 

@@ -723,6 +723,7 @@ def test_cli_refuses_to_overwrite_the_input_and_writes_a_new_file(tmp_path):
     done = _run_cli(src, "--out", out, "--samples", "4")
     assert done.returncode == 0, done.stderr
     assert "bake-thickness: [1/1] Cube: baked translucency attribute 'Thickness'" in done.stdout
+    assert done.stdout.splitlines()[-2] == f"Saved: '{out}'"  # Blender's form, as every command prints it
     assert src.read_bytes() == original
     bpy.ops.wm.open_mainfile(filepath=str(out), load_ui=False)
     mesh = bpy.data.objects["Cube"].data

@@ -233,7 +233,7 @@ def test_passes_written_readable_and_exactly_the_needed_ones(tmp_path, monkeypat
     paths = render_passes(scene, tmp_path, techniques=ALL, samples=SAMPLES, seed=11, log=lines.append)
     exr = str(tmp_path / "passes_0003.exr")
     assert paths == [exr, sidecar_path(exr)]
-    assert f"Saved: {exr}" in lines
+    assert f"Saved: '{exr}'" in lines
 
     # While rendering: Cycles, fixed samples and seed, SSS as plain diffuse, indices = description.
     assert during["engine"] == "CYCLES" and not during["adaptive"] and not during["denoise"]
@@ -594,7 +594,7 @@ def test_cli_render(tmp_path, capsys):
     assert code == 0
     for frame in (1, 2):
         exr = out / f"passes_{frame:04d}.exr"
-        assert f"Saved: {exr}" in stdout and f"Saved: {out / f'passes_{frame:04d}.json'}" in stdout
+        assert f"Saved: '{exr}'" in stdout and f"Saved: '{out / f'passes_{frame:04d}.json'}'" in stdout
         p = read_passes(exr)
         assert set(p.names) == set(needed_passes(["ssss", "burley"])) and p.shape == (24, 32)
     assert blend.read_bytes() == original

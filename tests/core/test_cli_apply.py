@@ -40,7 +40,7 @@ def run_apply(*args, cwd=None):
 
 
 def saved_lines(stdout):
-    return re.findall(r"^Saved: (.+)$", stdout, flags=re.MULTILINE)
+    return re.findall(r"^Saved: '(.+)'$", stdout, flags=re.MULTILINE)
 
 
 def digest(path):
@@ -191,3 +191,23 @@ def test_blender45_single_part_input(tmp_path):
     image = out.layers["SSSLab.burley.Image"]
     plain = arrays["Material Index"] < 2
     np.testing.assert_array_equal(image[plain], arrays["Combined"][plain].astype(np.float16).astype(np.float32))
+
+
+def test_skip_existing_resumes_a_chunk_and_says_what_it_kept(tmp_path):
+    """A re-queued farm chunk: frames with an output are kept (not rewritten), the others done."""
+    arrays, scene = sphere_scene(width=32, height=24)
+    for frame in (1, 2, 3):
+        write_scene(str(tmp_path / f"passes_{frame:04d}.exr"), arrays, dataclasses.replace(scene, frame=frame))
+    first = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--frames", "2")
+    assert first.returncode == 0
+    kept = tmp_path / "passes_0002.sss.exr"
+    stamp = kept.stat().st_mtime_ns
+    proc = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--frames", "1-3", "--skip-existing")
+    assert proc.returncode == 0, proc.stderr
+    assert "apply: [2/3] frame 2: skipped, passes_0002.sss.exr exists" in proc.stdout
+    assert saved_lines(proc.stdout) == [str(tmp_path / "passes_0001.sss.exr"), str(tmp_path / "passes_0003.sss.exr")]
+    assert kept.stat().st_mtime_ns == stamp
+    # Each frame done says how far the chunk is, with the elapsed time and the ETA.
+    assert re.search(r"apply: frame 3 done in [\d.]+ s \(3/3, elapsed [\d.]+ s, ETA 0\.0 s\)", proc.stdout)
+    both = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--skip-existing", "--overwrite")
+    assert both.returncode == 2 and "not allowed with" in both.stderr
