@@ -25,6 +25,8 @@ COMMANDS = (
     ".cli_render",
     ".cli_compare",
     ".cli_calibrate",
+    ".cli_reference",
+    ".cli_merge_reference",
 )
 
 

@@ -33,6 +33,8 @@ def _methods(text: str) -> tuple[str, ...]:
 
 
 def add_parser(subparsers):
+    from .cli_options import add_render_device
+
     p = subparsers.add_parser(
         "compare", help="compare each technique with Cycles random walk and write a report (needs bpy)"
     )
@@ -52,6 +54,13 @@ def add_parser(subparsers):
         help="also calibrate the mapping for these subsurface methods (comma-separated, or all):"
         " one more reference each",
     )
+    p.add_argument(
+        "--reference",
+        metavar="EXR",
+        help="a reference merged from seed parts (sss_lab reference + merge-reference, e.g. on a farm) instead of "
+        "rendering one; its halves give the noise floor",
+    )
+    add_render_device(p)
     p.set_defaults(run=run)
 
 
@@ -72,9 +81,13 @@ def run(args) -> int:
         techniques=tuple(parse_methods(args.methods)),
         cache_dir=args.cache,
         calibrate_methods=_methods(args.calibrate_methods),
+        reference_file=os.path.abspath(args.reference) if args.reference else None,
     )
+    from .cli_options import render_device
+
     try:
-        data = compare(scene, os.path.abspath(args.out), settings)
+        with render_device(args, scene):
+            data = compare(scene, os.path.abspath(args.out), settings)
     except ValueError as exc:
         raise CommandError(str(exc)) from None
     if not data["complete"]:

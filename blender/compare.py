@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import os
 import time
 from dataclasses import asdict, dataclass, field
@@ -30,6 +31,9 @@ import numpy as np
 
 from ..core import apply as core_apply
 from ..core import exr, fidelity, mapping, metrics, plan, report, sequence
+from ..core import reference as core_reference
+from ..core.errors import InputError
+from ..core.progress import saved_line
 from ..core.scene import SUBSURFACE_METHODS, SceneDescription
 from ..core.techniques import TECHNIQUES, check_technique
 from .describe import sss_materials
@@ -66,6 +70,10 @@ class CompareSettings:
     #: Other subsurface methods to calibrate the mapping for: the reference is rendered again with
     #: the scene's subsurface materials switched to each (cached like the others).
     calibrate_methods: tuple[str, ...] = ()
+    #: A reference merged from seed parts (``sss_lab merge-reference``, e.g. rendered on a farm)
+    #: instead of rendering one: its samples replace ``reference_samples``, its halves give the
+    #: noise floor, and the Christensen-Burley peer (as costly as the reference) is left out.
+    reference_file: str | None = None
 
     def validate(self) -> None:
         for name in ("reference_samples", "pass_samples", "box"):
@@ -137,8 +145,14 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     fingerprint = scene_fingerprint(scene)
     # Every Cycles image of this comparison: same scene, folder and size; samples, seed and method vary.
     reference = functools.partial(cached_reference, scene, cache_dir, resolution=res, log=log, fingerprint=fingerprint)
-    ref, ref_seconds, _ = reference(samples=settings.reference_samples, seed=settings.seed, method=None)
-    second, _, _ = reference(samples=settings.reference_samples, seed=settings.seed + 1, method=None)
+    merged = None
+    if settings.reference_file:
+        merged, ref_seconds = _merged_reference(settings.reference_file, fingerprint, res, log)
+        settings = dataclasses.replace(settings, reference_samples=merged.samples, cycles_burley=False)
+        ref, second = merged.image, None
+    else:
+        ref, ref_seconds, _ = reference(samples=settings.reference_samples, seed=settings.seed, method=None)
+        second, _, _ = reference(samples=settings.reference_samples, seed=settings.seed + 1, method=None)
     images: dict[str, np.ndarray] = {}
     entries: list[dict] = []
 
@@ -209,7 +223,10 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         add(f"Cycles Christensen-Burley {settings.reference_samples} spp", "cycles", img, secs)
 
     images["Cycles reference"] = ref
-    noise = metrics.compare_images(second, ref, mask, box=settings.box)
+    if merged is not None:
+        noise = core_reference.noise_floor(merged, mask, box=settings.box)
+    else:
+        noise = metrics.compare_images(second, ref, mask, box=settings.box)
     data = {
         "scene": {
             "name": _scene_label(scene),
@@ -228,6 +245,8 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
             + ", ".join(sorted({m.method for m in materials}))
             + ")",
             "blender": bpy.app.version_string,
+            "reference_file": settings.reference_file,
+            "reference_seeds": list(merged.seeds) if merged is not None else [settings.seed],
         },
         "noise_floor": noise,
         "timings": timings,
@@ -246,8 +265,31 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     out = report.write_report(
         out_dir, data, images, reference="Cycles reference", mask=mask, order=order, summary=_summary(order, entries)
     )
-    log(f"Saved: {os.path.join(out_dir, 'report.html')}")
+    log(saved_line(os.path.join(out_dir, "report.html")))
     return out
+
+
+def _merged_reference(path: str, fingerprint: str, resolution, log) -> tuple[core_reference.MergedReference, float]:
+    """The merged reference at ``path`` and its render seconds (the parts' sum), checked against
+    the scene: a reference of another scene state would make every figure meaningless."""
+    merged = core_reference.read_merged(path)
+    meta_path = core_reference.sidecar(path)
+    meta = {}
+    if os.path.isfile(meta_path):
+        with open(meta_path, encoding="utf-8") as fh:
+            meta = json.load(fh)
+    if meta.get("fingerprint") and meta["fingerprint"] != fingerprint:
+        raise InputError(
+            f"{path} was rendered from another state of the scene (its fingerprint differs from this scene's): "
+            "render the reference parts again from this file"
+        )
+    if resolution is not None and list(merged.image.shape[1::-1]) != list(resolution):
+        raise InputError(
+            f"{path} is {merged.image.shape[1]}x{merged.image.shape[0]}; the comparison renders "
+            f"{resolution[0]}x{resolution[1]}: render the parts at that size, or compare at the reference's"
+        )
+    log(f"Reference: {path}, {merged.samples} samples merged from seeds {', '.join(map(str, merged.seeds))}")
+    return merged, float(meta.get("seconds") or 0.0)
 
 
 def _summary(order: list[str], entries: list[dict]) -> list[str]:

@@ -191,12 +191,25 @@ def _markdown(data: dict) -> str:
         lines += ["**This report is incomplete:** " + "; ".join(data.get("notes", [])), ""]
     lines += [
         f"- Reference: Cycles {s.get('reference_method', 'RANDOM_WALK')}, {s.get('reference_samples')} samples,"
-        f" seed {s.get('seed')}, adaptive sampling off; resolution {s.get('resolution')}.",
+        + (
+            f" merged from {len(s['reference_seeds'])} seeds"
+            if len(s.get("reference_seeds") or []) > 1
+            else f" seed {s.get('seed')}"
+        )
+        + f", adaptive sampling off; resolution {s.get('resolution')}.",
         f"- Passes for the techniques: {s.get('pass_samples')} samples, subsurface weight 0.",
         f"- Metric box downsampling: {s.get('box')} x {s.get('box')}.",
     ]
     nf = data.get("noise_floor")
-    if nf:
+    if nf and nf.get("halves"):
+        halves = nf["halves"]["samples"]
+        lines.append(
+            f"- Reference seeds: {', '.join(map(str, s.get('reference_seeds') or []))}."
+            f" Noise floor from the reference's two halves ({halves[0]} + {halves[1]} samples, RMSE scaled by"
+            f" {_fmt(nf.get('scale'))} to a second seed's): rel. RMSE {_fmt(nf.get('rel_rmse'))}."
+            " Differences below it are not meaningful."
+        )
+    elif nf:
         lines.append(
             f"- Noise floor (reference against a second seed): rel. RMSE {_fmt(nf.get('rel_rmse'))},"
             f" SSIM {_fmt(nf.get('ssim'))}. Differences below it are not meaningful."

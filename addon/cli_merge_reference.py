@@ -1,0 +1,73 @@
+"""``python -m sss_lab merge-reference DIR --out reference.exr``: merge the reference's parts.
+
+Reads the parts ``reference`` wrote (the files, or the folders holding them), checks that they
+render the same scene, frame and size with different seeds, and writes their sample-weighted
+mean: one reference of the summed samples, with the two halves of the parts as extra layers for
+the noise floor (``compare --reference`` reads them over the subsurface pixels). Needs only NumPy
+and OpenEXR. Prints the noise floor over the whole image and ``Saved: '<path>'`` per file.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "merge-reference",
+        help="merge reference parts rendered with different seeds into one (NumPy and OpenEXR only)",
+        description=__doc__.split("\n\n", 1)[1],
+    )
+    p.add_argument("parts", nargs="+", help="part EXR files, or folders of reference_seed_*.exr")
+    p.add_argument("--out", required=True, help="the merged reference EXR (a .json is written beside it)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing merged reference")
+    p.set_defaults(run=run)
+
+
+def _part_files(items: list[str]) -> list[str]:
+    from ..core.reference import PART_PATTERN
+
+    pattern = PART_PATTERN.split("{", 1)[0] + "*.exr"
+    files = []
+    for item in items:
+        if os.path.isdir(item):
+            found = sorted(glob.glob(os.path.join(glob.escape(item), pattern)))
+            if not found:
+                raise FileNotFoundError(f"{item}: no {pattern} in this folder (render them with sss_lab reference)")
+            files += found
+        else:
+            files.append(item)
+    return list(dict.fromkeys(os.path.abspath(f) for f in files))
+
+
+def run(args) -> int:
+    from ..core import reference
+    from ..core.progress import saved_line
+
+    files = _part_files(args.parts)
+    out = os.path.abspath(args.out)
+    if out in files:
+        raise FileExistsError(f"--out {args.out!r} is one of the parts; refusing to overwrite it")
+    parts, metas = reference.read_parts(files)
+    merged = reference.merge_parts(parts)
+    counts = sorted({p.samples for p in parts})
+    print(
+        f"merge-reference: {len(parts)} part(s), seeds {', '.join(map(str, merged.seeds))}, "
+        f"{'/'.join(map(str, counts))} samples each: {merged.samples} samples"
+    )
+    floor = reference.noise_floor(merged)
+    if floor is None:
+        print("merge-reference: one part only: no noise floor (it needs two halves)")
+    else:
+        print(
+            f"merge-reference: noise floor from the halves ({merged.half_samples[0]} + {merged.half_samples[1]} "
+            f"samples), whole image: rel. RMSE {floor['rel_rmse']:.4f}"
+        )
+    keep = ("fingerprint", "frame", "resolution", "scene", "blender")
+    meta = {k: metas[0].get(k) for k in keep if k in metas[0]}
+    meta["parts"] = [os.path.basename(f) for f in files]
+    meta["seconds"] = sum(float(m.get("seconds") or 0.0) for m in metas)
+    for path in reference.write_merged(out, merged, meta, overwrite=args.overwrite):
+        print(saved_line(path), flush=True)
+    return 0

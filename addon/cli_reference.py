@@ -1,0 +1,74 @@
+"""``python -m sss_lab reference SCENE.blend --out DIR --seeds 1-8 --samples 64``: the Cycles
+reference in parts, one per seed (a farm task each).
+
+Renders the scene as it is (its own subsurface method), Combined only, adaptive sampling and
+denoising off, once per seed, into ``DIR/reference_seed_#####.exr`` with a JSON beside it
+(samples, seed, frame, size, the scene's fingerprint). ``merge-reference`` merges the parts into
+one reference of the summed samples with its noise floor; ``compare --reference`` uses it.
+Prints ``Saved: '<path>'`` per written file and a progress line per seed with the elapsed time
+and the ETA.
+"""
+
+from __future__ import annotations
+
+
+def add_parser(subparsers):
+    from .cli_options import add_existing, add_render_device
+
+    p = subparsers.add_parser(
+        "reference",
+        help="render the comparison's Cycles reference in parts, one per seed (needs bpy)",
+        description=__doc__.split("\n\n", 1)[1],
+    )
+    p.add_argument("blend", help="the .blend file to read (never written)")
+    p.add_argument("--out", required=True, help="output folder (created if needed)")
+    p.add_argument("--scene", help="scene name (default: the file's active scene)")
+    p.add_argument("--seeds", required=True, help="Cycles seeds, one part each: e.g. 1-8 or 3 or 1,4")
+    p.add_argument("--samples", type=int, required=True, help="Cycles samples per part")
+    p.add_argument("--frame", type=int, help="frame to render (default: the scene's current frame)")
+    p.add_argument("--resolution", help="WIDTHxHEIGHT at 100%% (default: the scene's resolution)")
+    add_existing(p, "parts")
+    add_render_device(p)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from ..core.sequence import parse_frames
+    from .cli import CommandError, require_bpy
+    from .cli_options import render_device
+    from .cli_scan import open_blend
+
+    require_bpy()
+    try:
+        seeds = parse_frames(args.seeds)
+    except ValueError as exc:
+        raise CommandError(f"--seeds: {exc}".replace("frames: ", "")) from None
+    if args.samples < 1:
+        raise CommandError(f"--samples: expected an integer >= 1, got {args.samples}")
+    from ..blender.render_passes import parse_resolution
+
+    resolution = None
+    if args.resolution is not None:
+        try:
+            resolution = parse_resolution(args.resolution)
+        except ValueError as exc:
+            raise CommandError(f"--resolution: {exc}") from None
+    scene = open_blend(args.blend, args.scene)
+    from ..blender.reference import render_reference_parts
+
+    def log(line: str):
+        print(line if line.startswith("Saved:") else f"reference: {line}", flush=True)
+
+    with render_device(args, scene, log):
+        render_reference_parts(
+            scene,
+            args.out,
+            seeds=seeds,
+            samples=args.samples,
+            resolution=resolution,
+            frame=args.frame,
+            skip_existing=args.skip_existing,
+            overwrite=args.overwrite,
+            log=log,
+        )
+    return 0

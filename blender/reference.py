@@ -1,0 +1,134 @@
+"""The Cycles reference rendered in parts, one seed each, for a render farm.
+
+``render_reference_parts(scene, out_dir, seeds=..., samples=...)`` renders the scene as it is
+(its own subsurface method), Combined only as the comparison reads it, once per seed, into
+``reference_seed_#####.exr`` with a JSON beside it (samples, seed, frame, size, the scene's
+fingerprint). ``core.reference`` merges the parts into one reference of the summed samples and
+takes the noise floor from two halves of them; ``compare --reference`` uses the result.
+
+The render settings are those of the comparison's own reference (adaptive sampling, denoising
+and the animated seed off), so that a merged reference and a single one estimate the same image.
+The scene is put back afterwards, also on failure.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable, Iterable
+
+import bpy
+
+from ..core._files import write_text
+from ..core.errors import InputError
+from ..core.progress import Progress, saved_line
+from ..core.reference import part_path, sidecar
+from .reference_cache import _render_combined, scene_fingerprint
+from .state import SceneState
+
+
+def _done(path: str) -> bool:
+    return os.path.isfile(path) and os.path.isfile(sidecar(path))
+
+
+def render_reference_parts(
+    scene,
+    out_dir: str,
+    *,
+    seeds: Iterable[int],
+    samples: int,
+    resolution: tuple[int, int] | None = None,
+    frame: int | None = None,
+    skip_existing: bool = False,
+    overwrite: bool = False,
+    log: Callable[[str], None] | None = print,
+) -> list[str]:
+    """Render one reference part per seed into ``out_dir``; returns the paths written.
+
+    A part whose EXR and JSON both exist is kept with ``skip_existing`` (after checking that it
+    was rendered with the same samples, size and frame: a different one would corrupt the
+    merge), replaced with ``overwrite``, and otherwise refused before anything renders.
+    """
+    say = log or (lambda _line: None)
+    seeds = [int(s) for s in seeds]
+    if not seeds:
+        raise InputError("seeds: expected at least one seed")
+    if any(s < 0 for s in seeds) or len(set(seeds)) != len(seeds):
+        raise InputError(f"seeds: expected distinct integers >= 0, got {seeds}")
+    if not isinstance(samples, int) or isinstance(samples, bool) or samples < 1:
+        raise InputError(f"samples: expected an integer >= 1, got {samples!r}")
+    if skip_existing and overwrite:
+        raise InputError("skip_existing and overwrite: choose one")
+    if scene.camera is None:
+        raise InputError(f"scene {scene.name!r} has no active camera; set one in Scene Properties > Camera")
+    out_dir = os.path.abspath(os.fspath(out_dir))
+    frame = scene.frame_current if frame is None else int(frame)
+    render = scene.render
+    size = (
+        list(resolution)
+        if resolution is not None
+        else [
+            render.resolution_x * render.resolution_percentage // 100,
+            render.resolution_y * render.resolution_percentage // 100,
+        ]
+    )
+    old_frame = scene.frame_current
+    scene.frame_set(frame)
+    try:
+        fingerprint = scene_fingerprint(scene)
+    finally:
+        scene.frame_set(old_frame)
+    wanted = {"samples": samples, "frame": frame, "resolution": size, "fingerprint": fingerprint}
+
+    todo, skipped = [], []
+    for seed in seeds:
+        path = part_path(out_dir, seed)
+        if skip_existing and _done(path):
+            with open(sidecar(path), encoding="utf-8") as fh:
+                meta = json.load(fh)
+            differ = {k: (meta.get(k), v) for k, v in wanted.items() if meta.get(k) != v}
+            if differ:
+                detail = "; ".join(f"{k} {old!r} there, {new!r} asked" for k, (old, new) in differ.items())
+                raise InputError(
+                    f"{path} exists but was rendered differently ({detail}); "
+                    "render into another folder, or pass --overwrite"
+                )
+            skipped.append((seed, path))
+        elif not overwrite and (os.path.exists(path) or os.path.exists(sidecar(path))):
+            existing = path if os.path.exists(path) else sidecar(path)
+            raise FileExistsError(
+                f"{existing} already exists; refusing to overwrite it (pass --skip-existing to keep finished parts, "
+                "or --overwrite)"
+            )
+        else:
+            todo.append((seed, path))
+    os.makedirs(out_dir, exist_ok=True)
+    progress = Progress(len(seeds))
+    for seed, path in skipped:
+        say(f"{progress.position()} seed {seed}: skipped, {os.path.basename(path)} exists ({progress.skip()})")
+
+    written: list[str] = []
+    with SceneState() as state:
+        old_frame, old_subframe = scene.frame_current, scene.frame_subframe
+        state.on_restore(lambda: scene.frame_set(old_frame, subframe=old_subframe))
+        scene.frame_set(frame)
+        for seed, path in todo:
+            say(f"{progress.position()} seed {seed}: rendering {size[0]}x{size[1]}, {samples} samples, frame {frame}")
+            stem, ext = os.path.splitext(path)
+            tmp = f"{stem}.tmp-{os.getpid()}{ext}"
+            try:  # written under a temporary name: a cancelled task leaves no part that looks finished
+                seconds = _render_combined(
+                    scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state
+                )
+                os.replace(tmp, path)
+            finally:
+                if os.path.exists(tmp):
+                    os.remove(tmp)
+            written.append(path)
+            say(saved_line(path))
+            meta = dict(wanted, seed=seed, seconds=seconds, scene=scene.name, blender=bpy.app.version_string)
+            write_text(sidecar(path), json.dumps(meta, indent=2) + "\n")
+            written.append(sidecar(path))
+            say(saved_line(sidecar(path)))
+            say(f"seed {seed} done in {seconds:.2f} s ({progress.finish()})")
+    return written

@@ -1,0 +1,109 @@
+"""The reference rendered in parts by seed (``blender/reference.py``) and merged
+(``core/reference.py``) matches one render of all its samples within the noise floor.
+
+Small: ``head_frontlit`` (the demo scene) at 48 × 48, 4 parts of 32
+samples against one render of 128 samples, metric as in the comparison (relative RMSE over the
+subsurface pixels, 2 × 2 box).
+"""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from sss_lab.addon.cli_demo import load_sample_scenes
+from sss_lab.core import exr, metrics
+from sss_lab.core import reference as ref
+from sss_lab.core import sequence as core_sequence
+
+SIZE = (48, 48)
+TASKS, SAMPLES = 4, 32
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    """Parts, one single render of all the samples, and the no-SSS image, rendered once."""
+    import bpy
+
+    from sss_lab.blender.reference import render_reference_parts
+    from sss_lab.blender.render_passes import render_passes
+
+    work = tmp_path_factory.mktemp("seed_split")
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    load_sample_scenes().build("head_frontlit", str(work / "head.blend"))
+    scene = bpy.context.scene
+    lines = []
+    parts = render_reference_parts(
+        scene, str(work / "parts"), seeds=range(1, TASKS + 1), samples=SAMPLES, resolution=SIZE, log=lines.append
+    )
+    single, _ = render_reference_parts(
+        scene, str(work / "single"), seeds=[1000], samples=TASKS * SAMPLES, resolution=SIZE, log=None
+    )
+    passes, _ = render_passes(
+        scene, str(work / "passes"), techniques=["ssss"], samples=TASKS * SAMPLES, resolution=SIZE, log=None
+    )
+    return {"work": work, "parts": parts, "single": single, "passes": passes, "lines": lines}
+
+
+def _mask(passes_path):
+    desc = core_sequence.load_scene(passes_path)
+    index = np.rint(np.nan_to_num(exr.read_passes(passes_path)["Material Index"])).astype(np.int64)
+    return np.isin(index[..., 0] if index.ndim == 3 else index, [m.index for m in desc.materials if m.scatters])
+
+
+def test_parts_are_written_with_what_the_merge_checks(rendered):
+    exrs = [p for p in rendered["parts"] if p.endswith(".exr")]
+    assert [os.path.basename(p) for p in exrs] == [f"reference_seed_{s:05d}.exr" for s in range(1, TASKS + 1)]
+    meta = json.loads(open(ref.sidecar(exrs[0]), encoding="utf-8").read())
+    assert meta["samples"] == SAMPLES and meta["seed"] == 1 and meta["resolution"] == list(SIZE)
+    assert meta["frame"] == 1 and len(meta["fingerprint"]) == 64
+    saved = [line for line in rendered["lines"] if line.startswith("Saved:")]
+    assert saved[0] == f"Saved: '{exrs[0]}'" and len(saved) == 2 * TASKS
+    assert any("ETA" in line for line in rendered["lines"])
+
+
+def test_merged_parts_match_one_render_of_all_the_samples_within_the_noise_floor(rendered):
+    parts, _ = ref.read_parts([p for p in rendered["parts"] if p.endswith(".exr")])
+    merged = ref.merge_parts(parts)
+    assert merged.samples == TASKS * SAMPLES
+    single = exr.read_passes(rendered["single"])["Combined"]
+    mask = _mask(rendered["passes"])
+    assert mask.sum() > 200  # the head covers enough pixels for the metric to mean something
+    floor = ref.noise_floor(merged, mask, box=2)["rel_rmse"]
+    diff = metrics.compare_images(merged.image, single, mask, box=2)["rel_rmse"]
+    # Both are unbiased estimates of the same image with about the same variance, so the
+    # expected ratio is 1 (core/reference.py); 1.5 leaves room for the sampling fluctuation of
+    # two RMSEs over a few hundred downsampled pixels and Cycles' heavier-than-Gaussian tails.
+    print(f"merged vs single {diff:.4f}, noise floor from the halves {floor:.4f}")
+    assert diff < 1.5 * floor, (diff, floor)
+    # Each part alone is far noisier than the merge: the merge does add the samples up.
+    one = metrics.compare_images(parts[0].image, single, mask, box=2)["rel_rmse"]
+    assert one > 1.5 * diff
+    # And the check can fail: the scene rendered without subsurface scattering (the passes'
+    # Combined) is far outside the floor.
+    no_sss = exr.read_passes(rendered["passes"])["Combined"]
+    assert metrics.compare_images(no_sss, single, mask, box=2)["rel_rmse"] > 2 * floor
+
+
+def test_skip_existing_keeps_finished_parts_and_refuses_different_ones(rendered):
+    import bpy
+
+    from sss_lab.blender.reference import render_reference_parts
+    from sss_lab.core.errors import InputError
+
+    bpy.ops.wm.open_mainfile(filepath=str(rendered["work"] / "head.blend"), load_ui=False)
+    scene = bpy.context.scene
+    folder = str(rendered["work"] / "parts")
+    first = os.path.join(folder, "reference_seed_00001.exr")
+    before = os.stat(first).st_mtime_ns
+    lines = []
+    written = render_reference_parts(
+        scene, folder, seeds=[1], samples=SAMPLES, resolution=SIZE, skip_existing=True, log=lines.append
+    )
+    assert written == [] and os.stat(first).st_mtime_ns == before
+    assert any("seed 1: skipped" in line for line in lines)
+    with pytest.raises(InputError, match="samples 32 there, 8 asked"):
+        render_reference_parts(scene, folder, seeds=[1], samples=8, resolution=SIZE, skip_existing=True, log=None)
+    with pytest.raises(FileExistsError, match="--skip-existing"):
+        render_reference_parts(scene, folder, seeds=[1], samples=SAMPLES, resolution=SIZE, log=None)
