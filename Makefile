@@ -3,13 +3,26 @@
 PY := .venv/bin/python
 OUT ?= out
 
-.PHONY: venv demo test lint format bench extension clean
+.PHONY: venv demo farm-demo test lint format bench extension clean
 
 venv:
 	@bash tools/bootstrap.sh
 
 demo: venv
 	$(PY) -m sss_lab demo --out $(OUT)
+
+# The farm job (farm/openjd/template.yaml) run on this machine by openjd, on the demo scene at a small
+# size: passes and .sss.exr per frame, the reference in seed parts, merged, and the comparison report.
+# Run it again and every task keeps what exists (--skip-existing) and says so.
+FARM_OUT ?= $(OUT)/farm
+FARM_PARAMS ?= -p Frames=1-3 -p FramesPerTask=2 -p Resolution=64x64 -p PassSamples=16 \
+	-p Compare=yes -p ReferenceTasks=4 -p ReferenceSamples=16
+
+farm-demo: venv
+	@[ -f $(FARM_OUT)/head_frontlit.blend ] || $(PY) sample_blends/build_scenes.py head_frontlit --out $(FARM_OUT)
+	.venv/bin/openjd run farm/openjd/template.yaml --step Compare --run-dependencies \
+		-p SceneFile=$(abspath $(FARM_OUT))/head_frontlit.blend -p OutputDir=$(abspath $(FARM_OUT))/job \
+		-p "SSSLab=$(abspath $(PY)) -m sss_lab" -p "SSSLabNumpy=$(abspath $(PY)) -m sss_lab" $(FARM_PARAMS)
 
 test: venv
 	$(PY) -m ruff check .
