@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterable
 
 import bpy
 
-from ..core._files import write_text
+from ..core._files import atomic_write, write_text
 from ..core.errors import InputError
 from ..core.progress import Progress, saved_line
 from ..core.reference import part_path, sidecar
@@ -114,16 +114,16 @@ def render_reference_parts(
         scene.frame_set(frame)
         for seed, path in todo:
             say(f"{progress.position()} seed {seed}: rendering {size[0]}x{size[1]}, {samples} samples, frame {frame}")
-            stem, ext = os.path.splitext(path)
-            tmp = f"{stem}.tmp-{os.getpid()}{ext}"
-            try:  # written under a temporary name: a cancelled task leaves no part that looks finished
-                seconds = _render_combined(
-                    scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state
+            timing = []
+
+            def render_to(tmp, seed=seed, timing=timing):
+                timing.append(
+                    _render_combined(scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state)
                 )
-                os.replace(tmp, path)
-            finally:
-                if os.path.exists(tmp):
-                    os.remove(tmp)
+
+            # Written under a temporary name: a cancelled task leaves no part that looks finished.
+            atomic_write(path, render_to)
+            seconds = timing[0]
             written.append(path)
             say(saved_line(path))
             meta = dict(wanted, seed=seed, seconds=seconds, scene=scene.name, blender=bpy.app.version_string)
