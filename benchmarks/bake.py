@@ -14,7 +14,6 @@ the wall time of the call are written to ``benchmarks/results/bake.json`` and pr
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import tempfile
@@ -108,13 +107,9 @@ def main(argv=None) -> int:
         report["cases"][name] = entry
         size = f"{settings.resolution_px}^2 image" if name == "image" else f"{vertices}-vertex attribute"
         print(f"bake {size}, {settings.samples} rays: best {best:.2f} s per object ({len(runs)} runs: {runs})")
-    os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)
-    tmp = args.out + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as f:
-        json.dump(report, f, indent=2)
-        f.write("\n")
-    os.replace(tmp, args.out)
-    print(f"wrote {args.out}")
+    from benchmarks._common import write_results
+
+    write_results(args.out, report)  # atomically, and says so in the one Saved: form
     return 0
 
 
