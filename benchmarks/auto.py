@@ -178,9 +178,18 @@ def run(scenes, *, techniques, repeat: int, max_error: float, log=print) -> dict
         m = measured[s.name]
         best = min(m["errors"], key=m["errors"].get)
         priciest = max(m["seconds"], key=m["seconds"].get)
+        # Work estimates (pixels x samples, core.auto): noise-free, unlike the times on this machine.
+        work = {}
+        for c in plan.choices:
+            for k in c.candidates:
+                if k.excluded is None:
+                    work[k.name] = work.get(k.name, 0.0) + k.cost
+        work_auto = sum(next(k.cost for k in c.candidates if k.name == c.chosen) for c in plan.choices)
         rows.append(
             {
                 "scene": s.name,
+                "work": work,
+                "work_auto": work_auto,
                 "kind": s.kind,
                 "errors": m["errors"],
                 "seconds": m["seconds"],
@@ -210,6 +219,8 @@ def run(scenes, *, techniques, repeat: int, max_error: float, log=print) -> dict
     regrets = [r["regret"] for r in rows]
     t_auto = sum(r["auto"]["seconds"] for r in rows)
     t_max = sum(r["seconds"][r["most_expensive"]] for r in rows)
+    w_auto = sum(r["work_auto"] for r in rows)
+    w_max = sum(max(r["work"].values()) for r in rows if r["work"])
     always = {}
     for t in techniques:
         errs = [r["errors"][t] / r["errors"][r["best"]] - 1.0 for r in rows if t in r["errors"]]
@@ -229,10 +240,42 @@ def run(scenes, *, techniques, repeat: int, max_error: float, log=print) -> dict
             "max_regret": max(regrets),
             "time_saved_total": 1.0 - t_auto / t_max if t_max > 0 else None,
             "time_saved_median": statistics.median(r["time_saved"] for r in rows if r["time_saved"] is not None),
+            "work_saved_total": 1.0 - w_auto / w_max if w_max > 0 else None,
             "always_one_technique": always,
         },
         "model": full,
     }
+
+
+def sweep(scenes, technique: str, parameter: str, values, log=print) -> dict:
+    """``technique`` at its default quality with ``parameter`` set to each of ``values`` on every
+    scene: per value the errors, and over the suite the median of error / no-SSS error (the
+    share of the no-SSS error left) and the scenes where it is worse than no SSS."""
+    from sss_lab.core import apply as core_apply
+
+    per_value = {}
+    for v in values:
+        rows = {}
+        for s in scenes:
+            layers = core_apply.apply(s.passes, s.desc, technique, **{parameter: v})
+            image = layers[core_apply.layer_names(technique)[0]] if layers else s.passes["Combined"]
+            rows[s.name] = {"error": s.error(image), "no_sss": s.error(s.passes["Combined"]), "kind": s.kind}
+        ratios = [r["error"] / r["no_sss"] for r in rows.values()]
+        per_value[str(v)] = {
+            "scenes": rows,
+            "median_left": statistics.median(ratios),
+            "mean_left": statistics.mean(ratios),
+            "by_kind": {
+                k: statistics.median(r["error"] / r["no_sss"] for r in rows.values() if r["kind"] == k)
+                for k in sorted({r["kind"] for r in rows.values()})
+            },
+            "worse_than_no_sss": sorted(n for n, r in rows.items() if r["error"] > r["no_sss"]),
+        }
+        log(
+            f"{technique} {parameter}={v}: median share of the no-SSS error left {per_value[str(v)]['median_left']:.3f}"
+            f" (by kind {per_value[str(v)]['by_kind']}); worse than no SSS on {per_value[str(v)]['worse_than_no_sss']}"
+        )
+    return per_value
 
 
 def main(argv=None) -> int:
@@ -240,11 +283,15 @@ def main(argv=None) -> int:
     parser.add_argument("names", nargs="*", help="scenes (default: all of the source)")
     parser.add_argument("--source", choices=("fidelity", "samples"), default=None, help="default: fidelity if present")
     parser.add_argument("--max-error", type=float, default=None, help="auto's margin (default: core.auto's)")
-    parser.add_argument("--repeat", type=int, default=3, help="timed runs per case, fastest kept (default 3)")
+    parser.add_argument("--repeat", type=int, default=5, help="timed runs per case, fastest kept (default 5)")
     parser.add_argument("--reference-samples", type=int, default=512, help="samples of the sample scenes' references")
     parser.add_argument("--pass-samples", type=int, default=64, help="samples of the sample scenes' passes")
     parser.add_argument("--cache", default=os.path.join(tempfile.gettempdir(), "sss_lab_auto_bench"))
     parser.add_argument("--write-model", action="store_true", help="store the model learnt on all scenes")
+    parser.add_argument(
+        "--sweep-transmission",
+        help="comma-separated transmission scales of the combined technique to score on every scene (its default)",
+    )
     parser.add_argument("--out", default=RESULTS)
     args = parser.parse_args(argv)
     import bpy
@@ -259,6 +306,10 @@ def main(argv=None) -> int:
     start = time.perf_counter()
     scenes = _fidelity_scenes(args.names, print) if source == "fidelity" else _sample_scenes(args.names, args, print)
     max_error = auto.DEFAULT_MAX_ERROR if args.max_error is None else args.max_error
+    swept = None
+    if args.sweep_transmission:
+        values = [float(v) for v in args.sweep_transmission.split(",")]
+        swept = sweep(scenes, "combined", "transmission_scale", values)
     out = run(scenes, techniques=list(TECHNIQUES), repeat=args.repeat, max_error=max_error)
     command = " ".join(["python -m benchmarks.auto", *(argv if argv is not None else sys.argv[1:])])
     model = dataclasses.replace(out.pop("model"), command=command)
@@ -277,12 +328,15 @@ def main(argv=None) -> int:
         "model_all_scenes": model.to_dict(),
         "scenes": out["rows"],
     }
+    if swept is not None:
+        data["combined_transmission_scale_sweep"] = swept
     write_results(args.out, data)
     s = out["summary"]
     print(
         f"{s['scenes']} scenes, leave-one-scene-out: regret mean {s['mean_regret']:+.1%}, median "
         f"{s['median_regret']:+.1%}, max {s['max_regret']:+.1%}; time saved against the most expensive technique "
-        f"{s['time_saved_total']:.0%} (total), {s['time_saved_median']:.0%} (median)"
+        f"{s['time_saved_total']:.0%} (total), {s['time_saved_median']:.0%} (median); work estimate saved "
+        f"{s['work_saved_total']:.0%}"
     )
     for t, v in s["always_one_technique"].items():
         print(f"  always {t}: mean regret {v['mean_regret']:+.1%}")
