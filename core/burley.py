@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from . import _arrays, backend
-from .extent import group_extents
+from .extent import group_extents, object_extent
 from .profiles import TRUNCATION, burley_icdf
 from .scene import Camera
 
@@ -146,7 +146,8 @@ def burley(
     # The spiral reaches 16 d_max, or the object's extent when that is smaller (core.extent):
     # beyond it there is nothing of the object to gather, so the result is unchanged by the
     # bound and continuous as d grows; every backend gets the bounded spiral.
-    groups = group_extents(ok, scale, ids)
+    # One group without index arrays when there are no object ids (core.extent.object_extent).
+    groups = group_extents(ok, scale, ids) if ids is not None else [(None, object_extent(ok, scale))]
     if backend.active() == "numba":
         return _compiled(
             light, z, ok, scale, ids, groups, int(n_samples), dmax, inv3d, reach_c, random_rotation, seed, post, base
@@ -171,6 +172,8 @@ def burley(
     n = int(n_samples)
     block = max(128, _BLOCK_ELEMENTS // n)
     ones = np.ones(n, f32)
+    if groups[0][0] is None:
+        groups = [(np.flatnonzero(ok), groups[0][1])]
     idx_all = np.concatenate([g for g, _ in groups])
     result = np.empty((idx_all.size, 3), f32)
 

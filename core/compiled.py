@@ -6,17 +6,19 @@ compute what every backend shares (the pixels that take part, the footprint, the
 and hand the per-pixel work to these kernels or to their own NumPy code, the readable reference
 (docs/references.md §11).
 
-Each kernel does the reference's float32 operations in the reference's order, without fast-math
-(no reassociation, no fused multiply-add): positions, tap indices and comparisons come out
-bit-identical, so a sample never lands on another pixel. What differs is the order of the sums
-(the reference sums with BLAS matrix products) and the exponentials and powers (the C library's
-instead of NumPy's own): the bound that follows is ``core.backend.tolerance``. Where the
-reference multiplies a sample by a weight of exactly 0 (a pixel that takes no part: colour 0,
-depth key +inf), a kernel skips the sample, which adds the same 0.
+Each kernel does the reference's float32 operations in the reference's order, without fused
+multiply-add: tap and sample positions, indices and comparisons come out bit-identical, so a
+sample never lands on another pixel. What differs: the sums over a pixel's taps or samples may
+be reassociated (``fastmath={"reassoc"}`` on the functions that hold them, so that they
+vectorize; the reference sums with BLAS matrix products, in its own order), a tap's two samples
+share one multiplication by its weight, and e^x is ``_exp`` (within 2 units in the last place;
+NumPy's is within 4). The bound that follows is ``core.backend.tolerance``; the tests run every
+technique call of the core suite on both backends against it. Where the reference multiplies a
+sample by a weight of exactly 0 (a pixel that takes no part: colour 0, depth key +inf), a
+kernel adds 0 (selects it away), which is the same.
 
-Pixels are visited row by row (``prange`` over rows), each written by one thread only; the
-taps of neighbouring pixels read neighbouring memory, and nothing the size of a frame is
-allocated besides SSSS's one intermediate frame between its two passes.
+Pixels are visited row by row (``prange`` over rows; SSSS's vertical pass over strips of
+columns), each written by one thread only, and no kernel allocates anything the size of a frame.
 """
 
 from __future__ import annotations
@@ -296,18 +298,17 @@ def sta_kernel(
 
 
 @njit(cache=True, fastmath={"reassoc"})
-def _ssss_pixel(src, key, kc, s, coord, along_rows, row, col, last, offsets, weights, sums):
+def _ssss_pixel(src, src_base, key, key_base, stride, kc, s, coord, last, offsets, weights, sums):
     """The off-centre taps of one 1-D SSSS pass (core.ssss._pass) for one pixel, summed into
     ``sums`` (6,): per channel sum_k w_k a_k and sum_k w_k a_k g_k.
 
-    Along rows, ``src`` (1, W, 3) and ``key`` (1, W) are the pixel's row and ``row`` is 0;
-    along columns, the whole frame and ``col`` the pixel's column. ``src`` holds 0 and ``key``
-    +inf where pixels take no part (their weight is then exactly 0); ``kc`` the pixel's key,
-    ``s`` its pixels per scene unit, ``coord`` its position along the pass. Only the sums may be
+    ``src`` (flat RGB) and ``key`` (flat) are read along a line: its pixel j at
+    ``src_base + j * stride`` and ``key_base + j * stride``. ``src`` holds 0 and ``key`` +inf
+    where pixels take no part (their weight is then exactly 0); ``kc`` is the pixel's key,
+    ``s`` its pixels per scene unit, ``coord`` its position along the line of ``last + 1``
+    pixels. Only the sums (and the products of a tap's two samples with its weight) may be
     reassociated (they vectorize over the taps); the tap positions are the reference's."""
     lastf = f32(last)
-    row = np.int64(row)  # a prange index may be unsigned: int64 and uint64 would unify to float
-    col = np.int64(col)
     aw0 = _ZERO
     aw1 = _ZERO
     aw2 = _ZERO
@@ -322,20 +323,20 @@ def _ssss_pixel(src, key, kc, s, coord, along_rows, row, col, last, offsets, wei
         f = pos - fl
         j = int(fl)
         j1 = j + 1 if j < last else j  # past the end only when f = 0: weight 0 either way
-        r0 = row if along_rows else j
-        r1 = row if along_rows else j1
-        q0 = j if along_rows else col
-        q1 = j1 if along_rows else col
-        a0 = _ONE - abs(key[r0, q0] - kc)
+        p0 = j * stride
+        p1 = j1 * stride
+        a0 = _ONE - abs(key[key_base + p0] - kc)
         a0 = (a0 if a0 > _ZERO else _ZERO) * (_ONE - f)
-        a1 = _ONE - abs(key[r1, q1] - kc)
+        a1 = _ONE - abs(key[key_base + p1] - kc)
         a1 = (a1 if a1 > _ZERO else _ZERO) * f
-        aw0 += a0 * weights[k, 0] + a1 * weights[k, 0]
-        aw1 += a0 * weights[k, 1] + a1 * weights[k, 1]
-        aw2 += a0 * weights[k, 2] + a1 * weights[k, 2]
-        ag0 += (a0 * src[r0, q0, 0]) * weights[k, 0] + (a1 * src[r1, q1, 0]) * weights[k, 0]
-        ag1 += (a0 * src[r0, q0, 1]) * weights[k, 1] + (a1 * src[r1, q1, 1]) * weights[k, 1]
-        ag2 += (a0 * src[r0, q0, 2]) * weights[k, 2] + (a1 * src[r1, q1, 2]) * weights[k, 2]
+        i0 = (src_base + p0) * 3
+        i1 = (src_base + p1) * 3
+        aw0 += (a0 + a1) * weights[k, 0]
+        aw1 += (a0 + a1) * weights[k, 1]
+        aw2 += (a0 + a1) * weights[k, 2]
+        ag0 += (a0 * src[i0] + a1 * src[i1]) * weights[k, 0]
+        ag1 += (a0 * src[i0 + 1] + a1 * src[i1 + 1]) * weights[k, 1]
+        ag2 += (a0 * src[i0 + 2] + a1 * src[i1 + 2]) * weights[k, 2]
     sums[0] = aw0
     sums[1] = aw1
     sums[2] = aw2
@@ -344,42 +345,58 @@ def _ssss_pixel(src, key, kc, s, coord, along_rows, row, col, last, offsets, wei
     sums[5] = ag2
 
 
+#: Columns per work item of SSSS's vertical pass: a strip of the frame is copied into a buffer
+#: that stays in the cache (16 columns x 2160 rows x 3 channels: 415 KB).
+STRIP = 16
+
+
 @njit(cache=True, parallel=True)
-def ssss_kernel(light, key, ok, scale, offsets, weights, wsum, post, once, out):
-    """core.ssss's two passes over the pixels ``ok``: along rows from ``light`` into ``once``
-    (0 where pixels take no part), then along columns from ``once`` into ``out`` (times
-    ``post``). ``key`` (H, W) is the depth times the follow-surface factor, +inf where pixels
-    take no part; ``offsets`` (n,) the non-zero taps in scene units, ``weights`` (n, 3) theirs,
-    ``wsum`` (3,) the sum of all weights."""
+def ssss_kernel(light, key, ok, scale, offsets, weights, wsum, post, out):
+    """core.ssss's two passes over the pixels ``ok`` of ``out`` (which holds the albedo times
+    the light, kept where pixels take no part): along rows from ``light``, written into
+    ``out``; then along columns, strip by strip of ``STRIP`` columns (a column's pass reads only
+    that column), from a copy of the strip (0 where pixels take no part), times ``post``.
+    ``key`` (H, W) is the depth times the follow-surface factor, +inf where pixels take no part;
+    ``offsets`` (n,) the non-zero taps in scene units, ``weights`` (n, 3) theirs, ``wsum`` (3,)
+    the sum of all weights. Nothing the size of a frame is allocated."""
     h, w = ok.shape
+    key_flat = key.reshape(-1)
     for y in prange(h):
-        for x in range(w):
-            once[y, x, 0] = _ZERO
-            once[y, x, 1] = _ZERO
-            once[y, x, 2] = _ZERO
         x0, x1 = _span(ok[y])
         if x0 >= x1:
             continue
         # The row's light, 0 where pixels take no part (a NaN times a zero weight is NaN).
-        src = np.empty((1, w, 3), np.float32)
+        src = np.empty(3 * w, np.float32)
         for x in range(w):
             for c in range(3):
-                src[0, x, c] = light[y, x, c] if ok[y, x] else _ZERO
+                src[3 * x + c] = light[y, x, c] if ok[y, x] else _ZERO
         sums = np.empty(6, np.float32)
         for x in range(x0, x1):
             if ok[y, x]:
-                _ssss_pixel(
-                    src, key[y : y + 1], key[y, x], scale[y, x], f32(x), True, 0, x, w - 1, offsets, weights, sums
-                )
+                _ssss_pixel(src, 0, key_flat, y * w, 1, key[y, x], scale[y, x], f32(x), w - 1, offsets, weights, sums)
                 for c in range(3):
-                    once[y, x, c] = (wsum[c] - sums[c]) * src[0, x, c] + sums[3 + c]
-    for y in prange(h):
+                    out[y, x, c] = (wsum[c] - sums[c]) * src[3 * x + c] + sums[3 + c]
+    for strip in prange((w + STRIP - 1) // STRIP):
+        xa = strip * STRIP
+        xb = min(xa + STRIP, w)
+        m = xb - xa
+        buf = np.empty(h * m * 3, np.float32)
+        kbuf = np.empty(h * m, np.float32)
+        for y in range(h):
+            for i in range(m):
+                x = xa + i
+                kbuf[y * m + i] = key[y, x]
+                for c in range(3):
+                    buf[(y * m + i) * 3 + c] = out[y, x, c] if ok[y, x] else _ZERO
         sums = np.empty(6, np.float32)
-        for x in range(w):
-            if ok[y, x]:
-                _ssss_pixel(once, key, key[y, x], scale[y, x], f32(y), False, y, x, h - 1, offsets, weights, sums)
-                for c in range(3):
-                    out[y, x, c] = ((wsum[c] - sums[c]) * once[y, x, c] + sums[3 + c]) * post[y, x, c]
+        for y in range(h):
+            for i in range(m):
+                x = xa + i
+                if ok[y, x]:
+                    _ssss_pixel(buf, i, kbuf, i, m, kbuf[y * m + i], scale[y, x], f32(y), h - 1, offsets, weights, sums)
+                    q = (y * m + i) * 3
+                    for c in range(3):
+                        out[y, x, c] = ((wsum[c] - sums[c]) * buf[q + c] + sums[3 + c]) * post[y, x, c]
 
 
 @njit(cache=True, fastmath={"reassoc"})

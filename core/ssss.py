@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _arrays, backend
-from .extent import group_extents
+from .extent import object_extent
 from .kernels import SeparableKernel, bounded, check_taps, make_kernel
 from .scene import Camera
 
@@ -232,7 +232,7 @@ def ssss(
     # Taps beyond the object's extent would all land off it and give their weight back to the
     # centre (no scattering at all for a radius far too large): lay the kernel over the object
     # instead (core.extent), rebuilt from its parameters, so that every backend filters with it.
-    ((_, extent_su),) = group_extents(ok, scale)
+    extent_su = object_extent(ok, scale)
     if kernel.radius_su > extent_su:
         if given is None:
             kernel = make_kernel(kernel_type, n_taps, d_su=d_su, radius_su=extent_su, **artist)
@@ -292,7 +292,6 @@ def _compiled(light, key, ok, scale, kernel, post, out):
         c(kernel.weights[taps], dtype=f32),
         kernel.weights.sum(axis=0).astype(f32),
         c(post, dtype=f32),
-        np.empty(light.shape, f32),
         out,
     )
     return out

@@ -137,3 +137,15 @@ def test_unknown_backend_names_the_value(monkeypatch):
             backend.requested()
     finally:
         backend.set_backend(None)
+
+
+def test_object_extent_is_group_extents_for_one_group():
+    # The lean extent (no index arrays, for the memory of 4K frames) equals the indexed one.
+    from sss_lab.core.extent import group_extents, object_extent
+
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        ok = rng.random((37, 53)) < rng.uniform(0.01, 0.5)
+        scale = rng.uniform(10.0, 200.0, ok.shape).astype(np.float32)
+        ((_, extent),) = group_extents(ok, scale)
+        assert object_extent(ok, scale) == extent
