@@ -92,6 +92,8 @@ def run(args) -> int:
 
     failed = nothing = 0
     total = len(frames)
+    # auto on a sequence: the first frame's choice is kept, so that no material switches technique mid-shot.
+    keep = None
     progress = Progress(total)
     for (frame, path), out in zip(frames, outputs, strict=True):
         what = f"frame {frame}" if frame is not None else os.path.basename(path)
@@ -113,6 +115,7 @@ def run(args) -> int:
                 skip_missing=args.method.strip() == "all",
                 view_layer=args.view_layer,
                 max_error=args.max_error,
+                auto_keep=keep,
             )
         except (OSError, ValueError, KeyError) as exc:
             failed += 1
@@ -128,6 +131,8 @@ def run(args) -> int:
             traceback.print_exc()
             progress.finish()
             continue
+        if "auto" in result.plans and keep is None:
+            keep = result.plans["auto"].chosen
         for technique, reason in result.skipped.items():
             print(f"  {technique}: skipped: {reason}")
         if result.nothing_to_do:

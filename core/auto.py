@@ -348,6 +348,11 @@ class AutoPlan:
     def applied(self) -> list[MaterialChoice]:
         return [c for c in self.choices if c.applied]
 
+    @property
+    def chosen(self) -> dict[str, str]:
+        """{material name: chosen candidate}, what ``choose(keep=...)`` takes on the next frames."""
+        return {c.features.name: c.chosen for c in self.choices}
+
     def explain(self) -> str:
         h, w = self.shape
         lines = [
@@ -403,12 +408,15 @@ def choose(
     techniques=None,
     albedo_mode: str = "post",
     mapping=None,
+    keep=None,
 ) -> AutoPlan:
     """Per scattering material on screen, the technique to run (or none), and why.
 
     ``techniques``: the candidates (default: every registered technique the model knows); one
     whose passes are missing is not a candidate (said in the plan). ``max_error`` >= 0: how much
-    worse than the best predicted error (relative) a cheaper choice may be.
+    worse than the best predicted error (relative) a cheaper choice may be. ``keep``: {material
+    name: candidate} chosen before (on the first frame of a sequence): kept where it can still
+    run, so that a material's look does not switch from frame to frame.
     """
     if not (isinstance(max_error, (int, float)) and math.isfinite(max_error) and max_error >= 0):
         raise InputError(f"max_error: expected a number >= 0 (0.05 = within 5 % of the best), got {max_error!r}")
@@ -461,6 +469,12 @@ def choose(
                 f" ({best.name} {best.predicted:.4f}); predicted {pick.predicted:.4f}"
             )
         reason += _why(f, pick.name)
+        kept = (keep or {}).get(f.name)
+        if kept is not None and kept != pick.name:
+            held = next((c for c in ok if c.name == kept), None)
+            if held is not None:
+                reason = f"kept from the first frame (this frame alone would choose {pick.name}: {reason})"
+                pick = held
         mp_warning = None
         if pick.name != NONE:
             mp = next(m for m in plans[pick.name].materials if m.material.index == material.index)

@@ -164,6 +164,7 @@ def apply_file(
     view_layer: str | None = None,
     mapping=None,
     max_error: float | None = None,
+    auto_keep: dict | None = None,
     **options,
 ) -> FileResult:
     """Apply ``techniques`` to one passes file and write ``out_path`` (default ``<stem>.sss.exr``).
@@ -175,7 +176,8 @@ def apply_file(
     ``skip_missing`` a technique whose passes are missing is skipped (reason in ``skipped``)
     instead of raising, unless every technique is. The technique ``auto`` chooses one per material
     (``core/auto.py``, within ``max_error`` of the best predicted error) and writes
-    ``SSSLab.auto.Image`` and ``SSSLab.auto.SSS``.
+    ``SSSLab.auto.Image`` and ``SSSLab.auto.SSS``; ``auto_keep`` ({material: technique}, an
+    earlier frame's ``AutoPlan.chosen``) keeps that choice.
     """
     from . import auto as _auto
     from .exr import MissingPassError, passes_from_contents, read_layers, write_layers
@@ -201,7 +203,7 @@ def apply_file(
                 raise ValueError(f"auto chooses each technique's parameters itself; it takes no {', '.join(options)}")
             limit = _auto.DEFAULT_MAX_ERROR if max_error is None else max_error
             result.plans[technique] = _auto.choose(
-                passes, scene, max_error=limit, albedo_mode=albedo_mode, mapping=mapping
+                passes, scene, max_error=limit, albedo_mode=albedo_mode, mapping=mapping, keep=auto_keep
             )
             continue
         try:

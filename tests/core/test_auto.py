@@ -284,3 +284,30 @@ def test_command_line_auto_bad_arguments_are_one_line(tmp_path, capsys, args, me
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) <= 2
     assert not (tmp_path / "passes.sss.exr").exists()
+
+
+def test_keep_holds_an_earlier_choice_where_it_can_still_run():
+    arrays, scene = _scene()
+    even = auto.Model({"none": (1.0, 1.0, 0.0), "ssss": (0.2, 1.0, 0.0), "burley": (0.19, 1.0, 0.0)})
+    alone = auto.choose(Passes(arrays), scene, model=even)
+    assert alone.chosen == {"Skin": "ssss", "Wax": "ssss"}
+    kept = auto.choose(Passes(arrays), scene, model=even, keep={"Skin": "burley", "Wax": "sta"})
+    skin, wax = kept.choices
+    assert skin.chosen == "burley" and "kept from the first frame" in skin.reason and "choose ssss" in skin.reason
+    assert wax.chosen == "ssss"  # STA is not a candidate of this model: the frame's own choice stands
+
+
+def test_command_line_auto_keeps_the_first_frames_choice_on_a_sequence(tmp_path, capsys):
+    from sss_lab.core.exr import read_layers
+    from sss_lab.core.synthetic import write_scene
+
+    arrays, scene = _scene()
+    write_scene(str(tmp_path / "passes_0001.exr"), arrays, scene)
+    flat = dict(arrays)
+    flat["Diffuse Direct"] = np.full_like(arrays["Diffuse Direct"], 1.0)  # a frame lit evenly: nothing to spread
+    write_scene(str(tmp_path / "passes_0002.exr"), flat, scene)
+    assert _cli(str(tmp_path / "passes_####.exr"), "--method", "auto") == 0
+    first = auto.choose(Passes(arrays), scene)
+    expected = auto.apply_auto(Passes(flat), scene, prepared=auto.choose(Passes(flat), scene, keep=first.chosen))
+    got = read_layers(str(tmp_path / "passes_0002.sss.exr")).layers["SSSLab.auto.SSS"]
+    np.testing.assert_array_equal(got, expected["SSSLab.auto.SSS"])
