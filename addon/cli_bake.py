@@ -10,6 +10,7 @@ file written (images, their JSON, OUT).
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import time
 
@@ -87,6 +88,7 @@ def run(args) -> int:
     from .cli_scan import open_blend
 
     out = _check_out(args.blend, args.out, args.overwrite)
+    _check_writable(os.path.dirname(out))
     image_dir = os.path.abspath(args.image_dir or os.path.splitext(out)[0] + "_thickness")
     settings = BakeSettings(
         target=args.target,
@@ -133,8 +135,19 @@ def run(args) -> int:
                 image.filepath_raw = bpy.path.relpath(r.filepath, start=base)
             except ValueError:  # another drive: keep the absolute path
                 pass
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=out, copy=True, check_existing=False, relative_remap=True)
+    for r in results:
+        if r.status in ("skipped", "failed", "cancelled"):
+            print(f"bake-thickness: {r}", flush=True)
+    if not counts["baked"] and not counts["shared"]:
+        tally = ", ".join(f"{n} {s}" for s, n in counts.items() if n)
+        raise CommandError(f"nothing was baked ({tally}; the reasons are above); {out} not written")
+    try:
+        os.makedirs(os.path.dirname(out), exist_ok=True)
+        bpy.ops.wm.save_as_mainfile(filepath=out, copy=True, check_existing=False, relative_remap=True)
+    except (OSError, RuntimeError) as exc:  # Blender reports a failed save as a RuntimeError
+        from ..core import _files
+
+        raise _files.write_failure(out, exc) from None
     for r in results:
         if r.status == "baked" and r.filepath:
             print(saved_line(r.filepath))
@@ -144,3 +157,23 @@ def run(args) -> int:
     summary = ", ".join(f"{n} {s}" for s, n in counts.items() if n)
     print(f"bake-thickness: {summary} in {time.perf_counter() - t0:.2f} s")
     return 1 if counts["failed"] else 0
+
+
+def _check_writable(folder: str) -> None:
+    """Refuse at once an output folder on a read-only file system or without permission, rather
+    than after baking every object."""
+    from ..core.errors import OutputError, describe_os_error
+
+    existing = folder
+    while existing and not os.path.isdir(existing):
+        existing = os.path.dirname(existing)
+    if existing and not os.access(existing, os.W_OK):
+        code = errno.EROFS if _read_only(existing) else errno.EACCES
+        raise OutputError(code, describe_os_error(OSError(code, os.strerror(code)), existing))
+
+
+def _read_only(folder: str) -> bool:
+    try:
+        return bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False

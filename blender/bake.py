@@ -49,6 +49,7 @@ from dataclasses import asdict, dataclass, field
 import bpy
 import numpy as np
 
+from ..core import _files
 from ..core.thickness import IMAGE_FORMATS, BakeSettings, auto_distance_su, split_samples
 from . import compat
 from .bake_nodes import _add_map_nodes, _bake_material, _result_image, _use_material
@@ -357,7 +358,7 @@ class ThicknessBake:
             self._material = _bake_material(s, node_samples)
             material = self._material
             st.on_restore(lambda: bpy.data.materials.remove(material))
-            if s.target == "image":
+            if s.target == "image" and self._image_folder:  # empty when every object is skipped
                 os.makedirs(self._image_folder, exist_ok=True)
         except BaseException:
             self.finish()
@@ -521,21 +522,19 @@ class ThicknessBake:
         ext = IMAGE_FORMATS[s.image_format]
         filename = bpy.path.clean_name(item.mesh.name) + "_thickness" + ext
         path = os.path.join(self._image_folder, filename)
-        tmp = os.path.join(self._image_folder, f".{filename}.{os.getpid()}.tmp")
         sidecar = path + ".json"
         meta = dict(meta, file=filename, format=s.image_format, bit_depth=32 if s.image_format == "OPEN_EXR" else 16)
         previous = image.filepath_raw
         try:
-            compat.save_float_image(image, tmp, s.image_format)
-            with open(sidecar + ".tmp", "w", encoding="utf-8") as f:
-                json.dump(meta, f, indent=2, sort_keys=True)
-            os.replace(tmp, path)
-            os.replace(sidecar + ".tmp", sidecar)
+            with _files.temporary_beside(path) as tmp:
+                try:
+                    compat.save_float_image(image, tmp, s.image_format)
+                except RuntimeError as exc:  # "Could not write image: Invalid argument" on a full disk
+                    raise _files.write_failure(path, exc) from None
+                _files.move_into_place(tmp, path)
+            _files.write_text(sidecar, json.dumps(meta, indent=2, sort_keys=True))
         except BaseException:
             image.filepath_raw = previous
-            for leftover in (tmp, sidecar + ".tmp"):
-                if os.path.exists(leftover):
-                    os.remove(leftover)
             raise
         image.filepath_raw = _stored_path(s.image_folder, filename, path)
         image[META_KEY] = meta

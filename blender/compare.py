@@ -86,11 +86,21 @@ class CompareSettings:
             w, h = self.resolution
             if not (isinstance(w, int) and isinstance(h, int) and w >= 1 and h >= 1):
                 raise ValueError(f"resolution: expected two integers >= 1 (W, H), got {self.resolution!r}")
+            if min(w, h) < self.box:
+                raise ValueError(
+                    f"resolution: {w}x{h} is smaller than the {self.box}x{self.box} box the metrics average over;"
+                    f" expected at least {self.box} pixels a side (or a smaller --box)"
+                )
         for t in self.techniques:
             check_technique(t)
         for m in self.calibrate_methods:
             if m not in SUBSURFACE_METHODS:
                 raise ValueError(f"calibrate_methods: unknown subsurface method {m!r}; expected: {SUBSURFACE_METHODS}")
+
+
+def _number(value) -> str:
+    """A metric for the log; None (no pixel of a scattering material to measure) as 'n/a'."""
+    return "n/a" if value is None else f"{value:.4f}"
 
 
 def _quality_label(technique: str, quality: dict) -> str:
@@ -186,7 +196,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         entry.update(extra or {})
         entries.append(entry)
         images[name] = image
-        log(f"  {name}: rel. RMSE {m['rel_rmse']:.4f}, SSIM {m['ssim']:.4f}, {total:.2f} s")
+        log(f"  {name}: rel. RMSE {_number(m['rel_rmse'])}, SSIM {_number(m['ssim'])}, {total:.2f} s")
 
     add("no SSS", "baseline", passes["Combined"], timings["passes"])
     for technique in settings.techniques:

@@ -9,15 +9,15 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import struct
-import tempfile
 import time
 
 import bpy
 import numpy as np
 
-from ..core import exr
+from ..core import _files, exr
 from . import compat
 from .describe import principled_node, scene_materials
 from .state import SceneState
@@ -232,24 +232,42 @@ def cached_reference(
     ]
     path = os.path.join(cache_dir, f"cycles_{key}.exr")
     meta_path = path[:-4] + ".json"
-    if os.path.isfile(path) and os.path.isfile(meta_path):
-        with open(meta_path, encoding="utf-8") as fh:
-            seconds = json.load(fh)["seconds"]
+    cached = _read_cached(path, meta_path, log)
+    if cached is not None:
         log(f"Cycles {method or 'scene method'} {samples} samples seed {seed}: cached ({os.path.basename(path)})")
-        return exr.read_passes(path)["Combined"], seconds, True
-    os.makedirs(cache_dir, exist_ok=True)
+        return cached[0], cached[1], True
     log(f"Cycles {method or 'scene method'} {samples} samples seed {seed}: rendering")
     with SceneState() as state:
         if method is not None:
             _with_method(scene, method, state)
-        fd, tmp = tempfile.mkstemp(dir=cache_dir, suffix=".exr")
-        os.close(fd)
-        try:
+        with _files.temporary_beside(path, suffix=".exr") as tmp:
             seconds = _render_combined(scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.remove(tmp)
-    with open(meta_path, "w", encoding="utf-8") as fh:
-        json.dump({"seconds": seconds, "samples": samples, "seed": seed, "method": method}, fh)
-    return exr.read_passes(path)["Combined"], seconds, False
+            try:
+                image = exr.read_passes(tmp)["Combined"]
+            except (exr.DamagedFileError, exr.MissingPassError) as exc:
+                if _files.disk_full(tmp):
+                    raise _files.write_failure(path, exc) from None
+                raise
+            _files.move_into_place(tmp, path)
+    # The metadata last, atomically: an entry without it is rendered again, never half-read.
+    meta = {"seconds": seconds, "samples": samples, "seed": seed, "method": method}
+    _files.write_text(meta_path, json.dumps(meta))
+    return image, seconds, False
+
+
+def _read_cached(path: str, meta_path: str, log) -> tuple[np.ndarray, float] | None:
+    """(image, render seconds) of a cache entry; None when there is none, or with a note when
+    it cannot be read (an empty or damaged metadata file, a truncated EXR): it is rendered again."""
+    if not (os.path.isfile(path) and os.path.isfile(meta_path)):
+        return None
+    try:
+        with open(meta_path, encoding="utf-8") as fh:
+            seconds = json.load(fh)["seconds"]
+        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not math.isfinite(seconds):
+            raise ValueError(f"'seconds' is {seconds!r}, not a number")
+        image = exr.read_passes(path)["Combined"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:  # JSONDecodeError and UnicodeError are ValueErrors
+        reason = " ".join(str(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc).split())[:200]
+        log(f"note: the cached reference {path} cannot be read ({reason}); rendering it again")
+        return None
+    return image, float(seconds)

@@ -41,6 +41,8 @@ from collections.abc import Callable, Iterable
 import bpy
 import numpy as np
 
+from ..core import _files
+from ..core.errors import DamagedFileError, OutputError, describe_os_error
 from ..core.plan import required_passes
 from ..core.progress import saved_line
 from ..core.sequence import frame_path, sidecar_path
@@ -268,13 +270,6 @@ def _render(scene) -> None:
     bpy.ops.render.render(write_still=False, scene=scene.name)
 
 
-def _write_json(path: str, text: str) -> None:
-    tmp = f"{path}.tmp-{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
-
-
 def verify_passes(path: str, names: list[str], view_layer: str, indices: Iterable[int]) -> None:
     """Read ``path`` back: exactly the passes ``names``, and only known Material Index values."""
     from ..core.exr import read_passes
@@ -363,7 +358,15 @@ def render_passes(
                 f"{existing[0]} already exists; refusing to overwrite it (choose another folder or overwrite; "
                 "on the command line --overwrite, or --skip-existing to keep the finished frames)"
             )
-    os.makedirs(out_dir, exist_ok=True)
+    not_files = [
+        p for _, exr in targets for p in (exr, sidecar_path(exr)) if os.path.lexists(p) and not os.path.isfile(p)
+    ]
+    if not_files:
+        raise FileExistsError(f"{not_files[0]} is a folder or not a regular file; refusing to write over it")
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(exc.errno, describe_os_error(exc, out_dir)) from None
 
     written: list[str] = []
     render = scene.render
@@ -432,21 +435,22 @@ def render_passes(
             result = bpy.data.images.get("Render Result")
             if result is None:
                 raise RuntimeError(f"frame {frame}: Blender produced no Render Result")
-            stem, ext = os.path.splitext(exr)
-            tmp = f"{stem}.tmp-{os.getpid()}{ext}"
-            try:
-                result.save_render(filepath=tmp, scene=scene)
-                if not os.path.isfile(tmp):
-                    raise RuntimeError(f"frame {frame}: Blender did not write {tmp}")
-                verify_passes(tmp, names, layer.name, [m.index for m in materials])
-                os.replace(tmp, exr)
-            finally:
-                if os.path.exists(tmp):
-                    os.remove(tmp)
+            with _files.temporary_beside(exr, suffix=os.path.splitext(exr)[1]) as tmp:
+                try:
+                    result.save_render(filepath=tmp, scene=scene)
+                    if os.path.getsize(tmp) == 0:
+                        raise RuntimeError(f"frame {frame}: Blender did not write {tmp}")
+                    verify_passes(tmp, names, layer.name, [m.index for m in materials])
+                except (RuntimeError, DamagedFileError) as exc:
+                    # Blender's saver leaves a short file on a full disk instead of failing.
+                    if _files.disk_full(tmp):
+                        raise _files.write_failure(exr, exc) from None
+                    raise
+                _files.move_into_place(tmp, exr)
             written.append(exr)
             say(saved_line(exr))
             json_path = sidecar_path(exr)
-            _write_json(json_path, description.to_json())
+            _files.write_text(json_path, description.to_json())
             written.append(json_path)
             say(saved_line(json_path))
             say(f"frame {frame} done in {time.perf_counter() - t0:.2f} s")

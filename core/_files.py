@@ -80,16 +80,29 @@ def atomic_write(path: str, write: Callable[[str], None], *, overwrite: bool = T
     if (os.path.lexists(path) and not os.path.isfile(path)) or os.path.isdir(path):
         kind = "a folder" if os.path.isdir(path) else "not a regular file (a device, pipe or dangling link)"
         raise FileExistsError(f"{path} is {kind}; refusing to write over it (choose a file name)")
-    folder = os.path.dirname(os.path.abspath(path))
     with temporary_beside(path) as tmp:
-        _write_and_move(tmp, path, folder, write, overwrite)
+        _write_and_move(tmp, path, write, overwrite)
     return path
 
 
-def _write_and_move(tmp: str, path: str, folder: str, write: Callable[[str], None], overwrite: bool) -> None:
+def _write_and_move(tmp: str, path: str, write: Callable[[str], None], overwrite: bool) -> None:
     """Write ``tmp`` and move it to ``path``; the caller removes ``tmp`` on failure."""
     try:
         write(tmp)
+    except RuntimeError as exc:
+        # OpenEXR reports a failed write (a full disk among others) as a RuntimeError.
+        raise write_failure(path, exc) from None
+    except (FileExistsError, OutputError):
+        raise
+    except OSError as exc:
+        raise OutputError(exc.errno, describe_os_error(exc, path)) from None
+    move_into_place(tmp, path, overwrite=overwrite)
+
+
+def move_into_place(tmp: str, path: str, *, overwrite: bool = True) -> None:
+    """Give the finished temporary file ``tmp`` the usual permissions (mkstemp makes it 0600) and
+    move it to ``path`` atomically (never over an existing ``path`` unless ``overwrite``)."""
+    try:
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
@@ -97,10 +110,7 @@ def _write_and_move(tmp: str, path: str, folder: str, write: Callable[[str], Non
             os.replace(tmp, path)
         else:
             _move_no_clobber(tmp, path)
-    except RuntimeError as exc:
-        # OpenEXR reports a failed write (a full disk among others) as a RuntimeError.
-        raise _write_failure(path, folder, exc) from None
-    except (FileExistsError, OutputError):
+    except FileExistsError:
         raise
     except OSError as exc:
         raise OutputError(exc.errno, describe_os_error(exc, path)) from None
@@ -113,13 +123,19 @@ def _remove(tmp: str) -> None:
         pass
 
 
-def _write_failure(path: str, folder: str, exc: RuntimeError) -> OutputError:
-    """The error for a writer that failed without an errno: a full disk is the usual cause."""
+def disk_full(path: str) -> bool:
+    """True when the file system of ``path`` (a file or folder) has less than 1 MiB free."""
+    folder = path if os.path.isdir(path) else os.path.dirname(os.path.abspath(path))
     try:
-        full = shutil.disk_usage(folder).free < 1 << 20
+        return shutil.disk_usage(folder).free < 1 << 20
     except OSError:
-        full = False
-    if full:
+        return False
+
+
+def write_failure(path: str, exc: Exception) -> OutputError:
+    """The error for a writer that failed without an errno (OpenEXR, Blender's image savers):
+    a full disk is the usual cause, and is said so."""
+    if disk_full(path):
         return OutputError(errno.ENOSPC, describe_os_error(OSError(errno.ENOSPC, "No space left on device"), path))
     return OutputError(errno.EIO, f"{path}: could not be written ({exc}); nothing was left under its name")
 

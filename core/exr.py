@@ -210,26 +210,31 @@ Window = tuple[int, int, int, int]
 #: What to do about a file that cannot be read completely.
 _REDO = "render the passes again (or copy the file again from where it was rendered)"
 
-# OpenEXR's C++ library prints its warnings on file descriptor 2; they are collected around a
-# read (and folded into the error message) so that a damaged file gives one line, not ten.
-_STDERR_LOCK = threading.Lock()
+# OpenEXR's C++ library prints its warnings ("Exception raised reading pixel data for part N")
+# on file descriptors 1 and 2; they are collected around a read (and folded into the error
+# message) so that a damaged file gives one line, not ten, and stdout keeps only SSS Lab's lines.
+_OUTPUT_LOCK = threading.Lock()
 
 
 @contextlib.contextmanager
 def _collect_stderr():
     lines: list[str] = []
-    with _STDERR_LOCK, tempfile.TemporaryFile() as tmp:
-        try:
-            sys.stderr.flush()
-        except (AttributeError, ValueError, OSError):
-            pass
-        saved = os.dup(2)
+    with _OUTPUT_LOCK, tempfile.TemporaryFile() as tmp:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (AttributeError, ValueError, OSError):
+                pass
+        saved = [os.dup(1), os.dup(2)]
+        os.dup2(tmp.fileno(), 1)
         os.dup2(tmp.fileno(), 2)
         try:
             yield lines
         finally:
-            os.dup2(saved, 2)
-            os.close(saved)
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
             tmp.seek(0)
             lines.extend(line.strip() for line in tmp.read().decode("utf-8", "replace").splitlines() if line.strip())
 

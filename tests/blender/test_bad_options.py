@@ -1,0 +1,66 @@
+"""Options that used to end in a traceback after work had started."""
+
+import os
+
+import pytest
+
+from sss_lab.blender.compare import CompareSettings
+
+
+@pytest.mark.parametrize(("resolution", "box"), [((1, 1), 2), ((64, 3), 4)])
+def test_compare_refuses_a_resolution_smaller_than_its_box(resolution, box):
+    settings = CompareSettings(resolution=resolution, box=box)
+    with pytest.raises(ValueError, match=rf"smaller than the {box}x{box} box"):
+        settings.validate()
+    CompareSettings(resolution=(box, box), box=box).validate()  # the smallest that has a pixel to measure
+
+
+def _save(tmp_path, name, build):
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    build(bpy)
+    path = tmp_path / name
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    return path
+
+
+def _flat_mesh(bpy):
+    mesh = bpy.data.meshes.new("Line")
+    mesh.from_pydata([(0, 0, 0), (1, 0, 0), (2, 0, 0)], [], [(0, 1, 2)])  # a face of zero area
+    bpy.context.scene.collection.objects.link(bpy.data.objects.new("Line", mesh))
+
+
+def test_a_bake_that_bakes_nothing_says_why_and_writes_nothing(tmp_path, capsys):
+    from sss_lab.addon import cli
+
+    blend = _save(tmp_path, "flat.blend", _flat_mesh)
+    out = tmp_path / "baked.blend"
+    code = cli.main(["bake-thickness", str(blend), "--out", str(out), "--samples", "4"])
+    captured = capsys.readouterr()
+    assert code == 2 and not out.exists()
+    assert "Line: skipped" in captured.out  # the reason, per object
+    assert "nothing was baked (1 skipped" in captured.err and captured.err.count("\n") == 1
+
+
+def _cube_with_sss(bpy):
+    from sss_lab.blender import compat
+
+    bpy.ops.wm.read_factory_settings(use_empty=False)
+    material = bpy.data.materials.new("Skin")
+    compat.ensure_node_tree(material)
+    material.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
+    bpy.data.objects["Cube"].data.materials.append(material)
+
+
+def test_render_refuses_a_folder_where_a_sidecar_goes_before_rendering(tmp_path, capsys):
+    from sss_lab.addon import cli
+
+    blend = _save(tmp_path, "cube.blend", _cube_with_sss)
+    out = tmp_path / "passes"
+    (out / "passes_0001.json").mkdir(parents=True)
+    argv = ["render", str(blend), "--out", str(out), "--frames", "1", "--resolution", "16x16", "--samples", "2"]
+    code = cli.main([*argv, "--methods", "ssss,burley", "--overwrite"])
+    err = capsys.readouterr().err
+    assert code == 2 and "passes_0001.json is a folder or not a regular file" in err
+    assert sorted(os.listdir(out)) == ["passes_0001.json"]  # nothing rendered, nothing half-written
