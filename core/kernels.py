@@ -57,8 +57,10 @@ class SeparableKernel:
         w = np.asarray(self.weights, dtype=np.float64)
         if o.ndim != 1 or o.size < 1 or not np.all(np.isfinite(o)):
             raise ValueError(f"offsets_su: expected a 1-D array of finite offsets, got shape {o.shape}")
-        if w.shape != (o.size, 3) or not np.all(np.isfinite(w)):
-            raise ValueError(f"weights: expected finite values of shape ({o.size}, 3), got {w.shape}")
+        if w.shape != (o.size, 3):
+            raise ValueError(f"weights: expected shape ({o.size}, 3), got {w.shape}")
+        if not np.all(np.isfinite(w)):
+            raise ValueError(f"weights: {int((~np.isfinite(w)).sum())} of {w.size} are not finite (NaN or Inf)")
         if np.any(np.diff(o) <= 0):
             raise ValueError("offsets_su: expected strictly ascending offsets")
         sums = w.sum(axis=0)

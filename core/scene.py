@@ -411,22 +411,25 @@ def _field_kind(cls, f) -> str:
     return "any"
 
 
+#: The largest float32: the passes are float32, and a number beyond it becomes Inf in them.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
 _EXPECTED = {
-    "int": "an integer",
-    "number": "a finite number",
+    "int": "an integer (32-bit: |n| < 2**31)",
+    "number": "a finite number within float32's range (|x| <= 3.4e38)",
     "str": "a string",
     "object": "a JSON object",
-    "matrix": "a list of 16 finite numbers (a row-major 4x4 matrix)",
-    "rgb": "a list of three finite numbers (R, G, B)",
+    "matrix": "a list of 16 finite numbers (a row-major 4x4 matrix, |x| <= 3.4e38)",
+    "rgb": "a list of three finite numbers (R, G, B, |x| <= 3.4e38)",
     "bool": "true or false",
 }
 
 
 def _type_ok(kind: str, v) -> bool:
     if kind == "int":
-        return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+        return isinstance(v, (int, np.integer)) and not isinstance(v, bool) and abs(v) < 2**31
     if kind == "number":
-        return _is_number(v) and math.isfinite(v)
+        return _is_number(v) and math.isfinite(v) and abs(v) <= FLOAT32_MAX
     if kind == "str":
         return isinstance(v, str)
     if kind == "object":
@@ -435,7 +438,11 @@ def _type_ok(kind: str, v) -> bool:
         return isinstance(v, bool)
     if kind in ("matrix", "rgb"):
         n = 16 if kind == "matrix" else 3
-        return isinstance(v, (list, tuple)) and len(v) == n and all(_is_number(x) and math.isfinite(x) for x in v)
+        return (
+            isinstance(v, (list, tuple))
+            and len(v) == n
+            and all(_is_number(x) and math.isfinite(x) and abs(x) <= FLOAT32_MAX for x in v)
+        )
     return True
 
 

@@ -197,6 +197,15 @@ def apply_file(
     contents = read_layers(path)
     passes = passes_from_contents(contents, view_layer)
     result.scene = scene = scene if scene is not None else load_scene(path, scene_path)
+    h, w = passes.shape
+    if (scene.camera.width_px, scene.camera.height_px) != (w, h):
+        from .errors import InputError
+
+        raise InputError(
+            f"{inputs[1] if scene_path or os.path.exists(inputs[1]) else 'the scene description'}: it describes "
+            f"a {scene.camera.width_px}x{scene.camera.height_px} render, but {path} is {w}x{h}: they come from "
+            "different renders; pass the JSON written with these passes (--scene)"
+        )
     for technique in techniques:
         if technique == _auto.AUTO:
             if options:
