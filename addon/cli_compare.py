@@ -60,6 +60,7 @@ def add_parser(subparsers):
         help="a reference merged from seed parts (sss_lab reference + merge-reference, e.g. on a farm) instead of "
         "rendering one; its halves give the noise floor",
     )
+    p.add_argument("--frame", type=int, help="frame to compare (default: the scene's current frame)")
     add_render_device(p)
     p.set_defaults(run=run)
 
@@ -69,6 +70,8 @@ def run(args) -> int:
     from .cli_scan import open_blend
 
     scene = open_blend(args.blend, args.scene)
+    if args.frame is not None:
+        scene.frame_set(args.frame)  # the file is only read: nothing to put back
     from ..blender.compare import CompareSettings, compare
     from .cli import parse_methods
 

@@ -68,6 +68,7 @@ def run(args) -> int:
     meta = {k: metas[0].get(k) for k in keep if k in metas[0]}
     meta["parts"] = [os.path.basename(f) for f in files]
     meta["seconds"] = sum(float(m.get("seconds") or 0.0) for m in metas)
+    os.makedirs(os.path.dirname(out), exist_ok=True)
     for path in reference.write_merged(out, merged, meta, overwrite=args.overwrite):
         print(saved_line(path), flush=True)
     return 0

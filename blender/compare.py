@@ -157,7 +157,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     reference = functools.partial(cached_reference, scene, cache_dir, resolution=res, log=log, fingerprint=fingerprint)
     merged = None
     if settings.reference_file:
-        merged, ref_seconds = _merged_reference(settings.reference_file, fingerprint, res, log)
+        merged, ref_seconds = _merged_reference(settings.reference_file, fingerprint, res, scene.frame_current, log)
         settings = dataclasses.replace(settings, reference_samples=merged.samples, cycles_burley=False)
         ref, second = merged.image, None
     else:
@@ -279,7 +279,9 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     return out
 
 
-def _merged_reference(path: str, fingerprint: str, resolution, log) -> tuple[core_reference.MergedReference, float]:
+def _merged_reference(
+    path: str, fingerprint: str, resolution, frame: int, log
+) -> tuple[core_reference.MergedReference, float]:
     """The merged reference at ``path`` and its render seconds (the parts' sum), checked against
     the scene: a reference of another scene state would make every figure meaningless."""
     merged = core_reference.read_merged(path)
@@ -288,6 +290,11 @@ def _merged_reference(path: str, fingerprint: str, resolution, log) -> tuple[cor
     if os.path.isfile(meta_path):
         with open(meta_path, encoding="utf-8") as fh:
             meta = json.load(fh)
+    if meta.get("frame") is not None and meta["frame"] != frame:
+        raise InputError(
+            f"{path} shows frame {meta['frame']}; the comparison is of frame {frame}: compare that frame "
+            f"(--frame {meta['frame']}) or render the parts at this one"
+        )
     if meta.get("fingerprint") and meta["fingerprint"] != fingerprint:
         raise InputError(
             f"{path} was rendered from another state of the scene (its fingerprint differs from this scene's): "

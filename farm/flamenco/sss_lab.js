@@ -13,11 +13,12 @@
 //   apply-CHUNK       NUMPY apply OUT/passes/passes_####.exr --frames CHUNK --method M --skip-existing
 //                       (after render-CHUNK)
 //   reference-SEED    {blender} {blenderArgs} --command sss_lab reference BLENDFILE --out OUT/reference
-//                       --seeds SEED --samples S [--resolution WxH] --threads T --device D --skip-existing
+//                       --seeds SEED --samples S --frame F [--resolution WxH] --threads T --device D
+//                       --skip-existing
 //   merge-reference   NUMPY merge-reference OUT/reference --out OUT/reference/reference.exr --overwrite
 //                       (after every reference-SEED)
 //   compare           {blender} {blenderArgs} --command sss_lab compare BLENDFILE --out OUT/compare
-//                       --reference OUT/reference/reference.exr --methods M --pass-samples N
+//                       --reference OUT/reference/reference.exr --frame F --methods M --pass-samples N
 //                       [--resolution WxH] --threads T --device D   (after merge-reference and every apply)
 //
 // The reference, merge and compare tasks exist only with "Compare" on. NUMPY is the setting
@@ -48,6 +49,8 @@ const JOB_TYPE = {
       description: "How the NumPy tasks (apply, merge) run SSS Lab, e.g. 'python -m sss_lab'" },
     { key: "compare", type: "bool", default: false, visible: "submission",
       description: "Also render the reference over several tasks and write the comparison report" },
+    { key: "compare_frame", type: "int32", eval: "C.scene.frame_current", visible: "submission",
+      description: "The frame the reference shows and the comparison measures" },
     { key: "reference_tasks", type: "int32", default: 8, visible: "submission",
       description: "Reference tasks, one seed each (seeds 1..N)" },
     { key: "reference_samples", type: "int32", default: 64, visible: "submission",
@@ -85,15 +88,16 @@ function compileJob(job) {
   const merge = numpyTask("merge-reference", settings, ["merge-reference", referenceDir, "--out", merged, "--overwrite"]);
   for (let seed = 1; seed <= settings.reference_tasks; seed++) {
     const part = blenderTask(`reference-${seed}`, "reference", settings.blendfile, [
-      "--out", referenceDir, "--seeds", String(seed), "--samples", String(settings.reference_samples), ...common,
-      "--skip-existing",
+      "--out", referenceDir, "--seeds", String(seed), "--samples", String(settings.reference_samples),
+      "--frame", String(settings.compare_frame), ...common, "--skip-existing",
     ]);
     job.addTask(part);
     merge.addDependency(part);
   }
   job.addTask(merge);
   const compare = blenderTask("compare", "compare", settings.blendfile, [
-    "--out", path.join(out, "compare"), "--reference", merged, "--methods", settings.methods,
+    "--out", path.join(out, "compare"), "--reference", merged, "--frame", String(settings.compare_frame),
+    "--methods", settings.methods,
     "--pass-samples", String(settings.pass_samples), ...common,
   ]);
   compare.addDependency(merge);

@@ -107,3 +107,36 @@ def test_skip_existing_keeps_finished_parts_and_refuses_different_ones(rendered)
         render_reference_parts(scene, folder, seeds=[1], samples=8, resolution=SIZE, skip_existing=True, log=None)
     with pytest.raises(FileExistsError, match="--skip-existing"):
         render_reference_parts(scene, folder, seeds=[1], samples=SAMPLES, resolution=SIZE, log=None)
+
+
+def test_compare_uses_the_merged_reference_and_its_halves(rendered, capsys):
+    """merge-reference (the command) then compare --reference: the report's reference is the
+    merge, its noise floor comes from the halves, and a reference of another frame or another
+    state of the scene is refused."""
+    import bpy
+
+    from sss_lab.addon import cli
+    from sss_lab.blender.compare import CompareSettings, compare
+    from sss_lab.core.errors import InputError
+
+    merged_path = rendered["work"] / "merged" / "reference.exr"
+    assert cli.main(["merge-reference", str(rendered["work"] / "parts"), "--out", str(merged_path)]) == 0
+    out = capsys.readouterr().out
+    assert f"Saved: '{merged_path}'" in out and f"{TASKS} part(s)" in out
+    bpy.ops.wm.open_mainfile(filepath=str(rendered["work"] / "head.blend"), load_ui=False)
+    scene = bpy.context.scene
+    settings = CompareSettings(
+        resolution=SIZE, pass_samples=2, peer_samples=(16,), techniques=("ssss",), reference_file=str(merged_path)
+    )
+    data = compare(scene, str(rendered["work"] / "report"), settings, log=lambda _line: None)
+    assert data["settings"]["reference_samples"] == TASKS * SAMPLES
+    assert data["settings"]["reference_seeds"] == list(range(1, TASKS + 1))
+    assert data["noise_floor"]["halves"]["samples"] == [TASKS * SAMPLES // 2] * 2
+    assert not any("Christensen-Burley" in e["name"] for e in data["entries"])  # as costly as the reference
+    scene.frame_set(2)
+    with pytest.raises(InputError, match="frame 1; the comparison is of frame 2"):
+        compare(scene, str(rendered["work"] / "report2"), settings, log=None)
+    scene.frame_set(1)
+    next(o for o in scene.objects if o.type == "LIGHT").data.energy *= 2
+    with pytest.raises(InputError, match="another state of the scene"):
+        compare(scene, str(rendered["work"] / "report3"), settings, log=None)

@@ -135,6 +135,7 @@ FLAMENCO_SETTINGS = {
     "device": "CPU",
     "numpy_command": "python -m sss_lab",
     "compare": True,
+    "compare_frame": 1,
     "reference_tasks": REFERENCE["ReferenceTasks"],
     "reference_samples": REFERENCE["ReferenceSamples"],
     "blendfile": SCENE,
