@@ -1,10 +1,11 @@
 """``python -m sss_lab bake-thickness SCENE.blend --out OUT.blend``: bake thickness maps headless.
 
 Reads SCENE.blend, bakes the named objects (default: every local mesh object the scene
-renders) and writes the result to OUT.blend. OUT may not be an existing file — the input
-least of all — unless ``--overwrite`` says so. Images go to ``--image-dir`` (default:
-``OUT_thickness/`` beside OUT), referenced relative to OUT. Prints ``Saved: '<path>'`` for every
-file written (images, their JSON, OUT).
+renders that carries a subsurface material; floors and occluders need no map) and writes the
+result to OUT.blend. OUT may not be an existing file — the input least of all — unless
+``--overwrite`` says so. Images go to ``--image-dir`` (default: ``OUT_thickness/`` beside OUT),
+referenced relative to OUT. Prints ``Saved: '<path>'`` for every file written (images, their
+JSON, OUT).
 """
 
 from __future__ import annotations
@@ -32,7 +33,10 @@ def add_parser(subparsers):
     p.add_argument("--overwrite", action="store_true", help="allow OUT to be an existing file, the input included")
     p.add_argument("--scene", help="scene name (default: the file's active scene)")
     p.add_argument(
-        "--objects", nargs="+", metavar="NAME", help="objects to bake (default: every local mesh object that renders)"
+        "--objects",
+        nargs="+",
+        metavar="NAME",
+        help="objects to bake (default: every local mesh object that renders and carries a subsurface material)",
     )
     p.add_argument("--target", choices=TARGETS, default="attribute", help="default: %(default)s")
     p.add_argument("--convention", choices=tuple(CONVENTIONS), default="translucency", help="default: %(default)s")
@@ -74,13 +78,10 @@ def _check_out(blend: str, out: str, overwrite: bool) -> str:
     return out_abs
 
 
-def _default_objects(bpy, scene) -> list[str]:
-    layer = set(bpy.context.view_layer.objects)
-    return [
-        o.name
-        for o in scene.objects
-        if o.type == "MESH" and not o.hide_render and o.library is None and o.data.library is None and o in layer
-    ]
+def _default_objects(scene) -> list[str]:
+    from ..blender.bake import subsurface_meshes
+
+    return [o.name for o in subsurface_meshes(scene)]
 
 
 def run(args) -> int:
@@ -113,9 +114,12 @@ def run(args) -> int:
         window.scene = scene
     from ..blender.bake import bake_thickness
 
-    names = args.objects or _default_objects(bpy, scene)
+    names = args.objects or _default_objects(scene)
     if not names:
-        raise CommandError(f"scene {scene.name!r} has no local mesh object that renders; name objects with --objects")
+        raise CommandError(
+            f"scene {scene.name!r} has no local mesh object that renders with a subsurface material (Subsurface"
+            " Weight > 0); name objects with --objects"
+        )
     t0 = time.perf_counter()
 
     def log(line):

@@ -101,6 +101,7 @@ class _Item:
     vertices: int
     uv_map: str = ""
     sharers: list = field(default_factory=list)  # (object, warning or "")
+    coarse: str = ""  # a warning when the mesh is too coarse for a per-vertex map
 
 
 def settings_from_scene(scene) -> BakeSettings:
@@ -278,6 +279,8 @@ class ThicknessBake:
             else:
                 distance, auto = auto_distance_su(world_corners(obj_eval)), True
             by_mesh[key] = _Item(obj, mesh, distance, auto, len(mesh_eval.vertices), uv_map)
+            if s.target == "attribute":
+                by_mesh[key].coarse = coarse_warning(obj_eval, mesh.name, distance)
             self._queue.append(by_mesh[key])
         if s.target == "image" and self._queue:
             folder = s.image_folder
@@ -392,6 +395,8 @@ class ThicknessBake:
         result.seconds = time.perf_counter() - t0
         if result.status == "baked":
             result.message = self._describe(item, result)
+            if item.coarse:
+                result.warnings.append(item.coarse)
         self._results[item.obj.name] = result
         self.last = result
         for obj, warning in item.sharers:
@@ -604,6 +609,64 @@ class ThicknessBake:
         if warning:
             r.warnings.append(warning)
         return r
+
+
+def carries_subsurface(obj) -> bool:
+    """Whether a material of ``obj`` scatters (its Principled BSDF's Subsurface Weight > 0)."""
+    from .describe import principled_node
+
+    for slot in obj.material_slots:
+        node = principled_node(slot.material)
+        if node is not None and node.inputs["Subsurface Weight"].default_value > 0.0:
+            return True
+    return False
+
+
+def subsurface_meshes(scene, view_layer=None) -> list:
+    """The local mesh objects of ``scene`` that render, are in the view layer and carry a
+    subsurface material: what ``bake-thickness`` bakes when no object is named."""
+    layer = set((view_layer or bpy.context.view_layer).objects)
+    return [
+        o
+        for o in scene.objects
+        if o.type == "MESH"
+        and not o.hide_render
+        and o.library is None
+        and o.data.library is None
+        and o in layer
+        and carries_subsurface(o)
+    ]
+
+
+def coarse_warning(obj_eval, mesh_name: str, distance_su: float) -> str:
+    """A warning when a per-vertex map cannot hold the mesh's thickness, else "".
+
+    A vertex attribute has one value per vertex, interpolated across each face. When an edge is
+    longer than the bake distance D, the middle of a face lies farther than D from every vertex,
+    and its thickness there (a slab's, read at the centre of its face) is whatever the corners,
+    which see open space around them, measured: an 8-vertex box read as a slab is off by up to
+    0.5 at its centre (docs/references.md §9). The remedy: more vertices, or an image target.
+    """
+    mesh = obj_eval.data
+    n = len(mesh.vertices)
+    if n == 0 or len(mesh.edges) == 0:
+        return ""
+    co = np.empty(n * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    m = np.array(obj_eval.matrix_world, dtype=np.float64)
+    world = co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+    edges = np.empty(len(mesh.edges) * 2, np.int64)
+    mesh.edges.foreach_get("vertices", edges)
+    edges = edges.reshape(-1, 2)
+    longest = float(np.linalg.norm(world[edges[:, 0]] - world[edges[:, 1]], axis=1).max())
+    if longest <= distance_su:
+        return ""
+    return (
+        f"mesh {mesh_name!r} is too coarse for a per-vertex thickness map: its longest edge ({longest:.3g}) is"
+        f" longer than the bake distance ({distance_su:.3g}), so the thickness inside its faces is interpolated"
+        " from corners that see open space; subdivide the mesh (Edit Mode > Subdivide, or an applied Simple"
+        " Subdivision modifier) or bake to an image (target 'image', needs a UV map)"
+    )
 
 
 def _bake_signature(obj) -> tuple:

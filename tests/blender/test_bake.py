@@ -711,7 +711,12 @@ def _run_cli(*args):
 
 
 def test_cli_refuses_to_overwrite_the_input_and_writes_a_new_file(tmp_path):
-    _link("Cube", _box("Cube"))
+    # By default the command bakes the meshes that carry a subsurface material: the cube, not the floor.
+    wax = bpy.data.materials.new("Wax")
+    compat.ensure_node_tree(wax)
+    wax.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
+    _link("Cube", _box("Cube")).data.materials.append(wax)
+    _link("Floor", _box("Floor", size=(4.0, 4.0, 0.1), location=(0.0, 0.0, -1.0)))
     src = tmp_path / "scene.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(src), copy=True)
     original = src.read_bytes()
@@ -728,3 +733,59 @@ def test_cli_refuses_to_overwrite_the_input_and_writes_a_new_file(tmp_path):
     bpy.ops.wm.open_mainfile(filepath=str(out), load_ui=False)
     mesh = bpy.data.objects["Cube"].data
     assert "Thickness" in mesh.color_attributes and META_KEY in mesh
+    assert "Thickness" not in bpy.data.objects["Floor"].data.color_attributes
+
+
+# -- low-poly meshes ---------------------------------------------------------------------------
+def _face_centre_uv(mesh, normal):
+    """UV of the centre of the face of ``mesh`` whose normal is ``normal`` (the mean of its
+    corners' UVs: the faces of a box are parallelograms in UV)."""
+    face = next(p for p in mesh.polygons if np.allclose(tuple(p.normal), normal, atol=1e-4))
+    uv = mesh.uv_layers.active.data
+    return np.mean([tuple(uv[i].uv) for i in face.loop_indices], axis=0)
+
+
+def test_low_poly_slabs_warn_on_vertices_and_read_the_slab_law_from_an_image(tmp_path):
+    """Fins of 8-vertex boxes (5 x 9 cm, 2 to 15 mm thick) with the bake's automatic distance.
+    A vertex attribute holds only the corners, which see open space: the bake says so, naming
+    the mesh and the remedy. The image target resolves the faces: at the centre of the front
+    face each fin reads the slab law 1 - (t / D)^2 within 0.1."""
+    thicknesses = (0.002, 0.005, 0.01, 0.015)
+    fins = [
+        _link(f"Fin {t}", _box(f"Fin {t}", size=(0.05, t, 0.09), location=(0.1 * i, 0, 0)))
+        for i, t in enumerate(thicknesses)
+    ]
+    results = bake_thickness(bpy.context, fins, _settings(samples=64), log=_quiet)
+    for r in results:
+        assert r.status == "baked"
+        (warning,) = [w for w in r.warnings if "too coarse" in w]
+        assert f"mesh {r.mesh!r} is too coarse for a per-vertex thickness map" in warning
+        assert "subdivide the mesh" in warning and "bake to an image" in warning
+    settings = _settings(samples=64, target="image", resolution_px=64, image_folder=str(tmp_path))
+    results = bake_thickness(bpy.context, fins, settings, log=_quiet)
+    for fin, t, r in zip(fins, thicknesses, results, strict=True):
+        assert r.status == "baked" and not [w for w in r.warnings if "too coarse" in w], r
+        image = bpy.data.images[r.data]
+        px = np.array(image.pixels[:], dtype=np.float32).reshape(image.size[1], image.size[0], 4)
+        u, v = _face_centre_uv(fin.data, (0.0, -1.0, 0.0))
+        value = float(px[int(v * image.size[1]), int(u * image.size[0]), 0])
+        expected = 1.0 - float(slab_unoccluded_fraction(t, r.distance_su))
+        # 0.1: the issue's bound; the texel's noise (64 rays, sigma <= 0.0625) is well inside it.
+        assert abs(value - expected) < 0.1, (t, value, expected, r.distance_su)
+
+
+def test_subsurface_meshes_are_the_command_lines_default():
+    skin = bpy.data.materials.new("Skin")
+    compat.ensure_node_tree(skin)
+    skin.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
+    plain = bpy.data.materials.new("Floor")
+    compat.ensure_node_tree(plain)
+    plain.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 0.0
+    head = _link("Head", _box("Head"))
+    head.data.materials.append(skin)
+    floor = _link("Floor", _box("Floor"))
+    floor.data.materials.append(plain)
+    _link("Bare", _box("Bare"))
+    bpy.context.view_layer.update()
+    assert [o.name for o in bake_mod.subsurface_meshes(bpy.context.scene)] == ["Head"]
+    assert bake_mod.carries_subsurface(head) and not bake_mod.carries_subsurface(floor)
