@@ -44,6 +44,13 @@ def add_parser(subparsers):
     p.add_argument("--resolution", type=_resolution, help="render size WxH (default: the scene's)")
     p.add_argument("--reference-samples", type=int, default=256, help="Cycles samples of the reference (256)")
     p.add_argument("--pass-samples", type=int, default=64, help="Cycles samples of the passes (64)")
+    p.add_argument(
+        "--bias-samples",
+        type=int,
+        default=None,
+        help="samples of a second set of passes that splits each error into bias and pass noise"
+        " (default 4 x --pass-samples; 0: no split)",
+    )
     p.add_argument("--seed", type=int, default=0, help="Cycles seed of the reference (0; the noise floor uses +1)")
     p.add_argument("--box", type=int, default=2, help="box downsampling before the metrics (2)")
     p.add_argument("--methods", default="sta,ssss,burley", help="techniques to compare (default: all)")
@@ -79,6 +86,7 @@ def run(args) -> int:
         resolution=args.resolution,
         reference_samples=args.reference_samples,
         pass_samples=args.pass_samples,
+        bias_samples=args.bias_samples,
         seed=args.seed,
         box=args.box,
         techniques=tuple(parse_methods(args.methods)),

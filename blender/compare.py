@@ -7,7 +7,9 @@
   and the settings so that a second run of an unchanged scene does not render it again;
 - the noise floor: the same reference with another seed, compared with the same metric;
 - peers: Cycles at lower sample counts, and Cycles' own Christensen-Burley method;
-- the passes the techniques need (``render_passes``: SSS rendered as plain diffuse);
+- the passes the techniques need (``render_passes``: SSS rendered as plain diffuse), and the same
+  passes at ``bias_samples`` to split each technique's error into bias and pass noise
+  (``core.metrics.split_error``);
 
 then applies every technique at several quality settings with ``core.apply``, and writes the
 report (``core.report``): metrics.json, report.md, report.html, grid.png, pareto.svg.
@@ -75,11 +77,26 @@ class CompareSettings:
     #: noise floor, and the Christensen-Burley peer (as costly as the reference) is left out.
     reference_file: str | None = None
 
+    #: Samples of the second set of passes that splits each technique's error into bias and pass
+    #: noise: more than ``pass_samples``; None = 4 x ``pass_samples``; 0 leaves the split out.
+    bias_samples: int | None = None
+
+    @property
+    def bias_pass_samples(self) -> int:
+        """The samples of the bias passes (0: none)."""
+        return 4 * self.pass_samples if self.bias_samples is None else self.bias_samples
+
     def validate(self) -> None:
         for name in ("reference_samples", "pass_samples", "box"):
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
                 raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
+        b = self.bias_samples
+        if b is not None and (not isinstance(b, int) or isinstance(b, bool) or (b and b <= self.pass_samples) or b < 0):
+            raise ValueError(
+                f"bias_samples: expected 0 (off) or an integer > pass_samples ({self.pass_samples}),"
+                f" got {self.bias_samples!r}"
+            )
         if any(not isinstance(s, int) or s < 1 for s in self.peer_samples):
             raise ValueError(f"peer_samples: expected integers >= 1, got {self.peer_samples!r}")
         if self.resolution is not None:
@@ -183,6 +200,23 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     exr_path = next(p for p in written if p.endswith(".exr"))
     passes = exr.read_passes(exr_path)
     desc: SceneDescription = sequence.load_scene(exr_path)
+    high = None
+    if settings.bias_pass_samples:
+        log(f"Passes: {settings.bias_pass_samples} samples, to split each technique's error into bias and pass noise")
+        start = time.perf_counter()
+        written_high = render_passes(
+            scene,
+            os.path.join(out_dir, "passes_bias"),
+            techniques=settings.techniques,
+            samples=settings.bias_pass_samples,
+            resolution=res,
+            seed=settings.seed + 4,
+            overwrite=True,
+            log=log,
+        )
+        timings["passes_bias"] = time.perf_counter() - start
+        high_path = next(p for p in written_high if p.endswith(".exr"))
+        high = (exr.read_passes(high_path), sequence.load_scene(high_path))
     index = np.rint(np.nan_to_num(passes["Material Index"])).astype(np.int64)
     if index.ndim == 3:
         index = index[..., 0]
@@ -190,15 +224,26 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     if ref.shape[:2] != mask.shape:
         raise ValueError(f"reference {ref.shape[:2]} and passes {mask.shape} differ in size")
 
-    def add(name, kind, image, total, apply_s=None, extra=None):
+    def add(name, kind, image, total, apply_s=None, extra=None, image_high=None):
         m = metrics.compare_images(image, ref, mask, box=settings.box)
-        entry = {"name": name, "kind": kind, "metrics": m, "time_s": {"total": total, "apply": apply_s}}
+        if image_high is not None and m["rel_rmse"] is not None:
+            m_high = metrics.compare_images(image_high, ref, mask, box=settings.box)["rel_rmse"]
+            m["bias"], m["pass_noise"] = metrics.split_error(
+                m["rel_rmse"], m_high, settings.pass_samples, settings.bias_pass_samples
+            )
+        # A technique's SSS effect costs its apply; end to end it also needs the passes.
+        entry = {
+            "name": name,
+            "kind": kind,
+            "metrics": m,
+            "time_s": {"total": total, "apply": apply_s, "sss_effect": apply_s},
+        }
         entry.update(extra or {})
         entries.append(entry)
         images[name] = image
         log(f"  {name}: rel. RMSE {_number(m['rel_rmse'])}, SSIM {_number(m['ssim'])}, {total:.2f} s")
 
-    add("no SSS", "baseline", passes["Combined"], timings["passes"])
+    add("no SSS", "baseline", passes["Combined"], timings["passes"], image_high=high and high[0]["Combined"])
     for technique in settings.techniques:
         for quality in settings.qualities.get(technique, ({},)):
             label = _quality_label(technique, quality)
@@ -214,6 +259,10 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
                 notes.append(f"{label}: no material scattered on screen")
                 continue
             image = layers[core_apply.layer_names(technique)[0]]
+            image_high = None
+            if high is not None:
+                layers_high = core_apply.apply(high[0], high[1], technique, **quality)
+                image_high = layers_high[core_apply.layer_names(technique)[0]] if layers_high else high[0]["Combined"]
             add(
                 label,
                 "technique",
@@ -221,13 +270,22 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
                 timings["passes"] + apply_s,
                 apply_s,
                 {"technique": technique, "quality": quality},
+                image_high=image_high,
             )
 
-    for samples in settings.peer_samples:
+    # Cycles random walk at the passes' samples is always among the peers: against the passes (Cycles
+    # without SSS at the same samples) it gives what the SSS effect costs Cycles.
+    peers = sorted({*settings.peer_samples, settings.pass_samples})
+    rw_at_pass_samples = None
+    for samples in peers:
         if samples >= settings.reference_samples:
             continue
         img, secs, _ = reference(samples=samples, seed=settings.seed + 2, method=None)
         add(f"Cycles {samples} spp", "cycles", img, secs)
+        entries[-1]["time_s"]["sss_effect"] = None
+        if samples == settings.pass_samples:
+            rw_at_pass_samples = secs
+            entries[-1]["time_s"]["sss_effect"] = secs - timings["passes"]
     if settings.cycles_burley:
         img, secs, _ = reference(samples=settings.reference_samples, seed=settings.seed + 3, method="BURLEY")
         add(f"Cycles Christensen-Burley {settings.reference_samples} spp", "cycles", img, secs)
@@ -249,6 +307,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
             "reference_samples": settings.reference_samples,
             "reference_seconds": ref_seconds,
             "pass_samples": settings.pass_samples,
+            "bias_pass_samples": settings.bias_pass_samples,
             "seed": settings.seed,
             "box": settings.box,
             "reference_method": "scene's own subsurface method ("
@@ -260,6 +319,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         },
         "noise_floor": noise,
         "timings": timings,
+        "costs": _costs(settings, timings, rw_at_pass_samples, entries),
         "entries": entries,
         "fidelity": _fidelity(desc, settings.techniques, notes),
         "calibration": _calibration(settings, passes, desc, ref, mask, reference),
@@ -307,6 +367,28 @@ def _merged_reference(
         )
     log(f"Reference: {path}, {merged.samples} samples merged from seeds {', '.join(map(str, merged.seeds))}")
     return merged, float(meta.get("seconds") or 0.0)
+
+
+def _costs(settings: CompareSettings, timings: dict, rw_seconds, entries: list[dict]) -> dict:
+    """The two costs of each technique against Cycles: the SSS effect alone and end to end."""
+    cycles_sss = None if rw_seconds is None else rw_seconds - timings["passes"]
+    return {
+        "definition": (
+            f"SSS effect alone: a technique's apply time, against Cycles random walk at {settings.pass_samples}"
+            " samples minus Cycles without SSS at the same samples (the passes' render). End to end: the passes'"
+            " render plus the apply, against the random-walk render. Wall-clock seconds on this machine; a cached"
+            " Cycles image keeps the time measured when it was rendered."
+        ),
+        "samples": settings.pass_samples,
+        "cycles_random_walk_s": rw_seconds,
+        "cycles_without_sss_s": timings["passes"],
+        "cycles_sss_effect_s": cycles_sss,
+        "techniques": [
+            {"name": e["name"], "sss_effect_s": e["time_s"]["apply"], "end_to_end_s": e["time_s"]["total"]}
+            for e in entries
+            if e["kind"] == "technique"
+        ],
+    }
 
 
 def _summary(order: list[str], entries: list[dict]) -> list[str]:

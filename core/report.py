@@ -35,8 +35,14 @@ METRIC_DEFINITIONS = {
     "rel_rmse": "rmse divided by the mean reference value over the same pixels",
     "ssim": "mean SSIM (Wang et al. 2004, 7x7 Gaussian window) of tone-mapped luminance over the SSS pixels;"
     " 1 = identical",
-    "time_s": "wall-clock seconds on this machine: for a technique, the passes render plus the NumPy apply;"
-    " for Cycles, its render",
+    "time_s": "wall-clock seconds on this machine, end to end: for a technique, the passes render plus the"
+    " apply; for Cycles, its render",
+    "sss_effect_s": "what the SSS effect alone costs: a technique's apply; for Cycles at the passes' samples, its"
+    " random-walk render minus the passes' render (Cycles without SSS at the same samples)",
+    "bias": "the part of rel_rmse that stays with noise-free passes (the technique's own approximation plus the"
+    " reference's noise), from the error with passes at two sample counts (pass noise variance falling as"
+    " 1 / samples)",
+    "pass_noise": "the part of rel_rmse that the passes' Monte Carlo noise adds: rel_rmse² = bias² + pass_noise²",
 }
 
 
@@ -197,7 +203,12 @@ def _markdown(data: dict) -> str:
             else f" seed {s.get('seed')}"
         )
         + f", adaptive sampling off; resolution {s.get('resolution')}.",
-        f"- Passes for the techniques: {s.get('pass_samples')} samples, subsurface weight 0.",
+        f"- Passes for the techniques: {s.get('pass_samples')} samples, subsurface weight 0"
+        + (
+            f"; again at {s['bias_pass_samples']} samples to split the error into bias and pass noise."
+            if s.get("bias_pass_samples")
+            else "."
+        ),
         f"- Metric box downsampling: {s.get('box')} x {s.get('box')}.",
     ]
     nf = data.get("noise_floor")
@@ -218,16 +229,37 @@ def _markdown(data: dict) -> str:
         "",
         "## Error and time",
         "",
-        "| image | kind | rel. RMSE | RMSE | SSIM | time s | apply s | Pareto |",
-        "|---|---|---|---|---|---|---|---|",
+        "Error: relative RMSE, split into bias (stays with noise-free passes) and pass noise (what the passes'"
+        " noise adds). Time: end to end, and the SSS effect alone (see the costs below).",
+        "",
+        "| image | kind | rel. RMSE | bias | pass noise | RMSE | SSIM | end to end s | SSS effect s | Pareto |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     front = set(data.get("pareto", []))
     for e in data.get("entries", []):
         m, t = e["metrics"], e["time_s"]
         lines.append(
-            f"| {e['name']} | {e['kind']} | {_fmt(m.get('rel_rmse'))} | {_fmt(m.get('rmse'))} | {_fmt(m.get('ssim'))}"
-            f" | {_fmt(t.get('total'), 3)} | {_fmt(t.get('apply'), 3)} | {'yes' if e['name'] in front else ''} |"
+            f"| {e['name']} | {e['kind']} | {_fmt(m.get('rel_rmse'))} | {_fmt(m.get('bias'))} |"
+            f" {_fmt(m.get('pass_noise'))} | {_fmt(m.get('rmse'))} | {_fmt(m.get('ssim'))}"
+            f" | {_fmt(t.get('total'), 3)} | {_fmt(t.get('sss_effect'), 3)} | {'yes' if e['name'] in front else ''} |"
         )
+    costs = data.get("costs")
+    if costs:
+        lines += [
+            "",
+            "## Two costs",
+            "",
+            costs["definition"],
+            "",
+            f"- Cycles random walk, {costs['samples']} samples: {_fmt(costs['cycles_random_walk_s'], 3)} s; without"
+            f" SSS (the passes): {_fmt(costs['cycles_without_sss_s'], 3)} s; the SSS effect alone:"
+            f" {_fmt(costs['cycles_sss_effect_s'], 3)} s.",
+            "",
+            "| technique | SSS effect alone s | end to end s |",
+            "|---|---|---|",
+        ]
+        for row in costs["techniques"]:
+            lines.append(f"| {row['name']} | {_fmt(row['sss_effect_s'], 3)} | {_fmt(row['end_to_end_s'], 3)} |")
     lines += ["", "![error against time](pareto.svg)", "", "![images](grid.png)", ""]
     grid = data.get("grid")
     if grid:

@@ -106,15 +106,33 @@ def test_report_numbers_are_the_json_numbers(reports):
             md = fh.read()
         html = open(os.path.join(folder, name, "report.html"), encoding="utf-8").read()
         for entry in data["entries"]:
-            row = re.search(
-                r"^\| " + re.escape(entry["name"]) + r" \| [^|]+ \| ([^|]+) \| ([^|]+) \| ([^|]+) \|", md, re.M
-            )
+            cell = r" \| ([^|]+)"
+            row = re.search(r"^\| " + re.escape(entry["name"]) + r" \| [^|]+" + cell * 5 + r" \|", md, re.M)
             assert row, entry["name"]
-            shown = [float(v) for v in row.groups()]
-            expected = [entry["metrics"][k] for k in ("rel_rmse", "rmse", "ssim")]
-            for s, e in zip(shown, expected, strict=True):
+            keys = ("rel_rmse", "bias", "pass_noise", "rmse", "ssim")
+            m = entry["metrics"]
+            if entry["kind"] == "cycles":  # Cycles' own renders have no passes to split by
+                assert row.group(2).strip() == row.group(3).strip() == "—"
+                keys = ("rel_rmse", "rmse", "ssim")
+                shown = [float(row.group(i)) for i in (1, 4, 5)]
+            else:
+                # The error is split into bias and pass noise, which add in quadrature.
+                assert m["bias"] ** 2 + m["pass_noise"] ** 2 == pytest.approx(m["rel_rmse"] ** 2, rel=1e-6)
+                shown = [float(v) for v in row.groups()]
+            for s, e in zip(shown, [m[k] for k in keys], strict=True):
                 assert s == pytest.approx(e, rel=5e-4)  # the table shows 4 significant digits
             assert entry["name"] in html
+        # Two costs: each technique's SSS effect alone (its apply) and end to end (passes + apply).
+        costs = data["costs"]
+        # Cycles random walk at the passes' samples is rendered even without peers: its SSS effect
+        # is that render minus the passes' (Cycles without SSS at the same samples).
+        rw = next(e for e in data["entries"] if e["name"] == f"Cycles {costs['samples']} spp")
+        assert costs["cycles_random_walk_s"] == rw["time_s"]["total"] > 0
+        assert costs["cycles_sss_effect_s"] == pytest.approx(rw["time_s"]["total"] - costs["cycles_without_sss_s"])
+        for row in costs["techniques"]:
+            entry = next(e for e in data["entries"] if e["name"] == row["name"])
+            assert row["sss_effect_s"] == entry["time_s"]["apply"] < row["end_to_end_s"] == entry["time_s"]["total"]
+        assert "## Two costs" in md
         for f in ("grid.png", "pareto.svg"):
             assert os.path.getsize(os.path.join(folder, name, f)) > 0
 
