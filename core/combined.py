@@ -154,8 +154,9 @@ def combined(
     diffusion: str = "burley",
     n_samples: int = 32,
     n_taps: int = 17,
-    random_rotation: bool = False,
+    random_rotation: bool = True,
     seed: int = 0,
+    smooth_px: int = 1,
     transmission_scale=1.0,
     transmission_d_su=None,
     gain=(1.0, 1.0, 1.0),
@@ -167,8 +168,8 @@ def combined(
     Inputs as ``core.burley.burley`` (``diffuse``, ``albedo``, ``depth``, ``mask``, ``camera``,
     ``d_su``, ``object_id``) and ``transmission`` (``normal``, ``position``, ``thickness``,
     ``lights``, ``thickness_distance_su``, ``thickness_convention``). ``diffusion`` "burley"
-    (``n_samples``, ``random_rotation``, ``seed``) or "ssss" (``n_taps``, pre-integrated
-    kernel). ``transmission_d_su`` None uses ``d_su``. ``gain`` (R, G, B) multiplies the
+    (``n_samples``, ``random_rotation``, ``seed``, ``smooth_px``, Burley's defaults) or "ssss"
+    (``n_taps``, pre-integrated kernel). ``transmission_d_su`` None uses ``d_su``. ``gain`` (R, G, B) multiplies the
     diffusion's light on the mask (the fitted energy, ``core/fit_params.py``), not the transmitted
     light, whose level is ``transmission_scale``. Returns, like Burley and SSSS, the
     albedo-applied scattered light on the mask (plus the transmitted light) and albedo x diffuse
@@ -190,6 +191,7 @@ def combined(
             n_samples=n_samples,
             random_rotation=random_rotation,
             seed=seed,
+            smooth_px=smooth_px,
             albedo_mode=albedo_mode,
         )
     else:

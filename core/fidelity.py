@@ -91,8 +91,9 @@ def analytic_row(d_su) -> dict:
     return {"r90_su": r90, "bleeding_ratio": r90[0] / r90[2] if r90[2] > 0 else None, "energy_ratio": [1.0] * 3}
 
 
-def measure(technique: str, material: MaterialSSS, *, mapping=None) -> dict:
-    """One row of the table for ``technique`` with ``material``'s parameters."""
+def measure(technique: str, material: MaterialSSS, *, mapping=None, options=None) -> dict:
+    """One row of the table for ``technique`` with ``material``'s parameters (and ``options``,
+    keyword arguments of the technique that replace its defaults, e.g. Burley's ``seed``)."""
     d = np.broadcast_to(np.asarray(_mapping.burley_d(material, mapping=mapping), dtype=np.float64), (3,))
     d_max = float(d.max()) if d.max() > 0 else 1e-3
     n, ppu, camera, diffuse = _setup(d_max)
@@ -125,7 +126,7 @@ def measure(technique: str, material: MaterialSSS, *, mapping=None) -> dict:
         line_part = out - added  # the line's own light: STA does not move it
         mid = line_part[n // 2]
     else:
-        params = _mapping.technique_params(material, technique, mapping=mapping)
+        params = {**_mapping.technique_params(material, technique, mapping=mapping), **(options or {})}
         if technique == "combined":
             # Its diffusion alone: no light from behind on the lit line.
             params |= {"transmission_scale": 0.0, "normal": None, "position": None, "thickness": None, "lights": ()}

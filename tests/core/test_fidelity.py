@@ -32,7 +32,20 @@ def test_diffusion_techniques_reproduce_the_profiles_line_spread(radius):
                 i = int(np.searchsorted(offsets, r))
                 tol += 0.5 * (offsets[min(i, len(offsets) - 1)] - offsets[max(i - 1, 0)])
             assert abs(row["r90_su"][c] - analytic["r90_su"][c]) <= tol, (name, c, row, analytic)
-        assert all(abs(e - 1) < 0.005 for e in row["energy_ratio"])  # the 0.5 %
+        if name == "SSSS":
+            assert all(abs(e - 1) < 0.005 for e in row["energy_ratio"])  # the 0.5 %
+    # Burley's gather is normalized per pixel; with the same spiral at every pixel the kernel is
+    # the same everywhere and the light it moves adds up exactly.
+    fixed = fidelity.measure("burley", material, options={"random_rotation": False, "smooth_px": 0})
+    assert all(abs(e - 1) < 0.005 for e in fixed["energy_ratio"])
+    # Its default turns the spiral per pixel (no banding): each pixel's kernel is then another
+    # draw, and the energy is kept in expectation only. On this one-pixel line a draw is off by
+    # about 2 % (measured); over 16 seeds the mean must be within 3 standard errors of 1.
+    draws = np.array(
+        [fidelity.measure("burley", material, options={"seed": seed})["energy_ratio"] for seed in range(16)]
+    )
+    stderr = draws.std(axis=0, ddof=1) / np.sqrt(len(draws))
+    assert (np.abs(draws.mean(axis=0) - 1) < 3 * stderr + 1e-6).all(), (draws.mean(axis=0), stderr)
     sta = rows["STA"]
     assert sta["r90_su"] == [0.0, 0.0, 0.0]  # local: it does not move the line's light
     assert all(e > 1 for e in sta["energy_ratio"])  # it adds light
