@@ -746,11 +746,14 @@ def _face_centre_uv(mesh, normal):
 
 
 def test_low_poly_slabs_warn_on_vertices_and_read_the_slab_law_from_an_image(tmp_path):
-    """Fins of 8-vertex boxes (5 x 9 cm, 2 to 15 mm thick) with the bake's automatic distance.
+    """Fins of 8-vertex boxes (5 x 9 cm, 2 to 24 mm thick) with the bake's automatic distance.
     A vertex attribute holds only the corners, which see open space: the bake says so, naming
     the mesh and the remedy. The image target resolves the faces: at the centre of the front
     face each fin reads the slab law 1 - (t / D)^2 within 0.1."""
-    thicknesses = (0.002, 0.005, 0.01, 0.015)
+    # Measured at 256 rays: the vertices' mean (the face centre's value) reads 0.98 / 0.96 / 0.91 /
+    # 0.85 / 0.77 where the law gives 0.99 / 0.96 / 0.85 / 0.67 / 0.18; the image 0.99 / 0.97 /
+    # 0.87 / 0.69 / 0.20.
+    thicknesses = (0.002, 0.005, 0.01, 0.015, 0.024)
     fins = [
         _link(f"Fin {t}", _box(f"Fin {t}", size=(0.05, t, 0.09), location=(0.1 * i, 0, 0)))
         for i, t in enumerate(thicknesses)
