@@ -54,3 +54,49 @@ def addon():
 
 def pytest_sessionfinish(session, exitstatus):
     shutil.rmtree(_USER_ROOT, ignore_errors=True)
+
+
+@pytest.fixture
+def sss_quads():
+    """A tiny Cycles scene for operator and render tests: a camera 4 units in front of two quads,
+    "Skin" (Subsurface Weight 1) and "Wax" (its weight driven by a link from a Value node named
+    "Weight"), a sun shining onto their front; 16 x 16 pixels, 4 samples, seed 0, no denoising or
+    adaptive sampling. Returns the scene."""
+    import math
+
+    from sss_lab.addon import compat
+
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 4
+    scene.cycles.seed = 0
+    scene.cycles.use_denoising = False
+    scene.cycles.use_adaptive_sampling = False
+    scene.render.resolution_x = scene.render.resolution_y = 16
+    scene.render.resolution_percentage = 100
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    scene.collection.objects.link(cam)
+    cam.location = (0.0, -4.0, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.camera = cam
+    for name, x in (("Skin", -0.6), ("Wax", 0.6)):
+        mesh = bpy.data.meshes.new(name)
+        mesh.from_pydata([(-0.5, 0, -0.5), (0.5, 0, -0.5), (0.5, 0, 0.5), (-0.5, 0, 0.5)], [], [(0, 1, 2, 3)])
+        obj = bpy.data.objects.new(name, mesh)
+        obj.location = (x, 0.0, 0.0)
+        scene.collection.objects.link(obj)
+        mat = bpy.data.materials.new(name)
+        compat.ensure_node_tree(mat)
+        bsdf = mat.node_tree.nodes["Principled BSDF"]
+        bsdf.inputs["Subsurface Weight"].default_value = 1.0
+        bsdf.inputs["Subsurface Radius"].default_value = (0.3, 0.1, 0.05)
+        mesh.materials.append(mat)
+    wax = bpy.data.materials["Wax"].node_tree
+    value = wax.nodes.new("ShaderNodeValue")
+    value.name = "Weight"
+    value.outputs[0].default_value = 1.0
+    wax.links.new(value.outputs[0], wax.nodes["Principled BSDF"].inputs["Subsurface Weight"])
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.rotation_euler = (math.pi / 2, 0.0, 0.0)  # shines along +Y, onto the quads' front
+    scene.collection.objects.link(sun)
+    return scene

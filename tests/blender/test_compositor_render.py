@@ -5,11 +5,9 @@ Lab's node groups renders the subsurface materials as plain diffuse and puts the
 the links that drive them) back; Render Passes and Compare are left alone; a set-up runs again
 after the camera or a light moved, after a render, and after the weight was set to 0 by hand.
 
-Renders are 16 x 16 pixels with 4 samples and a fixed seed: Cycles on the CPU gives the same
-pixels for the same scene and seed, which the image comparisons rely on.
+The scene is conftest's ``sss_quads`` (16 x 16 pixels, 4 samples, fixed seed): Cycles on the CPU
+gives the same pixels for the same scene and seed, which the image comparisons rely on.
 """
-
-import math
 
 import bpy
 import numpy as np
@@ -24,42 +22,9 @@ from sss_lab.nodes.setup import NODE_TAG, group_name
 
 
 def _scene():
-    """Camera 4 units in front of two quads: Skin (weight 1) and Wax (weight driven by a Value
-    node through a link), a sun from behind the camera, a user's grade node in the compositor."""
+    """The ``sss_quads`` scene with a user's grade node in the compositor."""
     scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    scene.cycles.samples = 4
-    scene.cycles.seed = 0
-    scene.cycles.use_denoising = False
-    scene.cycles.use_adaptive_sampling = False
-    scene.render.resolution_x = scene.render.resolution_y = 16
-    scene.render.resolution_percentage = 100
     compat.set_compositor_device(scene, "CPU")
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    scene.collection.objects.link(cam)
-    cam.location = (0.0, -4.0, 0.0)
-    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
-    scene.camera = cam
-    for name, x in (("Skin", -0.6), ("Wax", 0.6)):
-        mesh = bpy.data.meshes.new(name)
-        mesh.from_pydata([(-0.5, 0, -0.5), (0.5, 0, -0.5), (0.5, 0, 0.5), (-0.5, 0, 0.5)], [], [(0, 1, 2, 3)])
-        obj = bpy.data.objects.new(name, mesh)
-        obj.location = (x, 0.0, 0.0)
-        scene.collection.objects.link(obj)
-        mat = bpy.data.materials.new(name)
-        compat.ensure_node_tree(mat)
-        bsdf = mat.node_tree.nodes["Principled BSDF"]
-        bsdf.inputs["Subsurface Weight"].default_value = 1.0
-        bsdf.inputs["Subsurface Radius"].default_value = (0.3, 0.1, 0.05)
-        mesh.materials.append(mat)
-    wax = bpy.data.materials["Wax"].node_tree
-    value = wax.nodes.new("ShaderNodeValue")
-    value.name = "Weight"
-    value.outputs[0].default_value = 1.0
-    wax.links.new(value.outputs[0], wax.nodes["Principled BSDF"].inputs["Subsurface Weight"])
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.rotation_euler = (math.pi / 2, 0.0, 0.0)  # shines along +Y, onto the quads' front
-    scene.collection.objects.link(sun)
     tree = compat.compositor_tree(scene, create=True)
     result = compat.compositor_result_socket(tree)
     rl = tree.nodes.new("CompositorNodeRLayers")
@@ -109,7 +74,7 @@ def _render_passes(tmp_path, name):
 
 
 def test_a_render_through_the_node_groups_sees_plain_diffuse_and_gets_the_weights_back(
-    addon, tmp_path, seen_while_rendering
+    addon, sss_quads, tmp_path, seen_while_rendering
 ):
     scene, tree = _scene()
     assert bpy.ops.sss_lab.setup_compositor(technique="burley") == {"FINISHED"}
@@ -140,7 +105,7 @@ def test_a_render_through_the_node_groups_sees_plain_diffuse_and_gets_the_weight
     assert not np.array_equal(through_groups["Diffuse Direct"], scattered["Diffuse Direct"])
 
 
-def test_other_renders_are_left_alone(addon, tmp_path, seen_while_rendering):
+def test_other_renders_are_left_alone(addon, sss_quads, tmp_path, seen_while_rendering):
     scene, tree = _scene()
     bpy.ops.render.render()  # no SSS Lab node in the compositor
     assert bpy.ops.sss_lab.setup_compositor(technique="ssss") == {"FINISHED"}
@@ -159,7 +124,7 @@ def test_other_renders_are_left_alone(addon, tmp_path, seen_while_rendering):
     assert scene.render.use_compositing and _weights() == BEFORE
 
 
-def test_a_cancelled_render_and_a_disabled_add_on_put_the_weights_back(addon):
+def test_a_cancelled_render_and_a_disabled_add_on_put_the_weights_back(addon, sss_quads):
     scene, _ = _scene()
     assert bpy.ops.sss_lab.setup_compositor(technique="burley") == {"FINISHED"}
     registered = {name: fn for name, fn in compositor_render._HANDLERS}
@@ -184,7 +149,7 @@ def _pixels_per_unit(tree, technique="burley"):
     return _graph.read_meta(tree.nodes[group_name(technique, "Skin")].node_tree)["pixels_per_unit"]
 
 
-def test_set_up_runs_again_after_moving_the_camera_or_a_light_and_after_a_render(addon):
+def test_set_up_runs_again_after_moving_the_camera_or_a_light_and_after_a_render(addon, sss_quads):
     scene, tree = _scene()
     assert bpy.ops.sss_lab.setup_compositor(technique="burley") == {"FINISHED"}
     far = _pixels_per_unit(tree)
@@ -210,7 +175,7 @@ def test_set_up_runs_again_after_moving_the_camera_or_a_light_and_after_a_render
     assert _weights() == BEFORE
 
 
-def test_set_up_finds_a_material_whose_weight_was_set_to_0_by_hand(addon):
+def test_set_up_finds_a_material_whose_weight_was_set_to_0_by_hand(addon, sss_quads):
     scene, tree = _scene()
     assert bpy.ops.sss_lab.setup_compositor(technique="burley") == {"FINISHED"}
     skin = bpy.data.materials["Skin"].node_tree.nodes["Principled BSDF"]
