@@ -39,6 +39,7 @@ from ..core.progress import saved_line
 from ..core.scene import SUBSURFACE_METHODS, SceneDescription
 from ..core.techniques import TECHNIQUES, check_technique
 from .describe import sss_materials
+from .jobs import Job, Steps, run
 from .reference_cache import cached_reference, scene_fingerprint
 
 #: Quality ladders: the keyword arguments each technique is run with, cheapest first.
@@ -129,6 +130,15 @@ def _quality_label(technique: str, quality: dict) -> str:
 
 def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log=print) -> dict:
     """Run the whole comparison and write the report into ``out_dir``; returns the report data.
+    (``compare_job`` to its end.)"""
+    return run(compare_job(scene, out_dir, settings, log=log))
+
+
+def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *, log=print) -> Job:
+    """The comparison as a job generator (``blender/jobs.py``): one step per Cycles render
+    (each reference, the passes, each peer), per technique run, and the report. Cancelled
+    between steps, the scene is restored and the references rendered so far stay in the cache,
+    so that the next run starts where this one stopped.
 
     Raises ValueError for a scene without a camera or without subsurface materials (nothing to
     compare). A technique that cannot run on this scene (e.g. a subsurface method the mapping
@@ -164,6 +174,10 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
             if not techniques:
                 raise
         settings = dataclasses.replace(settings, techniques=techniques)
+    steps = Steps(_step_count(settings, {m.method for m in materials}))
+    spp = settings.reference_samples
+    first = f"Cycles reference, {spp} samples, seed {settings.seed}"
+    yield steps.next("merged reference" if settings.reference_file else first)  # checked; nothing changed yet
     os.makedirs(out_dir, exist_ok=True)
     cache_dir = settings.cache_dir or os.path.join(out_dir, "cache")
     timings: dict[str, float] = {}
@@ -179,7 +193,9 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         ref, second = merged.image, None
     else:
         ref, ref_seconds, _ = reference(samples=settings.reference_samples, seed=settings.seed, method=None)
+        yield steps.next(f"Cycles reference, {spp} samples, seed {settings.seed + 1} (noise floor)")
         second, _, _ = reference(samples=settings.reference_samples, seed=settings.seed + 1, method=None)
+    yield steps.next(f"passes, {settings.pass_samples} samples")
     images: dict[str, np.ndarray] = {}
     entries: list[dict] = []
 
@@ -247,6 +263,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     for technique in settings.techniques:
         for quality in settings.qualities.get(technique, ({},)):
             label = _quality_label(technique, quality)
+            yield steps.next(label)
             try:
                 start = time.perf_counter()
                 layers = core_apply.apply(passes, desc, technique, **quality)
@@ -280,6 +297,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
     for samples in peers:
         if samples >= settings.reference_samples:
             continue
+        yield steps.next(f"Cycles {samples} samples")
         img, secs, _ = reference(samples=samples, seed=settings.seed + 2, method=None)
         add(f"Cycles {samples} spp", "cycles", img, secs)
         entries[-1]["time_s"]["sss_effect"] = None
@@ -287,6 +305,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
             rw_at_pass_samples = secs
             entries[-1]["time_s"]["sss_effect"] = secs - timings["passes"]
     if settings.cycles_burley:
+        yield steps.next(f"Cycles Christensen-Burley, {spp} samples")
         img, secs, _ = reference(samples=settings.reference_samples, seed=settings.seed + 3, method="BURLEY")
         add(f"Cycles Christensen-Burley {settings.reference_samples} spp", "cycles", img, secs)
 
@@ -295,6 +314,8 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         noise = core_reference.noise_floor(merged, mask, box=settings.box)
     else:
         noise = metrics.compare_images(second, ref, mask, box=settings.box)
+    calibration = yield from _calibration(settings, passes, desc, ref, mask, reference, steps)
+    yield steps.next("report")
     data = {
         "scene": {
             "name": _scene_label(scene),
@@ -322,7 +343,7 @@ def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log
         "costs": _costs(settings, timings, rw_at_pass_samples, entries),
         "entries": entries,
         "fidelity": _fidelity(desc, settings.techniques, notes),
-        "calibration": _calibration(settings, passes, desc, ref, mask, reference),
+        "calibration": calibration,
         "notes": notes,
         "complete": not notes,
     }
@@ -437,16 +458,33 @@ def _mark_best(results: list[dict]) -> None:
     min((r for r in results if r.get("rel_rmse") is not None), key=lambda r: r["rel_rmse"])["chosen"] = True
 
 
-def _calibration(settings: CompareSettings, passes, desc: SceneDescription, ref, mask, reference):
+def _calibration_methods(settings: CompareSettings, own: set) -> list[str]:
+    """The subsurface methods the calibration renders a reference for."""
+    if not any(t != "sta" for t in settings.techniques):
+        return []
+    return [m for m in settings.calibrate_methods if m not in own]
+
+
+def _step_count(settings: CompareSettings, own: set) -> int:
+    """Steps of ``compare_job``: two references (or the merged one), the passes, each technique
+    run, each peer, the calibration references, the report."""
+    refs = 1 if settings.reference_file else 2
+    runs = sum(len(settings.qualities.get(t, ({},))) for t in settings.techniques)
+    peers = sum(1 for s in settings.peer_samples if s < settings.reference_samples)
+    peers += bool(settings.cycles_burley and not settings.reference_file)
+    return refs + 1 + runs + peers + len(_calibration_methods(settings, own)) + 1
+
+
+def _calibration(settings: CompareSettings, passes, desc: SceneDescription, ref, mask, reference, steps: Steps):
     """The scene's own methods against its reference, then each method of
     ``settings.calibrate_methods`` against a reference rendered with it (``reference``: the
-    comparison's ``cached_reference`` with the scene and size bound)."""
+    comparison's ``cached_reference`` with the scene and size bound). A generator: one step per
+    reference it renders; returns the table."""
     result = calibrate(passes, desc, ref, mask, box=settings.box, techniques=settings.techniques)
     own = {m.method for m in desc.materials if m.scatters}
     scattering = tuple(t for t in settings.techniques if t != "sta")
-    for method in settings.calibrate_methods:
-        if method in own or not scattering:
-            continue
+    for method in _calibration_methods(settings, own):
+        yield steps.next(f"Cycles reference with {method} for the calibration")
         method_ref, _, _ = reference(samples=settings.reference_samples, seed=settings.seed, method=method)
         as_method = dataclasses.replace(
             desc,

@@ -50,6 +50,7 @@ from ..core.techniques import TECHNIQUES, check_technique
 from ..core.thickness import CONVENTIONS
 from . import compat
 from .describe import describe_scene, sss_materials, walk_trees
+from .jobs import Job, Progress, run
 from .state import SceneState
 from .thickness import thickness_aov_name, thickness_setup
 
@@ -290,7 +291,26 @@ def verify_passes(path: str, names: list[str], view_layer: str, indices: Iterabl
         raise RuntimeError(f"{path}: Material Index values {sorted(unknown)} are not in the scene description")
 
 
-def render_passes(
+def render_passes(scene, out_dir: str, *, progress: Callable[[int, int], None] | None = None, **options) -> list[str]:
+    """Render the passes for each frame into ``out_dir``; returns the paths written.
+
+    ``options``: those of ``render_passes_job``, which this runs to its end. ``progress(done,
+    total)`` is called after each frame.
+    """
+    total = []
+
+    def step(p: Progress) -> None:
+        total[:] = [p.total]
+        if progress is not None and p.done:
+            progress(p.done, p.total)
+
+    written = run(render_passes_job(scene, out_dir, **options), step)
+    if progress is not None and total:  # the last frame ends the job rather than yielding
+        progress(total[0], total[0])
+    return written
+
+
+def render_passes_job(
     scene,
     out_dir: str,
     *,
@@ -302,9 +322,9 @@ def render_passes(
     view_layer=None,
     overwrite: bool = False,
     log: Callable[[str], None] | None = print,
-    progress: Callable[[int, int], None] | None = None,
-) -> list[str]:
-    """Render the passes ``techniques`` need for each frame into ``out_dir``.
+) -> Job:
+    """Render the passes ``techniques`` need for each frame into ``out_dir``: a job generator
+    (``blender/jobs.py``) with one step per frame; Render Passes runs it modal.
 
     Writes ``passes_####.exr`` (multilayer, float32) and ``passes_####.json`` (the scene
     description, ``core.sequence.sidecar_path``) per frame and returns the paths written, EXR then
@@ -363,6 +383,8 @@ def render_passes(
     ]
     if not_files:
         raise FileExistsError(f"{not_files[0]} is a folder or not a regular file; refusing to write over it")
+    # Checked and planned; nothing has changed yet.
+    yield Progress(0, len(targets), f"frame {targets[0][0]}")
     try:
         os.makedirs(out_dir, exist_ok=True)
     except OSError as exc:
@@ -454,8 +476,8 @@ def render_passes(
             written.append(json_path)
             say(saved_line(json_path))
             say(f"frame {frame} done in {time.perf_counter() - t0:.2f} s")
-            if progress is not None:
-                progress(number, len(targets))
+            if number < len(targets):  # between frames: a modal run may stop here (Esc)
+                yield Progress(number, len(targets), f"frame {targets[number][0]}", tuple(written))
     return written
 
 

@@ -1,4 +1,5 @@
-"""``bpy.ops.sss_lab.compare``: compare with Cycles (``blender.compare``) and write the report."""
+"""``bpy.ops.sss_lab.compare``: compare with Cycles (``blender.compare``) and write the report,
+one render per step (modal in the interface: progress, status text, Esc between renders)."""
 
 from __future__ import annotations
 
@@ -6,15 +7,17 @@ import os
 
 import bpy
 
-from ..blender.compare import CompareSettings, compare
+from ..blender.compare import CompareSettings, compare_job
+from .modal import ModalJob
 
 
-class SSS_LAB_OT_compare(bpy.types.Operator):
-    """Compare each technique with Cycles random walk on this scene and write a report"""
+class SSS_LAB_OT_compare(ModalJob, bpy.types.Operator):
+    """Compare each technique with Cycles random walk on this scene and write a report (Esc: cancel between renders)"""
 
     bl_idname = "sss_lab.compare"
     bl_label = "Compare with Cycles"
     bl_options = {"REGISTER"}
+    job_label = "Compare"
 
     directory: bpy.props.StringProperty(
         name="Report Folder",
@@ -35,32 +38,37 @@ class SSS_LAB_OT_compare(bpy.types.Operator):
         default=CompareSettings.pass_samples,
         description="Cycles samples of the passes the techniques run on",
     )
+    # The dialog's OK button calls execute(), which starts the modal run as a new invocation.
+    confirmed: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
+    from_dialog: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
 
     def invoke(self, context, event):
+        if self.confirmed or not self.interactive(context):
+            return ModalJob.invoke(self, context, event)
+        self.from_dialog = True
         return context.window_manager.invoke_props_dialog(self)
 
     def execute(self, context):
+        if self.from_dialog and self.interactive(context):
+            return bpy.ops.sss_lab.compare(
+                "INVOKE_DEFAULT",
+                directory=self.directory,
+                reference_samples=self.reference_samples,
+                pass_samples=self.pass_samples,
+                confirmed=True,
+            )
+        return ModalJob.execute(self, context)
+
+    def new_job(self, context):
         out_dir = bpy.path.abspath(self.directory)
         # An unsaved file has no folder for "//": abspath would quietly use the working directory.
         if not out_dir or (self.directory.startswith("//") and not bpy.data.filepath):
-            self.report({"ERROR"}, "Save the .blend file first, or choose an absolute report folder")
-            return {"CANCELLED"}
+            raise ValueError("Save the .blend file first, or choose an absolute report folder")
+        self._out_dir = out_dir
         settings = CompareSettings(reference_samples=self.reference_samples, pass_samples=self.pass_samples)
-        wm = context.window_manager
-        steps = iter(range(10_000))
-        wm.progress_begin(0, 100)
+        return compare_job(context.scene, out_dir, settings, log=print)
 
-        def log(line):
-            print(line)
-            wm.progress_update(min(next(steps), 100))
-
-        try:
-            data = compare(context.scene, out_dir, settings, log=log)
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        finally:
-            wm.progress_end()
+    def job_done(self, context, data):
         best = [e for e in data["entries"] if e["name"] in data["pareto"] and e["kind"] == "technique"]
         for e in best:
             self.report(
@@ -69,7 +77,7 @@ class SSS_LAB_OT_compare(bpy.types.Operator):
         level = {"INFO"} if data["complete"] else {"WARNING"}
         self.report(
             level,
-            f"Report: {os.path.join(out_dir, 'report.html')}"
+            f"Report: {os.path.join(self._out_dir, 'report.html')}"
             + ("" if data["complete"] else " (incomplete: " + "; ".join(data["notes"]) + ")"),
         )
         return {"FINISHED"}

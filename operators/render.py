@@ -1,22 +1,25 @@
-"""``bpy.ops.sss_lab.render_passes``: render the passes (``blender.render_passes``) for the panel."""
+"""``bpy.ops.sss_lab.render_passes``: render the passes (``blender.render_passes``) for the panel,
+one frame per step (modal in the interface: progress, status text, Esc between frames)."""
 
 from __future__ import annotations
 
 import bpy
 
-from ..blender.render_passes import NoSubsurfaceError, render_passes, resolve_folder
+from ..blender.render_passes import NoSubsurfaceError, render_passes_job, resolve_folder
 from ..core.techniques import TECHNIQUES
+from .modal import ModalJob
 
 _TECHNIQUE_FLAGS = [(name, label, desc) for name, (_, _, label, desc) in TECHNIQUES.items()]
 
 
-class SSS_LAB_OT_render_passes(bpy.types.Operator):
-    """Render the passes the chosen techniques need (SSS materials as plain diffuse) into a
-    multilayer EXR per frame, with the scene description beside it. The scene is left as it was"""
+class SSS_LAB_OT_render_passes(ModalJob, bpy.types.Operator):
+    """Render the passes the techniques need into a multilayer EXR per frame (Esc: cancel between frames)"""
 
     bl_idname = "sss_lab.render_passes"
     bl_label = "Render Passes"
-    bl_options = {"REGISTER"}
+    # Undo: it sets the panel's Passes file (the files written stay).
+    bl_options = {"REGISTER", "UNDO"}
+    job_label = "Render Passes"
 
     directory: bpy.props.StringProperty(
         name="Output Folder",
@@ -56,51 +59,49 @@ class SSS_LAB_OT_render_passes(bpy.types.Operator):
     def poll(cls, context):
         return context.scene is not None
 
-    def execute(self, context):
+    def new_job(self, context):
         scene = context.scene
         settings = getattr(scene, "sss_lab", None)
-        techniques = sorted(self.techniques, key=list(TECHNIQUES).index) or (
+        self._techniques = sorted(self.techniques, key=list(TECHNIQUES).index) or (
             settings.render_techniques() if settings is not None else list(TECHNIQUES)
         )
         samples = self.samples if self.samples >= 0 else (settings.render_samples if settings is not None else 0)
         frames = list(range(scene.frame_start, scene.frame_end + 1)) if self.use_frame_range else None
-        wm = context.window_manager
-        notes = []
+        self._notes = []
 
         def log(line: str):
             print(f"render-passes: {line}", flush=True)
-            if not line.startswith("[") and not line.startswith("frame "):
-                notes.append(line)
+            if not line.startswith("[") and not line.startswith("frame ") and not line.startswith("Saved:"):
+                self._notes.append(line)
 
-        try:
-            folder = resolve_folder(self.directory or (settings.output_dir if settings is not None else ""))
-            wm.progress_begin(0, len(frames) if frames else 1)
-            try:
-                paths = render_passes(
-                    scene,
-                    folder,
-                    techniques=techniques,
-                    frames=frames,
-                    samples=samples or None,
-                    overwrite=self.overwrite,
-                    log=log,
-                    progress=lambda done, _total: wm.progress_update(done),
-                )
-            finally:
-                wm.progress_end()
-        except NoSubsurfaceError as exc:  # nothing to do: said, not an error
+        self._folder = resolve_folder(self.directory or (settings.output_dir if settings is not None else ""))
+        return render_passes_job(
+            scene,
+            self._folder,
+            techniques=self._techniques,
+            frames=frames,
+            samples=samples or None,
+            overwrite=self.overwrite,
+            log=log,
+        )
+
+    def job_failed(self, exc):
+        if isinstance(exc, NoSubsurfaceError):  # nothing to do: said, not an error
             self.report({"WARNING"}, str(exc))
             return {"CANCELLED"}
-        except (ValueError, FileExistsError, RuntimeError) as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        for line in notes:
+        return ModalJob.job_failed(self, exc)
+
+    def job_done(self, context, paths):
+        for line in self._notes:
             warn = "thickness 0" in line or "does not model" in line
             self.report({"WARNING"} if warn else {"INFO"}, line)
         exrs = [p for p in paths if p.endswith(".exr")]
+        settings = getattr(context.scene, "sss_lab", None)
         if settings is not None and exrs:
             settings.passes_file = exrs[-1]
-        self.report({"INFO"}, f"Rendered the {', '.join(techniques)} passes of {len(exrs)} frame(s) into {folder}")
+        self.report(
+            {"INFO"}, f"Rendered the {', '.join(self._techniques)} passes of {len(exrs)} frame(s) into {self._folder}"
+        )
         return {"FINISHED"}
 
 

@@ -64,7 +64,7 @@ def sss_quads():
     adaptive sampling. Returns the scene."""
     import math
 
-    from sss_lab.addon import compat
+    from sss_lab.blender import compat
 
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
