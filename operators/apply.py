@@ -5,8 +5,8 @@ code as ``python -m sss_lab apply``) writes ``<stem>.sss.exr`` beside the passes
 layers plus ``SSSLab.<technique>.Image`` and ``.SSS``), and the result is loaded as a Blender
 image. The operator ``bpy.ops.sss_lab.apply`` takes the technique, its parameters and
 the albedo mode from the SSS Lab panel (``scene.sss_lab``) and, by default, the file the last
-Render Passes wrote. The scene is not changed (the image is a new data-block, or the same one
-reloaded when applied again).
+Render Passes wrote. The scene is not changed; the image is a new data-block, or the same one
+reloaded when applied again (the operator registers an undo step for it).
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import bpy
 from ..blender.apply import apply_passes
 from ..core.apply import layer_names
 from ..core.techniques import check_technique
+from .compositing import TECHNIQUE_ITEMS
 
 
 def _show(context, image) -> bool:
@@ -30,12 +31,12 @@ def _show(context, image) -> bool:
 
 
 class SSS_LAB_OT_apply(bpy.types.Operator):
-    """Apply the chosen technique to rendered passes (NumPy) and load the result as an image.
-    The scene is not changed"""
+    """Apply the chosen technique to rendered passes (NumPy) and load the result as an image"""
 
     bl_idname = "sss_lab.apply"
     bl_label = "Apply"
-    bl_options = {"REGISTER"}
+    # Undo: the result is loaded as an Image data-block (the .sss.exr file on disk stays).
+    bl_options = {"REGISTER", "UNDO"}
 
     filepath: bpy.props.StringProperty(
         name="Passes",
@@ -44,10 +45,11 @@ class SSS_LAB_OT_apply(bpy.types.Operator):
         subtype="FILE_PATH",
         options={"SKIP_SAVE"},
     )
-    technique: bpy.props.StringProperty(
+    technique: bpy.props.EnumProperty(
         name="Technique",
-        description="Technique to apply (empty: the panel's)",
-        default="",
+        description="Technique to apply",
+        items=TECHNIQUE_ITEMS,
+        default="PANEL",
         options={"SKIP_SAVE"},
     )
 
@@ -57,7 +59,7 @@ class SSS_LAB_OT_apply(bpy.types.Operator):
 
     def execute(self, context):
         settings = context.scene.sss_lab
-        technique = self.technique or settings.technique
+        technique = settings.technique if self.technique == "PANEL" else self.technique
         path = self.filepath or settings.passes_file
         try:
             options = settings.technique_options(check_technique(technique))

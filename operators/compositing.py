@@ -7,20 +7,20 @@ import bpy
 from ..blender.compositor import setup_compositor
 from ..core.techniques import TECHNIQUES
 
-_TECHNIQUE_ITEMS = [("PANEL", "From Panel", "The technique chosen in the SSS Lab panel")] + [
+#: A technique dropdown whose first entry defers to the panel's choice (Set Up Compositor, Apply).
+TECHNIQUE_ITEMS = [("PANEL", "From Panel", "The technique chosen in the SSS Lab panel")] + [
     (name, label, desc) for name, (_, _, label, desc) in TECHNIQUES.items()
 ]
 
 
 class SSS_LAB_OT_setup_compositor(bpy.types.Operator):
-    """Insert the technique's compositor node groups after Render Layers (the user's nodes are kept;
-    running it again replaces only SSS Lab's nodes)"""
+    """Insert the technique's node groups after Render Layers; your nodes are kept, a new set-up replaces SSS Lab's"""
 
     bl_idname = "sss_lab.setup_compositor"
     bl_label = "Set Up Compositor"
     bl_options = {"REGISTER", "UNDO"}
 
-    technique: bpy.props.EnumProperty(name="Technique", items=_TECHNIQUE_ITEMS, default="PANEL", options={"SKIP_SAVE"})
+    technique: bpy.props.EnumProperty(name="Technique", items=TECHNIQUE_ITEMS, default="PANEL", options={"SKIP_SAVE"})
 
     @classmethod
     def poll(cls, context):

@@ -9,8 +9,7 @@ from ..core.errors import InputError
 
 
 class SSS_LAB_OT_fit_to_cycles(bpy.types.Operator):
-    """Render a short Cycles random-walk image of this view and fit each subsurface material's
-    parameters (energy per channel, scale of d, light from behind) to it"""
+    """Fit each subsurface material's parameters to a short Cycles random-walk render of this view"""
 
     bl_idname = "sss_lab.fit_to_cycles"
     bl_label = "Fit to Cycles"

@@ -17,8 +17,9 @@ class SSSLabObjectName(bpy.types.PropertyGroup):
 
 
 class SSS_LAB_OT_bake_thickness(bpy.types.Operator):
-    """Bake a thickness map (inverted-normal ambient occlusion) for the selected meshes.
-    Undo removes the baked attributes, images and material nodes, not image files on disk"""
+    """Bake a thickness map (inverted-normal ambient occlusion) for the selected meshes (Esc: cancel between objects)"""
+
+    # Undo removes the baked attributes, images and material nodes, not image files on disk.
 
     bl_idname = "sss_lab.bake_thickness"
     bl_label = "Bake Thickness"

@@ -100,3 +100,17 @@ def sss_quads():
     sun.rotation_euler = (math.pi / 2, 0.0, 0.0)  # shines along +Y, onto the quads' front
     scene.collection.objects.link(sun)
     return scene
+
+
+@pytest.fixture
+def quad_weights(sss_quads):
+    """``quad_weights()``: per material of ``sss_quads``, (Subsurface Weight as set, linked?)."""
+
+    def weights():
+        out = {}
+        for name in ("Skin", "Wax"):
+            socket = bpy.data.materials[name].node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"]
+            out[name] = (socket.default_value, socket.is_linked)
+        return out
+
+    return weights

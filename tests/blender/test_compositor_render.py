@@ -35,26 +35,17 @@ def _scene():
     return scene, tree
 
 
-def _weights():
-    """Per material: (Subsurface Weight as set, linked?)."""
-    out = {}
-    for name in ("Skin", "Wax"):
-        socket = bpy.data.materials[name].node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"]
-        out[name] = (socket.default_value, socket.is_linked)
-    return out
-
-
 BEFORE = {"Skin": (1.0, False), "Wax": (1.0, True)}
 PLAIN = {"Skin": (0.0, False), "Wax": (0.0, False)}  # Wax: its link cut and its own value 0
 
 
 @pytest.fixture
-def seen_while_rendering():
+def seen_while_rendering(quad_weights):
     """The materials' weights as a render_pre handler sees them, render by render."""
     seen = []
 
     def probe(scene, *_):
-        seen.append(_weights())
+        seen.append(quad_weights())
 
     bpy.app.handlers.render_pre.append(probe)
     yield seen
@@ -74,17 +65,17 @@ def _render_passes(tmp_path, name):
 
 
 def test_a_render_through_the_node_groups_sees_plain_diffuse_and_gets_the_weights_back(
-    addon, sss_quads, tmp_path, seen_while_rendering
+    addon, quad_weights, sss_quads, tmp_path, seen_while_rendering
 ):
     scene, tree = _scene()
     assert bpy.ops.sss_lab.setup_compositor(technique="burley") == {"FINISHED"}
-    assert _weights() == BEFORE  # the set-up leaves the materials as they are
+    assert quad_weights() == BEFORE  # the set-up leaves the materials as they are
     assert scene.render.use_lock_interface
     assert bpy.data.materials["Skin"][KEPT_WEIGHT] == 1.0
 
     through_groups = _render_passes(tmp_path, "groups")
     assert seen_while_rendering == [PLAIN]
-    assert _weights() == BEFORE
+    assert quad_weights() == BEFORE
     wax = bpy.data.materials["Wax"].node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"]
     assert wax.links[0].from_node.name == "Weight"  # the link is back
 
@@ -105,7 +96,7 @@ def test_a_render_through_the_node_groups_sees_plain_diffuse_and_gets_the_weight
     assert not np.array_equal(through_groups["Diffuse Direct"], scattered["Diffuse Direct"])
 
 
-def test_other_renders_are_left_alone(addon, sss_quads, tmp_path, seen_while_rendering):
+def test_other_renders_are_left_alone(addon, quad_weights, sss_quads, tmp_path, seen_while_rendering):
     scene, tree = _scene()
     bpy.ops.render.render()  # no SSS Lab node in the compositor
     assert bpy.ops.sss_lab.setup_compositor(technique="ssss") == {"FINISHED"}
@@ -121,10 +112,10 @@ def test_other_renders_are_left_alone(addon, sss_quads, tmp_path, seen_while_ren
     # Compare's Cycles reference is Cycles' own image, with its subsurface scattering.
     cached_reference(scene, str(tmp_path), samples=1, seed=0, resolution=(8, 8), method=None, log=lambda _l: None)
     assert seen_while_rendering == [BEFORE] * 4
-    assert scene.render.use_compositing and _weights() == BEFORE
+    assert scene.render.use_compositing and quad_weights() == BEFORE
 
 
-def test_a_cancelled_render_and_a_disabled_add_on_put_the_weights_back(addon, sss_quads):
+def test_a_cancelled_render_and_a_disabled_add_on_put_the_weights_back(addon, quad_weights, sss_quads):
     scene, _ = _scene()
     assert bpy.ops.sss_lab.setup_compositor(technique="burley") == {"FINISHED"}
     registered = {name: fn for name, fn in compositor_render._HANDLERS}
@@ -132,14 +123,14 @@ def test_a_cancelled_render_and_a_disabled_add_on_put_the_weights_back(addon, ss
     assert registered["render_init"] in bpy.app.handlers.render_init
     # Esc during a render: Blender calls render_init, then render_cancel.
     registered["render_init"](scene)
-    assert _weights() == PLAIN
+    assert quad_weights() == PLAIN
     registered["render_cancel"](scene)
-    assert _weights() == BEFORE
+    assert quad_weights() == BEFORE
     # The add-on disabled while a render runs.
     registered["render_init"](scene)
     addon.unregister()
     try:
-        assert _weights() == BEFORE
+        assert quad_weights() == BEFORE
         assert registered["render_init"] not in bpy.app.handlers.render_init
     finally:
         addon.register()
@@ -149,7 +140,7 @@ def _pixels_per_unit(tree, technique="burley"):
     return _graph.read_meta(tree.nodes[group_name(technique, "Skin")].node_tree)["pixels_per_unit"]
 
 
-def test_set_up_runs_again_after_moving_the_camera_or_a_light_and_after_a_render(addon, sss_quads):
+def test_set_up_runs_again_after_moving_the_camera_or_a_light_and_after_a_render(addon, quad_weights, sss_quads):
     scene, tree = _scene()
     assert bpy.ops.sss_lab.setup_compositor(technique="burley") == {"FINISHED"}
     far = _pixels_per_unit(tree)
@@ -172,7 +163,7 @@ def test_set_up_runs_again_after_moving_the_camera_or_a_light_and_after_a_render
     assert bpy.ops.sss_lab.setup_compositor(technique="sta") == {"FINISHED"}
     node = tree.nodes["SSS Lab STA Sun"]
     assert tuple(node.inputs["light_direction"].default_value)[:3] == pytest.approx((0.0, 0.0, -1.0), abs=1e-6)
-    assert _weights() == BEFORE
+    assert quad_weights() == BEFORE
 
 
 def test_set_up_finds_a_material_whose_weight_was_set_to_0_by_hand(addon, sss_quads):

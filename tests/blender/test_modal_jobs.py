@@ -82,14 +82,6 @@ def _event(kind, driver=None):
     return SimpleNamespace(type=kind, value="PRESS" if kind == "ESC" else "NOTHING", timer=driver and driver._timer)
 
 
-def _weights():
-    out = {}
-    for name in ("Skin", "Wax"):
-        socket = bpy.data.materials[name].node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"]
-        out[name] = (socket.default_value, socket.is_linked)
-    return out
-
-
 BEFORE = {"Skin": (1.0, False), "Wax": (1.0, True)}
 PLAIN = {"Skin": (0.0, False), "Wax": (0.0, False)}
 
@@ -108,7 +100,9 @@ def frames(sss_quads):
     return scene
 
 
-def test_render_passes_runs_frame_by_frame_and_esc_restores_the_scene_keeping_finished_frames(addon, frames, tmp_path):
+def test_render_passes_runs_frame_by_frame_and_esc_restores_the_scene_keeping_finished_frames(
+    addon, quad_weights, frames, tmp_path
+):
     scene, window = frames, Window()
     context = _context(window)
     op = _driver(SSS_LAB_OT_render_passes, directory=str(tmp_path), use_frame_range=True)
@@ -117,14 +111,14 @@ def test_render_passes_runs_frame_by_frame_and_esc_restores_the_scene_keeping_fi
     assert op.invoke(context, _event("NONE")) == {"RUNNING_MODAL"}
     assert window.progress == [("begin", 0, 3)] and len(window.timers) == 1
     assert window.status[-1] == "Render Passes 1/3: frame 1 (Esc: cancel after this step)"
-    assert _files(tmp_path) == [] and scene.render.engine == "BLENDER_EEVEE" and _weights() == BEFORE
+    assert _files(tmp_path) == [] and scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE
 
     # One timer event renders one frame; the scene is changed for the job while it runs.
     assert op.modal(context, _event(TIMER, op)) == {"RUNNING_MODAL"}
     assert _files(tmp_path) == ["passes_0001.exr", "passes_0001.json"]
     assert window.progress[-1] == ("update", 1)
     assert window.status[-1] == "Render Passes 2/3: frame 2 (Esc: cancel after this step)"
-    assert scene.render.engine == "CYCLES" and _weights() == PLAIN
+    assert scene.render.engine == "CYCLES" and quad_weights() == PLAIN
     # Other input is held back while the job has the scene changed; a timer of someone else too.
     assert op.modal(context, _event("LEFTMOUSE")) == {"RUNNING_MODAL"}
     assert op.modal(context, SimpleNamespace(type=TIMER, value="NOTHING", timer=object())) == {"RUNNING_MODAL"}
@@ -133,14 +127,14 @@ def test_render_passes_runs_frame_by_frame_and_esc_restores_the_scene_keeping_fi
     # Esc: cancelled between frames; the finished frame stays, the scene is back, the UI cleaned up.
     assert op.modal(context, _event("ESC")) == {"CANCELLED"}
     assert _files(tmp_path) == ["passes_0001.exr", "passes_0001.json"]
-    assert scene.render.engine == "BLENDER_EEVEE" and _weights() == BEFORE and scene.frame_current == 2
+    assert scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE and scene.frame_current == 2
     assert window.progress[-1] == ("end",) and window.timers == [] and window.status[-1] is None
     level, message = op.reports[-1]
     assert level == "WARNING" and "cancelled after 1 of 3 steps" in message and "passes_0001.exr" in message
     assert scene.sss_lab.passes_file == ""  # nothing reported as the result
 
 
-def test_render_passes_modal_run_to_the_end_reports_like_the_blocking_one(addon, frames, tmp_path):
+def test_render_passes_modal_run_to_the_end_reports_like_the_blocking_one(addon, quad_weights, frames, tmp_path):
     scene, window = frames, Window()
     context = _context(window)
     op = _driver(SSS_LAB_OT_render_passes, directory=str(tmp_path), use_frame_range=True)
@@ -151,14 +145,16 @@ def test_render_passes_modal_run_to_the_end_reports_like_the_blocking_one(addon,
     assert window.progress[-1] == ("end",) and window.timers == [] and window.status[-1] is None
     assert len([f for f in _files(tmp_path) if f.endswith(".exr")]) == 3
     assert scene.sss_lab.passes_file == str(tmp_path / "passes_0003.exr")
-    assert scene.render.engine == "BLENDER_EEVEE" and _weights() == BEFORE
+    assert scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE
     assert op.reports[-1] == ("INFO", f"Rendered the ssss passes of 3 frame(s) into {tmp_path}")
     # Headless (no window), bpy.ops runs the same job to its end.
     assert bpy.ops.sss_lab.render_passes(directory=str(tmp_path / "b"), use_frame_range=True) == {"FINISHED"}
     assert _files(tmp_path / "b") == [f for f in _files(tmp_path) if f != "b"]
 
 
-def test_render_passes_failing_or_ended_by_blender_restores_the_scene(addon, frames, tmp_path, monkeypatch):
+def test_render_passes_failing_or_ended_by_blender_restores_the_scene(
+    addon, quad_weights, frames, tmp_path, monkeypatch
+):
     scene, window = frames, Window()
     context = _context(window)
     calls = []
@@ -175,7 +171,7 @@ def test_render_passes_failing_or_ended_by_blender_restores_the_scene(addon, fra
     op.modal(context, _event(TIMER, op))
     assert op.modal(context, _event(TIMER, op)) == {"CANCELLED"}
     assert op.reports[-1] == ("ERROR", "the render failed (test)")
-    assert scene.render.engine == "BLENDER_EEVEE" and _weights() == BEFORE
+    assert scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE
     assert window.timers == [] and window.status[-1] is None
     assert _files(tmp_path) == ["passes_0001.exr", "passes_0001.json"]  # no half-written frame 2
 
@@ -184,32 +180,34 @@ def test_render_passes_failing_or_ended_by_blender_restores_the_scene(addon, fra
     op = _driver(SSS_LAB_OT_render_passes, directory=str(tmp_path / "c"), use_frame_range=True)
     op.invoke(context, _event("NONE"))
     op.modal(context, _event(TIMER, op))
-    assert _weights() == PLAIN
+    assert quad_weights() == PLAIN
     op.cancel(context)
-    assert scene.render.engine == "BLENDER_EEVEE" and _weights() == BEFORE and window.timers == []
+    assert scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE and window.timers == []
 
 
-def test_render_passes_bad_input_is_refused_at_start_without_a_timer(addon, frames, tmp_path):
+def test_render_passes_bad_input_is_refused_at_start_without_a_timer(addon, quad_weights, frames, tmp_path):
     window = Window()
     (tmp_path / "passes_0001.exr").write_bytes(b"")
     op = _driver(SSS_LAB_OT_render_passes, directory=str(tmp_path), use_frame_range=True, overwrite=False)
     assert op.invoke(_context(window), _event("NONE")) == {"CANCELLED"}
     assert op.reports[-1][0] == "ERROR" and "already exists" in op.reports[-1][1]
-    assert window.timers == [] and window.progress == [] and _weights() == BEFORE
+    assert window.timers == [] and window.progress == [] and quad_weights() == BEFORE
 
 
 # -- Compare ------------------------------------------------------------------------------------
 
 
-def _state(scene):
+def _state(scene, weights):
     """What a comparison must leave as it was."""
-    return (scene.render.engine, scene.cycles.samples, scene.cycles.seed, scene.render.resolution_x, _weights())
+    return (scene.render.engine, scene.cycles.samples, scene.cycles.seed, scene.render.resolution_x, weights())
 
 
-def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(addon, sss_quads, tmp_path, capsys):
+def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(
+    addon, quad_weights, sss_quads, tmp_path, capsys
+):
     scene, window = sss_quads, Window()
     context = _context(window)
-    before = _state(scene)
+    before = _state(scene, quad_weights)
     props = dict(directory=str(tmp_path), reference_samples=4, pass_samples=2, confirmed=True)
     op = _driver(SSS_LAB_OT_compare, **props)
 
@@ -228,11 +226,11 @@ def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(addon
     assert op.modal(context, _event(TIMER, op)) == {"RUNNING_MODAL"}
     assert window.status[-1].startswith("Compare 3/12: passes, 2 samples")
     assert window.progress[-2:] == [("update", 1), ("update", 2)]
-    assert _state(scene) == before  # between renders the scene is the user's
+    assert _state(scene, quad_weights) == before  # between renders the scene is the user's
 
     # Esc: no report, the scene as it was, the two references stay in the cache for the next run.
     assert op.modal(context, _event("ESC")) == {"CANCELLED"}
-    assert not os.path.exists(tmp_path / "report.html") and _state(scene) == before
+    assert not os.path.exists(tmp_path / "report.html") and _state(scene, quad_weights) == before
     cached = sorted(f for f in _files(tmp_path / "cache") if f.endswith(".exr"))
     assert len(cached) == 2
     assert window.timers == [] and window.status[-1] is None and window.progress[-1] == ("end",)
@@ -247,7 +245,7 @@ def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(addon
     results = [op.modal(context, _event(TIMER, op)) for _ in range(12)]
     assert results == [{"RUNNING_MODAL"}] * 11 + [{"FINISHED"}]
     assert [p[1] for p in window.progress if p[0] == "update"] == list(range(1, 12))
-    assert os.path.isfile(tmp_path / "report.html") and _state(scene) == before
+    assert os.path.isfile(tmp_path / "report.html") and _state(scene, quad_weights) == before
     assert set(cached) <= set(_files(tmp_path / "cache"))
     printed = capsys.readouterr().out
     assert "4 samples seed 0: cached" in printed and "4 samples seed 1: cached" in printed
