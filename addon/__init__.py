@@ -22,6 +22,7 @@ _MODULES = (
     ".operators.compositing",
     ".addon.panels",
     ".addon.panel_bake",
+    ".addon.panel_material",
 )
 
 _registered: list = []

@@ -79,12 +79,6 @@ class SSS_LAB_PT_main(bpy.types.Panel):
         layout.operator("sss_lab.setup_compositor", icon="NODE_COMPOSITING")
         layout.operator("sss_lab.compare", icon="SORTTIME")
         layout.operator("sss_lab.fit_to_cycles", icon="DRIVER_DISTANCE")
-        material = context.object.active_material if context.object is not None else None
-        if material is not None:
-            draw_fit(layout.column(), material)
-
-        layout.separator()
-        layout.operator_menu_enum("sss_lab.apply_preset", "preset", text="Material Preset", icon="MATERIAL")
 
 
 classes = (SSS_LAB_PT_main,)

@@ -526,6 +526,24 @@ class _Layout:
     def separator(self, **_):
         pass
 
+    def label(self, **_):
+        pass
+
+
+def test_material_tab_has_the_preset_menu(addon):
+    from types import SimpleNamespace
+
+    from sss_lab.addon.panel_material import SSS_LAB_PT_material
+
+    build_scene()
+    bpy.context.view_layer.objects.active = bpy.data.objects["Ball"]
+    context = SimpleNamespace(material=bpy.data.materials["Skin"])
+    assert SSS_LAB_PT_material.bl_context == "material" and SSS_LAB_PT_material.poll(context)
+    assert not SSS_LAB_PT_material.poll(SimpleNamespace(material=None))
+    drawn = []
+    SSS_LAB_PT_material.draw(SimpleNamespace(layout=_Layout(drawn)), context)
+    assert drawn == ["sss_lab.apply_preset"]
+
 
 @pytest.mark.parametrize("technique", ALL)
 def test_panel_draws_the_parameters_and_buttons(addon, technique):
@@ -536,8 +554,9 @@ def test_panel_draws_the_parameters_and_buttons(addon, technique):
     bpy.context.scene.sss_lab.technique = technique
     drawn = []
     SSS_LAB_PT_main.draw(SimpleNamespace(layout=_Layout(drawn)), bpy.context)
-    for op in ("sss_lab.bake_thickness", "sss_lab.render_passes", "sss_lab.apply", "sss_lab.apply_preset"):
+    for op in ("sss_lab.bake_thickness", "sss_lab.render_passes", "sss_lab.apply"):
         assert op in drawn
+    assert "sss_lab.apply_preset" not in drawn  # a material's preset: in the Material tab
     expected = {
         "sta": {"sta_distortion", "sta_power", "sta_scale", "sta_ambient"},
         "ssss": {"ssss_taps", "ssss_kernel", "albedo_mode"},
