@@ -218,6 +218,7 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
     desc: SceneDescription = sequence.load_scene(exr_path)
     high = None
     if settings.bias_pass_samples:
+        yield steps.next(f"passes, {settings.bias_pass_samples} samples (bias and pass noise)")
         log(f"Passes: {settings.bias_pass_samples} samples, to split each technique's error into bias and pass noise")
         start = time.perf_counter()
         written_high = render_passes(
@@ -466,13 +467,14 @@ def _calibration_methods(settings: CompareSettings, own: set) -> list[str]:
 
 
 def _step_count(settings: CompareSettings, own: set) -> int:
-    """Steps of ``compare_job``: two references (or the merged one), the passes, each technique
-    run, each peer, the calibration references, the report."""
+    """Steps of ``compare_job``: two references (or the merged one), the passes (and those for the
+    bias split), each technique run, each peer, the calibration references, the report."""
     refs = 1 if settings.reference_file else 2
+    passes = 1 + bool(settings.bias_pass_samples)
     runs = sum(len(settings.qualities.get(t, ({},))) for t in settings.techniques)
-    peers = sum(1 for s in settings.peer_samples if s < settings.reference_samples)
+    peers = sum(1 for s in {*settings.peer_samples, settings.pass_samples} if s < settings.reference_samples)
     peers += bool(settings.cycles_burley and not settings.reference_file)
-    return refs + 1 + runs + peers + len(_calibration_methods(settings, own)) + 1
+    return refs + passes + runs + peers + len(_calibration_methods(settings, own)) + 1
 
 
 def _calibration(settings: CompareSettings, passes, desc: SceneDescription, ref, mask, reference, steps: Steps):

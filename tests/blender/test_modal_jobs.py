@@ -211,20 +211,21 @@ def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(
     props = dict(directory=str(tmp_path), reference_samples=4, pass_samples=2, confirmed=True)
     op = _driver(SSS_LAB_OT_compare, **props)
 
-    # Start: 2 references, the passes, 3 SSSS and 4 Burley runs (STA and the combined technique need
-    # a thickness map this scene lacks), Cycles' Christensen-Burley (the 16/64-sample peers are not
-    # below the 4-sample reference), the report: 12 steps.
+    # Start: 2 references, the passes at 2 and at 8 samples (the bias split), 3 SSSS and 4 Burley
+    # runs (STA and the combined technique need a thickness map this scene lacks), Cycles at the
+    # passes' 2 samples (the 16/64-sample peers are not below the 4-sample reference), Cycles'
+    # Christensen-Burley, the report: 14 steps.
     assert op.invoke(context, _event("NONE")) == {"RUNNING_MODAL"}
-    assert window.progress == [("begin", 0, 12)]
-    assert window.status[-1] == "Compare 1/12: Cycles reference, 4 samples, seed 0 (Esc: cancel after this step)"
+    assert window.progress == [("begin", 0, 14)]
+    assert window.status[-1] == "Compare 1/14: Cycles reference, 4 samples, seed 0 (Esc: cancel after this step)"
     assert not os.path.exists(tmp_path / "cache")
 
     # One render per timer event: the reference, then the noise-floor reference.
     assert op.modal(context, _event(TIMER, op)) == {"RUNNING_MODAL"}
     assert len([f for f in _files(tmp_path / "cache") if f.endswith(".exr")]) == 1
-    assert window.status[-1].startswith("Compare 2/12: Cycles reference, 4 samples, seed 1 (noise floor)")
+    assert window.status[-1].startswith("Compare 2/14: Cycles reference, 4 samples, seed 1 (noise floor)")
     assert op.modal(context, _event(TIMER, op)) == {"RUNNING_MODAL"}
-    assert window.status[-1].startswith("Compare 3/12: passes, 2 samples")
+    assert window.status[-1].startswith("Compare 3/14: passes, 2 samples")
     assert window.progress[-2:] == [("update", 1), ("update", 2)]
     assert _state(scene, quad_weights) == before  # between renders the scene is the user's
 
@@ -234,7 +235,7 @@ def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(
     cached = sorted(f for f in _files(tmp_path / "cache") if f.endswith(".exr"))
     assert len(cached) == 2
     assert window.timers == [] and window.status[-1] is None and window.progress[-1] == ("end",)
-    assert op.reports[-1][0] == "WARNING" and "cancelled after 2 of 12 steps" in op.reports[-1][1]
+    assert op.reports[-1][0] == "WARNING" and "cancelled after 2 of 14 steps" in op.reports[-1][1]
 
     # Run again to the end: the cached references are reused, every step shows, the report is written.
     capsys.readouterr()
@@ -242,9 +243,9 @@ def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(
     context = _context(window)
     op = _driver(SSS_LAB_OT_compare, **props)
     assert op.invoke(context, _event("NONE")) == {"RUNNING_MODAL"}
-    results = [op.modal(context, _event(TIMER, op)) for _ in range(12)]
-    assert results == [{"RUNNING_MODAL"}] * 11 + [{"FINISHED"}]
-    assert [p[1] for p in window.progress if p[0] == "update"] == list(range(1, 12))
+    results = [op.modal(context, _event(TIMER, op)) for _ in range(14)]
+    assert results == [{"RUNNING_MODAL"}] * 13 + [{"FINISHED"}]
+    assert [p[1] for p in window.progress if p[0] == "update"] == list(range(1, 14))
     assert os.path.isfile(tmp_path / "report.html") and _state(scene, quad_weights) == before
     assert set(cached) <= set(_files(tmp_path / "cache"))
     printed = capsys.readouterr().out
