@@ -49,8 +49,24 @@ ONE_LINE = (SSSLabError, ValueError, OSError)
 
 #: Cases per class: "ci" for the tests (well under a minute in all), "full" for the table.
 SIZES = {
-    "ci": {"truncate": 24, "flip": 24, "json_truncate": 12, "json_flip": 12, "json_mutate": 40, "blend": 10},
-    "full": {"truncate": 160, "flip": 160, "json_truncate": 60, "json_flip": 60, "json_mutate": 300, "blend": 60},
+    "ci": {
+        "truncate": 24,
+        "flip": 24,
+        "json_truncate": 12,
+        "json_flip": 12,
+        "json_mutate": 40,
+        "blend": 10,
+        "cache": 9,
+    },
+    "full": {
+        "truncate": 160,
+        "flip": 160,
+        "json_truncate": 60,
+        "json_flip": 60,
+        "json_mutate": 300,
+        "blend": 60,
+        "cache": 40,
+    },
 }
 
 
@@ -194,7 +210,7 @@ def exr_structure(folder: str, n: int, rng: random.Random) -> Iterator[tuple[str
                     continue
                 plane = arr if arr.ndim == 2 else arr[..., c]
                 dtype = np.uint32 if name == uint_pass else np.float32
-                out[full] = np.clip(plane, 0, 2**32 - 1).astype(dtype) if dtype == np.uint32 else plane.astype(dtype)
+                out[full] = np.clip(plane, 0, 4e9).astype(dtype) if dtype == np.uint32 else plane.astype(dtype)
         return out
 
     variants = [("without the pass " + p, {"drop_pass": p}) for p in arrays]
@@ -371,6 +387,230 @@ def frame_ranges(folder: str, n: int, rng: random.Random):
         yield f"--frames {text}", case
 
 
+def disk_faults(folder: str, n: int, rng: random.Random):
+    """The output's disk refusing at each step of the atomic write (creating the temporary file,
+    writing it, moving it into place), as a full, read-only or forbidden disk does; the command
+    line (in-process) must print one line naming the output and leave no temporary file."""
+    import contextlib
+    import errno
+    import io
+    import shutil as _shutil
+    import tempfile as _tempfile
+    from unittest import mock
+
+    import OpenEXR
+
+    from sss_lab.addon import cli
+
+    path, _, _ = base_files(folder)
+    out = os.path.join(folder, "out.exr")
+
+    def refuse(code):
+        def fail(*args, **kwargs):
+            raise OSError(code, os.strerror(code))
+
+        return fail
+
+    class FailingWrite:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def write(self, filename):
+            with open(filename, "wb") as fh:
+                fh.write(b"partial")
+            raise RuntimeError("Cannot write image file")
+
+    real_file = OpenEXR.File
+
+    def exr_file(*args, **kwargs):
+        return real_file(*args, **kwargs) if args and isinstance(args[0], str) else FailingWrite()
+
+    full = mock.patch.object(_shutil, "disk_usage", lambda p: _shutil._ntuple_diskusage(1 << 30, 1 << 30, 0))
+    cases = {}
+    for code in (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EDQUOT):
+        name = errno.errorcode[code]
+        cases[f"{name} creating the temporary file"] = [mock.patch.object(_tempfile, "mkstemp", refuse(code))]
+        cases[f"{name} moving it into place"] = [mock.patch.object(os, "replace", refuse(code))]
+    cases["the EXR writer failing on a full disk"] = [mock.patch.object(OpenEXR, "File", exr_file), full]
+    cases["the EXR writer failing with free space left"] = [mock.patch.object(OpenEXR, "File", exr_file)]
+    cases["EPERM setting the permissions"] = [mock.patch.object(os, "chmod", refuse(errno.EPERM))]
+    for label, patches in cases.items():
+
+        def case(patches=patches):
+            before = _digest(path)
+            err = io.StringIO()
+            with contextlib.ExitStack() as stack:
+                for patch in patches:
+                    stack.enter_context(patch)
+                stack.enter_context(contextlib.redirect_stderr(err))
+                stack.enter_context(contextlib.redirect_stdout(io.StringIO()))
+                try:
+                    code = cli.main(["apply", path, "--method", "burley", "--out", out, "--overwrite"])
+                except Exception as exc:
+                    return Outcome(False, f"traceback: {type(exc).__name__}")
+            lines = [x for x in err.getvalue().splitlines() if "error:" in x]
+            leftovers = [x for x in os.listdir(folder) if x.endswith(".tmp")]
+            ok = code != 0 and len(lines) == 1 and "out.exr" in lines[0] and not leftovers
+            ok = ok and not os.path.exists(out) and _digest(path) == before
+            return Outcome(ok, "one line, nothing left" if ok else f"exit {code}: {err.getvalue()[-200:]!r}")
+
+        yield f"--out on a disk: {label}", case
+
+
+def cache_damaged(folder: str, n: int, rng: random.Random):
+    """The comparison's reference cache damaged as crashes and full disks leave it (metadata
+    empty, cut, of the wrong type or missing; EXR cut at random lengths or with bytes inverted),
+    then read by ``cached_reference`` in a child process with bpy: it must give an image and
+    leave a readable entry behind (re-rendering what it cannot read)."""
+    script = os.path.join(folder, "cache_cases.py")
+    with open(script, "w", encoding="utf-8") as fh:
+        fh.write(_CACHE_SCRIPT)
+    yield from _child_cases(script, folder, n, rng)
+
+
+def interrupts(folder: str, n: int, rng: random.Random):
+    """Ctrl-C (SIGINT) 1 s into a long render, comparison, bake and apply, run as a user runs
+    them: exit 130 within 8 s, one line, the input untouched, no temporary file."""
+    script = os.path.join(folder, "interrupt_cases.py")
+    with open(script, "w", encoding="utf-8") as fh:
+        fh.write(_INTERRUPT_SCRIPT)
+    yield from _child_cases(script, folder, n, rng)
+
+
+def _child_cases(script: str, folder: str, n: int, rng: random.Random):
+    proc = subprocess.run(
+        [sys.executable, script, folder, str(n), str(rng.randrange(1 << 30))],
+        capture_output=True,
+        text=True,
+        timeout=3600,
+        cwd=ROOT,
+    )
+    for line in proc.stdout.splitlines():
+        if line.startswith("{"):
+            r = json.loads(line)
+            yield r["case"], lambda r=r: Outcome(r["handled"], r["kind"])
+    if proc.returncode != 0:
+        yield "the child process", lambda: Outcome(False, f"crashed (exit {proc.returncode}): {proc.stderr[-300:]}")
+
+
+_CUBE = r"""
+def cube_blend(path):
+    import bpy
+    from sss_lab.blender import compat
+    bpy.ops.wm.read_factory_settings(use_empty=False)
+    material = bpy.data.materials.new("Skin")
+    compat.ensure_node_tree(material)
+    material.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
+    bpy.data.objects["Cube"].data.materials.append(material)
+    bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+    return path
+"""
+
+_CACHE_SCRIPT = (
+    _CUBE
+    + r"""
+import json, os, random, sys
+folder, n, seed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+import bpy
+from sss_lab.blender.reference_cache import cached_reference
+cube_blend(os.path.join(folder, "cube.blend"))
+scene = bpy.context.scene
+cache = os.path.join(folder, "cache")
+rng = random.Random(seed)
+
+def ref():
+    notes = []
+    image, seconds, cached = cached_reference(
+        scene, cache, samples=2, seed=0, resolution=(16, 16), method=None, log=notes.append)
+    return image, cached, notes
+
+ref()
+exr = [os.path.join(cache, x) for x in os.listdir(cache) if x.endswith(".exr")][0]
+meta = exr[:-4] + ".json"
+good_exr, good_meta = open(exr, "rb").read(), open(meta, "rb").read()
+cases = [
+    ("metadata empty", None, b""), ("metadata cut short", None, good_meta[: len(good_meta) // 2]),
+    ("metadata seconds 'fast'", None, b'{"seconds": "fast"}'), ("metadata a list", None, b"[1, 2]"),
+    ("metadata NaN", None, b'{"seconds": NaN}'), ("metadata missing", None, "missing"),
+    ("EXR empty", b"", None), ("EXR replaced by text", b"not an image", None),
+    ("EXR missing", "missing", None),
+]
+while len(cases) < n:
+    if rng.random() < 0.5:
+        cut = rng.randrange(len(good_exr))
+        cases.append((f"EXR cut at {cut} of {len(good_exr)} bytes", good_exr[:cut], None))
+    else:
+        at, count = rng.randrange(len(good_exr)), rng.choice((1, 8, 64))
+        d = bytearray(good_exr)
+        for i in range(at, min(at + count, len(d))):
+            d[i] ^= 0xFF
+        cases.append((f"EXR {count} byte(s) inverted at {at}", bytes(d), None))
+for label, exr_bytes, meta_bytes in cases[:n]:
+    for target, blob, good in ((exr, exr_bytes, good_exr), (meta, meta_bytes, good_meta)):
+        if blob == "missing":
+            os.remove(target)
+        else:
+            with open(target, "wb") as fh:
+                fh.write(good if blob is None else blob)
+    try:
+        image, cached, notes = ref()
+        healed = ref()[1] and json.load(open(meta))["seconds"] >= 0
+        extra = [x for x in os.listdir(cache) if x not in (os.path.basename(exr), os.path.basename(meta))]
+        ok = image.shape[:2] == (16, 16) and healed and not extra
+        kind = ("reused (the damage is in pixel data, which has no checksum)" if cached
+                else "rendered again" + (" with a note" if notes and notes[0].startswith("note:") else ""))
+    except BaseException as exc:
+        ok, kind = False, f"traceback: {type(exc).__name__}: {exc}"[:200]
+    print(json.dumps({"case": label, "handled": ok, "kind": kind}), flush=True)
+    with open(exr, "wb") as fh:
+        fh.write(good_exr)
+    with open(meta, "wb") as fh:
+        fh.write(good_meta)
+"""
+)
+
+_INTERRUPT_SCRIPT = (
+    _CUBE
+    + r"""
+import hashlib, json, os, signal, subprocess, sys, time
+folder = sys.argv[1]
+blend = cube_blend(os.path.join(folder, "cube.blend"))
+digest = lambda p: hashlib.sha256(open(p, "rb").read()).hexdigest()
+from sss_lab.core.synthetic import sphere_scene, write_scene
+arrays, scene = sphere_scene(width=1024, height=768)
+big = os.path.join(folder, "big.exr")
+write_scene(big, arrays, scene)
+jobs = {
+    "render (Cycles, 20000 samples)": ["render", blend, "--out", os.path.join(folder, "r"), "--resolution", "48x48",
+                                       "--samples", "20000", "--methods", "ssss,burley"],
+    "compare (reference at 50000 samples)": ["compare", blend, "--out", os.path.join(folder, "c"), "--resolution",
+                                             "48x48", "--reference-samples", "50000", "--methods", "ssss,burley"],
+    "bake-thickness (2048 px image, 1024 rays)": ["bake-thickness", blend, "--out", os.path.join(folder, "b.blend"),
+                                                  "--target", "image", "--resolution", "2048", "--samples", "1024"],
+    "apply (1024x768, all techniques)": ["apply", big, "--method", "all", "--out", os.path.join(folder, "a.exr")],
+}
+for label, argv in jobs.items():
+    inputs = [blend, big]
+    before = [digest(p) for p in inputs]
+    proc = subprocess.Popen([sys.executable, "-m", "sss_lab", *argv], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    time.sleep(4.0 if argv[0] != "apply" else 1.5)
+    running = proc.poll() is None
+    proc.send_signal(signal.SIGINT)
+    sent = time.monotonic()
+    out, err = proc.communicate(timeout=600)
+    stopped = time.monotonic() - sent
+    temps = [os.path.join(r, x) for r, _, xs in os.walk(folder) for x in xs if ".tmp" in x]
+    lines = [x for x in err.splitlines() if x.strip() and not x.startswith(("Warning", "SSS Lab: Numba"))]
+    ok = (running and proc.returncode == 130 and stopped < 8.0 and not temps
+          and [digest(p) for p in inputs] == before and len(lines) == 1 and "interrupted" in lines[0])
+    detail = f"running={running}, temps={temps}, stderr={err[-200:]!r}"
+    kind = "exit 130 within 8 s" if ok else f"exit {proc.returncode} after {stopped:.1f} s, {detail}"
+    print(json.dumps({"case": "Ctrl-C during " + label, "handled": ok, "kind": kind}), flush=True)
+"""
+)
+
+
 def blend_damaged(folder: str, n: int, rng: random.Random):
     """A .blend saved by Blender, cut short and with bytes inverted, opened by ``scan`` in a
     child process (a crash there counts as not handled)."""
@@ -437,7 +677,13 @@ CLASSES: dict[str, tuple[str, Callable]] = {
     "output_targets": ("--out naming an input however spelled, a folder, a pipe, a .png", output_targets),
     "frame_ranges": ("--frames huge, reversed or malformed", frame_ranges),
     "blend_damaged": (".blend cut short or with bytes inverted, opened by a command (needs bpy)", blend_damaged),
+    "disk_faults": ("the output's disk full, read-only or forbidden at each step of the write", disk_faults),
+    "cache_damaged": ("reference cache damaged: metadata and EXR cut, replaced, missing (needs bpy)", cache_damaged),
+    "interrupts": ("Ctrl-C during render, compare, bake and apply (needs bpy)", interrupts),
 }
+
+#: Classes that need bpy (run in child processes).
+NEEDS_BPY = ("blend_damaged", "cache_damaged", "interrupts")
 
 
 def cases_for(name: str, folder: str, size: str, seed: int):
@@ -452,6 +698,8 @@ def cases_for(name: str, folder: str, size: str, seed: int):
         return func(folder, n["json_truncate"], n["json_flip"], n["json_mutate"], rng)
     if name == "blend_damaged":
         return func(folder, n["blend"], rng)
+    if name == "cache_damaged":
+        return func(folder, n["cache"], rng)
     return func(folder, 0, rng)
 
 
@@ -510,9 +758,9 @@ def markdown(results: list[ClassResult], *, size: str, seed: int, seconds: float
         "  (NaN and Inf are counted and left as they are); a damaged ZIP-compressed chunk is an error.",
         "- *opened*: Blender read the damaged .blend (the damage is in data it does not check).",
         "",
-        "Faults tested in `tests/` but not generated here: a full or read-only disk (one line, no",
-        "temporary file: `tests/core/test_cli_errors.py`), Ctrl-C during render, compare and bake",
-        "(`tests/blender/test_interrupt.py`), a damaged reference cache (`tests/blender/test_cache_heal.py`).",
+        "The same faults have their own tests as well: `tests/core/test_bad_input.py`,",
+        "`tests/core/test_cli_errors.py`, `tests/core/test_extremes.py`, `tests/blender/test_bad_blend.py`,",
+        "`tests/blender/test_interrupt.py`, `tests/blender/test_cache_heal.py`, `tests/blender/test_bad_options.py`.",
         "",
     ]
     return "\n".join(lines)
@@ -526,9 +774,10 @@ def main(argv=None) -> int:
     parser.add_argument("--classes", default=",".join(CLASSES), help="comma-separated class names")
     args = parser.parse_args(argv)
     names = [n.strip() for n in args.classes.split(",") if n.strip()]
-    if "blend_damaged" in names and not _bpy_available():
-        print("bpy not available: the .blend class is left out", file=sys.stderr)
-        names.remove("blend_damaged")
+    if not _bpy_available():
+        left_out = [n for n in names if n in NEEDS_BPY]
+        print(f"bpy not available: {', '.join(left_out)} left out", file=sys.stderr)
+        names = [n for n in names if n not in NEEDS_BPY]
     start = time.perf_counter()
     results = []
     for name in names:

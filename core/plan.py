@@ -335,6 +335,13 @@ def plan(
             if z.size:
                 mp.median_depth = float(np.median(z))
                 mp.nearest_depth = float(z.min())
+            elif mp.kernel_su is not None:
+                # Scattering needs the depth of each pixel (its footprint): none has one here.
+                mp.skip = (
+                    "none of its pixels has a valid depth (the Depth pass is 0, negative, NaN or background "
+                    "there): render the Depth pass again"
+                )
+                continue
         if mp.kernel_su is not None and mp.median_depth is not None:
             cam = scene.camera
             ppu_median, ppu_nearest = (

@@ -10,6 +10,7 @@ from __future__ import annotations
 import bpy
 
 from ..blender.bake import BakeResult, ThicknessBake, bake_thickness, settings_from_scene
+from ..core.errors import SSSLabError
 
 
 class SSSLabObjectName(bpy.types.PropertyGroup):
@@ -50,7 +51,7 @@ class SSS_LAB_OT_bake_thickness(bpy.types.Operator):
         names = [item.name for item in self.objects] or None
         try:
             results = bake_thickness(context, names, settings_from_scene(context.scene))
-        except ValueError as exc:  # BakeError, or a panel value out of range
+        except (SSSLabError, ValueError, OSError) as exc:  # BakeError, a value out of range, a full disk
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         return self._report(results)

@@ -293,3 +293,16 @@ def test_a_huge_frame_range_is_refused_at_once():
         sequence.parse_frames("1-60000,100001-160000")
     assert sequence.parse_frames("1-3,7") == [1, 2, 3, 7]
     assert len(sequence.parse_frames(f"1-{sequence.MAX_FRAMES}")) == sequence.MAX_FRAMES
+
+
+@pytest.mark.parametrize("depth", [0.0, -1.0, np.nan])
+def test_a_material_without_a_valid_depth_is_not_reported_computed(depth):
+    from sss_lab.core.exr import Passes
+    from sss_lab.core.plan import plan
+
+    arrays, scene = sphere_scene(width=16, height=12)
+    arrays["Depth"] = np.full_like(arrays["Depth"], depth)
+    p = plan(Passes(arrays), scene, "burley")
+    assert not p.applied
+    assert all("valid depth" in m.skip for m in p.scattering if m.pixels)
+    assert "render the Depth pass again" in p.explain()

@@ -16,6 +16,7 @@ CLASSES = {
     "scale_extremes": 10,
     "output_targets": 10,
     "frame_ranges": 7,
+    "disk_faults": 11,
 }
 
 
