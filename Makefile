@@ -3,7 +3,7 @@
 PY := .venv/bin/python
 OUT ?= out
 
-.PHONY: venv demo farm-demo test lint format bench extension clean
+.PHONY: venv demo farm-demo test lint format bench fidelity extension clean
 
 venv:
 	@bash tools/bootstrap.sh
@@ -40,6 +40,11 @@ format: venv
 
 bench: venv
 	$(PY) -m benchmarks.speed
+
+# Every technique on every scene of the fidelity suite against the stored Cycles references
+# (benchmarks/fidelity/): benchmarks/results/fidelity.json, docs/fidelity.md, docs/images/fidelity_grid.png.
+fidelity: venv
+	nice -n 10 $(PY) -m benchmarks.fidelity.run
 
 extension: venv
 	$(PY) tools/build_extension.py
