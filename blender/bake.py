@@ -54,6 +54,7 @@ from ..core.thickness import IMAGE_FORMATS, BakeSettings, auto_distance_su, spli
 from . import compat
 from .bake_nodes import _add_map_nodes, _bake_material, _result_image, _use_material
 from .describe import world_corners
+from .jobs import Job, Progress
 from .state import SceneState
 from .thickness import META_KEY, thickness_metadata
 
@@ -677,6 +678,25 @@ def _bake_signature(obj) -> tuple:
 def _stored_path(folder: str, filename: str, absolute: str) -> str:
     """Keep the folder as the user gave it (``//`` relative paths stay relative)."""
     return folder.rstrip("/\\") + "/" + filename if folder.startswith("//") else absolute
+
+
+def bake_job(batch: ThicknessBake) -> Job:
+    """``batch`` as a job generator (``blender/jobs.py``): one object per step; returns its
+    results. Closed between two objects (Esc), the batch is cancelled: the objects baked so far
+    keep their maps, the others are reported cancelled, and the scene is restored."""
+    yield Progress(0, batch.total, "object 1")
+    try:
+        batch.start()
+        while batch.remaining:
+            batch.step()
+            if batch.remaining:
+                yield Progress(batch.done, batch.total, f"object {batch.done + 1}")
+    except GeneratorExit:
+        batch.cancel()
+        raise
+    finally:
+        batch.finish()
+    return batch.results
 
 
 def bake_thickness(

@@ -153,12 +153,16 @@ class ModalJob:
         if failed:
             return {"CANCELLED"}
         if cancelled:
-            p = self._progress
-            done = f" after {p.done} of {p.total} steps" if p is not None else ""
-            kept = f"; kept: {', '.join(p.outputs)}" if p is not None and p.outputs else ""
-            self.report({"WARNING"}, f"{self.job_label} cancelled{done}; the scene is as it was{kept}")
-            return {"CANCELLED"}
+            return self.job_cancelled(context)
         return self.job_done(context, result)
+
+    def job_cancelled(self, context) -> set:
+        """Report a cancelled job (Esc, or Blender ended the operator); the scene is restored."""
+        p = self._progress
+        done = f" after {p.done} of {p.total} steps" if p is not None else ""
+        kept = f"; kept: {', '.join(p.outputs)}" if p is not None and p.outputs else ""
+        self.report({"WARNING"}, f"{self.job_label} cancelled{done}; the scene is as it was{kept}")
+        return {"CANCELLED"}
 
 
 def _message(exc: BaseException) -> str:

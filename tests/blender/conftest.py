@@ -8,6 +8,7 @@ import os
 import shutil
 import sys
 import tempfile
+import types
 
 import pytest
 
@@ -114,3 +115,84 @@ def quad_weights(sss_quads):
         return out
 
     return weights
+
+
+# -- driving modal operators -------------------------------------------------------------------
+
+
+class ModalWindow:
+    """Window manager and workspace stand-in for a modal operator: records progress, timers and
+    status text (and passes nothing on to Blender)."""
+
+    def __init__(self):
+        self.progress, self.status, self.timers = [], [], []
+
+    def progress_begin(self, low, high):
+        self.progress.append(("begin", low, high))
+
+    def progress_update(self, value):
+        self.progress.append(("update", value))
+
+    def progress_end(self):
+        self.progress.append(("end",))
+
+    def event_timer_add(self, step, window=None):
+        timer = types.SimpleNamespace(step=step)
+        self.timers.append(timer)
+        return timer
+
+    def event_timer_remove(self, timer):
+        self.timers.remove(timer)
+
+    def status_text_set(self, text):
+        self.status.append(text)
+
+
+def modal_driver(operator_cls, **props):
+    """``operator_cls``'s own methods (its ``ModalJob`` invoke/modal/cancel and its job) on a plain
+    object: an operator instance cannot be made outside Blender's operator call. Its properties
+    start at their registered defaults, then ``props``; ``reports`` collects what it reports. Only
+    the hand-off to Blender's event loop (``listen``) is left out: the test sends the events."""
+    import inspect
+
+    from sss_lab.operators.modal import ModalJob
+
+    def report(self, level, message):
+        self.reports.append((next(iter(level)), message))
+
+    namespace = {k: v for k, v in vars(operator_cls).items() if inspect.isfunction(v) or k == "job_label"}
+    namespace.update(report=report, listen=lambda self, context: None, interactive=lambda self, context: True)
+    driver = type("Driver", (ModalJob,), namespace)()
+    module, _, name = operator_cls.bl_idname.partition(".")
+    for prop in getattr(getattr(bpy.ops, module), name).get_rna_type().properties:
+        if prop.identifier != "rna_type":
+            value = prop.default_flag if getattr(prop, "is_enum_flag", False) else getattr(prop, "default", None)
+            setattr(driver, prop.identifier, value)
+    for key, value in props.items():
+        setattr(driver, key, value)
+    driver.reports = []
+    return driver
+
+
+class ModalContext:
+    """``bpy.context`` with ``window``, ``window_manager`` and ``workspace`` replaced by ``window``."""
+
+    def __init__(self, window):
+        self.window = self.window_manager = self.workspace = window
+
+    def __getattr__(self, name):
+        return getattr(bpy.context, name)
+
+
+def modal_event(kind, driver=None):
+    """A window event: "TIMER" (of ``driver``'s timer), "ESC" (pressed), or any other type."""
+    return types.SimpleNamespace(
+        type=kind, value="PRESS" if kind == "ESC" else "NOTHING", timer=driver and driver._timer
+    )
+
+
+@pytest.fixture
+def modal(addon):
+    """What the modal-operator tests drive with: ``Window()``, ``driver(operator_cls, **props)``,
+    ``context(window)``, ``event(kind, driver)`` (see above)."""
+    return types.SimpleNamespace(Window=ModalWindow, driver=modal_driver, context=ModalContext, event=modal_event)

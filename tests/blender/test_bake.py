@@ -29,7 +29,7 @@ import pytest
 
 from sss_lab.blender import bake as bake_mod
 from sss_lab.blender import compat
-from sss_lab.blender.bake import BakeError, ThicknessBake, bake_thickness
+from sss_lab.blender.bake import BakeError, bake_thickness
 from sss_lab.blender.bake_nodes import NODE_AOV, NODE_NAME
 from sss_lab.blender.thickness import META_KEY, thickness_metadata
 from sss_lab.core.thickness import BakeSettings, binomial_sigma, slab_unoccluded_fraction
@@ -595,59 +595,32 @@ def test_operator_bakes_named_objects_with_the_panel_settings(addon):
     assert "UNDO" in bpy.types.SSS_LAB_OT_bake_thickness.bl_options
 
 
-class _WindowManager:
-    def __init__(self):
-        self.calls = []
-
-    def progress_update(self, value):
-        self.calls.append(("update", value))
-
-    def progress_end(self):
-        self.calls.append(("end",))
-
-    def event_timer_remove(self, timer):
-        self.calls.append(("timer_remove", timer))
-
-
-def _modal_stand_in(job):
-    """The operator's modal methods on a stand-in object: a background Blender has no event
-    loop, so the timer and Esc events are sent by hand (invoke sets up the same state)."""
-    op = SSS_LAB_OT_bake_thickness
-
-    class StandIn:
-        modal, _end, _status, _report = op.modal, op._end, op._status, op._report
-
-        def __init__(self):
-            self._job, self._timer, self.reports = job, "timer", []
-
-        def report(self, level, message):
-            self.reports.append((next(iter(level)), message))
-
-    return StandIn()
-
-
-def test_modal_operator_steps_on_timer_and_esc_cancels_with_the_scene_restored():
+def test_modal_operator_steps_on_timer_and_esc_cancels_with_the_scene_restored(modal):
+    """The operator's own invoke/modal with timer and Esc events (conftest's ``modal``)."""
     objs = _busy_scene()
+    bpy.context.scene.sss_lab.bake.samples = 4
     before = _snapshot()
-    job = ThicknessBake(bpy.context, objs, _settings(samples=4), log=_quiet)
-    job.start()
-    op, wm = _modal_stand_in(job), _WindowManager()
-    context = SimpleNamespace(window_manager=wm, workspace=None)
-    assert op.modal(context, SimpleNamespace(type="MOUSEMOVE")) == {"RUNNING_MODAL"}  # held back
-    assert job.done == 0
-    assert op.modal(context, SimpleNamespace(type="TIMER")) == {"RUNNING_MODAL"}
-    assert job.done == 1 and wm.calls == [("update", 1)]
-    assert op.modal(context, SimpleNamespace(type="ESC")) == {"FINISHED"}  # one object was baked
-    assert wm.calls[1:] == [("timer_remove", "timer"), ("end",)]
+    window = modal.Window()
+    context = modal.context(window)
+    names = [SimpleNamespace(name=o.name) for o in objs]
+    op = modal.driver(SSS_LAB_OT_bake_thickness, objects=names)
+    assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
+    assert window.progress == [("begin", 0, 3)] and _snapshot() == before  # planned, nothing changed
+    assert window.status[-1] == "Thickness Bake 1/3: object 1 (Esc: cancel after this step)"
+    assert op.modal(context, modal.event("MOUSEMOVE")) == {"RUNNING_MODAL"}  # held back
+    assert window.progress == [("begin", 0, 3)]
+    assert op.modal(context, modal.event("TIMER", op)) == {"RUNNING_MODAL"}
+    assert window.progress[-1] == ("update", 1) and window.status[-1].startswith("Thickness Bake 2/3: object 2")
+    assert op.modal(context, modal.event("ESC")) == {"FINISHED"}  # one object was baked: an undo step
+    assert window.timers == [] and window.progress[-1] == ("end",) and window.status[-1] is None
     assert _snapshot() == before
     assert [level for level, _ in op.reports] == ["WARNING", "INFO", "WARNING", "WARNING"]
     assert "cancelled" in op.reports[-1][1]
     # Run to the end: one TIMER event per object.
-    job = ThicknessBake(bpy.context, objs[1:], _settings(samples=4), log=_quiet)
-    job.start()
-    op = _modal_stand_in(job)
-    assert op.modal(context, SimpleNamespace(type="TIMER")) == {"RUNNING_MODAL"}
-    assert op.modal(context, SimpleNamespace(type="TIMER")) == {"FINISHED"}
+    op = modal.driver(SSS_LAB_OT_bake_thickness, objects=names[1:])
+    assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
+    assert op.modal(context, modal.event("TIMER", op)) == {"RUNNING_MODAL"}
+    assert op.modal(context, modal.event("TIMER", op)) == {"FINISHED"}
     assert _snapshot() == before and all("Thickness" in o.data.color_attributes for o in objs)
 
 

@@ -1,14 +1,10 @@
 """The long jobs as modal operators (operators/modal.py): start, progress, Esc, restore.
 
-Headless Blender has no event loop, so the tests are the event loop: they call the operators'
-own ``invoke`` / ``modal`` / ``cancel`` with timer and Esc events, as Blender's window manager
-would. The operator methods run unchanged on a stand-in ``self`` (``_driver``): its properties at
-their registered defaults, ``report`` collected; only the hand-off to the window manager
-(``listen``) is left out. The window manager and workspace are recorders that pass nothing on,
-so that the progress and status text each step shows can be checked.
+Headless Blender has no event loop, so the tests are the event loop (conftest's ``modal``
+fixture): they call the operators' own ``invoke`` / ``modal`` / ``cancel`` with timer and Esc
+events, as Blender's window manager would, and see the progress and status text each step shows.
 """
 
-import inspect
 import os
 from types import SimpleNamespace
 
@@ -17,70 +13,7 @@ import pytest
 
 from sss_lab.blender import render_passes as rp
 from sss_lab.operators.comparison import SSS_LAB_OT_compare
-from sss_lab.operators.modal import ModalJob
 from sss_lab.operators.render import SSS_LAB_OT_render_passes
-
-TIMER = "TIMER"
-
-
-class Window:
-    """Window manager and workspace stand-in: records progress, timers and status text."""
-
-    def __init__(self):
-        self.progress, self.status, self.timers = [], [], []
-
-    def progress_begin(self, low, high):
-        self.progress.append(("begin", low, high))
-
-    def progress_update(self, value):
-        self.progress.append(("update", value))
-
-    def progress_end(self):
-        self.progress.append(("end",))
-
-    def event_timer_add(self, step, window=None):
-        timer = SimpleNamespace(step=step)
-        self.timers.append(timer)
-        return timer
-
-    def event_timer_remove(self, timer):
-        self.timers.remove(timer)
-
-    def status_text_set(self, text):
-        self.status.append(text)
-
-
-def _driver(operator_cls, **props):
-    """``operator_cls``'s methods on a plain object with its properties (RNA defaults, then
-    ``props``); ``reports`` collects what it reports."""
-
-    def report(self, level, message):
-        self.reports.append((next(iter(level)), message))
-
-    namespace = {k: v for k, v in vars(operator_cls).items() if inspect.isfunction(v) or k == "job_label"}
-    namespace.update(report=report, listen=lambda self, context: None, interactive=lambda self, context: True)
-    driver = type("Driver", (ModalJob,), namespace)()
-    module, _, name = operator_cls.bl_idname.partition(".")
-    for prop in getattr(getattr(bpy.ops, module), name).get_rna_type().properties:
-        if prop.identifier != "rna_type":
-            value = prop.default_flag if getattr(prop, "is_enum_flag", False) else getattr(prop, "default", None)
-            setattr(driver, prop.identifier, value)
-    for key, value in props.items():
-        setattr(driver, key, value)
-    driver.reports = []
-    return driver
-
-
-def _context(window):
-    c = bpy.context
-    return SimpleNamespace(
-        scene=c.scene, view_layer=c.view_layer, window=window, window_manager=window, workspace=window
-    )
-
-
-def _event(kind, driver=None):
-    return SimpleNamespace(type=kind, value="PRESS" if kind == "ESC" else "NOTHING", timer=driver and driver._timer)
-
 
 BEFORE = {"Skin": (1.0, False), "Wax": (1.0, True)}
 PLAIN = {"Skin": (0.0, False), "Wax": (0.0, False)}
@@ -101,31 +34,31 @@ def frames(sss_quads):
 
 
 def test_render_passes_runs_frame_by_frame_and_esc_restores_the_scene_keeping_finished_frames(
-    addon, quad_weights, frames, tmp_path
+    addon, modal, quad_weights, frames, tmp_path
 ):
-    scene, window = frames, Window()
-    context = _context(window)
-    op = _driver(SSS_LAB_OT_render_passes, directory=str(tmp_path), use_frame_range=True)
+    scene, window = frames, modal.Window()
+    context = modal.context(window)
+    op = modal.driver(SSS_LAB_OT_render_passes, directory=str(tmp_path), use_frame_range=True)
 
     # Start: checked and planned, nothing rendered or changed yet; the progress counts 3 frames.
-    assert op.invoke(context, _event("NONE")) == {"RUNNING_MODAL"}
+    assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
     assert window.progress == [("begin", 0, 3)] and len(window.timers) == 1
     assert window.status[-1] == "Render Passes 1/3: frame 1 (Esc: cancel after this step)"
     assert _files(tmp_path) == [] and scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE
 
     # One timer event renders one frame; the scene is changed for the job while it runs.
-    assert op.modal(context, _event(TIMER, op)) == {"RUNNING_MODAL"}
+    assert op.modal(context, modal.event("TIMER", op)) == {"RUNNING_MODAL"}
     assert _files(tmp_path) == ["passes_0001.exr", "passes_0001.json"]
     assert window.progress[-1] == ("update", 1)
     assert window.status[-1] == "Render Passes 2/3: frame 2 (Esc: cancel after this step)"
     assert scene.render.engine == "CYCLES" and quad_weights() == PLAIN
     # Other input is held back while the job has the scene changed; a timer of someone else too.
-    assert op.modal(context, _event("LEFTMOUSE")) == {"RUNNING_MODAL"}
-    assert op.modal(context, SimpleNamespace(type=TIMER, value="NOTHING", timer=object())) == {"RUNNING_MODAL"}
+    assert op.modal(context, modal.event("LEFTMOUSE")) == {"RUNNING_MODAL"}
+    assert op.modal(context, SimpleNamespace(type="TIMER", value="NOTHING", timer=object())) == {"RUNNING_MODAL"}
     assert _files(tmp_path) == ["passes_0001.exr", "passes_0001.json"]
 
     # Esc: cancelled between frames; the finished frame stays, the scene is back, the UI cleaned up.
-    assert op.modal(context, _event("ESC")) == {"CANCELLED"}
+    assert op.modal(context, modal.event("ESC")) == {"CANCELLED"}
     assert _files(tmp_path) == ["passes_0001.exr", "passes_0001.json"]
     assert scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE and scene.frame_current == 2
     assert window.progress[-1] == ("end",) and window.timers == [] and window.status[-1] is None
@@ -134,12 +67,12 @@ def test_render_passes_runs_frame_by_frame_and_esc_restores_the_scene_keeping_fi
     assert scene.sss_lab.passes_file == ""  # nothing reported as the result
 
 
-def test_render_passes_modal_run_to_the_end_reports_like_the_blocking_one(addon, quad_weights, frames, tmp_path):
-    scene, window = frames, Window()
-    context = _context(window)
-    op = _driver(SSS_LAB_OT_render_passes, directory=str(tmp_path), use_frame_range=True)
-    assert op.invoke(context, _event("NONE")) == {"RUNNING_MODAL"}
-    results = [op.modal(context, _event(TIMER, op)) for _ in range(3)]
+def test_render_passes_modal_run_to_the_end_reports_like_the_blocking_one(addon, modal, quad_weights, frames, tmp_path):
+    scene, window = frames, modal.Window()
+    context = modal.context(window)
+    op = modal.driver(SSS_LAB_OT_render_passes, directory=str(tmp_path), use_frame_range=True)
+    assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
+    results = [op.modal(context, modal.event("TIMER", op)) for _ in range(3)]
     assert results == [{"RUNNING_MODAL"}, {"RUNNING_MODAL"}, {"FINISHED"}]
     assert [p for p in window.progress if p[0] == "update"] == [("update", 1), ("update", 2)]
     assert window.progress[-1] == ("end",) and window.timers == [] and window.status[-1] is None
@@ -153,10 +86,10 @@ def test_render_passes_modal_run_to_the_end_reports_like_the_blocking_one(addon,
 
 
 def test_render_passes_failing_or_ended_by_blender_restores_the_scene(
-    addon, quad_weights, frames, tmp_path, monkeypatch
+    addon, modal, quad_weights, frames, tmp_path, monkeypatch
 ):
-    scene, window = frames, Window()
-    context = _context(window)
+    scene, window = frames, modal.Window()
+    context = modal.context(window)
     calls = []
 
     def render(scene):
@@ -166,10 +99,10 @@ def test_render_passes_failing_or_ended_by_blender_restores_the_scene(
         bpy.ops.render.render(write_still=False, scene=scene.name)
 
     monkeypatch.setattr(rp, "_render", render)
-    op = _driver(SSS_LAB_OT_render_passes, directory=str(tmp_path), use_frame_range=True)
-    op.invoke(context, _event("NONE"))
-    op.modal(context, _event(TIMER, op))
-    assert op.modal(context, _event(TIMER, op)) == {"CANCELLED"}
+    op = modal.driver(SSS_LAB_OT_render_passes, directory=str(tmp_path), use_frame_range=True)
+    op.invoke(context, modal.event("NONE"))
+    op.modal(context, modal.event("TIMER", op))
+    assert op.modal(context, modal.event("TIMER", op)) == {"CANCELLED"}
     assert op.reports[-1] == ("ERROR", "the render failed (test)")
     assert scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE
     assert window.timers == [] and window.status[-1] is None
@@ -177,19 +110,19 @@ def test_render_passes_failing_or_ended_by_blender_restores_the_scene(
 
     # Blender ends the operator (a file is loaded): cancel() restores as Esc does.
     monkeypatch.setattr(rp, "_render", lambda scene: bpy.ops.render.render(write_still=False, scene=scene.name))
-    op = _driver(SSS_LAB_OT_render_passes, directory=str(tmp_path / "c"), use_frame_range=True)
-    op.invoke(context, _event("NONE"))
-    op.modal(context, _event(TIMER, op))
+    op = modal.driver(SSS_LAB_OT_render_passes, directory=str(tmp_path / "c"), use_frame_range=True)
+    op.invoke(context, modal.event("NONE"))
+    op.modal(context, modal.event("TIMER", op))
     assert quad_weights() == PLAIN
     op.cancel(context)
     assert scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE and window.timers == []
 
 
-def test_render_passes_bad_input_is_refused_at_start_without_a_timer(addon, quad_weights, frames, tmp_path):
-    window = Window()
+def test_render_passes_bad_input_is_refused_at_start_without_a_timer(addon, modal, quad_weights, frames, tmp_path):
+    window = modal.Window()
     (tmp_path / "passes_0001.exr").write_bytes(b"")
-    op = _driver(SSS_LAB_OT_render_passes, directory=str(tmp_path), use_frame_range=True, overwrite=False)
-    assert op.invoke(_context(window), _event("NONE")) == {"CANCELLED"}
+    op = modal.driver(SSS_LAB_OT_render_passes, directory=str(tmp_path), use_frame_range=True, overwrite=False)
+    assert op.invoke(modal.context(window), modal.event("NONE")) == {"CANCELLED"}
     assert op.reports[-1][0] == "ERROR" and "already exists" in op.reports[-1][1]
     assert window.timers == [] and window.progress == [] and quad_weights() == BEFORE
 
@@ -203,34 +136,34 @@ def _state(scene, weights):
 
 
 def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(
-    addon, quad_weights, sss_quads, tmp_path, capsys
+    addon, modal, quad_weights, sss_quads, tmp_path, capsys
 ):
-    scene, window = sss_quads, Window()
-    context = _context(window)
+    scene, window = sss_quads, modal.Window()
+    context = modal.context(window)
     before = _state(scene, quad_weights)
     props = dict(directory=str(tmp_path), reference_samples=4, pass_samples=2, confirmed=True)
-    op = _driver(SSS_LAB_OT_compare, **props)
+    op = modal.driver(SSS_LAB_OT_compare, **props)
 
     # Start: 2 references, the passes at 2 and at 8 samples (the bias split), 3 SSSS and 4 Burley
     # runs (STA and the combined technique need a thickness map this scene lacks), Cycles at the
     # passes' 2 samples (the 16/64-sample peers are not below the 4-sample reference), Cycles'
     # Christensen-Burley, the report: 14 steps.
-    assert op.invoke(context, _event("NONE")) == {"RUNNING_MODAL"}
+    assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
     assert window.progress == [("begin", 0, 14)]
     assert window.status[-1] == "Compare 1/14: Cycles reference, 4 samples, seed 0 (Esc: cancel after this step)"
     assert not os.path.exists(tmp_path / "cache")
 
     # One render per timer event: the reference, then the noise-floor reference.
-    assert op.modal(context, _event(TIMER, op)) == {"RUNNING_MODAL"}
+    assert op.modal(context, modal.event("TIMER", op)) == {"RUNNING_MODAL"}
     assert len([f for f in _files(tmp_path / "cache") if f.endswith(".exr")]) == 1
     assert window.status[-1].startswith("Compare 2/14: Cycles reference, 4 samples, seed 1 (noise floor)")
-    assert op.modal(context, _event(TIMER, op)) == {"RUNNING_MODAL"}
+    assert op.modal(context, modal.event("TIMER", op)) == {"RUNNING_MODAL"}
     assert window.status[-1].startswith("Compare 3/14: passes, 2 samples")
     assert window.progress[-2:] == [("update", 1), ("update", 2)]
     assert _state(scene, quad_weights) == before  # between renders the scene is the user's
 
     # Esc: no report, the scene as it was, the two references stay in the cache for the next run.
-    assert op.modal(context, _event("ESC")) == {"CANCELLED"}
+    assert op.modal(context, modal.event("ESC")) == {"CANCELLED"}
     assert not os.path.exists(tmp_path / "report.html") and _state(scene, quad_weights) == before
     cached = sorted(f for f in _files(tmp_path / "cache") if f.endswith(".exr"))
     assert len(cached) == 2
@@ -239,11 +172,11 @@ def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(
 
     # Run again to the end: the cached references are reused, every step shows, the report is written.
     capsys.readouterr()
-    window = Window()
-    context = _context(window)
-    op = _driver(SSS_LAB_OT_compare, **props)
-    assert op.invoke(context, _event("NONE")) == {"RUNNING_MODAL"}
-    results = [op.modal(context, _event(TIMER, op)) for _ in range(14)]
+    window = modal.Window()
+    context = modal.context(window)
+    op = modal.driver(SSS_LAB_OT_compare, **props)
+    assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
+    results = [op.modal(context, modal.event("TIMER", op)) for _ in range(14)]
     assert results == [{"RUNNING_MODAL"}] * 13 + [{"FINISHED"}]
     assert [p[1] for p in window.progress if p[0] == "update"] == list(range(1, 14))
     assert os.path.isfile(tmp_path / "report.html") and _state(scene, quad_weights) == before
@@ -254,13 +187,13 @@ def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(
     assert op.reports[-1][1].startswith(f"Report: {tmp_path / 'report.html'}")
 
 
-def test_compare_asks_in_a_dialog_first_and_refuses_an_unsaved_relative_folder(addon, sss_quads):
-    window = Window()
+def test_compare_asks_in_a_dialog_first_and_refuses_an_unsaved_relative_folder(addon, modal, sss_quads):
+    window = modal.Window()
     window.invoke_props_dialog = lambda operator: window.status.append("dialog") or {"RUNNING_MODAL"}
-    op = _driver(SSS_LAB_OT_compare)
-    assert op.invoke(_context(window), _event("NONE")) == {"RUNNING_MODAL"}
+    op = modal.driver(SSS_LAB_OT_compare)
+    assert op.invoke(modal.context(window), modal.event("NONE")) == {"RUNNING_MODAL"}
     assert window.status == ["dialog"] and op.from_dialog and window.timers == []
-    op = _driver(SSS_LAB_OT_compare, confirmed=True)  # the default folder "//..." of an unsaved file
-    assert op.invoke(_context(window), _event("NONE")) == {"CANCELLED"}
+    op = modal.driver(SSS_LAB_OT_compare, confirmed=True)  # the default folder "//..." of an unsaved file
+    assert op.invoke(modal.context(window), modal.event("NONE")) == {"CANCELLED"}
     assert op.reports == [("ERROR", "Save the .blend file first, or choose an absolute report folder")]
     assert window.timers == []
