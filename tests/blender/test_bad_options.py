@@ -36,7 +36,7 @@ def test_a_bake_that_bakes_nothing_says_why_and_writes_nothing(tmp_path, capsys)
 
     blend = _save(tmp_path, "flat.blend", _flat_mesh)
     out = tmp_path / "baked.blend"
-    code = cli.main(["bake-thickness", str(blend), "--out", str(out), "--samples", "4"])
+    code = cli.main(["bake-thickness", str(blend), "--out", str(out), "--samples", "4", "--objects", "Line"])
     captured = capsys.readouterr()
     assert code == 2 and not out.exists()
     assert "Line: skipped" in captured.out  # the reason, per object
