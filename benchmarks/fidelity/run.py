@@ -453,7 +453,7 @@ def markdown(data: dict) -> str:
     worse = data["summary"]["worse_than_no_sss"]
     lines += [
         "",
-        "Worse than no SSS by more than the noise floor: "
+        "Worse than no SSS by more than the reference noise (half the two-seed noise floor): "
         + (
             "none."
             if not worse
