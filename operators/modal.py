@@ -108,7 +108,7 @@ class ModalJob:
     def modal(self, context, event):
         if event.type == "ESC" and event.value == "PRESS":
             return self._end(context, cancelled=True)
-        if event.type != "TIMER" or (self._timer is not None and event.timer != self._timer):
+        if event.type != "TIMER":
             return {"RUNNING_MODAL"}  # held back (see the class docstring)
         try:
             self._progress = next(self._job)

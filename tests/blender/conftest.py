@@ -126,6 +126,10 @@ class ModalWindow:
 
     def __init__(self):
         self.progress, self.status, self.timers = [], [], []
+        # The stand-in's methods are the real ones' names (the operator calls them on Blender's).
+        for name in ("progress_begin", "progress_update", "progress_end", "event_timer_add", "event_timer_remove"):
+            assert name in bpy.types.WindowManager.bl_rna.functions, name
+        assert hasattr(bpy.types.WorkSpace, "status_text_set")
 
     def progress_begin(self, low, high):
         self.progress.append(("begin", low, high))
@@ -184,15 +188,21 @@ class ModalContext:
         return getattr(bpy.context, name)
 
 
-def modal_event(kind, driver=None):
-    """A window event: "TIMER" (of ``driver``'s timer), "ESC" (pressed), or any other type."""
-    return types.SimpleNamespace(
-        type=kind, value="PRESS" if kind == "ESC" else "NOTHING", timer=driver and driver._timer
-    )
+class ModalEvent:
+    """A window event of ``kind`` ("TIMER", "ESC" pressed, "MOUSEMOVE"...) with only what Blender's
+    ``bpy.types.Event`` has: reading anything else fails, as it would in Blender."""
+
+    def __init__(self, kind):
+        self.type, self.value = kind, "PRESS" if kind == "ESC" else "NOTHING"
+
+    def __getattr__(self, name):
+        if name in bpy.types.Event.bl_rna.properties:
+            return None
+        raise AttributeError(f"bpy.types.Event has no attribute {name!r}")
 
 
 @pytest.fixture
 def modal(addon):
     """What the modal-operator tests drive with: ``Window()``, ``driver(operator_cls, **props)``,
-    ``context(window)``, ``event(kind, driver)`` (see above)."""
-    return types.SimpleNamespace(Window=ModalWindow, driver=modal_driver, context=ModalContext, event=modal_event)
+    ``context(window)``, ``event(kind)`` (see above)."""
+    return types.SimpleNamespace(Window=ModalWindow, driver=modal_driver, context=ModalContext, event=ModalEvent)

@@ -609,7 +609,7 @@ def test_modal_operator_steps_on_timer_and_esc_cancels_with_the_scene_restored(m
     assert window.status[-1] == "Thickness Bake 1/3: object 1 (Esc: cancel after this step)"
     assert op.modal(context, modal.event("MOUSEMOVE")) == {"RUNNING_MODAL"}  # held back
     assert window.progress == [("begin", 0, 3)]
-    assert op.modal(context, modal.event("TIMER", op)) == {"RUNNING_MODAL"}
+    assert op.modal(context, modal.event("TIMER")) == {"RUNNING_MODAL"}
     assert window.progress[-1] == ("update", 1) and window.status[-1].startswith("Thickness Bake 2/3: object 2")
     assert op.modal(context, modal.event("ESC")) == {"FINISHED"}  # one object was baked: an undo step
     assert window.timers == [] and window.progress[-1] == ("end",) and window.status[-1] is None
@@ -619,8 +619,8 @@ def test_modal_operator_steps_on_timer_and_esc_cancels_with_the_scene_restored(m
     # Run to the end: one TIMER event per object.
     op = modal.driver(SSS_LAB_OT_bake_thickness, objects=names[1:])
     assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
-    assert op.modal(context, modal.event("TIMER", op)) == {"RUNNING_MODAL"}
-    assert op.modal(context, modal.event("TIMER", op)) == {"FINISHED"}
+    assert op.modal(context, modal.event("TIMER")) == {"RUNNING_MODAL"}
+    assert op.modal(context, modal.event("TIMER")) == {"FINISHED"}
     assert _snapshot() == before and all("Thickness" in o.data.color_attributes for o in objs)
 
 
