@@ -50,13 +50,15 @@ class SSS_LAB_OT_compare(ModalJob, bpy.types.Operator):
 
     def execute(self, context):
         if self.from_dialog and self.interactive(context):
-            return bpy.ops.sss_lab.compare(
+            started = bpy.ops.sss_lab.compare(
                 "INVOKE_DEFAULT",
                 directory=self.directory,
                 reference_samples=self.reference_samples,
                 pass_samples=self.pass_samples,
                 confirmed=True,
             )
+            # This call only started the modal run (which reports when it ends).
+            return {"FINISHED"} if "RUNNING_MODAL" in started else started
         return ModalJob.execute(self, context)
 
     def new_job(self, context):

@@ -5,6 +5,7 @@ fixture): they call the operators' own ``invoke`` / ``modal`` / ``cancel`` with 
 events, as Blender's window manager would, and see the progress and status text each step shows.
 """
 
+import json
 import os
 
 import bpy
@@ -185,12 +186,19 @@ def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(
     assert op.reports[-1][1].startswith(f"Report: {tmp_path / 'report.html'}")
 
 
-def test_compare_asks_in_a_dialog_first_and_refuses_an_unsaved_relative_folder(addon, modal, sss_quads):
+def test_compare_asks_in_a_dialog_first_and_refuses_an_unsaved_relative_folder(addon, modal, sss_quads, tmp_path):
     window = modal.Window()
     window.invoke_props_dialog = lambda operator: window.status.append("dialog") or {"RUNNING_MODAL"}
     op = modal.driver(SSS_LAB_OT_compare)
     assert op.invoke(modal.context(window), modal.event("NONE")) == {"RUNNING_MODAL"}
     assert window.status == ["dialog"] and op.from_dialog and window.timers == []
+    # The dialog's OK calls execute(), which starts the run as a new invocation with the dialog's
+    # values (headless, that invocation runs it to its end).
+    op.directory, op.reference_samples, op.pass_samples = str(tmp_path), 4, 2
+    assert op.execute(modal.context(window)) == {"FINISHED"}
+    with open(tmp_path / "metrics.json", encoding="utf-8") as fh:
+        settings = json.load(fh)["settings"]
+    assert (settings["reference_samples"], settings["pass_samples"]) == (4, 2)
     op = modal.driver(SSS_LAB_OT_compare, confirmed=True)  # the default folder "//..." of an unsaved file
     assert op.invoke(modal.context(window), modal.event("NONE")) == {"CANCELLED"}
     assert op.reports == [("ERROR", "Save the .blend file first, or choose an absolute report folder")]
