@@ -145,12 +145,13 @@ def run(args) -> int:
     if not counts["baked"] and not counts["shared"]:
         tally = ", ".join(f"{n} {s}" for s, n in counts.items() if n)
         raise CommandError(f"nothing was baked ({tally}; the reasons are above); {out} not written")
+    from ..core import _files
+
+    _files.check_interrupted()  # a bake cut short by Ctrl-C is not saved
     try:
         os.makedirs(os.path.dirname(out), exist_ok=True)
         bpy.ops.wm.save_as_mainfile(filepath=out, copy=True, check_existing=False, relative_remap=True)
     except (OSError, RuntimeError) as exc:  # Blender reports a failed save as a RuntimeError
-        from ..core import _files
-
         raise _files.write_failure(out, exc) from None
     for r in results:
         if r.status == "baked" and r.filepath:

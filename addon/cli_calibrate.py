@@ -68,6 +68,9 @@ def run(args) -> int:
         print(f"sss_lab calibrate: {line}", flush=True)
     if data["results"]:
         os.makedirs(os.path.dirname(out), exist_ok=True)
+        from ..core import _files
+
+        _files.check_interrupted()  # a fit cut short by Ctrl-C is not saved
         bpy.ops.wm.save_as_mainfile(filepath=out, copy=True, check_existing=False, relative_remap=True)
         print(saved_line(out), flush=True)
     else:

@@ -15,6 +15,10 @@ itself; if it has not finished by then (it is inside a render), the watcher remo
 temporary files being written (``core._files``), says which files were finished, and ends
 the process with status 130. Nothing on disk needs putting back at that point: inputs are
 never written, and every output is moved into place whole or not at all.
+
+Blender catches a KeyboardInterrupt raised inside its render and bake callbacks, and the job
+may then go on with a cut-short result. So once SIGINT has arrived no output is moved into
+place any more (``core._files.INTERRUPTED``), and a job that finishes anyway exits 130.
 """
 
 from __future__ import annotations
@@ -86,13 +90,19 @@ def interrupt_guard(command: str, grace: float = GRACE_SECONDS):
                 return
             if done.is_set() or not data:
                 return
-            if signal.SIGINT in data and not done.wait(grace):
-                _force_exit(command)
+            if signal.SIGINT in data:
+                _files.INTERRUPTED.set()
+                if not done.wait(grace):
+                    _force_exit(command)
 
     watcher = threading.Thread(target=watch, name="sss_lab-interrupt", daemon=True)
+    _files.INTERRUPTED.clear()
     watcher.start()
     try:
         yield
+        # Blender may have swallowed the KeyboardInterrupt (raised inside its render or bake
+        # callback) and let the job finish on a cut-short result: it is not a success.
+        _files.check_interrupted()
     finally:
         done.set()
         signal.set_wakeup_fd(previous_fd)

@@ -7,6 +7,7 @@ import errno
 import os
 import shutil
 import tempfile
+import threading
 from collections.abc import Callable
 
 from .errors import OutputError, describe_os_error
@@ -16,6 +17,18 @@ from .errors import OutputError, describe_os_error
 _PENDING: set[str] = set()
 #: Files this process finished writing, in order: reported after an interrupt.
 FINISHED: list[str] = []
+
+
+#: Set when the user interrupted the process (``addon/interrupt.py``). From then on no output is
+#: moved into place: Blender catches a KeyboardInterrupt raised inside its render and bake
+#: callbacks and may go on with a cut-short result, which must not be published as finished.
+INTERRUPTED = threading.Event()
+
+
+def check_interrupted() -> None:
+    """Raise KeyboardInterrupt if the user interrupted the process."""
+    if INTERRUPTED.is_set():
+        raise KeyboardInterrupt("interrupted (Ctrl-C) before this file was finished")
 
 
 def pending_temporaries() -> list[str]:
@@ -102,6 +115,7 @@ def _write_and_move(tmp: str, path: str, write: Callable[[str], None], overwrite
 def move_into_place(tmp: str, path: str, *, overwrite: bool = True) -> None:
     """Give the finished temporary file ``tmp`` the usual permissions (mkstemp makes it 0600) and
     move it to ``path`` atomically (never over an existing ``path`` unless ``overwrite``)."""
+    check_interrupted()
     try:
         umask = os.umask(0)
         os.umask(umask)

@@ -106,3 +106,31 @@ def test_a_bug_keeps_its_traceback(passes, capsys, monkeypatch):
     monkeypatch.setattr(cli, "parse_methods", bug)
     with pytest.raises(ZeroDivisionError):
         cli.main(["apply", passes, "--method", "burley"])
+
+
+def test_after_ctrl_c_nothing_is_published_and_the_job_is_not_a_success(tmp_path):
+    # Blender swallows a KeyboardInterrupt raised inside its render callback and may finish the
+    # job on a cut-short result: from the interrupt on, no output is moved into place, and a
+    # guarded block that returns normally still ends as interrupted.
+    import signal
+
+    from sss_lab.addon.interrupt import interrupt_guard
+    from sss_lab.core import _files
+
+    target = tmp_path / "late.exr"
+    with pytest.raises(KeyboardInterrupt):
+        with interrupt_guard("test", grace=60.0):
+            try:
+                signal.raise_signal(signal.SIGINT)  # what Ctrl-C does
+            except KeyboardInterrupt:
+                pass  # swallowed, as Blender's callback does
+            deadline = 0
+            while not _files.INTERRUPTED.is_set() and deadline < 500:  # the watcher thread sets it
+                import time
+
+                time.sleep(0.01)
+                deadline += 1
+            with pytest.raises(KeyboardInterrupt):
+                _files.write_text(str(target), "finished after the interrupt")
+    assert not target.exists() and os.listdir(tmp_path) == []
+    _files.INTERRUPTED.clear()
