@@ -25,8 +25,10 @@ the fidelity suite and validates the choice leave-one-scene-out; the shipped coe
 ``auto_model.json`` beside this module, with the command that made them). ``choose`` then takes,
 per material, the cheapest candidate (no SSS included) whose predicted error is within
 ``max_error`` (relative) of the best predicted error. The cost of a technique is its work
-estimate: pixels x (samples per pixel of its kernel + one per light for a technique that adds
-light from behind), from the plan (``core/plan.py``).
+estimate, pixels x (samples per pixel of its kernel + one per light for a technique that adds
+light from behind, from the plan, ``core/plan.py``), times the technique's measured seconds per
+unit of work (learnt with the coefficients: one sample of the separable filter and one of
+Burley's spiral do not cost the same).
 
 ``apply_auto`` carries the choice out: each material gets its chosen technique's result
 (``core.apply.apply``), composited into ``SSSLab.auto.Image`` / ``SSSLab.auto.SSS``.
@@ -107,6 +109,20 @@ class Model:
     #: What it was learnt on (scene names) and by which command.
     trained_on: tuple[str, ...] = ()
     command: str = ""
+    #: Measured seconds per unit of work (pixels x samples) per technique: the techniques' kernels
+    #: differ in what one sample costs, so the work alone does not rank them.
+    seconds_per_work: dict = field(default_factory=dict)
+
+    def seconds(self, candidate: str, work: float) -> float:
+        """Estimated seconds of ``candidate`` for ``work``; a technique without a measurement counts
+        at the median rate of the others (at 1 when none is measured)."""
+        if candidate == NONE:
+            return 0.0
+        rate = self.seconds_per_work.get(candidate)
+        if rate is None:
+            known = sorted(self.seconds_per_work.values())
+            rate = known[len(known) // 2] if known else 1.0
+        return rate * work
 
     def predict(self, candidate: str, f: Features) -> float:
         alpha, beta, gamma = self.coefficients[candidate]
@@ -120,7 +136,9 @@ class Model:
             "coefficients": {k: list(v) for k, v in self.coefficients.items()},
             "trained_on": list(self.trained_on),
             "command": self.command,
-            "definition": "relative error^2 = alpha D^2 + beta B^2 + gamma per candidate (core/auto.py)",
+            "seconds_per_work": dict(self.seconds_per_work),
+            "definition": "relative error^2 = alpha D^2 + beta B^2 + gamma per candidate; seconds = rate x pixels x"
+            " samples (core/auto.py)",
         }
 
     @classmethod
@@ -134,7 +152,13 @@ class Model:
                 raise InputError(f"{where}: coefficients of {k!r} must be three finite numbers >= 0, got {v}")
         if NONE not in coefficients:
             raise InputError(f"{where}: no coefficients for {NONE!r} (no SSS), which every choice compares against")
-        return cls(coefficients, tuple(data.get("trained_on", ())), str(data.get("command", "")))
+        try:
+            rates = {str(k): float(v) for k, v in dict(data.get("seconds_per_work", {})).items()}
+        except (TypeError, ValueError):
+            raise InputError(f"{where}: seconds_per_work: expected {{technique: seconds per unit of work}}") from None
+        if not all(math.isfinite(v) and v > 0 for v in rates.values()):
+            raise InputError(f"{where}: seconds_per_work: expected positive numbers, got {rates}")
+        return cls(coefficients, tuple(data.get("trained_on", ())), str(data.get("command", "")), rates)
 
 
 def load_model(path: str = MODEL_PATH) -> Model:
@@ -303,10 +327,12 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
 class Candidate:
     name: str
     predicted: float
-    #: Work estimate: pixels x samples per pixel (0 for no SSS).
+    #: Estimated seconds (``Model.seconds`` of the work; 0 for no SSS).
     cost: float
     #: Why it could not be chosen (missing passes, skipped by its plan...), None when it could.
     excluded: str | None = None
+    #: Work estimate: pixels x samples per pixel (0 for no SSS).
+    work: float = 0.0
 
 
 @dataclass
@@ -383,7 +409,8 @@ class AutoPlan:
                     lines.append(f"    {cand.name:9s} not a candidate: {cand.excluded}")
                 else:
                     lines.append(
-                        f"    {cand.name:9s} predicted error {cand.predicted:.4f}, work {cand.cost:.3g} samples"
+                        f"    {cand.name:9s} predicted error {cand.predicted:.4f}, estimated {1000 * cand.cost:.3g} ms"
+                        f" ({cand.work:.3g} pixel-samples)"
                     )
             lines.append(f"    => {c.chosen}: {c.reason}")
             if c.warning:
@@ -391,7 +418,7 @@ class AutoPlan:
         return "\n".join(lines)
 
 
-def _cost(technique: str, mp, lights: int) -> float:
+def _work(technique: str, mp, lights: int) -> float:
     """pixels x (samples per pixel + one per light when the technique adds light from behind)."""
     per_pixel = float(mp.samples or 0)
     if "Normal" in required_passes(technique):  # it reads the geometry to add light from behind
@@ -453,7 +480,8 @@ def choose(
             if mp.skip:
                 cands.append(Candidate(t, math.nan, math.nan, mp.skip))
                 continue
-            cands.append(Candidate(t, model.predict(t, f), _cost(t, mp, len(scene.lights))))
+            work = _work(t, mp, len(scene.lights))
+            cands.append(Candidate(t, model.predict(t, f), model.seconds(t, work), work=work))
         ok = [c for c in cands if c.excluded is None]
         best = min(ok, key=lambda c: c.predicted)
         limit = best.predicted * (1.0 + max_error)
@@ -547,7 +575,7 @@ def _nnls3(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
     return best
 
 
-def train(samples, *, trained_on=(), command: str = "") -> Model:
+def train(samples, *, timings=(), trained_on=(), command: str = "") -> Model:
     """Learn the coefficients from measured errors.
 
     ``samples``: (Features, {candidate: relative error}) pairs, one per material of a scene,
@@ -555,7 +583,8 @@ def train(samples, *, trained_on=(), command: str = "") -> Model:
     non-negative least squares, each material weighted by 1 / its no-SSS error^2 so that every
     material counts alike whatever its scene's error level. The energy term is not learnt (no SSS
     always keeps it, a fitted technique removes it): it is subtracted from the measured error^2
-    first."""
+    first. ``timings``: (technique, work, seconds) measurements; each technique's rate is the
+    median of seconds / work."""
     by_candidate: dict[str, list] = {}
     for f, errors in samples:
         none = errors.get(NONE)
@@ -573,7 +602,12 @@ def train(samples, *, trained_on=(), command: str = "") -> Model:
         a = np.asarray(rows, np.float64)
         x = np.column_stack([a[:, 0], a[:, 1], np.ones(len(a))])
         coefficients[t] = tuple(float(v) for v in _nnls3(x, a[:, 2], a[:, 3]))
-    return Model(coefficients, tuple(trained_on), command)
+    rates: dict[str, list] = {}
+    for t, work, seconds in timings:
+        if work > 0 and seconds > 0 and math.isfinite(seconds):
+            rates.setdefault(t, []).append(seconds / work)
+    seconds_per_work = {t: float(np.median(v)) for t, v in rates.items()}
+    return Model(coefficients, tuple(trained_on), command, seconds_per_work)
 
 
 def save_model(model: Model, path: str = MODEL_PATH) -> None:
