@@ -462,22 +462,21 @@ def cache_damaged(folder: str, n: int, rng: random.Random):
     empty, cut, of the wrong type or missing; EXR cut at random lengths or with bytes inverted),
     then read by ``cached_reference`` in a child process with bpy: it must give an image and
     leave a readable entry behind (re-rendering what it cannot read)."""
-    script = os.path.join(folder, "cache_cases.py")
-    with open(script, "w", encoding="utf-8") as fh:
-        fh.write(_CACHE_SCRIPT)
-    yield from _child_cases(script, folder, n, rng)
+    yield from _child_cases("cache_cases.py", _CACHE_SCRIPT, folder, n, rng)
 
 
 def interrupts(folder: str, n: int, rng: random.Random):
     """Ctrl-C (SIGINT) 1 s into a long render, comparison, bake and apply, run as a user runs
     them: exit 130 within 8 s, one line, the input untouched, no temporary file."""
-    script = os.path.join(folder, "interrupt_cases.py")
+    yield from _child_cases("interrupt_cases.py", _INTERRUPT_SCRIPT, folder, n, rng)
+
+
+def _child_cases(name: str, text: str, folder: str, n: int, rng: random.Random):
+    """Run the script ``text`` in a child process (bpy there; a crash ends only that process) and
+    yield its cases: one JSON line each, {"case", "handled", "kind"}."""
+    script = os.path.join(folder, name)
     with open(script, "w", encoding="utf-8") as fh:
-        fh.write(_INTERRUPT_SCRIPT)
-    yield from _child_cases(script, folder, n, rng)
-
-
-def _child_cases(script: str, folder: str, n: int, rng: random.Random):
+        fh.write(text)
     proc = subprocess.run(
         [sys.executable, script, folder, str(n), str(rng.randrange(1 << 30))],
         capture_output=True,
@@ -614,21 +613,7 @@ for label, argv in jobs.items():
 def blend_damaged(folder: str, n: int, rng: random.Random):
     """A .blend saved by Blender, cut short and with bytes inverted, opened by ``scan`` in a
     child process (a crash there counts as not handled)."""
-    script = os.path.join(folder, "blend_cases.py")
-    with open(script, "w", encoding="utf-8") as fh:
-        fh.write(_BLEND_SCRIPT)
-    proc = subprocess.run(
-        [sys.executable, script, folder, str(n), str(rng.randrange(1 << 30))],
-        capture_output=True,
-        text=True,
-        timeout=1800,
-        cwd=ROOT,
-    )
-    results = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
-    for r in results:
-        yield r["case"], lambda r=r: Outcome(r["handled"], r["kind"])
-    if proc.returncode != 0:
-        yield "the child process", lambda: Outcome(False, f"crashed (exit {proc.returncode})")
+    yield from _child_cases("blend_cases.py", _BLEND_SCRIPT, folder, n, rng)
 
 
 _BLEND_SCRIPT = r"""
@@ -747,6 +732,13 @@ def markdown(results: list[ClassResult], *, size: str, seed: int, seconds: float
     failures = [(r.name, case, kind) for r in results for case, kind in r.failures]
     lines += ["", "## Cases not handled", ""]
     lines += [f"- {name}: {case}: {kind}" for name, case, kind in failures] or ["None."]
+    lines += [
+        "",
+        "The first runs of these held-out corpora found four cases the tests had not, fixed since:",
+        "a Subsurface Scale of 1e308 (the SSSS kernel's weights became Inf), a width or height of",
+        "2**63 in the scene JSON (an error that did not name the file; two cases), and Ctrl-C during",
+        "a bake that Blender swallowed inside its callback (exit 0 on a cut-short bake).",
+    ]
     lines += [
         "",
         "## What the outcomes mean",
