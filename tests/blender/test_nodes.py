@@ -129,8 +129,9 @@ def _render(tmp_path, name="out.exr"):
     return np.array(layer[..., :3])
 
 
-def _composite(tmp_path, arrays, desc, technique, options=None, scale=None):
-    """Run ``technique``'s chain over ``arrays``; returns (Blender's RGB, NumPy's RGB)."""
+def _composite(tmp_path, arrays, desc, technique, options=None, scale=None, numpy_only=None):
+    """Run ``technique``'s chain over ``arrays``; returns (Blender's RGB, NumPy's RGB).
+    ``numpy_only``: options for the NumPy technique alone (the node group has no such input)."""
     path = _write(tmp_path, arrays)
     tree, result = _tree(bpy.context.scene)
     src = _source(tree, path)
@@ -148,7 +149,7 @@ def _composite(tmp_path, arrays, desc, technique, options=None, scale=None):
     assert not notes
     tree.links.new(out, result)
     got = _render(tmp_path)
-    numpy_opts = {k: v for k, v in (options or {}).items()}
+    numpy_opts = {**(options or {}), **(numpy_only or {})}
     layers = apply(read_passes(path), desc, technique, **numpy_opts)
     want = layers[f"SSSLab.{technique}.Image"][..., :3]
     return got, want
@@ -289,9 +290,15 @@ def test_ssss_flat_matches_numpy(tmp_path, options):
 # -- Burley -------------------------------------------------------------------------------------
 
 
+#: core.burley with the same spiral at every pixel: its gather is then one kernel, whose moments
+#: this model uses (the default turns the spiral per pixel, a different kernel at each pixel).
+FIXED_SPIRAL = {"random_rotation": False, "smooth_px": 0}
+
+
 def _numpy_kernel_moments(d_su, n_samples=32):
-    """First and second moments of core.burley's gather kernel at constant depth, measured as
-    its response to an impulse (W[o] = out(q - o)); offsets (dx right, dy down) in pixels."""
+    """First and second moments of core.burley's gather kernel at constant depth (the fixed
+    spiral), measured as its response to an impulse (W[o] = out(q - o)); offsets (dx right, dy
+    down) in pixels."""
     q = (H // 2, W // 2)
     delta = np.zeros((H, W, 3), np.float32)
     delta[q] = 1.0
@@ -304,6 +311,7 @@ def _numpy_kernel_moments(d_su, n_samples=32):
         d_su=d_su,
         object_id=np.ones((H, W), np.float32),
         n_samples=n_samples,
+        **FIXED_SPIRAL,
     ).astype(np.float64)
     rows, cols = np.mgrid[:H, :W]
     dy, dx = q[0] - rows, q[1] - cols  # out at p holds W[q - p]
@@ -335,7 +343,7 @@ def test_burley_flat_quadratic_matches_numpy_by_the_kernel_moments(tmp_path):
     e = 1.0 + b * u[..., None] + c * v[..., None] + q * (u * u + v * v)[..., None] + t * (u * v)[..., None]
     albedo = np.random.default_rng(3).uniform(0.3, 0.9, (H, W, 3)).astype(np.float32)
     arrays = _passes(np.ones((H, W), np.int32), seed=3, diffuse=e.astype(np.float32), albedo=albedo)
-    got, want = _composite(tmp_path, arrays, _desc(SKIN), "burley")
+    got, want = _composite(tmp_path, arrays, _desc(SKIN), "burley", numpy_only=FIXED_SPIRAL)
     d = mapping.burley_d(SKIN)
     kernel = burley_kernel_image(d, SCALE)
     mk, mn = _kernel_moments(kernel), _numpy_kernel_moments(d)
