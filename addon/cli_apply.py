@@ -17,6 +17,8 @@ import sys
 import time
 import traceback
 
+from ..core.techniques import TECHNIQUES
+
 
 def add_parser(subparsers):
     from .cli_options import add_existing
@@ -35,7 +37,7 @@ def add_parser(subparsers):
     p.add_argument(
         "--method",
         required=True,
-        help="technique: sta, ssss, burley, combined, a comma-separated list, all (those whose passes are present),"
+        help=f"technique: {', '.join(TECHNIQUES)}, a comma-separated list, all (those whose passes are present),"
         " or auto (per material, the cheapest technique predicted to be within --max-error of the best)",
     )
     p.add_argument(
@@ -44,6 +46,15 @@ def add_parser(subparsers):
         default=None,
         help="with --method auto: how much worse than the best predicted error a cheaper choice may be (relative;"
         " default 0.05)",
+    )
+    p.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a technique parameter, repeatable: KEY=VALUE for the one technique that runs, TECHNIQUE.KEY=VALUE "
+        "when several run (default: the technique's own). "
+        + "; ".join(f"{name}: {', '.join(t.param_names)}" for name, t in TECHNIQUES.items()),
     )
     p.add_argument("--out", help="output EXR (with #### for a sequence); default: <input stem>.sss.exr")
     p.add_argument("--explain", action="store_true", help="print the plan (materials, kernels, samples) and stop")
@@ -73,6 +84,7 @@ def _outputs(args, frames):
 def run(args) -> int:
     from ..core.apply import ALBEDO_MODES
     from ..core.sequence import apply_file, frame_path, parse_frames, sequence_frames
+    from ..core.techniques import parse_params
     from .cli import EXIT_NOTHING_TO_DO, parse_methods
 
     techniques = parse_methods(args.method, allow_auto=True)
@@ -80,6 +92,9 @@ def run(args) -> int:
         raise ValueError(f"--max-error {args.max_error}: only --method auto takes it")
     if args.max_error is not None and not (math.isfinite(args.max_error) and args.max_error >= 0):
         raise ValueError(f"--max-error: expected a number >= 0 (0.05 = within 5 % of the best), got {args.max_error}")
+    if args.param and "auto" in techniques:
+        raise ValueError(f"--param {args.param[0]}: --method auto chooses each technique's parameters itself")
+    params = parse_params(args.param, [t for t in techniques if t in TECHNIQUES])
     if args.albedo_mode not in ALBEDO_MODES:
         raise ValueError(f"--albedo-mode: {args.albedo_mode!r} is not one of {', '.join(ALBEDO_MODES)}")
     frames = sequence_frames(args.passes, parse_frames(args.frames) if args.frames else None)
@@ -116,6 +131,7 @@ def run(args) -> int:
                 view_layer=args.view_layer,
                 max_error=args.max_error,
                 auto_keep=keep,
+                params=params,
             )
         except (OSError, ValueError, KeyError) as exc:
             failed += 1

@@ -6,24 +6,23 @@ import bpy
 
 from ..blender.calibrate import PREFIX, fit_key
 from ..core.fit_params import FIT_PARAMETERS
+from ..core.techniques import TECHNIQUES
 
 
 def draw_technique_parameters(layout, settings) -> None:
-    """The chosen technique's parameters (their defaults come from ``core/mapping.py``)."""
+    """The chosen technique's parameters: one row per parameter of its spec (defaults: its
+    function's signature), and the albedo mode for a technique that scatters."""
+    spec = TECHNIQUES.get_spec(settings.technique)
+    group = getattr(settings, spec.name)
     col = layout.column(align=True)
-    if settings.technique == "sta":
-        col.prop(settings, "sta_distortion")
-        col.prop(settings, "sta_power")
-        col.prop(settings, "sta_scale")
-        col.prop(settings, "sta_ambient")
-        layout.prop(settings, "sta_falloff")
-    elif settings.technique == "ssss":
-        layout.prop(settings, "ssss_taps", expand=True)
-        layout.prop(settings, "ssss_kernel")
-    else:
-        col.prop(settings, "burley_samples")
-        col.prop(settings, "burley_random_rotation")
-    if settings.technique != "sta":
+    for p in spec.params:
+        if p.choices and p.type is int:
+            layout.prop(group, p.name, expand=True)  # a few counts: buttons side by side
+        elif p.choices:
+            layout.prop(group, p.name)
+        else:
+            col.prop(group, p.name)
+    if spec.scatters:
         layout.prop(settings, "albedo_mode")
 
 

@@ -2,35 +2,65 @@
 
 from __future__ import annotations
 
-import inspect
-
 import bpy
 
 from ..core.apply import ALBEDO_MODES
-from ..core.kernels import KERNEL_TYPES
-from ..core.mapping import BURLEY_DEFAULTS, SSSS_DEFAULTS, STA_DEFAULTS
-from ..core.techniques import TECHNIQUES, get_technique
+from ..core.spec import Param, Technique
+from ..core.techniques import DEFAULT_TECHNIQUE, TECHNIQUES
 from .bake_settings import SSSLabBakeSettings
 
 # Blender keeps a reference to the items of a dynamic enum; a static list avoids that trap.
-_TECHNIQUE_ITEMS = [(name, label, desc) for name, (_, _, label, desc) in TECHNIQUES.items()]
+_TECHNIQUE_ITEMS = [(name, t.label, t.description) for name, t in TECHNIQUES.items()]
 _ALBEDO_ITEMS = [
     ("post", "Post-scatter", "Albedo applied after scattering: the texture detail is blurred away"),
     ("pre-post", "Pre- and post-scatter", "Square root of the albedo before and after: keeps half of the detail"),
 ]
 assert [i[0] for i in _ALBEDO_ITEMS] == list(ALBEDO_MODES)
-#: Burley's random rotation: the technique function's own default (not in core.mapping's table).
-_BURLEY_ROTATION = inspect.signature(get_technique("burley")).parameters["random_rotation"].default
-_TAPS_ITEMS = [
-    ("11", "11", "11 taps per direction (Unreal's low quality)"),
-    ("17", "17", "17 taps per direction (Unreal's medium quality)"),
-    ("25", "25", "25 taps per direction (Unreal's high quality)"),
-]
-_KERNEL_ITEMS = [
-    ("preintegrated", "Pre-integrated", "Kernel integrated from the material's diffusion profile"),
-    ("artist", "Artist", "Jimenez et al.'s artist-friendly kernel (strength and falloff per channel)"),
-]
-assert sorted(i[0] for i in _KERNEL_ITEMS) == sorted(KERNEL_TYPES)
+
+
+def _property(p: Param):
+    """The Blender property of one parameter spec (name, description, default, range, choices)."""
+    common = {"name": p.label, "description": p.description}
+    if p.choices:
+        # Enum identifiers are strings: the value's text, turned back by ``technique_options``.
+        items = [(str(value), label, description) for value, label, description in p.choices]
+        return bpy.props.EnumProperty(items=items, default=str(p.default), **common)
+    if p.type is bool:
+        return bpy.props.BoolProperty(default=bool(p.default), **common)
+    if p.type is str:
+        return bpy.props.StringProperty(default=str(p.default), **common)
+    limits = {key: getattr(p, key) for key in ("min", "max", "soft_max") if getattr(p, key) is not None}
+    if p.type is int:
+        return bpy.props.IntProperty(default=int(p.default), **common, **{k: int(v) for k, v in limits.items()})
+    return bpy.props.FloatProperty(default=float(p.default), **common, **limits)
+
+
+def _group(spec: Technique) -> type:
+    """A PropertyGroup with one property per parameter of ``spec`` (``scene.sss_lab.<name>``)."""
+    return type(
+        f"SSSLab_{spec.name}_settings",
+        (bpy.types.PropertyGroup,),
+        {
+            "__annotations__": {p.name: _property(p) for p in spec.params},
+            "__doc__": f"The {spec.label} technique's parameters ({spec.citation})",
+        },
+    )
+
+
+#: Technique name -> its PropertyGroup, made from its spec.
+TECHNIQUE_GROUPS: dict[str, type] = {name: _group(spec) for name, spec in TECHNIQUES.items()}
+
+
+def technique_values(spec: Technique, group) -> dict:
+    """The values of ``group`` (a technique's PropertyGroup) as keyword options of its function,
+    each checked against its parameter spec."""
+    values = {}
+    for p in spec.params:
+        value = getattr(group, p.name)
+        if p.choices:
+            value = next(v for v in p.values if str(v) == value)
+        values[p.name] = value
+    return spec.check_params(values)
 
 
 class SSSLabSettings(bpy.types.PropertyGroup):
@@ -38,78 +68,11 @@ class SSSLabSettings(bpy.types.PropertyGroup):
         name="Technique",
         description="Real-time subsurface scattering approximation to use",
         items=_TECHNIQUE_ITEMS,
-        default="burley",
+        default=DEFAULT_TECHNIQUE,
     )
     bake: bpy.props.PointerProperty(type=SSSLabBakeSettings, name="Thickness Bake")
 
-    # -- technique parameters (defaults: core/mapping.py) ------------------------------------
-    sta_distortion: bpy.props.FloatProperty(
-        name="Distortion",
-        description="How far the surface normal bends the light direction (L + distortion N)",
-        default=STA_DEFAULTS["distortion"],
-        min=0.0,
-        soft_max=1.0,
-    )
-    sta_power: bpy.props.FloatProperty(
-        name="Power",
-        description="Exponent of the view-dependent back-light term (higher: tighter)",
-        default=STA_DEFAULTS["power"],
-        min=0.0,
-        soft_max=16.0,
-    )
-    sta_scale: bpy.props.FloatProperty(
-        name="Scale",
-        description="Brightness of the translucency",
-        default=STA_DEFAULTS["scale"],
-        min=0.0,
-        soft_max=20.0,
-    )
-    sta_ambient: bpy.props.FloatProperty(
-        name="Ambient",
-        description="Translucency that does not depend on the view direction",
-        default=STA_DEFAULTS["ambient"],
-        min=0.0,
-        soft_max=1.0,
-    )
-    sta_falloff: bpy.props.EnumProperty(
-        name="Falloff",
-        description="How the thickness map scales the translucency",
-        items=(
-            ("map", "Map", "The paper's: the translucency map itself, the same for R, G and B"),
-            (
-                "burley",
-                "Burley Transmission",
-                "Per-channel Burley transmittance through the slab thickness the baked map stands for"
-                " (uses the bake distance; red passes thick parts best)",
-            ),
-        ),
-        default="map",
-    )
-    ssss_taps: bpy.props.EnumProperty(
-        name="Taps",
-        description="Samples of each of the two 1-D convolutions",
-        items=_TAPS_ITEMS,
-        default=str(SSSS_DEFAULTS["n_taps"]),
-    )
-    ssss_kernel: bpy.props.EnumProperty(
-        name="Kernel",
-        description="How the separable kernel is built",
-        items=_KERNEL_ITEMS,
-        default=SSSS_DEFAULTS["kernel_type"],
-    )
-    burley_samples: bpy.props.IntProperty(
-        name="Samples",
-        description="Samples per pixel of the golden-angle spiral",
-        default=BURLEY_DEFAULTS["n_samples"],
-        min=1,
-        max=1024,
-        soft_max=128,
-    )
-    burley_random_rotation: bpy.props.BoolProperty(
-        name="Random Rotation",
-        description="Rotate the spiral per pixel: noise instead of banding",
-        default=bool(BURLEY_DEFAULTS.get("random_rotation", _BURLEY_ROTATION)),
-    )
+    # -- technique parameters: one group per technique (``TECHNIQUE_GROUPS``), attached below
     albedo_mode: bpy.props.EnumProperty(
         name="Albedo",
         description="When the albedo (Diffuse Color) is applied (SSSS and Burley)",
@@ -145,26 +108,20 @@ class SSSLabSettings(bpy.types.PropertyGroup):
 
     def technique_options(self, technique: str) -> dict:
         """The panel's parameters of ``technique`` as keyword options of ``core.apply``."""
-        if technique == "sta":
-            return {
-                "distortion": self.sta_distortion,
-                "power": self.sta_power,
-                "scale": self.sta_scale,
-                "ambient": self.sta_ambient,
-                "falloff": self.sta_falloff,
-            }
-        if technique == "ssss":
-            return {"n_taps": int(self.ssss_taps), "kernel_type": self.ssss_kernel}
-        if technique in ("burley", "combined"):
-            # The combined technique's diffusion is Burley's: it shares the Burley rows of the panel.
-            return {"n_samples": self.burley_samples, "random_rotation": self.burley_random_rotation}
-        raise ValueError(f"unknown technique {technique!r}; expected one of: {', '.join(TECHNIQUES)}")
+        spec = TECHNIQUES.get_spec(technique)
+        return technique_values(spec, getattr(self, spec.name))
 
     def render_techniques(self) -> list[str]:
         return list(TECHNIQUES) if self.render_all else [self.technique]
 
 
-classes = (SSSLabBakeSettings, SSSLabSettings)
+_TAKEN = set(SSSLabSettings.__annotations__)
+for _name, _cls in TECHNIQUE_GROUPS.items():
+    # A technique's group sits beside the other settings: its name must not be one of theirs.
+    assert _name not in _TAKEN, f"technique {_name!r} clashes with a setting of SSSLabSettings"
+    SSSLabSettings.__annotations__[_name] = bpy.props.PointerProperty(type=_cls, name=TECHNIQUES[_name].label)
+
+classes = (SSSLabBakeSettings, *TECHNIQUE_GROUPS.values(), SSSLabSettings)
 
 
 def attach():

@@ -29,6 +29,7 @@ from ..core.errors import InputError
 from ..core.fit import fit_scene
 from ..core.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
 from ..core.sequence import load_scene
+from ..core.techniques import TECHNIQUES
 from .describe import sss_materials
 from .state import SceneState
 
@@ -126,7 +127,7 @@ def calibrate(
         )
     resolution = parse_resolution(resolution) if resolution is not None else None
     problems: list[str] = []
-    needs_map = [t for t in techniques if t in ("sta", "combined")]
+    needs_map = [t for t in techniques if TECHNIQUES[t].reads_thickness]
     if needs_map:
         try:
             thickness_setup(scene, materials, thickness_aov_name(scene))

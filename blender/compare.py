@@ -32,28 +32,17 @@ import bpy
 import numpy as np
 
 from ..core import apply as core_apply
-from ..core import exr, fidelity, mapping, metrics, plan, report, sequence
+from ..core import exr, fidelity, metrics, report, sequence
 from ..core import reference as core_reference
 from ..core.errors import InputError
 from ..core.progress import saved_line
 from ..core.scene import SUBSURFACE_METHODS, SceneDescription
+from ..core.spec import CALIBRATE_MAPPING
+from ..core.sweep import calibrate
 from ..core.techniques import TECHNIQUES, check_technique
 from .describe import sss_materials
 from .jobs import Job, Steps, run
 from .reference_cache import cached_reference, scene_fingerprint
-
-#: Quality ladders: the keyword arguments each technique is run with, cheapest first.
-DEFAULT_QUALITIES: dict[str, tuple[dict, ...]] = {
-    "sta": ({}, {"falloff": "burley"}),
-    "ssss": ({"n_taps": 11}, {"n_taps": 17}, {"n_taps": 25}),
-    "burley": ({"n_samples": 8}, {"n_samples": 16}, {"n_samples": 32}, {"n_samples": 64}),
-    "combined": ({"diffusion": "ssss", "n_taps": 11}, {"n_samples": 16}, {"n_samples": 32}),
-}
-
-
-#: STA scales s_T and thickness falloffs the calibration tries (STA_DEFAULTS: 1, the map).
-STA_SCALES = (0.25, 0.5, 1.0, 2.0, 4.0)
-STA_FALLOFFS = ("map", "burley")
 
 
 @dataclass
@@ -68,7 +57,9 @@ class CompareSettings:
     cycles_burley: bool = True
     box: int = 2
     techniques: tuple[str, ...] = tuple(TECHNIQUES)
-    qualities: dict = field(default_factory=lambda: dict(DEFAULT_QUALITIES))
+    #: Quality ladder per technique (keyword arguments per run, cheapest first); default: each
+    #: technique's own (``Technique.qualities``).
+    qualities: dict = field(default_factory=lambda: {name: t.qualities for name, t in TECHNIQUES.items()})
     cache_dir: str | None = None
     #: Other subsurface methods to calibrate the mapping for: the reference is rendered again with
     #: the scene's subsurface materials switched to each (cached like the others).
@@ -121,13 +112,6 @@ def _number(value) -> str:
     return "n/a" if value is None else f"{value:.4f}"
 
 
-def _quality_label(technique: str, quality: dict) -> str:
-    label = TECHNIQUES[technique][2]
-    if not quality:
-        return label
-    return label + " " + ", ".join(f"{k.replace('n_', '')}={v}" for k, v in quality.items())
-
-
 def compare(scene, out_dir: str, settings: CompareSettings | None = None, *, log=print) -> dict:
     """Run the whole comparison and write the report into ``out_dir``; returns the report data.
     (``compare_job`` to its end.)"""
@@ -159,7 +143,7 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
         )
     notes: list[str] = []
     techniques = tuple(settings.techniques)
-    needs_thickness = tuple(t for t in techniques if plan.THICKNESS in plan.REQUIRED_PASSES[t])
+    needs_thickness = tuple(t for t in techniques if TECHNIQUES[t].reads_thickness)
     if needs_thickness:
         from .thickness import thickness_aov_name, thickness_setup
 
@@ -169,7 +153,7 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
             # Checked before anything renders: the other techniques still get their report.
             techniques = tuple(t for t in techniques if t not in needs_thickness)
             for t in needs_thickness:  # one note per technique, each by its label
-                notes.append(f"{TECHNIQUES[t][2]} not run: {exc}")
+                notes.append(f"{TECHNIQUES[t].label} not run: {exc}")
                 log(notes[-1])
             if not techniques:
                 raise
@@ -263,7 +247,7 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
     add("no SSS", "baseline", passes["Combined"], timings["passes"], image_high=high and high[0]["Combined"])
     for technique in settings.techniques:
         for quality in settings.qualities.get(technique, ({},)):
-            label = _quality_label(technique, quality)
+            label = TECHNIQUES[technique].quality_label(quality)
             yield steps.next(label)
             try:
                 start = time.perf_counter()
@@ -416,17 +400,11 @@ def _costs(settings: CompareSettings, timings: dict, rw_seconds, entries: list[d
 def _summary(order: list[str], entries: list[dict]) -> list[str]:
     """Columns of summary.png: no SSS, each technique at its default quality (or its last), the
     reference."""
-    defaults = {
-        "sta": {},
-        "ssss": {"n_taps": mapping.SSSS_DEFAULTS["n_taps"]},
-        "burley": {"n_samples": mapping.BURLEY_DEFAULTS["n_samples"]},
-        "combined": {"n_samples": mapping.COMBINED_DEFAULTS["n_samples"]},
-    }
     picked = ["no SSS"]
-    for technique in TECHNIQUES:
+    for technique, spec in TECHNIQUES.items():
         runs = [e for e in entries if e.get("technique") == technique]
         if runs:
-            best = [e for e in runs if e.get("quality") == defaults[technique]]
+            best = [e for e in runs if e.get("quality") == dict(spec.default_run)]
             picked.append((best or runs)[-1]["name"])
     return [n for n in picked if n in order] + ["Cycles reference"]
 
@@ -450,18 +428,10 @@ def _main_material(desc: SceneDescription):
     return max((m for m in desc.materials if m.scatters), key=lambda m: max(m.radius))
 
 
-def _mark_best(results: list[dict]) -> None:
-    """Mark the row with the lowest error chosen, unless all are equal to 1e-4 relative (the
-    technique did not change this scene, e.g. STA without light from behind): then none is."""
-    errors = [r["rel_rmse"] for r in results if r.get("rel_rmse") is not None]
-    if not errors or max(errors) - min(errors) <= 1e-4 * max(min(errors), 1e-12):
-        return
-    min((r for r in results if r.get("rel_rmse") is not None), key=lambda r: r["rel_rmse"])["chosen"] = True
-
-
 def _calibration_methods(settings: CompareSettings, own: set) -> list[str]:
-    """The subsurface methods the calibration renders a reference for."""
-    if not any(t != "sta" for t in settings.techniques):
+    """The subsurface methods the calibration renders a reference for (for the techniques that
+    calibrate the material mapping)."""
+    if not any(TECHNIQUES[t].calibration == CALIBRATE_MAPPING for t in settings.techniques):
         return []
     return [m for m in settings.calibrate_methods if m not in own]
 
@@ -484,7 +454,7 @@ def _calibration(settings: CompareSettings, passes, desc: SceneDescription, ref,
     reference it renders; returns the table."""
     result = calibrate(passes, desc, ref, mask, box=settings.box, techniques=settings.techniques)
     own = {m.method for m in desc.materials if m.scatters}
-    scattering = tuple(t for t in settings.techniques if t != "sta")
+    scattering = tuple(t for t in settings.techniques if TECHNIQUES[t].calibration == CALIBRATE_MAPPING)
     for method in _calibration_methods(settings, own):
         yield steps.next(f"Cycles reference with {method} for the calibration")
         method_ref, _, _ = reference(samples=settings.reference_samples, seed=settings.seed, method=method)
@@ -498,45 +468,3 @@ def _calibration(settings: CompareSettings, passes, desc: SceneDescription, ref,
             "rows"
         ]
     return result
-
-
-def _sweep(passes, desc, ref, mask, box: int, technique: str, method: str, variants) -> list[dict]:
-    """Rows for ``technique`` run with each (label, options) of ``variants``: the ones that could
-    not run (with the reason), then the measured ones, the best marked chosen."""
-    failed, results = [], []
-    for label, options in variants:
-        row = {"method": method, "technique": technique, "mapping": label}
-        try:
-            layers = core_apply.apply(passes, desc, technique, **options)
-        except (ValueError, KeyError) as exc:
-            failed.append({**row, "rel_rmse": None, "error": str(exc)})
-            continue
-        if layers:
-            m = metrics.compare_images(layers[core_apply.layer_names(technique)[0]], ref, mask, box=box)
-            results.append({**row, "rel_rmse": m["rel_rmse"]})
-    _mark_best(results)
-    return failed + results
-
-
-def calibrate(passes, desc: SceneDescription, ref, mask, *, box: int, techniques) -> dict:
-    """For each subsurface method in the scene and each scattering technique, the error of
-    every mapping the core offers; the lowest is marked chosen (none when all are equal)."""
-    rows = []
-    for method in sorted({m.method for m in desc.materials if m.scatters}):
-        for technique in [t for t in techniques if t in ("ssss", "burley")]:
-            variants = [(name, {"mapping": name}) for name in mapping.MAPPINGS.get(method, ())]
-            rows += _sweep(passes, desc, ref, mask, box, technique, method, variants)
-    if "sta" in techniques:
-        # STA has no physical scale (core/mapping.py): its scale s_T is what there is to calibrate,
-        # with each thickness falloff.
-        variants = [
-            (f"{falloff}, scale={scale:g}", {"scale": scale, "falloff": falloff})
-            for falloff in STA_FALLOFFS
-            for scale in STA_SCALES
-        ]
-        rows += _sweep(passes, desc, ref, mask, box, "sta", "any", variants)
-    return {
-        "definition": "Each mapping from the Principled BSDF inputs to the technique's parameters (core/mapping.py),"
-        " applied to this scene's passes, and STA's scale s_T; relative RMSE against the reference as above.",
-        "rows": rows,
-    }

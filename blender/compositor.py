@@ -29,22 +29,14 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..core.techniques import check_technique
+from ..core.passes import THICKNESS, view_layer_flag
 from ..nodes import setup as chain
 from . import compat
 from .describe import describe_scene, principled_node, sss_materials, world_corners
-from .render_passes import PASS_FLAGS
 from .thickness import thickness_aov_name, thickness_setup
 
 #: Custom property on a material: the Subsurface Weight the last compositor set-up saw.
 KEPT_WEIGHT = "sss_lab_subsurface_weight"
-
-#: Passes each technique's groups read (the masks need the Material Index).
-COMPOSITOR_PASSES = {
-    "sta": ("Diffuse Color", "Normal", "Position", "Material Index"),
-    "ssss": ("Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Material Index"),
-    "burley": ("Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Material Index"),
-}
 
 
 def material_depths(scene, camera) -> dict[str, float]:
@@ -80,7 +72,7 @@ def _render_layers(tree, scene, layer):
 def _enable_passes(layer, names, aov_name: str | None) -> list[str]:
     enabled = []
     for name in names:
-        flag = PASS_FLAGS[name]
+        flag = view_layer_flag(name)
         if not getattr(layer, flag):
             setattr(layer, flag, True)
             enabled.append(name)
@@ -138,12 +130,7 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
     ``options``: technique parameters under ``core``'s names (and ``albedo_mode``).
     Raises ValueError (no camera, no subsurface material) with a clear message.
     """
-    check_technique(technique)
-    if technique not in COMPOSITOR_PASSES:
-        raise ValueError(
-            f"the {technique} technique has no compositor group: its light from behind needs every light's"
-            " direction per pixel and the slab thickness, which the groups do not compute; use Apply instead"
-        )
+    builder = chain.builder(technique)  # ValueError naming why for a technique without node groups
     layer = view_layer or bpy.context.view_layer
     if layer is None or layer.name not in scene.view_layers:
         layer = scene.view_layers[0]
@@ -162,20 +149,16 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
     warnings, notes = [], []
     extra = {}
     aov = None
-    if technique == "sta":
+    if THICKNESS in builder.passes:
         aov = thickness_aov_name(scene)
         convention, missing = thickness_setup(scene, materials, aov)
         extra = {"thickness_aov": aov, "thickness_convention": convention}
         warnings += [f"{name}: no thickness map feeds the AOV {aov!r}; its thickness reads 0" for name in missing]
-        if (options or {}).get("falloff", "map") != "map":
-            warnings.append(
-                "the STA node group uses the paper's falloff (the map for all channels); the Burley"
-                " transmission falloff exists only in Apply (NumPy)"
-            )
+    warnings += builder.unmodelled(options or {})
     desc = describe_scene(scene, materials, **extra)
     changed, index_warnings = _set_pass_indices(materials)
     warnings += index_warnings
-    enabled = _enable_passes(layer, COMPOSITOR_PASSES[technique], aov)
+    enabled = _enable_passes(layer, [n for n in builder.passes if n != THICKNESS], aov)
     notes += _keep_weights(materials)
     if not scene.render.use_lock_interface:
         scene.render.use_lock_interface = True
@@ -185,7 +168,7 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
         "and get their weights back after the render"
     )
     scale = {}
-    if technique != "sta":
+    if builder.per_material:
         depths = material_depths(scene, desc.camera)
         for m in materials:
             if m.name in depths:

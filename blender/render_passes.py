@@ -43,6 +43,7 @@ import numpy as np
 
 from ..core import _files
 from ..core.errors import DamagedFileError, OutputError, describe_os_error
+from ..core.passes import PASSES
 from ..core.plan import required_passes
 from ..core.progress import saved_line
 from ..core.sequence import frame_path, sidecar_path
@@ -56,19 +57,6 @@ from .thickness import thickness_aov_name, thickness_setup
 
 #: File name of the passes of one frame; ``####`` is the frame number.
 FILE_PATTERN = "passes_####.exr"
-
-#: Pass name -> the view layer flag that switches it on (Cycles, Blender 5.x).
-PASS_FLAGS: dict[str, str] = {
-    "Combined": "use_pass_combined",
-    "Depth": "use_pass_z",
-    "Normal": "use_pass_normal",
-    "Position": "use_pass_position",
-    "Material Index": "use_pass_material_index",
-    "Object Index": "use_pass_object_index",
-    "Diffuse Direct": "use_pass_diffuse_direct",
-    "Diffuse Indirect": "use_pass_diffuse_indirect",
-    "Diffuse Color": "use_pass_diffuse_color",
-}
 
 # Flags that are options of a pass rather than passes: left as they are.
 _NOT_PASSES = frozenset({"use_pass_cryptomatte_accurate"})
@@ -200,7 +188,8 @@ def _object_indices(st: SceneState, scene) -> dict[str, int]:
 
 def _set_passes(st: SceneState, scene, layer, names: list[str], aov_name: str | None) -> None:
     """Exactly ``names`` on ``layer``: every other pass flag, AOV and light group off."""
-    flags = {PASS_FLAGS[n] for n in names if n in PASS_FLAGS}
+    # The view-layer flags of the pass table (core/passes.py); AOVs are set below.
+    flags = {PASSES[n].flag for n in names if n in PASSES and PASSES[n].flag}
     for owner in (layer, getattr(layer, "cycles", None)):
         if owner is None:
             continue

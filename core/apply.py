@@ -23,9 +23,10 @@ import numpy as np
 
 from . import _arrays
 from .exr import Passes
+from .passes import THICKNESS
 from .plan import Plan, _accepted, _index_map, plan
 from .scene import SceneDescription
-from .techniques import get_technique
+from .spec import Technique
 
 ALBEDO_MODES = _arrays.ALBEDO_MODES
 
@@ -51,6 +52,50 @@ def _clean(a: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Inputs a technique gets from a pass it reads, as the keyword of its function (NaN and Inf
+#: become 0 and leave the pixel as it is). The passes every scattering technique reads (Diffuse
+#: Direct + Indirect, Diffuse Color, Depth) and Combined and Material Index are handled apart.
+_PASS_KEYWORDS = {"Normal": "normal", "Position": "position", "Object Index": "object_id", THICKNESS: "thickness"}
+
+
+def _inputs(spec: Technique, passes: Passes, scene: SceneDescription, albedo_mode: str):
+    """(keyword inputs of ``spec``'s function but the mask and the material's parameters, the
+    diffuse light Combined holds (albedo x (Direct + Indirect)) or None, per-pixel finiteness of
+    the inputs)."""
+    albedo_raw = passes["Diffuse Color"]
+    albedo = _clean(albedo_raw)
+    ok = _finite(albedo_raw)
+    inputs: dict = {
+        "albedo": albedo,
+        "camera": scene.camera,
+        "lights": scene.lights,
+        "thickness_convention": scene.thickness_convention,
+    }
+    for name in spec.passes:
+        keyword = _PASS_KEYWORDS.get(name)
+        if keyword is None:
+            continue
+        raw = passes[scene.thickness_aov if name == THICKNESS else name]
+        if name != "Object Index":  # an index pass is read as it is (Blender writes it finite)
+            ok &= _finite(raw)
+        if name == THICKNESS and raw.ndim == 3:
+            raw = raw[..., 0]  # a value AOV: one channel
+        inputs[keyword] = _clean(raw)
+    original = None
+    if spec.scatters:
+        direct, indirect = passes["Diffuse Direct"], passes["Diffuse Indirect"]
+        depth_raw = passes["Depth"]
+        ok &= _finite(direct) & _finite(indirect) & _finite(depth_raw)
+        diffuse = _clean(direct) + _clean(indirect)
+        original = albedo * diffuse  # the diffuse light Combined holds on these pixels
+        pre, tech_albedo = _arrays.split_albedo(albedo, albedo_mode)
+        inputs["diffuse"] = diffuse if pre is None else pre * diffuse
+        inputs["albedo"] = tech_albedo
+        # Invalid depth becomes background (1e10), which gives and receives no light.
+        inputs["depth"] = np.where(np.isfinite(depth_raw), depth_raw, np.float32(1e10)).astype(np.float32)
+    return inputs, original, ok
+
+
 def _call(func, kwargs: dict):
     accepted, var_kw = _accepted(func)
     if not var_kw:
@@ -61,7 +106,7 @@ def _call(func, kwargs: dict):
 def apply(
     passes: Passes,
     scene: SceneDescription,
-    technique: str,
+    technique: str | Technique,
     *,
     albedo_mode: str = "post",
     mapping=None,
@@ -72,60 +117,29 @@ def apply(
 
     Returns the new layers, float32, rows top to bottom:
     ``SSSLab.<technique>.Image`` (H, W, C) with C and the alpha of Combined, and
-    ``SSSLab.<technique>.SSS`` (H, W, 3), the SSS term alone (scattered minus the original
-    diffuse for SSSS and Burley, the added light for STA). Pixels of materials that do not
+    ``SSSLab.<technique>.SSS`` (H, W, 3), the SSS term alone (for a technique that scatters, its
+    result minus the original diffuse light; for one that only adds light, its result). Pixels of materials that do not
     scatter, are skipped by the plan, or have a NaN/Inf input keep Combined exactly (SSS 0).
     When no material scatters, returns {} (nothing to write).
 
     ``albedo_mode``: "post" applies the albedo after scattering (out = A * scatter(E));
     "pre-post" splits it, out = sqrt(A) * scatter(sqrt(A) * E), keeping half of the texture
     detail under the blur (Jimenez et al. 2015, the separable SSS demo's pre/post scatter
-    option). STA does not scatter and ignores it. ``prepared`` is the result of ``plan`` for
+    option); a technique that does not scatter ignores it. ``technique``: a registered name or a
+    ``Technique`` spec. ``prepared`` is the result of ``plan`` for
     the same arguments, to avoid planning twice.
     """
     p = prepared or plan(passes, scene, technique, albedo_mode=albedo_mode, mapping=mapping, **options)
     if not p.scattering:
         return {}
-    func = get_technique(technique)
+    spec = p.spec
     combined = passes["Combined"]
     rgb = combined[..., :3]
     image = np.array(combined, dtype=np.float32)
     sss = np.zeros(rgb.shape, dtype=np.float32)
     index = _index_map(passes)
-    albedo_raw = passes["Diffuse Color"]
-    albedo = _clean(albedo_raw)
-    ok = _finite(rgb) & _finite(albedo_raw)
-    inputs = {}
-    if technique in ("sta", "combined"):
-        thickness_raw = passes[scene.thickness_aov]
-        normal_raw, position_raw = passes["Normal"], passes["Position"]
-        ok &= _finite(thickness_raw) & _finite(normal_raw) & _finite(position_raw)
-        inputs = {
-            "albedo": albedo,
-            "normal": _clean(normal_raw),
-            "position": _clean(position_raw),
-            "thickness": _clean(thickness_raw if thickness_raw.ndim == 2 else thickness_raw[..., 0]),
-            "camera": scene.camera,
-            "lights": scene.lights,
-            "thickness_convention": scene.thickness_convention,
-        }
-    if technique != "sta":
-        direct, indirect = passes["Diffuse Direct"], passes["Diffuse Indirect"]
-        depth_raw = passes["Depth"]
-        ok &= _finite(direct) & _finite(indirect) & _finite(depth_raw)
-        diffuse = _clean(direct) + _clean(indirect)
-        original = albedo * diffuse  # the diffuse light Combined holds on these pixels
-        pre, tech_albedo = _arrays.split_albedo(albedo, albedo_mode)
-        tech_diffuse = diffuse if pre is None else pre * diffuse
-        inputs |= {
-            "diffuse": tech_diffuse,
-            "albedo": tech_albedo,
-            # Invalid depth becomes background (1e10), which gives and receives no light.
-            "depth": np.where(np.isfinite(depth_raw), depth_raw, np.float32(1e10)).astype(np.float32),
-            "camera": scene.camera,
-        }
-        if technique in ("burley", "combined"):
-            inputs["object_id"] = _clean(passes["Object Index"])
+    inputs, original, ok = _inputs(spec, passes, scene, albedo_mode)
+    ok &= _finite(rgb)
     nonfinite = 0
     for mp in p.applied:
         mask = index == mp.material.index
@@ -137,18 +151,18 @@ def apply(
         kwargs.update(mp.params)
         # A technique that takes the fitted gain applies it itself (the combined technique, to its
         # diffusion only); for the others it scales their result below.
-        gain = None if "gain" in _accepted(func)[0] else kwargs.pop("gain", None)
+        gain = None if "gain" in spec.keywords else kwargs.pop("gain", None)
         kwargs["mask"] = mask
-        out = np.asarray(_call(func, kwargs), dtype=np.float32)
+        out = np.asarray(_call(spec.function, kwargs), dtype=np.float32)
         if out.shape != rgb.shape:
-            raise ValueError(f"{technique} returned shape {out.shape}; expected {rgb.shape}")
+            raise ValueError(f"{spec.name} returned shape {out.shape}; expected {rgb.shape}")
         if gain is not None:
             # The fitted per-channel energy (core/fit_params.py): on the material's light after the
             # technique (for STA, on the light it adds).
             out = out * np.asarray(gain, np.float32)
         good = mask & _finite(out)
         nonfinite += int((mask & ~good).sum())
-        if technique == "sta":
+        if not spec.scatters:
             term = out
         else:
             term = out - original
@@ -158,5 +172,5 @@ def apply(
         image[..., :3][good] = rgb[good] + term[good]
         sss[good] = term[good]
     p.nonfinite_pixels = nonfinite
-    name_image, name_sss = layer_names(technique)
+    name_image, name_sss = layer_names(spec.name)
     return {name_image: image, name_sss: sss}

@@ -29,6 +29,7 @@ from . import _arrays, backend
 from .extent import group_extents, object_extent
 from .profiles import TRUNCATION, burley_icdf
 from .scene import Camera
+from .spec import CALIBRATE_MAPPING, Param, Technique, profile_footprint
 
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 MAX_SAMPLES = 4096
@@ -365,3 +366,42 @@ def _compiled(light, z, ok, scale, ids, groups, n, dmax, inv3d, reach_c, random_
         out,
     )
     return out
+
+
+#: Burley's spec (``core/spec.py``): 32 samples, the signature's default (EEVEE Next uses 16 per
+#: temporal sample, HDRP 20/40/80; docs/references.md §1).
+TECHNIQUE = Technique(
+    name="burley",
+    label="Burley",
+    description="Christensen-Burley normalized diffusion, golden-angle spiral",
+    citation="docs/references.md §1; Christensen & Burley 2015, Approximate Reflectance Profiles for Efficient "
+    "Subsurface Scattering (Pixar technical memo)",
+    function=burley,
+    scatters=True,
+    adds_light=False,
+    passes=(
+        "Combined",
+        "Diffuse Direct",
+        "Diffuse Indirect",
+        "Diffuse Color",
+        "Depth",
+        "Material Index",
+        "Object Index",
+    ),
+    params=(
+        Param(
+            "n_samples",
+            "Samples",
+            "Samples per pixel of the golden-angle spiral",
+            type=int,
+            min=1,
+            max=1024,
+            soft_max=128,
+        ),
+        Param("random_rotation", "Random Rotation", "Rotate the spiral per pixel: noise instead of banding", type=bool),
+    ),
+    qualities=({"n_samples": 8}, {"n_samples": 16}, {"n_samples": 32}, {"n_samples": 64}),
+    default_quality=2,
+    footprint=profile_footprint("n_samples"),
+    calibration=CALIBRATE_MAPPING,
+)

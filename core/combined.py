@@ -30,12 +30,17 @@ default) are what ``calibrate`` fits against Cycles per material (``core/fit.py`
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from . import _arrays
+from .burley import TECHNIQUE as BURLEY
 from .burley import burley
+from .passes import THICKNESS
 from .scene import Camera, Light
+from .spec import Footprint, Param, Technique, profile_footprint
+from .ssss import TECHNIQUE as SSSS
 from .ssss import ssss
 from .sta import THICKNESS_CONVENTIONS, _norm, light_at
 
@@ -223,3 +228,72 @@ def combined(
             thickness_convention=thickness_convention,
         )
     return out
+
+
+def _prepare(params: dict) -> list[str]:
+    """Without the bake's distance the map cannot be read as a thickness: diffusion only."""
+    if params.get("thickness_distance_su"):
+        return []
+    params["transmission_scale"] = 0.0
+    return [
+        "no light from behind: the material's thickness map has no bake distance (bake it with"
+        " SSS Lab's Bake Thickness); diffusion only"
+    ]
+
+
+#: The parameter that counts the samples of each diffusion.
+_SAMPLES = {"burley": "n_samples", "ssss": "n_taps"}
+
+
+def _footprint(params) -> Footprint:
+    """16 d like Burley and SSSS, with the samples of the diffusion in use."""
+    return profile_footprint(_SAMPLES[params.get("diffusion", "burley")])(params)
+
+
+def _own(p: Param) -> Param:
+    """Another technique's parameter spec, with this function's default (filled in from the signature)."""
+    return replace(p, default=None)
+
+
+#: The combined technique's spec (``core/spec.py``): Burley's diffusion at its default samples; the
+#: transmission's d is the diffusion's unless fitted.
+TECHNIQUE = Technique(
+    name="combined",
+    label="Combined",
+    description="Burley diffusion of the visible light plus Burley transmittance of the light from behind",
+    citation="docs/references.md §1, §4 and §9; Christensen & Burley 2015 (profile and transmittance)",
+    function=combined,
+    scatters=True,
+    adds_light=True,
+    # Burley's passes, and STA's for the light from behind.
+    passes=(*BURLEY.passes, "Normal", "Position", THICKNESS),
+    params=(
+        Param(
+            "diffusion",
+            "Diffusion",
+            "How the visible light is scattered",
+            type=str,
+            choices=(
+                ("burley", "Burley", "Burley's golden-angle spiral (Samples)"),
+                ("ssss", "SSSS", "The separable filter, faster at large kernels (Taps)"),
+            ),
+        ),
+        # The diffusions' own parameters, as Burley and SSSS declare them (defaults: this signature).
+        _own(BURLEY.param("n_samples")),
+        _own(SSSS.param("n_taps")),
+        _own(BURLEY.param("random_rotation")),
+        Param(
+            "transmission_scale",
+            "Light from Behind",
+            "Scale of the light transmitted from behind (1: as the Burley transmittance gives it)",
+            min=0.0,
+            soft_max=4.0,
+        ),
+    ),
+    qualities=({"diffusion": "ssss", "n_taps": 11}, {"n_samples": 16}, {"n_samples": 32}),
+    default_quality=2,
+    footprint=_footprint,
+    # Its diffusion alone, for the fidelity table: no light from behind on the lit line.
+    diffusion_only={"transmission_scale": 0.0, "normal": None, "position": None, "thickness": None, "lights": ()},
+    prepare=_prepare,
+)

@@ -34,77 +34,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import passes as _passes
 from ._files import atomic_write
 from .errors import DamagedFileError, InputError, SSSLabError
 
-#: Blender 4.x short pass names (``RE_PASSNAME_*`` in Blender's ``DNA_scene_types.h`` and the
-#: Cycles pass names of ``blender/sync.cpp``) -> the names Blender 5.x writes. AOVs, light
-#: groups and Cryptomatte layers keep their own names.
-SHORT_PASS_NAMES: dict[str, str] = {
-    "Emit": "Emission",
-    "Env": "Environment",
-    "AO": "Ambient Occlusion",
-    "IndexOB": "Object Index",
-    "IndexMA": "Material Index",
-    "DiffDir": "Diffuse Direct",
-    "DiffInd": "Diffuse Indirect",
-    "DiffCol": "Diffuse Color",
-    "GlossDir": "Glossy Direct",
-    "GlossInd": "Glossy Indirect",
-    "GlossCol": "Glossy Color",
-    "TransDir": "Transmission Direct",
-    "TransInd": "Transmission Indirect",
-    "TransCol": "Transmission Color",
-    "SubsurfaceDir": "Subsurface Direct",
-    "SubsurfaceInd": "Subsurface Indirect",
-    "SubsurfaceCol": "Subsurface Color",
-    "VolumeDir": "Volume Direct",
-    "VolumeInd": "Volume Indirect",
-    "Transp": "Transparent",
-}
-
-#: Channel letters Blender 5.2 writes for the passes whose letters are not R G B (A).
-PASS_CHANNELS: dict[str, str] = {
-    "Combined": "RGBA",
-    "Depth": "Z",
-    "Mist": "Z",
-    "Normal": "XYZ",
-    "Position": "XYZ",
-    "Vector": "XYZW",
-    "UV": "UVA",
-    "Object Index": "X",
-    "Material Index": "X",
-}
-
-#: Where each pass is switched on in Blender 5.2 (Cycles), for error messages.
-_PANEL = "View Layer Properties > Passes"
-PASS_HINTS: dict[str, str] = {
-    "Combined": f"{_PANEL} > Data > Combined (view_layer.use_pass_combined)",
-    "Depth": f"{_PANEL} > Data > Depth (view_layer.use_pass_z)",
-    "Mist": f"{_PANEL} > Data > Mist (view_layer.use_pass_mist)",
-    "Position": f"{_PANEL} > Data > Position (view_layer.use_pass_position)",
-    "Normal": f"{_PANEL} > Data > Normal (view_layer.use_pass_normal)",
-    "Vector": f"{_PANEL} > Data > Vector (view_layer.use_pass_vector)",
-    "UV": f"{_PANEL} > Data > UV (view_layer.use_pass_uv)",
-    "Object Index": f"{_PANEL} > Data > Indexes > Object Index (view_layer.use_pass_object_index), "
-    "and give each object a Pass Index in Object Properties > Relations",
-    "Material Index": f"{_PANEL} > Data > Indexes > Material Index (view_layer.use_pass_material_index), "
-    "and give each material a Pass Index in Material Properties > Settings",
-    "Diffuse Direct": f"{_PANEL} > Light > Diffuse > Direct (view_layer.use_pass_diffuse_direct)",
-    "Diffuse Indirect": f"{_PANEL} > Light > Diffuse > Indirect (view_layer.use_pass_diffuse_indirect)",
-    "Diffuse Color": f"{_PANEL} > Light > Diffuse > Color (view_layer.use_pass_diffuse_color)",
-    "Glossy Direct": f"{_PANEL} > Light > Glossy > Direct (view_layer.use_pass_glossy_direct)",
-    "Glossy Indirect": f"{_PANEL} > Light > Glossy > Indirect (view_layer.use_pass_glossy_indirect)",
-    "Glossy Color": f"{_PANEL} > Light > Glossy > Color (view_layer.use_pass_glossy_color)",
-    "Transmission Direct": f"{_PANEL} > Light > Transmission > Direct (view_layer.use_pass_transmission_direct)",
-    "Transmission Indirect": f"{_PANEL} > Light > Transmission > Indirect (view_layer.use_pass_transmission_indirect)",
-    "Transmission Color": f"{_PANEL} > Light > Transmission > Color (view_layer.use_pass_transmission_color)",
-    "Volume Direct": f"{_PANEL} > Light > Volume > Direct (view_layer.cycles.use_pass_volume_direct)",
-    "Volume Indirect": f"{_PANEL} > Light > Volume > Indirect (view_layer.cycles.use_pass_volume_indirect)",
-    "Emission": f"{_PANEL} > Light > Other > Emission (view_layer.use_pass_emit)",
-    "Environment": f"{_PANEL} > Light > Other > Environment (view_layer.use_pass_environment)",
-    "Ambient Occlusion": f"{_PANEL} > Light > Other > Ambient Occlusion (view_layer.use_pass_ambient_occlusion)",
-}
+#: Blender 4.x short pass names -> the names Blender 5.x writes; channel letters Blender 5.2 writes
+#: per pass; where each pass is switched on. Views of the one pass table, ``core/passes.py``.
+SHORT_PASS_NAMES: dict[str, str] = _passes.SHORT_NAMES
+PASS_CHANNELS: dict[str, str] = {p.name: p.channels for p in _passes.PASSES.values()}
+pass_hint = _passes.pass_hint
 
 #: Prefix of the layers SSS Lab adds to an output file; never chosen as the input view layer.
 OUTPUT_PREFIX = "SSSLab"
@@ -144,16 +82,6 @@ def _import_openexr():
             "reading and writing EXR files needs the OpenEXR module: pip install 'OpenEXR>=3.5,<3.6'"
         ) from None
     return OpenEXR
-
-
-def pass_hint(name: str) -> str:
-    """How to enable pass ``name`` in Blender; AOVs and unknown names get the Shader AOV advice."""
-    if name in PASS_HINTS:
-        return PASS_HINTS[name]
-    return (
-        f"{_PANEL} > Shader AOV > + (name {name!r}), fed in the materials by an AOV Output node "
-        f"named {name!r} (view_layer.aovs.add())"
-    )
 
 
 def split_channel(full: str) -> tuple[str, str]:
@@ -538,10 +466,10 @@ def expected_channels(pass_name: str) -> tuple[frozenset, frozenset] | None:
     """(channel letters a known pass must have, letters it may have besides), or None for passes
     SSS Lab does not know (AOVs, light groups), whose channels are taken as they are."""
     letters = PASS_CHANNELS.get(pass_name)
-    if letters is None and pass_name in PASS_HINTS:
-        letters = "RGBA"
     if letters is None:
         return None
+    if letters == "RGB":  # a colour pass may carry an alpha channel besides
+        letters = "RGBA"
     optional = frozenset("A") if "A" in letters else frozenset()
     return frozenset(letters) - optional, optional
 

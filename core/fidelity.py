@@ -30,7 +30,7 @@ import numpy as np
 from . import mapping as _mapping
 from .profiles import burley_cdf
 from .scene import Camera, Light, MaterialSSS
-from .techniques import TECHNIQUES, get_technique
+from .techniques import TECHNIQUES, get_spec
 
 DEFINITION = (
     "A flat, white, fully masked surface under an orthographic camera, lit along one vertical line of pixels."
@@ -100,8 +100,9 @@ def measure(technique: str, material: MaterialSSS, *, mapping=None, options=None
     albedo = np.ones_like(diffuse)
     depth = np.ones((n, n), dtype=np.float32)
     mask = np.ones((n, n), dtype=bool)
-    func = get_technique(technique)
-    if technique == "sta":
+    spec = get_spec(technique)
+    func = spec.function
+    if not spec.scatters:  # it adds light only: measured on light from behind
         normal = np.zeros_like(diffuse)
         normal[..., 2] = 1.0  # facing the camera, which looks down -Z from +Z
         position = np.zeros_like(diffuse)
@@ -126,10 +127,9 @@ def measure(technique: str, material: MaterialSSS, *, mapping=None, options=None
         line_part = out - added  # the line's own light: STA does not move it
         mid = line_part[n // 2]
     else:
-        params = {**_mapping.technique_params(material, technique, mapping=mapping), **(options or {})}
-        if technique == "combined":
-            # Its diffusion alone: no light from behind on the lit line.
-            params |= {"transmission_scale": 0.0, "normal": None, "position": None, "thickness": None, "lights": ()}
+        params = {**_mapping.technique_params(material, spec, mapping=mapping), **(options or {})}
+        # A technique that also adds light is measured on its diffusion alone: no light from behind.
+        params |= spec.diffusion_only
         out = np.asarray(
             func(diffuse=diffuse, albedo=albedo, depth=depth, mask=mask, camera=camera, **params), dtype=np.float64
         )
@@ -148,6 +148,6 @@ def measure(technique: str, material: MaterialSSS, *, mapping=None, options=None
 
 def fidelity_table(material: MaterialSSS, *, techniques=tuple(TECHNIQUES), mapping=None) -> dict:
     """The table for ``material``: one row per technique plus the analytic profile."""
-    rows = {TECHNIQUES[t][2]: measure(t, material, mapping=mapping) for t in techniques}
+    rows = {get_spec(t).label: measure(t, material, mapping=mapping) for t in techniques}
     rows["Burley profile (analytic)"] = analytic_row(_mapping.burley_d(material, mapping=mapping))
     return {"definition": DEFINITION, "material": material.name, "rows": rows}

@@ -48,6 +48,7 @@ from .fit_params import FIT_PARAMETERS, INFO, PARAMETERS
 from .metrics import box_downsample
 from .plan import _index_map
 from .scene import MaterialSSS, SceneDescription
+from .techniques import get_spec
 
 #: Search grid for d's scale k and the transmission's per-channel factors f: sqrt(2) steps, 1/4..4.
 GRID = tuple(2.0 ** (i / 2.0) for i in range(-4, 5))
@@ -188,10 +189,11 @@ def fit_material(
 
     combined_rgb = passes["Combined"][..., :3]
     target = _blocks(ref, keep, box)
-    if technique == "sta":
+    spec = get_spec(technique)
+    if not spec.scatters:  # it only adds light (STA): its scale is what there is to fit
         base = _blocks(combined_rgb, keep, box)
-        layers = core_apply.apply(passes, single, "sta", scale=1.0)
-        basis = _blocks(layers[core_apply.layer_names("sta")[1]], keep, box)
+        layers = core_apply.apply(passes, single, spec, scale=1.0)
+        basis = _blocks(layers[core_apply.layer_names(spec.name)[1]], keep, box)
         return _finish_sta(material, name, base, basis, target, train, held, regularization, samples, start, count)
 
     albedo = core_apply._clean(passes["Diffuse Color"])
@@ -204,7 +206,7 @@ def fit_material(
     # Light from behind (combined only): E_back per channel and slab thickness, at full size.
     trans = None
     notes = []
-    if technique == "combined":
+    if spec.adds_light:
         distance = float(params0.get("thickness_distance_su") or 0.0)
         if distance <= 0:
             raise FitError(
@@ -231,7 +233,7 @@ def fit_material(
 
     def diffusion(k: float) -> np.ndarray:
         options = {"d_su": tuple(d0 * k)}
-        if technique == "combined":
+        if spec.adds_light:
             options["transmission_scale"] = 0.0
         layers = core_apply.apply(passes, single, technique, **options)
         term = layers[core_apply.layer_names(technique)[1]] if layers else 0.0
@@ -271,7 +273,7 @@ def fit_material(
         notes=notes,
     )
     params = {"gain": tuple(float(v) for v in g), "d_scale": float(best_k)}
-    if technique == "combined" and trans is not None:
+    if spec.adds_light and trans is not None:
         d_tr0 = np.asarray(params0.get("transmission_d_su", d0), np.float64)
         params["transmission_scale"] = tuple(float(v) for v in s)
         params["transmission_d_su"] = tuple(float(d_tr0[c] * GRID[f_idx[c]]) for c in range(3))

@@ -25,10 +25,10 @@ import math
 
 import numpy as np
 
+from . import techniques
 from .fit_params import fitted
 from .profiles import ALBEDO_SCALINGS, MIN_RADIUS, albedo_scaling
 from .scene import SUBSURFACE_METHODS, MaterialSSS
-from .techniques import check_technique
 
 #: Subsurface method -> mapping names, the default first. A name is an albedo scaling of
 #: ``profiles.ALBEDO_SCALINGS`` (d = l / s(A)) or "none" (d = l).
@@ -39,18 +39,6 @@ MAPPINGS: dict[str, tuple[str, ...]] = {
     "RANDOM_WALK_LEGACY": ("diffuse_transmission", "searchlight", "dmfp", "none"),
 }
 assert set(MAPPINGS) == set(SUBSURFACE_METHODS)
-
-#: STA's parameters (Barre-Brisebois & Bouchard 2011; three.js defaults for distortion, power and
-#: ambient, docs/references.md §4). Scale 1 makes the translucency as bright as a Lambertian
-#: surface facing the light; STA has no physical scale, the comparison calibrates it.
-STA_DEFAULTS = {"distortion": 0.1, "power": 2.0, "scale": 1.0, "ambient": 0.0}
-#: SSSS: 17 taps is Unreal's medium quality (docs/references.md §3).
-SSSS_DEFAULTS = {"kernel_type": "preintegrated", "n_taps": 17}
-#: Burley: 32 samples (EEVEE Next uses 16 per temporal sample, HDRP 20/40/80; docs/references.md §1).
-BURLEY_DEFAULTS = {"n_samples": 32}
-#: The combined technique (core/combined.py): Burley's diffusion at its default samples; the
-#: transmission's d is the diffusion's unless fitted.
-COMBINED_DEFAULTS = {"diffusion": "burley", "n_samples": 32}
 
 
 def _dipole_rd(alpha_prime, fourthird_a):
@@ -129,34 +117,27 @@ def burley_d(material: MaterialSSS, *, mapping=None) -> tuple[float, float, floa
     return tuple(float(v) for v in d)
 
 
-def technique_params(material: MaterialSSS, technique: str, *, mapping=None, use_fit: bool = True) -> dict:
-    """Keyword parameters of ``technique`` for ``material`` (without the passes).
+def technique_params(material: MaterialSSS, technique, *, mapping=None, use_fit: bool = True) -> dict:
+    """Keyword parameters of ``technique`` (a name or a ``Technique`` spec) for ``material``
+    (without the passes): its parameters' defaults (the function's signature) plus what the
+    material gives every technique that takes it.
 
-    Burley and SSSS get ``d_su``, the profile's d per channel in scene units; SSSS builds its
-    kernel from it (``core.kernels``), reaching 16 d like Burley (the truncation shared with
-    Cycles). When the material carries a fit for ``technique`` (``MaterialSSS.fit``, made by
-    ``core/fit.py``) and ``use_fit`` is true, its values replace the defaults: d times
-    ``d_scale``, the transmission's scale and d, STA's scale, and ``gain`` (applied by
-    ``core.apply`` to the technique's result, not passed to the function).
+    ``d_su`` is the profile's d per channel in scene units: Burley gathers over it, SSSS builds
+    its kernel from it (``core.kernels``), both reaching 16 d (the truncation shared with
+    Cycles), STA's "burley" falloff and the combined technique's transmittance read it.
+    ``thickness_distance_su`` is the bake distance the thickness map stands for. When the
+    material carries a fit for ``technique`` (``MaterialSSS.fit``, made by ``core/fit.py``) and
+    ``use_fit`` is true, its values replace the defaults: d times ``d_scale``, the
+    transmission's scale and d, STA's scale, and ``gain`` (applied by ``core.apply`` to the
+    technique's result when its function does not take it).
     """
-    check_technique(technique)
+    spec = techniques.get_spec(technique)
     d = burley_d(material, mapping=mapping)
-    fit = fitted(material.fit, technique) if use_fit else {}
+    fit = fitted(material.fit, spec.name) if use_fit else {}
     if "d_scale" in fit:
         d = tuple(v * fit["d_scale"] for v in d)
-    if technique == "sta":
-        # d and the bake distance serve the "burley" falloff; the paper's "map" ignores them.
-        params = {**STA_DEFAULTS, "d_su": d, "thickness_distance_su": material.thickness_distance}
-    elif technique == "ssss":
-        params = {**SSSS_DEFAULTS, "d_su": d}
-    elif technique == "combined":
-        params = {
-            **COMBINED_DEFAULTS,
-            "d_su": d,
-            "thickness_distance_su": material.thickness_distance,
-            "transmission_d_su": d,
-        }
-    else:
-        params = {**BURLEY_DEFAULTS, "d_su": d}
+    from_material = {"d_su": d, "thickness_distance_su": material.thickness_distance}
+    params = dict(spec.defaults)
+    params.update({k: v for k, v in from_material.items() if k in spec.keywords})
     params.update({k: v for k, v in fit.items() if k != "d_scale"})
     return params

@@ -16,53 +16,20 @@ import numpy as np
 from . import _arrays
 from .exr import Passes
 from .extent import kernel_warning, mask_extent_px
-from .profiles import TRUNCATION
+from .passes import THICKNESS
 from .scene import MaterialSSS, SceneDescription
-from .techniques import TECHNIQUES, check_technique, get_technique
-
-#: Passes each technique reads, by their Blender 5.x names; ``THICKNESS`` stands for the scene's
-#: thickness AOV (``SceneDescription.thickness_aov``, "Thickness" by default). The render
-#: operator enables exactly these (see ``required_passes``). Combined is what the result is
-#: composited onto; the Object Index lets Burley reject samples from other objects (EEVEE Next
-#: does the same, docs/references.md §1).
-THICKNESS = "Thickness"
+from .spec import Technique
+from .techniques import get_spec
 
 
-REQUIRED_PASSES: dict[str, tuple[str, ...]] = {
-    "sta": ("Combined", "Diffuse Color", "Normal", "Position", "Material Index", THICKNESS),
-    "ssss": ("Combined", "Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Depth", "Material Index"),
-    "burley": (
-        "Combined",
-        "Diffuse Direct",
-        "Diffuse Indirect",
-        "Diffuse Color",
-        "Depth",
-        "Material Index",
-        "Object Index",
-    ),
-    "combined": (
-        "Combined",
-        "Diffuse Direct",
-        "Diffuse Indirect",
-        "Diffuse Color",
-        "Depth",
-        "Material Index",
-        "Object Index",
-        "Normal",
-        "Position",
-        THICKNESS,
-    ),
-}
+def required_passes(technique: str | Technique, thickness_aov: str = THICKNESS) -> tuple[str, ...]:
+    """The passes ``technique`` reads (its spec's ``passes``), with the thickness AOV under its
+    scene name. The render enables exactly these."""
+    return tuple(thickness_aov if n == THICKNESS else n for n in get_spec(technique).passes)
 
 
-def required_passes(technique: str, thickness_aov: str = THICKNESS) -> tuple[str, ...]:
-    """The passes ``technique`` reads, with the thickness AOV under its scene name."""
-    names = REQUIRED_PASSES[check_technique(technique)]
-    return tuple(thickness_aov if n == THICKNESS else n for n in names)
-
-
-def _why(technique: str) -> str:
-    return f"the {TECHNIQUES[technique][2]} technique"
+def _why(technique: Technique) -> str:
+    return f"the {technique.label} technique"
 
 
 @dataclass
@@ -100,10 +67,12 @@ class MaterialPlan:
 class Plan:
     """Which materials a technique computes on a set of passes, with what, and why."""
 
+    #: The technique's name (``spec`` is its spec).
     technique: str
     shape: tuple[int, int]
     albedo_mode: str
     materials: list[MaterialPlan]
+    spec: Technique
     #: Material Index values on screen that the scene description does not know (index -> pixels).
     unknown_indices: dict[int, int] = field(default_factory=dict)
     #: Pixels of applied materials with a NaN or Inf input, left as they are.
@@ -120,7 +89,7 @@ class Plan:
         return [m for m in self.materials if m.material.scatters]
 
     def explain(self) -> str:
-        label = TECHNIQUES[self.technique][2]
+        label = self.spec.label
         h, w = self.shape
         lines = [f"{label} ({self.technique}) on {w}x{h} pixels, albedo applied {self.albedo_mode}:"]
         if not self.scattering:
@@ -197,8 +166,7 @@ def _fmt(value) -> str:
     return repr(value) if isinstance(value, str) else str(value)
 
 
-def _check_inputs(passes: Passes, scene: SceneDescription, technique: str, albedo_mode: str) -> None:
-    check_technique(technique)
+def _check_inputs(passes: Passes, scene: SceneDescription, technique: Technique, albedo_mode: str) -> None:
     _arrays.check_albedo_mode(albedo_mode)
     if not isinstance(scene, SceneDescription):
         raise ValueError(f"scene: expected a SceneDescription, got {type(scene).__name__}")
@@ -228,7 +196,7 @@ def _mapping():
     return mapping
 
 
-def _material_params(material: MaterialSSS, technique: str, mapping_table, options: dict) -> dict:
+def _material_params(material: MaterialSSS, technique: Technique, mapping_table, options: dict) -> dict:
     params = dict(_mapping().technique_params(material, technique, mapping=mapping_table))
     params.update(options)
     return params
@@ -241,45 +209,10 @@ def _accepted(func) -> tuple[set[str], bool]:
     return names, var_kw
 
 
-def _kernel_su(technique: str, material: MaterialSSS, params: dict, mapping_table) -> tuple[float, ...] | None:
-    """Kernel radius in scene units per channel: how far the technique gathers light."""
-    if technique == "sta":
-        return None  # local: no kernel
-    d = params.get("d_su")
-    if d is None and technique == "burley":
-        d = _mapping().burley_d(material, mapping=mapping_table)
-    if d is not None:
-        # Burley and SSSS's pre-integrated kernel both reach 16 d of the profile.
-        d = np.broadcast_to(np.asarray(d, dtype=np.float64), (3,))
-        return tuple(float(v) * TRUNCATION for v in d)
-    for key in ("radius_su", "width_su", "kernel_radius_su"):
-        if key in params:
-            r = np.broadcast_to(np.asarray(params[key], dtype=np.float64), (3,))
-            return tuple(float(v) for v in r)
-    return tuple(float(v) for v in material.radius)
-
-
-def _samples(technique: str, params: dict, func) -> int | None:
-    if technique == "sta":
-        return None
-    for key in ("n_samples", "n_taps", "taps", "samples"):
-        if key in params and params[key] is not None:
-            return int(params[key])
-    kernel = params.get("kernel")
-    if kernel is not None and hasattr(kernel, "__len__"):
-        return len(kernel)
-    sig = inspect.signature(func)
-    for key in ("n_samples", "n_taps", "taps"):
-        p = sig.parameters.get(key)
-        if p is not None and p.default is not inspect.Parameter.empty and p.default is not None:
-            return int(p.default)
-    return None
-
-
 def plan(
     passes: Passes,
     scene: SceneDescription,
-    technique: str,
+    technique: str | Technique,
     *,
     albedo_mode: str = "post",
     mapping=None,
@@ -291,13 +224,13 @@ def plan(
     not match the passes' size, or an option the technique does not take; MissingPassError
     (a KeyError) naming any missing pass and how to enable it.
     """
+    technique = get_spec(technique)
     _check_inputs(passes, scene, technique, albedo_mode)
-    func = get_technique(technique)
-    accepted, var_kw = _accepted(func)
+    accepted, var_kw = _accepted(technique.function)
     unknown = sorted(k for k in options if k not in accepted)
     if unknown and not var_kw:
         raise ValueError(
-            f"option(s) {', '.join(unknown)} not taken by {technique}; it takes: {', '.join(sorted(accepted))}"
+            f"option(s) {', '.join(unknown)} not taken by {technique.name}; it takes: {', '.join(sorted(accepted))}"
         )
     index = _index_map(passes)
     depth = passes.get("Depth")
@@ -320,15 +253,11 @@ def plan(
             mp.skip = f"no pixel on screen has Material Index {material.index}"
             continue
         mp.params = _material_params(material, technique, mapping, options)
-        if technique == "combined" and not mp.params.get("thickness_distance_su"):
-            # The map cannot be read as a thickness without the bake's distance: diffusion only.
-            mp.params["transmission_scale"] = 0.0
-            mp.notes.append(
-                "no light from behind: the material's thickness map has no bake distance (bake it with"
-                " SSS Lab's Bake Thickness); diffusion only"
-            )
-        mp.samples = _samples(technique, mp.params, func)
-        mp.kernel_su = _kernel_su(technique, material, mp.params, mapping)
+        if technique.prepare is not None:
+            mp.notes += technique.prepare(mp.params)
+        footprint = technique.footprint(mp.params)
+        mp.samples = footprint.samples
+        mp.kernel_su = footprint.radius_su
         if depth is not None:
             z = depth[index == material.index]
             z = z[np.isfinite(z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)]
@@ -351,7 +280,7 @@ def plan(
             mp.warning = kernel_warning(max(mp.kernel_px), mask_extent_px(index == material.index), passes.shape)
             widest_px = max(mp.kernel_su) * ppu_nearest
             # A fitted gain or the light from behind still change a material whose kernel is tiny.
-            adds_light = technique == "combined" or "gain" in mp.params
+            adds_light = technique.adds_light or "gain" in mp.params
             if not adds_light:
                 mp.unchanged_channels = tuple(c for c, r in enumerate(mp.kernel_su) if r * ppu_nearest <= 1.0)
             if widest_px <= 1.0 and not adds_light:
@@ -363,7 +292,8 @@ def plan(
                 )
     unknown_indices = {i: c for i, c in counts.items() if i not in known}
     return Plan(
-        technique=technique,
+        technique=technique.name,
+        spec=technique,
         shape=passes.shape,
         albedo_mode=albedo_mode,
         materials=result,

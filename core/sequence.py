@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from .apply import apply
 from .plan import plan
 from .scene import SceneDescription
+from .techniques import get_spec
 
 _HASHES = re.compile(r"#+")
 
@@ -165,6 +167,7 @@ def apply_file(
     mapping=None,
     max_error: float | None = None,
     auto_keep: dict | None = None,
+    params: Mapping[str, Mapping] | None = None,
     **options,
 ) -> FileResult:
     """Apply ``techniques`` to one passes file and write ``out_path`` (default ``<stem>.sss.exr``).
@@ -177,7 +180,9 @@ def apply_file(
     instead of raising, unless every technique is. The technique ``auto`` chooses one per material
     (``core/auto.py``, within ``max_error`` of the best predicted error) and writes
     ``SSSLab.auto.Image`` and ``SSSLab.auto.SSS``; ``auto_keep`` ({material: technique}, an
-    earlier frame's ``AutoPlan.chosen``) keeps that choice.
+    earlier frame's ``AutoPlan.chosen``) keeps that choice. ``params``: {technique: {parameter:
+    value}} (``core.techniques.parse_params``), checked against each spec; ``options`` go to
+    every technique.
     """
     from . import auto as _auto
     from .exr import MissingPassError, passes_from_contents, read_layers, write_layers
@@ -196,6 +201,7 @@ def apply_file(
     result = FileResult(path=path, out_path=out_path)
     contents = read_layers(path)
     passes = passes_from_contents(contents, view_layer)
+    per_technique = {t: get_spec(t).check_params((params or {}).get(t, {})) for t in techniques if t != _auto.AUTO}
     result.scene = scene = scene if scene is not None else load_scene(path, scene_path)
     h, w = passes.shape
     if (scene.camera.width_px, scene.camera.height_px) != (w, h):
@@ -216,8 +222,9 @@ def apply_file(
             )
             continue
         try:
+            run_options = {**options, **per_technique[technique]}
             result.plans[technique] = plan(
-                passes, scene, technique, albedo_mode=albedo_mode, mapping=mapping, **options
+                passes, scene, technique, albedo_mode=albedo_mode, mapping=mapping, **run_options
             )
         except MissingPassError as exc:
             if not skip_missing:
@@ -240,7 +247,7 @@ def apply_file(
         if technique == _auto.AUTO:
             new = _auto.apply_auto(passes, scene, prepared=p)
         else:
-            new = apply(passes, scene, technique, albedo_mode=albedo_mode, mapping=mapping, prepared=p, **options)
+            new = apply(passes, scene, technique, albedo_mode=albedo_mode, prepared=p)
         for name in new:
             channels.pop(name, None)
         layers.update(new)

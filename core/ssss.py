@@ -26,6 +26,7 @@ from . import _arrays, backend
 from .extent import object_extent
 from .kernels import SeparableKernel, bounded, check_taps, make_kernel
 from .scene import Camera
+from .spec import CALIBRATE_MAPPING, Param, Technique, profile_footprint
 
 #: Pixels (times taps) per block: small enough to stay in the cache, large enough to amortize calls.
 _BLOCK_ELEMENTS = 1 << 16
@@ -295,3 +296,47 @@ def _compiled(light, key, ok, scale, kernel, post, out):
         out,
     )
     return out
+
+
+#: The tap counts offered: Unreal's low, medium and high quality (docs/references.md §3).
+TAP_CHOICES = (
+    (11, "11", "11 taps per direction (Unreal's low quality)"),
+    (17, "17", "17 taps per direction (Unreal's medium quality)"),
+    (25, "25", "25 taps per direction (Unreal's high quality)"),
+)
+
+#: SSSS's spec (``core/spec.py``): 17 taps, the signature's default, is Unreal's medium quality
+#: (docs/references.md §3); the ladder is Unreal's low, medium and high.
+TECHNIQUE = Technique(
+    name="ssss",
+    label="SSSS",
+    description="Separable SSS: two 1-D per-channel convolutions",
+    citation="docs/references.md §3; Jimenez et al. 2015, Separable Subsurface Scattering (Computer Graphics Forum)",
+    function=ssss,
+    scatters=True,
+    adds_light=False,
+    passes=("Combined", "Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Depth", "Material Index"),
+    params=(
+        Param(
+            "n_taps",
+            "Taps",
+            "Samples of each of the two 1-D convolutions",
+            type=int,
+            choices=TAP_CHOICES,
+        ),
+        Param(
+            "kernel_type",
+            "Kernel",
+            "How the separable kernel is built",
+            type=str,
+            choices=(
+                ("preintegrated", "Pre-integrated", "Kernel integrated from the material's diffusion profile"),
+                ("artist", "Artist", "Jimenez et al.'s artist-friendly kernel (strength and falloff per channel)"),
+            ),
+        ),
+    ),
+    qualities=({"n_taps": 11}, {"n_taps": 17}, {"n_taps": 25}),
+    default_quality=1,
+    footprint=profile_footprint("n_taps"),
+    calibration=CALIBRATE_MAPPING,
+)

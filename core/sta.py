@@ -29,7 +29,9 @@ import math
 import numpy as np
 
 from . import _arrays, backend
+from .passes import THICKNESS
 from .scene import Camera, Light
+from .spec import Param, Technique
 
 THICKNESS_CONVENTIONS = ("translucency", "thickness")
 
@@ -154,7 +156,9 @@ def sta(
         raise ValueError(f"distortion: expected a finite number, got {distortion!r}")
     if falloff not in FALLOFFS:
         raise ValueError(f"falloff: {falloff!r} is not one of {', '.join(FALLOFFS)}")
-    if falloff == "burley":
+    # Per-channel Burley transmittance through the slab the map stands for, or the paper's map.
+    transmits = falloff == "burley"
+    if transmits:
         d_c = _arrays.rgb_lengths(d_su, "d_su")
         distance = _arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
     power = _arrays.positive_finite(power, "power")
@@ -186,8 +190,8 @@ def sta(
             ambient,
             thickness_convention,
             out,
-            d_c if falloff == "burley" else None,
-            distance if falloff == "burley" else 0.0,
+            d_c if transmits else None,
+            distance if transmits else 0.0,
         )
         return out
     rows = {name: _arrays.pixel_rows(arr) for name, arr in (("a", a), ("n", n), ("p", p))}
@@ -280,7 +284,7 @@ def sta(
                     coloured = np.zeros((3, tt.size), f32)
                 for c in range(3):
                     coloured[c] += color[c] * lobe
-        if falloff == "burley":
+        if transmits:
             trans = _transmittance(tt, distance, d_c)  # (B, 3)
             light = grey[:, None] if coloured is None else (coloured + (0.0 if grey is None else grey)).T
             res = albedo_rows * light * trans
@@ -329,3 +333,51 @@ def _compiled(a, n, p, t, m, camera, lights, distortion, power, scale, ambient, 
         three_d,
         out,
     )
+
+
+#: STA's spec (``core/spec.py``): the defaults are the signature's (three.js's distortion, power and
+#: ambient, docs/references.md §4); scale 1 makes the translucency as bright as a Lambertian surface
+#: facing the light. STA has no physical scale: the comparison calibrates it with each falloff.
+TECHNIQUE = Technique(
+    name="sta",
+    label="STA",
+    description="Simple translucency: back-lighting times a baked thickness map",
+    citation="docs/references.md §4; Barré-Brisebois & Bouchard 2011, Approximating Translucency for a Fast, "
+    "Cheap and Convincing Subsurface Scattering Look (GDC)",
+    function=sta,
+    scatters=False,
+    adds_light=True,
+    passes=("Combined", "Diffuse Color", "Normal", "Position", "Material Index", THICKNESS),
+    params=(
+        Param(
+            "distortion",
+            "Distortion",
+            "How far the surface normal bends the light direction (L + distortion N)",
+            min=0.0,
+            soft_max=1.0,
+        ),
+        Param(
+            "power", "Power", "Exponent of the view-dependent back-light term (higher: tighter)", min=0.0, soft_max=16.0
+        ),
+        Param("scale", "Scale", "Brightness of the translucency", min=0.0, soft_max=20.0),
+        Param("ambient", "Ambient", "Translucency that does not depend on the view direction", min=0.0, soft_max=1.0),
+        Param(
+            "falloff",
+            "Falloff",
+            "How the thickness map scales the translucency",
+            type=str,
+            choices=(
+                ("map", "Map", "The paper's: the translucency map itself, the same for R, G and B"),
+                (
+                    "burley",
+                    "Burley Transmission",
+                    "Per-channel Burley transmittance through the slab thickness the baked map stands for"
+                    " (uses the bake distance; red passes thick parts best)",
+                ),
+            ),
+        ),
+    ),
+    qualities=({}, {"falloff": "burley"}),
+    default_quality=0,
+    calibration={"falloff": FALLOFFS, "scale": (0.25, 0.5, 1.0, 2.0, 4.0)},
+)

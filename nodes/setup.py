@@ -10,16 +10,21 @@ read the chain's result to the chain's input, so the user's own nodes are never 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import inspect
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..blender import compat
 from ..core import mapping
+from ..core.passes import THICKNESS
 from ..core.scene import SceneDescription
-from ..core.techniques import check_technique
+from ..core.sta import TECHNIQUE as STA
+from ..core.techniques import TECHNIQUES, check_technique
 from .burley import ensure_burley_group
 from .ssss import ensure_ssss_group
+from .sta import PARAM_SOCKETS as STA_PARAM_SOCKETS
 from .sta import ensure_sta_group
 
 #: Custom property on the nodes SSS Lab adds to a compositor tree (its value: the technique).
@@ -35,18 +40,29 @@ PASS_INPUTS = {
 }
 INDEX_PASS = "Material Index"
 
-#: Technique options each group takes as input values (the rest are build parameters).
-_STA_INPUTS = ("distortion", "power", "scale", "ambient")
-_KERNEL_OPTIONS = {
-    "ssss": ("kernel_type", "n_taps", "unit_su", "falloff", "strength"),
-    "burley": (),
-}
+
+@dataclass(frozen=True)
+class ChainBuilder:
+    """How one technique's node groups go into a compositor tree."""
+
+    #: Passes its groups read, by their Blender 5.x names (``core/passes.py``); ``THICKNESS``:
+    #: the scene's thickness AOV. The mask needs the Material Index.
+    passes: tuple[str, ...]
+    #: True when it adds one group per material, each with its kernel at the material's fixed
+    #: screen scale (``pixels_per_unit``); False for one group per light.
+    per_material: bool
+    #: ``add(tree, source, current, scene, options, pixels_per_unit, x, y, notes)``: adds the
+    #: nodes after ``current`` and returns the new output socket.
+    add: Callable
+    #: Warnings for options the groups do not model, one line each.
+    unmodelled: Callable[[Mapping], list[str]] = lambda options: []
 
 
 def group_name(technique: str, material_name: str = "") -> str:
-    """The node group of ``technique`` (SSSS and Burley: one per material, its own kernel)."""
-    label = {"sta": "STA", "ssss": "SSSS", "burley": "Burley"}[check_technique(technique)]
-    return f"SSS Lab {label}" + (f" {material_name}" if material_name and technique != "sta" else "")
+    """The node group of ``technique`` (a builder with one group per material: its own kernel)."""
+    spec = TECHNIQUES.get_spec(technique)
+    per_material = builder(spec.name).per_material
+    return f"SSS Lab {spec.label}" + (f" {material_name}" if material_name and per_material else "")
 
 
 def _tag(node, technique: str, name: str, location) -> None:
@@ -124,71 +140,122 @@ def build_chain(
     ``pixels_per_unit``: material index -> the kernel's fixed screen scale (SSSS, Burley).
     Notes say what was left out and why (no lights, no screen scale for a material...).
     """
-    check_technique(technique)
+    chain = builder(technique)
     options = dict(options or {})
     notes: list[str] = []
     materials = [m for m in scene.materials if m.scatters]
     x, y = location
-    current = image
     if not materials:
         notes.append("no subsurface material in the scene description: nothing to add")
-        return current, notes
-    if technique == "sta":
-        group = ensure_sta_group()
-        mask = _mask(tree, source, [m.index for m in materials], technique, (x, y - 300))
-        lights = [light for light in scene.lights if light.energy > 0]
-        if not lights:
-            notes.append("STA: the scene has no light with energy > 0: nothing to add")
-        cam = scene.camera
-        for k, light in enumerate(lights):
-            node = tree.nodes.new(compat.COMPOSITOR_GROUP_NODE)
-            node.node_tree = group
-            _tag(node, technique, f"SSS Lab STA {light.name or k}", (x + 350 + 260 * k, y))
-            tree.links.new(current, node.inputs["Image"])
-            for name in ("albedo", "normal", "position"):
-                tree.links.new(_pass(source, PASS_INPUTS[name]), node.inputs[name])
-            tree.links.new(_pass(source, scene.thickness_aov), node.inputs["thickness"])
-            tree.links.new(mask, node.inputs["mask"])
-            for name in _STA_INPUTS:
-                if name in options:
-                    _set(node, name, float(options[name]))
-            node.inputs["thickness_convention"].default_value = scene.thickness_convention
-            node.inputs["light_type"].default_value = light.type
-            _set(node, "light_direction", light.direction)
-            _set(node, "light_position", light.position)
-            _set(node, "light_color", light.color)
-            _set(node, "light_energy", float(light.energy))
-            _set(node, "light_spot_size", float(light.spot_size))
-            _set(node, "light_spot_blend", float(light.spot_blend))
-            node.inputs["camera_type"].default_value = cam.type
-            _set(node, "camera_position", cam.position)
-            _set(node, "camera_forward", cam.forward)
-            current = node.outputs["Image"]
-        return current, notes
+        return image, notes
+    current = chain.add(tree, source, image, scene, options, dict(pixels_per_unit or {}), x, y, notes)
+    return current, notes
 
-    scale = dict(pixels_per_unit or {})
-    kernel_options = {k: options[k] for k in _KERNEL_OPTIONS[technique] if options.get(k) is not None}
-    for k, material in enumerate(materials):
-        if material.index not in scale:
-            notes.append(f"{material.name}: no screen scale (no visible object in front of the camera): left out")
-            continue
-        d_su = mapping.burley_d(material, mapping=options.get("mapping"))
-        name = group_name(technique, material.name)
-        if technique == "ssss":
-            group = ensure_ssss_group(name=name, pixels_per_unit=scale[material.index], d_su=d_su, **kernel_options)
-        else:
-            group = ensure_burley_group(name=name, pixels_per_unit=scale[material.index], d_su=d_su)
+
+def _add_sta(tree, source, current, scene, options, pixels_per_unit, x, y, notes):
+    """One STA group per light with energy, chained; the mask covers every subsurface material."""
+    materials = [m for m in scene.materials if m.scatters]
+    group = ensure_sta_group()
+    mask = _mask(tree, source, [m.index for m in materials], "sta", (x, y - 300))
+    lights = [light for light in scene.lights if light.energy > 0]
+    if not lights:
+        notes.append("STA: the scene has no light with energy > 0: nothing to add")
+    cam = scene.camera
+    for k, light in enumerate(lights):
         node = tree.nodes.new(compat.COMPOSITOR_GROUP_NODE)
         node.node_tree = group
-        _tag(node, technique, name, (x + 350 + 260 * k, y))
+        _tag(node, "sta", f"SSS Lab STA {light.name or k}", (x + 350 + 260 * k, y))
         tree.links.new(current, node.inputs["Image"])
-        for name_in in ("diffuse", "diffuse_indirect", "albedo"):
-            tree.links.new(_pass(source, PASS_INPUTS[name_in]), node.inputs[name_in])
-        mask = _mask(tree, source, [material.index], technique, (x + 350 + 260 * k, y - 300))
+        for name in ("albedo", "normal", "position"):
+            tree.links.new(_pass(source, PASS_INPUTS[name]), node.inputs[name])
+        tree.links.new(_pass(source, scene.thickness_aov), node.inputs["thickness"])
         tree.links.new(mask, node.inputs["mask"])
-        node.inputs["albedo_mode"].default_value = options.get("albedo_mode", "post")
+        for socket in STA_PARAM_SOCKETS:
+            if socket.name in options:
+                _set(node, socket.name, float(options[socket.name]))
+        node.inputs["thickness_convention"].default_value = scene.thickness_convention
+        node.inputs["light_type"].default_value = light.type
+        _set(node, "light_direction", light.direction)
+        _set(node, "light_position", light.position)
+        _set(node, "light_color", light.color)
+        _set(node, "light_energy", float(light.energy))
+        _set(node, "light_spot_size", float(light.spot_size))
+        _set(node, "light_spot_blend", float(light.spot_blend))
+        node.inputs["camera_type"].default_value = cam.type
+        _set(node, "camera_position", cam.position)
+        _set(node, "camera_forward", cam.forward)
         current = node.outputs["Image"]
-    return current, notes
+    return current
+
+
+def _sta_unmodelled(options: Mapping) -> list[str]:
+    if options.get("falloff", STA.defaults["falloff"]) == STA.defaults["falloff"]:
+        return []
+    return [
+        "the STA node group uses the paper's falloff (the map for all channels); the Burley"
+        " transmission falloff exists only in Apply (NumPy)"
+    ]
+
+
+def _scatter_adder(technique: str, ensure: Callable) -> Callable:
+    """The ``add`` of a technique with one group per material built by ``ensure(name=,
+    pixels_per_unit=, d_su=, **kernel options)``: the options ``ensure`` takes are passed on."""
+    taken = set(inspect.signature(ensure).parameters) - {"name", "pixels_per_unit", "d_su"}
+
+    def add(tree, source, current, scene, options, pixels_per_unit, x, y, notes):
+        kernel_options = {k: options[k] for k in taken if options.get(k) is not None}
+        for k, material in enumerate(m for m in scene.materials if m.scatters):
+            if material.index not in pixels_per_unit:
+                notes.append(f"{material.name}: no screen scale (no visible object in front of the camera): left out")
+                continue
+            d_su = mapping.burley_d(material, mapping=options.get("mapping"))
+            name = group_name(technique, material.name)
+            group = ensure(name=name, pixels_per_unit=pixels_per_unit[material.index], d_su=d_su, **kernel_options)
+            node = tree.nodes.new(compat.COMPOSITOR_GROUP_NODE)
+            node.node_tree = group
+            _tag(node, technique, name, (x + 350 + 260 * k, y))
+            tree.links.new(current, node.inputs["Image"])
+            for name_in in ("diffuse", "diffuse_indirect", "albedo"):
+                tree.links.new(_pass(source, PASS_INPUTS[name_in]), node.inputs[name_in])
+            mask = _mask(tree, source, [material.index], technique, (x + 350 + 260 * k, y - 300))
+            tree.links.new(mask, node.inputs["mask"])
+            node.inputs["albedo_mode"].default_value = options.get("albedo_mode", "post")
+            current = node.outputs["Image"]
+        return current
+
+    return add
+
+
+_SCATTER_PASSES = ("Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Material Index")
+
+#: Technique name -> how its node groups go into a compositor tree: the one list of the builders.
+BUILDERS: dict[str, ChainBuilder] = {
+    "sta": ChainBuilder(
+        passes=("Diffuse Color", "Normal", "Position", "Material Index", THICKNESS),
+        per_material=False,
+        add=_add_sta,
+        unmodelled=_sta_unmodelled,
+    ),
+    "ssss": ChainBuilder(passes=_SCATTER_PASSES, per_material=True, add=_scatter_adder("ssss", ensure_ssss_group)),
+    "burley": ChainBuilder(
+        passes=_SCATTER_PASSES, per_material=True, add=_scatter_adder("burley", ensure_burley_group)
+    ),
+}
+
+#: Techniques without node groups, and why (the set-up says so instead of building anything).
+NO_BUILDER: dict[str, str] = {
+    "combined": "its light from behind needs every light's direction per pixel and the slab thickness, which the"
+    " groups do not compute; use Apply instead",
+}
+
+
+def builder(technique: str) -> ChainBuilder:
+    """The chain builder of ``technique``; ValueError saying why for a technique without one."""
+    name = check_technique(technique)
+    if name not in BUILDERS:
+        reason = NO_BUILDER.get(name, "no node groups are written for it")
+        raise ValueError(f"the {TECHNIQUES[name].label} technique has no compositor group: {reason}")
+    return BUILDERS[name]
 
 
 def remove_chain(tree) -> int:

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..core.kernel_images import separable_kernel_image
 from ..core.kernels import check_taps, make_kernel
-from ..core.mapping import SSSS_DEFAULTS
+from ..core.ssss import TECHNIQUE
 from . import _graph, _scatter
 
 GROUP_NAME = "SSS Lab SSSS"
@@ -28,12 +28,16 @@ VERSION = 1
 INTERFACE = _scatter.interface("Image with the diffuse light of the mask replaced by the separable SSS")
 
 
+#: The kernel's defaults: SSSS's own (its function's signature, through its spec).
+_DEFAULTS = TECHNIQUE.defaults
+
+
 def ssss_kernel_images(
     *,
     pixels_per_unit: float,
     d_su=None,
-    kernel_type: str = SSSS_DEFAULTS["kernel_type"],
-    n_taps: int = SSSS_DEFAULTS["n_taps"],
+    kernel_type: str = _DEFAULTS["kernel_type"],
+    n_taps: int = _DEFAULTS["n_taps"],
     unit_su: float | None = None,
     falloff=None,
     strength=None,
@@ -49,8 +53,8 @@ def ensure_ssss_group(
     *,
     pixels_per_unit: float,
     d_su=None,
-    kernel_type: str = SSSS_DEFAULTS["kernel_type"],
-    n_taps: int = SSSS_DEFAULTS["n_taps"],
+    kernel_type: str = _DEFAULTS["kernel_type"],
+    n_taps: int = _DEFAULTS["n_taps"],
     unit_su: float | None = None,
     falloff=None,
     strength=None,

@@ -8,7 +8,7 @@ group per light (its Image output into the next one's Image input); ``blender/co
 does that for the scene's lights.
 
 Inputs are the passes (Diffuse Color, Normal, Position, the thickness AOV), the mask, STA's
-parameters under the names and defaults of ``core.sta.sta`` (``core.mapping.STA_DEFAULTS``),
+parameters under the names, defaults and descriptions of its spec (``core.sta.TECHNIQUE``),
 the light (the fields of ``core.scene.Light``, prefixed ``light_``) and the camera (for the view
 vector). Outputs: ``Image`` = Image + SSS, and ``SSS``, the added translucency.
 
@@ -19,9 +19,8 @@ from __future__ import annotations
 
 import math
 
-from ..core.mapping import STA_DEFAULTS
 from ..core.scene import CAMERA_TYPES, LIGHT_TYPES
-from ..core.sta import THICKNESS_CONVENTIONS
+from ..core.sta import TECHNIQUE, THICKNESS_CONVENTIONS
 from . import _graph
 from ._graph import Interface, Socket
 
@@ -31,6 +30,10 @@ VERSION = 1
 
 _LEN_EPS = 1e-6  # core.sta._EPS: below this |L + d N| has no direction and the light adds nothing
 
+#: STA's number parameters as group inputs, made from its parameter specs (the other, the
+#: falloff, is not modelled by the group: ``blender/compositor.py`` warns).
+PARAM_SOCKETS = [Socket(p.name, "FLOAT", p.default, p.description, p.min) for p in TECHNIQUE.params if p.type is float]
+
 INTERFACE = Interface(
     inputs=[
         Socket("Image", "COLOR", (0.0, 0.0, 0.0, 1.0), "The image to add the translucency to (Combined)"),
@@ -39,10 +42,7 @@ INTERFACE = Interface(
         Socket("position", "VECTOR", (0.0, 0.0, 0.0), "Position pass (world space)"),
         Socket("thickness", "FLOAT", 1.0, "Thickness AOV (see thickness_convention)", 0.0, 1.0),
         Socket("mask", "FLOAT", 1.0, "1 on the pixels that get translucency, 0 elsewhere", 0.0, 1.0),
-        Socket("distortion", "FLOAT", STA_DEFAULTS["distortion"], "How far the normal bends the light: L + d N"),
-        Socket("power", "FLOAT", STA_DEFAULTS["power"], "Exponent of the view-dependent lobe", 0.0),
-        Socket("scale", "FLOAT", STA_DEFAULTS["scale"], "Brightness of the lobe (1: as bright as diffuse)", 0.0),
-        Socket("ambient", "FLOAT", STA_DEFAULTS["ambient"], "Translucency that does not depend on the view", 0.0),
+        *PARAM_SOCKETS,
         Socket(
             "thickness_convention",
             "MENU",

@@ -5,11 +5,11 @@ from __future__ import annotations
 import bpy
 
 from ..blender.compositor import setup_compositor
-from ..core.techniques import TECHNIQUES
+from ..core.techniques import DEFAULT_TECHNIQUE, TECHNIQUES
 
 #: A technique dropdown whose first entry defers to the panel's choice (Set Up Compositor, Apply).
 TECHNIQUE_ITEMS = [("PANEL", "From Panel", "The technique chosen in the SSS Lab panel")] + [
-    (name, label, desc) for name, (_, _, label, desc) in TECHNIQUES.items()
+    (name, t.label, t.description) for name, t in TECHNIQUES.items()
 ]
 
 
@@ -31,7 +31,7 @@ class SSS_LAB_OT_setup_compositor(bpy.types.Operator):
         settings = getattr(scene, "sss_lab", None)
         technique = self.technique
         if technique == "PANEL":
-            technique = settings.technique if settings is not None else "burley"
+            technique = settings.technique if settings is not None else DEFAULT_TECHNIQUE
         options = {}
         if settings is not None:
             options = dict(settings.technique_options(technique))

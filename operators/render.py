@@ -9,7 +9,7 @@ from ..blender.render_passes import NoSubsurfaceError, render_passes_job, resolv
 from ..core.techniques import TECHNIQUES
 from .modal import ModalJob
 
-_TECHNIQUE_FLAGS = [(name, label, desc) for name, (_, _, label, desc) in TECHNIQUES.items()]
+_TECHNIQUE_FLAGS = [(name, t.label, t.description) for name, t in TECHNIQUES.items()]
 
 
 class SSS_LAB_OT_render_passes(ModalJob, bpy.types.Operator):

@@ -84,7 +84,7 @@ QUALITIES: dict[str, tuple[dict, ...]] = {
 def quality_label(technique: str, quality: dict) -> str:
     from sss_lab.core.techniques import TECHNIQUES
 
-    label = TECHNIQUES[technique][2]
+    label = TECHNIQUES[technique].label
     if not quality:
         return f"{label} (default)"
     return label + " " + ", ".join(f"{k.replace('n_', '')}={v}" for k, v in quality.items())

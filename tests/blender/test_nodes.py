@@ -482,7 +482,7 @@ def test_group_inputs_have_the_numpy_names_and_defaults():
                 assert sta_defaults[name] == param.default
             else:
                 assert sta_defaults[name] == pytest.approx(param.default)
-    assert set(mapping.STA_DEFAULTS) | {
+    assert {p.name for p in sta.TECHNIQUE.params if p.type is float} | {
         "thickness_convention",
         "albedo",
         "normal",
@@ -680,7 +680,7 @@ def test_operator_takes_the_panel_settings_and_the_panel_has_its_button(addon):
 
     scene, tree, _ = _cycles_scene()
     settings = scene.sss_lab
-    settings.technique, settings.ssss_taps, settings.ssss_kernel = "ssss", "11", "artist"
+    settings.technique, settings.ssss.n_taps, settings.ssss.kernel_type = "ssss", "11", "artist"
     settings.albedo_mode = "pre-post"
     assert bpy.ops.sss_lab.setup_compositor() == {"FINISHED"}
     node = tree.nodes[group_name("ssss", "Skin")]

@@ -558,9 +558,9 @@ def test_panel_draws_the_parameters_and_buttons(addon, technique):
         assert op in drawn
     assert "sss_lab.apply_preset" not in drawn  # a material's preset: in the Material tab
     expected = {
-        "sta": {"sta_distortion", "sta_power", "sta_scale", "sta_ambient"},
-        "ssss": {"ssss_taps", "ssss_kernel", "albedo_mode"},
-        "burley": {"burley_samples", "burley_random_rotation", "albedo_mode"},
+        "sta": {"distortion", "power", "scale", "ambient", "falloff"},
+        "ssss": {"n_taps", "kernel_type", "albedo_mode"},
+        "burley": {"n_samples", "random_rotation", "albedo_mode"},
     }[technique]
     assert expected <= set(drawn)
 

@@ -12,11 +12,10 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core import apply as apply_mod
 from sss_lab.core import plan as plan_mod
 from sss_lab.core.apply import apply
 from sss_lab.core.exr import MissingPassError, Passes
-from sss_lab.core.plan import REQUIRED_PASSES, plan, required_passes
+from sss_lab.core.plan import plan, required_passes
 from sss_lab.core.scene import MaterialSSS
 from sss_lab.core.synthetic import DEFAULT_MATERIALS, sphere_scene
 from sss_lab.core.techniques import TECHNIQUES
@@ -62,6 +61,7 @@ class StubMapping:
 
     @staticmethod
     def technique_params(material, technique, *, mapping=None):
+        technique = technique.name
         if technique == "combined":
             return {"d_su": StubMapping.burley_d(material), "n_samples": 32, "thickness_distance_su": 1.0}
         if technique == "burley":
@@ -89,20 +89,23 @@ def stub(monkeypatch):
         namespace = {"rec": recorders[name]}
         exec(f"def f(*, {params}):\n    return rec(**{{k: v for k, v in locals().items() if k != 'rec'}})", namespace)
         funcs[name] = namespace["f"]
-    for module in (plan_mod, apply_mod):
-        monkeypatch.setattr(module, "get_technique", lambda name: funcs[plan_mod.check_technique(name)])
+    # The registered specs with the stand-in functions (and no parameters: the stand-ins have no defaults).
+    specs = {
+        name: dataclasses.replace(TECHNIQUES[name], function=funcs[name], params=(), qualities=({},), default_quality=0)
+        for name in funcs
+    }
+    monkeypatch.setattr(plan_mod, "get_spec", lambda t: specs[TECHNIQUES.get_spec(t).name])
     monkeypatch.setattr(plan_mod, "_mapping", lambda: StubMapping)
     return recorders
 
 
 def test_required_passes_are_the_single_source():
-    assert set(REQUIRED_PASSES) == set(TECHNIQUES)
-    assert {"Diffuse Color", "Normal", "Position", "Material Index", "Thickness"} <= set(REQUIRED_PASSES["sta"])
+    assert {"Diffuse Color", "Normal", "Position", "Material Index", "Thickness"} <= set(required_passes("sta"))
     for t in ("ssss", "burley"):
         assert {"Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Depth", "Material Index"} <= set(
-            REQUIRED_PASSES[t]
+            required_passes(t)
         )
-    assert "Object Index" in REQUIRED_PASSES["burley"]
+    assert "Object Index" in required_passes("burley")
     assert "Translucency" in required_passes("sta", "Translucency")
     assert "Thickness" not in required_passes("sta", "Translucency")
     with pytest.raises(ValueError, match="unknown technique 'foo'.*sta, ssss, burley"):

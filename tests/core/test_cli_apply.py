@@ -211,3 +211,40 @@ def test_skip_existing_resumes_a_chunk_and_says_what_it_kept(tmp_path):
     assert re.search(r"apply: frame 3 done in [\d.]+ s \(3/3, elapsed [\d.]+ s, ETA 0\.0 s\)", proc.stdout)
     both = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--skip-existing", "--overwrite")
     assert both.returncode == 2 and "not allowed with" in both.stderr
+
+
+def test_param_sets_a_technique_parameter(passes_file, tmp_path):
+    """--param reaches the technique: Burley at 4 samples differs from its default 32, and the
+    output equals core.apply at 4 samples."""
+    from sss_lab.core.apply import apply
+    from sss_lab.core.exr import Passes
+
+    path, arrays, scene = passes_file
+    out4, out32 = tmp_path / "n4.exr", tmp_path / "n32.exr"
+    r4 = run_apply(path, "--method", "burley", "--param", "n_samples=4", "--out", out4)
+    r32 = run_apply(path, "--method", "burley,ssss", "--param", "burley.n_samples=32", "--out", out32)
+    assert r4.returncode == 0 and r32.returncode == 0, r4.stderr + r32.stderr
+    image4 = read_layers(str(out4)).layers["SSSLab.burley.Image"]
+    image32 = read_layers(str(out32)).layers["SSSLab.burley.Image"]
+    assert not np.array_equal(image4, image32)
+    expected = apply(Passes(arrays), scene, "burley", n_samples=4)["SSSLab.burley.Image"]
+    np.testing.assert_array_equal(image4, expected)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--method", "burley", "--param", "n_samples=0"], "burley.n_samples: expected an integer in [1, 1024], got 0"),
+        (["--method", "burley", "--param", "taps=3"], "its parameters: n_samples, random_rotation"),
+        (["--method", "ssss,burley", "--param", "n_taps=11"], "several techniques run (ssss, burley): name one"),
+        (["--method", "ssss", "--param", "sta.power=2"], "'sta' is not among the techniques that run (ssss)"),
+        (["--method", "ssss", "--param", "n_taps=12"], "ssss.n_taps: expected one of 11, 17, 25, got 12"),
+    ],
+)
+def test_a_bad_param_is_one_line_naming_what_is_allowed(passes_file, args, message):
+    path, _, _ = passes_file
+    r = run_apply(path, *args)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], r.stderr
+    assert not os.path.exists(os.path.splitext(path)[0] + ".sss.exr")

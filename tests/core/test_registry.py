@@ -1,0 +1,97 @@
+"""A technique that exists only in this test: registered in a registry of its own, it runs through
+plan, apply and a comparison sweep without an edit anywhere else (``docs/adding-a-technique.md``)."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from sss_lab.core import sweep
+from sss_lab.core.apply import apply, layer_names
+from sss_lab.core.exr import Passes
+from sss_lab.core.plan import plan
+from sss_lab.core.spec import Param, Technique
+from sss_lab.core.synthetic import DEFAULT_MATERIALS, sphere_scene
+from sss_lab.core.techniques import TECHNIQUES, Registry
+
+
+def dim(*, diffuse, albedo, mask, strength: float = 0.5) -> np.ndarray:
+    """A stand-in that 'scatters' by keeping 1 - strength of the diffuse light on the mask."""
+    out = (albedo * diffuse).astype(np.float32)
+    out[mask] *= np.float32(1.0 - strength)
+    return out
+
+
+DIM = Technique(
+    name="dim",
+    label="Dim",
+    description="Keeps part of the diffuse light (a test stand-in)",
+    citation="tests/core/test_registry.py",
+    function=dim,
+    scatters=True,
+    adds_light=False,
+    passes=("Combined", "Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Depth", "Material Index"),
+    params=(Param("strength", "Strength", "Share of the diffuse light taken away", min=0.0, max=1.0),),
+    qualities=({"strength": 0.25}, {"strength": 0.5}),
+    default_quality=1,
+)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    arrays, desc = sphere_scene(24, 16)
+    return arrays, Passes(arrays), desc
+
+
+def test_a_registry_of_its_own():
+    registry = Registry([DIM])
+    assert list(registry) == ["dim"] and registry.get_spec("dim") is DIM
+    assert "dim" not in TECHNIQUES
+    with pytest.raises(ValueError, match="unknown technique 'sta'; expected one of: dim"):
+        registry.get_spec("sta")
+    with pytest.raises(TypeError, match="registered already"):
+        registry.register(DIM)
+    assert DIM.defaults == {"strength": 0.5}  # from the signature
+
+
+def test_plan_and_apply_run_it(scene):
+    arrays, passes, desc = scene
+    technique = Registry([DIM]).get_spec("dim")
+    p = plan(passes, desc, technique, strength=0.25)
+    applied = {m.material.index for m in p.applied}
+    assert applied == {m.index for m in DEFAULT_MATERIALS if m.scatters}
+    assert all(m.params["strength"] == 0.25 for m in p.applied)
+    assert "Dim (dim)" in p.explain()
+
+    layers = apply(passes, desc, technique, prepared=p)
+    image, sss = (layers[n] for n in layer_names("dim"))
+    albedo = arrays["Diffuse Color"]
+    diffuse = arrays["Diffuse Direct"] + arrays["Diffuse Indirect"]
+    index = np.rint(arrays["Material Index"]).astype(int)
+    on = np.isin(index, list(applied))
+    # The SSS term is the light taken away: -strength x albedo x diffuse on the materials, 0 elsewhere.
+    np.testing.assert_allclose(sss[on], -0.25 * (albedo * diffuse)[on], rtol=1e-5, atol=1e-7)
+    assert not sss[~on].any()
+    np.testing.assert_array_equal(image[~on], arrays["Combined"][~on])
+
+
+def test_a_comparison_sweep_runs_its_quality_ladder(scene):
+    _, passes, desc = scene
+    reference = np.array(passes["Combined"], dtype=np.float32)
+    mask = np.isin(np.rint(passes["Material Index"]).astype(int), [m.index for m in desc.materials if m.scatters])
+    variants = [(DIM.quality_label(q), dict(q)) for q in DIM.qualities]
+    rows = sweep.sweep(passes, desc, reference, mask, 2, DIM, "any", variants)
+    assert [r["mapping"] for r in rows] == ["Dim strength=0.25", "Dim strength=0.5"]
+    errors = [r["rel_rmse"] for r in rows]
+    assert 0 < errors[0] < errors[1]  # taking less light away stays closer to the passes' own image
+    assert rows[0].get("chosen") and not rows[1].get("chosen")
+
+
+def test_a_grid_calibration_sweeps_its_parameters(scene):
+    _, passes, desc = scene
+    reference = np.array(passes["Combined"], dtype=np.float32)
+    mask = np.ones(passes.shape, bool)
+    calibrated = replace(DIM, calibration={"strength": (0.0, 0.5, 1.0)})
+    rows = sweep.calibrate(passes, desc, reference, mask, box=2, techniques=[calibrated])["rows"]
+    assert [r["mapping"] for r in rows] == ["strength=0", "strength=0.5", "strength=1"]
+    assert rows[0]["rel_rmse"] == pytest.approx(0.0, abs=1e-6) and rows[0]["chosen"]
