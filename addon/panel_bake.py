@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import bpy
 
+from .panels import split
+
 
 class SSS_LAB_PT_bake(bpy.types.Panel):
     bl_label = "Thickness Bake"
@@ -12,11 +14,10 @@ class SSS_LAB_PT_bake(bpy.types.Panel):
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
     bl_context = "render"
+    bl_order = 1  # after the technique's parameters, before Render Passes (panels.py)
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = split(self.layout)
         s = context.scene.sss_lab.bake
         layout.prop(s, "target")
         layout.prop(s, "convention")

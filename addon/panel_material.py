@@ -19,11 +19,9 @@ class SSS_LAB_PT_material(bpy.types.Panel):
         return context.material is not None
 
     def draw(self, context):
-        from .panels import draw_fit
+        from .panels import draw_fit, split
 
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = split(self.layout)
         layout.operator_menu_enum("sss_lab.apply_preset", "preset", text="Subsurface Preset", icon="PRESET")
         draw_fit(layout.column(), context.material)
 

@@ -1,4 +1,11 @@
-"""The SSS Lab panel in the Properties editor (Render tab)."""
+"""The SSS Lab panel in the Properties editor (Render tab), laid out as Cycles lays out its own:
+a parent panel with the technique, then one sub-panel per step of the workflow, in the order a
+user takes them (parameters, thickness bake, render passes, apply, compositor, compare), every
+property row split (label left, value right).
+
+The material's own settings (presets, values fitted to Cycles) are in the Material tab
+(``panel_material.py``); the Thickness Bake sub-panel is ``panel_bake.py``.
+"""
 
 from __future__ import annotations
 
@@ -45,39 +52,106 @@ def draw_fit(layout, material) -> None:
             box.prop(material, f'["{fit_key(technique, name)}"]', text=name.replace("_", " ").title())
 
 
-class SSS_LAB_PT_main(bpy.types.Panel):
-    bl_label = "SSS Lab"
-    bl_idname = "SSS_LAB_PT_main"
+def split(layout):
+    """``layout`` with property split on (label left, value right) and no animation decorators."""
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    return layout
+
+
+def _note(layout, text: str) -> None:
+    col = layout.column(align=True)
+    col.scale_y = 0.8
+    col.label(text=text, icon="INFO")
+
+
+class _Panel:
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
     bl_context = "render"
+
+
+class SSS_LAB_PT_main(_Panel, bpy.types.Panel):
+    bl_label = "SSS Lab"
+    bl_idname = "SSS_LAB_PT_main"
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        layout = self.layout
-        settings = context.scene.sss_lab
-        layout.prop(settings, "technique")
+        layout = split(self.layout)
+        layout.prop(context.scene.sss_lab, "technique")
         layout.operator("sss_lab.scan_scene", icon="VIEWZOOM")
 
-        box = layout.box()
-        box.use_property_split = True
-        box.use_property_decorate = False
-        draw_technique_parameters(box, settings)
 
-        col = layout.column(align=True)
-        col.operator("sss_lab.bake_thickness", icon="MOD_THICKNESS")
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+class _Step(_Panel):
+    bl_parent_id = "SSS_LAB_PT_main"
+
+
+class SSS_LAB_PT_parameters(_Step, bpy.types.Panel):
+    bl_label = "Parameters"
+    bl_idname = "SSS_LAB_PT_parameters"
+    bl_order = 0
+
+    def draw(self, context):
+        draw_technique_parameters(split(self.layout), context.scene.sss_lab)
+
+
+# Order 1: Thickness Bake (panel_bake.py).
+
+
+class SSS_LAB_PT_render(_Step, bpy.types.Panel):
+    bl_label = "Render Passes"
+    bl_idname = "SSS_LAB_PT_render"
+    bl_order = 2
+
+    def draw(self, context):
+        layout = split(self.layout)
+        settings = context.scene.sss_lab
         layout.prop(settings, "output_dir")
-        row = layout.row(align=True)
-        row.prop(settings, "render_samples")
-        row.prop(settings, "render_all", toggle=True)
+        layout.prop(settings, "render_samples")
+        layout.prop(settings, "render_all")
         layout.operator("sss_lab.render_passes", icon="RENDER_STILL")
-        layout.prop(settings, "passes_file")
+        _note(layout, "Esc cancels between frames; finished frames stay.")
+
+
+class SSS_LAB_PT_apply(_Step, bpy.types.Panel):
+    bl_label = "Apply"
+    bl_idname = "SSS_LAB_PT_apply"
+    bl_order = 3
+
+    def draw(self, context):
+        layout = split(self.layout)
+        layout.prop(context.scene.sss_lab, "passes_file")
         layout.operator("sss_lab.apply", icon="IMAGE_DATA")
+
+
+class SSS_LAB_PT_compositor(_Step, bpy.types.Panel):
+    bl_label = "Compositor"
+    bl_idname = "SSS_LAB_PT_compositor"
+    bl_order = 4
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = split(self.layout)
         layout.operator("sss_lab.setup_compositor", icon="NODE_COMPOSITING")
+
+
+class SSS_LAB_PT_compare(_Step, bpy.types.Panel):
+    bl_label = "Compare with Cycles"
+    bl_idname = "SSS_LAB_PT_compare"
+    bl_order = 5
+
+    def draw(self, context):
+        layout = split(self.layout)
         layout.operator("sss_lab.compare", icon="SORTTIME")
+        _note(layout, "Esc cancels between renders; rendered references stay cached.")
         layout.operator("sss_lab.fit_to_cycles", icon="DRIVER_DISTANCE")
 
 
-classes = (SSS_LAB_PT_main,)
+classes = (
+    SSS_LAB_PT_main,
+    SSS_LAB_PT_parameters,
+    SSS_LAB_PT_render,
+    SSS_LAB_PT_apply,
+    SSS_LAB_PT_compositor,
+    SSS_LAB_PT_compare,
+)

@@ -117,6 +117,85 @@ def quad_weights(sss_quads):
     return weights
 
 
+class PanelLayout:
+    """A stand-in for Blender's UILayout that records what a panel draws, as rows
+    (panel, kind, name, split): ``prop`` rows with whether property split was on, ``operator`` and
+    ``menu`` rows (the operator id), ``label`` rows (the text). It checks that every property and
+    operator named exists. Sub-layouts (column, row, box...) inherit property split, as Blender's do.
+    """
+
+    def __init__(self, rows, panel, split=False):
+        self._rows, self._panel = rows, panel
+        self.use_property_split, self.use_property_decorate, self.scale_y = split, False, 1.0
+
+    def _add(self, kind, name):
+        self._rows.append((self._panel, kind, name, self.use_property_split))
+
+    def prop(self, data, name, **_):
+        assert name.startswith('["') or name in data.bl_rna.properties, name
+        self._add("prop", name)
+
+    def _operator(self, idname):
+        module, name = idname.split(".")
+        return getattr(getattr(bpy.ops, module), name)
+
+    def operator(self, idname, **_):
+        self._operator(idname).poll()  # exists
+        self._add("operator", idname)
+        return types.SimpleNamespace()
+
+    def operator_menu_enum(self, idname, prop, **_):
+        assert prop in self._operator(idname).get_rna_type().properties
+        self._add("menu", idname)
+
+    def label(self, text="", **_):
+        self._add("label", text)
+
+    def separator(self, **_):
+        pass
+
+    def column(self, **_):
+        return PanelLayout(self._rows, self._panel, self.use_property_split)
+
+    row = box = split = column
+
+
+def panels_of(tab):
+    """SSS Lab's panels of the Properties editor tab ``tab`` in the order Blender shows them:
+    each parent (registration order) followed by its sub-panels sorted by ``bl_order``."""
+    import sss_lab
+
+    panels = [
+        cls
+        for module in sss_lab.addon._modules()
+        for cls in module.classes
+        if issubclass(cls, bpy.types.Panel) and cls.bl_context == tab
+    ]
+    ordered = []
+    for parent in [p for p in panels if not getattr(p, "bl_parent_id", "")]:
+        ordered.append(parent)
+        children = [p for p in panels if getattr(p, "bl_parent_id", "") == parent.bl_idname]
+        ordered += sorted(children, key=lambda p: getattr(p, "bl_order", 0))
+    return ordered
+
+
+@pytest.fixture
+def draw_panels(addon):
+    """``draw_panels(tab, context=bpy.context)``: the rows (see ``PanelLayout``) of every SSS Lab
+    panel of ``tab`` whose poll passes, drawn in display order."""
+
+    def draw(tab, context=None):
+        context = context or bpy.context
+        rows = []
+        for panel in panels_of(tab):
+            if hasattr(panel, "poll") and not panel.poll(context):
+                continue
+            panel.draw(types.SimpleNamespace(layout=PanelLayout(rows, panel.bl_label)), context)
+        return rows
+
+    return draw
+
+
 # -- driving modal operators -------------------------------------------------------------------
 
 

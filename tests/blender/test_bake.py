@@ -635,37 +635,10 @@ def test_operator_invoked_headless_runs_blocking(addon):
         bpy.ops.sss_lab.bake_thickness()
 
 
-class _Layout:
-    """Records what a panel draws and checks each property and operator it names exists."""
-
-    def __init__(self, drawn):
-        self.drawn = drawn
-        self.use_property_split = self.use_property_decorate = False
-        self.scale_y = 1.0
-
-    def prop(self, data, name, **_):
-        assert name in data.bl_rna.properties, name
-        self.drawn.append(name)
-
-    def operator(self, idname, **_):
-        module, name = idname.split(".")
-        assert getattr(getattr(bpy.ops, module), name).poll() in (True, False)
-        self.drawn.append(idname)
-
-    def label(self, text="", **_):
-        self.drawn.append(text)
-
-    def column(self, **_):
-        return self
-
-
 @pytest.mark.parametrize("target", ["attribute", "image"])
-def test_panel_draws_the_settings_and_the_button(addon, target):
-    from sss_lab.addon.panel_bake import SSS_LAB_PT_bake
-
+def test_panel_draws_the_settings_and_the_button(addon, draw_panels, target):
     bpy.context.scene.sss_lab.bake.target = target
-    drawn = []
-    SSS_LAB_PT_bake.draw(SimpleNamespace(layout=_Layout(drawn)), bpy.context)
+    drawn = [name for panel, _, name, _ in draw_panels("render") if panel == "Thickness Bake"]
     assert "sss_lab.bake_thickness" in drawn and {"samples", "distance", "only_local", "convention"} <= set(drawn)
     if target == "image":
         assert {"resolution", "margin", "image_format", "image_folder"} <= set(drawn)

@@ -673,10 +673,7 @@ def test_rebuild_keeps_links_and_values_of_the_instances_and_fixes_the_interface
     assert result.links[0].from_node == node
 
 
-def test_operator_takes_the_panel_settings_and_the_panel_has_its_button(addon):
-    from types import SimpleNamespace
-
-    from sss_lab.addon.panels import SSS_LAB_PT_main
+def test_operator_takes_the_panel_settings_and_the_panel_has_its_button(addon, draw_panels):
 
     scene, tree, _ = _cycles_scene()
     settings = scene.sss_lab
@@ -690,14 +687,5 @@ def test_operator_takes_the_panel_settings_and_the_panel_has_its_button(addon):
     # The screen scale: the quad is 4 units in front of the camera.
     assert meta["pixels_per_unit"] == pytest.approx(Camera(width_px=1920, height_px=1080).focal_px / 4.0, rel=1e-6)
 
-    drawn = []
-
-    class Layout(SimpleNamespace):
-        def operator(self, idname, **_):
-            drawn.append(idname)
-
-        def __getattr__(self, name):  # prop, column, row, box, separator...: accept and ignore
-            return lambda *a, **k: self
-
-    SSS_LAB_PT_main.draw(SimpleNamespace(layout=Layout()), bpy.context)
-    assert "sss_lab.setup_compositor" in drawn
+    drawn = [(panel, name) for panel, _, name, _ in draw_panels("render")]
+    assert ("Compositor", "sss_lab.setup_compositor") in drawn

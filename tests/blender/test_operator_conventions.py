@@ -32,3 +32,27 @@ def test_apply_and_set_up_take_the_technique_from_a_dropdown(addon):
         prop = getattr(bpy.ops.sss_lab, name).get_rna_type().properties["technique"]
         assert prop.type == "ENUM" and prop.default == "PANEL", name
         assert [item.identifier for item in prop.enum_items] == ["PANEL", *TECHNIQUES], name
+
+
+#: The Render tab's SSS Lab panels, top to bottom: the workflow's order.
+RENDER_TAB = ["SSS Lab", "Parameters", "Thickness Bake", "Render Passes", "Apply", "Compositor", "Compare with Cycles"]
+#: Where each step's button is.
+BUTTONS = {
+    "sss_lab.bake_thickness": "Thickness Bake",
+    "sss_lab.render_passes": "Render Passes",
+    "sss_lab.apply": "Apply",
+    "sss_lab.setup_compositor": "Compositor",
+    "sss_lab.compare": "Compare with Cycles",
+}
+
+
+def test_render_tab_panels_follow_the_workflow_with_every_row_split(draw_panels):
+    rows = draw_panels("render")
+    shown = list(dict.fromkeys(panel for panel, *_ in rows))
+    assert shown == RENDER_TAB
+    buttons = [(panel, name) for panel, kind, name, _ in rows if kind == "operator"]
+    for idname, panel in BUTTONS.items():
+        assert [p for p, name in buttons if name == idname] == [panel], idname  # once, in its step
+    props = [(panel, name) for panel, kind, name, split in rows if kind == "prop" and not split]
+    assert props == []  # label left, value right, as Cycles' panels
+    assert all(kind != "menu" for _, kind, *_ in rows)  # the material preset is in the Material tab

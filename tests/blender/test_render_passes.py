@@ -497,63 +497,23 @@ def test_preset_refuses_a_linked_input(addon):
 
 
 # -- panel -----------------------------------------------------------------------------------
-class _Layout:
-    """Records what a panel draws and checks each property and operator it names exists."""
-
-    def __init__(self, drawn):
-        self.drawn = drawn
-        self.use_property_split = self.use_property_decorate = False
-
-    def prop(self, data, name, **_):
-        assert name in data.bl_rna.properties, name
-        self.drawn.append(name)
-
-    def operator(self, idname, **_):
-        module, name = idname.split(".")
-        assert getattr(getattr(bpy.ops, module), name).poll() in (True, False)
-        self.drawn.append(idname)
-
-    def operator_menu_enum(self, idname, prop, **_):
-        module, name = idname.split(".")
-        assert prop in getattr(getattr(bpy.ops, module), name).get_rna_type().properties
-        self.drawn.append(idname)
-
-    def column(self, **_):
-        return self
-
-    row = box = column
-
-    def separator(self, **_):
-        pass
-
-    def label(self, **_):
-        pass
-
-
-def test_material_tab_has_the_preset_menu(addon):
+def test_material_tab_has_the_preset_menu(addon, draw_panels):
     from types import SimpleNamespace
 
-    from sss_lab.addon.panel_material import SSS_LAB_PT_material
-
     build_scene()
-    bpy.context.view_layer.objects.active = bpy.data.objects["Ball"]
-    context = SimpleNamespace(material=bpy.data.materials["Skin"])
-    assert SSS_LAB_PT_material.bl_context == "material" and SSS_LAB_PT_material.poll(context)
-    assert not SSS_LAB_PT_material.poll(SimpleNamespace(material=None))
-    drawn = []
-    SSS_LAB_PT_material.draw(SimpleNamespace(layout=_Layout(drawn)), context)
-    assert drawn == ["sss_lab.apply_preset"]
+    rows = draw_panels("material", SimpleNamespace(material=bpy.data.materials["Skin"]))
+    assert [(kind, name) for _, kind, name, _ in rows] == [
+        ("menu", "sss_lab.apply_preset"),
+        ("label", "Skin: not fitted (Fit to Cycles)"),
+    ]
+    assert draw_panels("material", SimpleNamespace(material=None)) == []  # no material: no panel
 
 
 @pytest.mark.parametrize("technique", ALL)
-def test_panel_draws_the_parameters_and_buttons(addon, technique):
-    from types import SimpleNamespace
-
-    from sss_lab.addon.panels import SSS_LAB_PT_main
-
+def test_panel_draws_the_parameters_and_buttons(addon, draw_panels, technique):
     bpy.context.scene.sss_lab.technique = technique
-    drawn = []
-    SSS_LAB_PT_main.draw(SimpleNamespace(layout=_Layout(drawn)), bpy.context)
+    rows = draw_panels("render")
+    drawn = [name for _, _, name, _ in rows]
     for op in ("sss_lab.bake_thickness", "sss_lab.render_passes", "sss_lab.apply"):
         assert op in drawn
     assert "sss_lab.apply_preset" not in drawn  # a material's preset: in the Material tab
@@ -562,7 +522,7 @@ def test_panel_draws_the_parameters_and_buttons(addon, technique):
         "ssss": {"n_taps", "kernel_type", "albedo_mode"},
         "burley": {"n_samples", "random_rotation", "albedo_mode"},
     }[technique]
-    assert expected <= set(drawn)
+    assert expected <= {name for panel, kind, name, _ in rows if panel == "Parameters" and kind == "prop"}
 
 
 @pytest.mark.parametrize("technique", ALL)
