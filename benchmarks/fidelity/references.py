@@ -13,6 +13,12 @@ Regenerate (all scenes or some; a few minutes per scene on a 2-core machine)::
 
     nice -n 10 .venv/bin/python -m benchmarks.fidelity.references [SCENE ...] [--samples 1024]
 
+Held-out scenes (a module whose ``SCENES`` maps names to ``scenes.SuiteScene``) get their
+references the same way, into their own folder, and are then scored by the same runner::
+
+    python -m benchmarks.fidelity.references --scenes-module MODULE --store DIR
+    python -m benchmarks.fidelity.run --scenes-module MODULE --store DIR --out ... --table ... --grid ...
+
 ``load`` refuses a reference whose fingerprint differs from the scene's: a scene edited
 without re-rendering fails loudly instead of being scored against a picture of another scene.
 """
@@ -157,28 +163,35 @@ def render(name: str, *, samples: int = SAMPLES, scenes=None, store: str = STORE
 
 
 def main(argv=None) -> int:
+    import importlib
+
     from . import scenes as suite
 
     parser = argparse.ArgumentParser(description="Render and store the fidelity suite's Cycles references.")
     parser.add_argument("names", nargs="*", help=f"scenes (default: all of {', '.join(suite.SCENES)})")
     parser.add_argument("--samples", type=int, default=SAMPLES, help=f"Cycles samples (default {SAMPLES})")
     parser.add_argument("--missing", action="store_true", help="only scenes without a matching stored reference")
+    parser.add_argument(
+        "--scenes-module", help="a module with SCENES built the suite's way (held-out scenes; default: the suite)"
+    )
+    parser.add_argument("--store", default=STORE, help=f"folder of the references (default {STORE})")
     args = parser.parse_args(argv)
-    names = args.names or list(suite.SCENES)
-    unknown = [n for n in names if n not in suite.SCENES]
+    table = importlib.import_module(args.scenes_module).SCENES if args.scenes_module else suite.SCENES
+    names = args.names or list(table)
+    unknown = [n for n in names if n not in table]
     if unknown:
-        parser.error(f"unknown scene(s) {unknown}; expected: {', '.join(suite.SCENES)}")
+        parser.error(f"unknown scene(s) {unknown}; expected: {', '.join(table)}")
     for name in names:
         if args.missing:
-            scene = suite.build(name)
+            scene = suite.build(name, table)
             suite.prepare(scene)
             try:
-                load(name, fingerprint(scene))
+                load(name, fingerprint(scene), store=args.store)
                 print(f"{name}: stored reference matches, skipped")
                 continue
             except StaleReferenceError:
                 pass
-        render(name, samples=args.samples)
+        render(name, samples=args.samples, scenes=table, store=args.store)
     return 0
 
 

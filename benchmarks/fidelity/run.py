@@ -53,6 +53,7 @@ import os
 import shutil
 import statistics
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -119,7 +120,7 @@ def _passes(scene, key: str, samples: int, cache: str | None, log):
     from sss_lab.core import exr, sequence
     from sss_lab.core.techniques import TECHNIQUES
 
-    folder = os.path.join(cache or os.path.join(ROOT, "out", "fidelity_tmp"), f"{key}_{samples}")
+    folder = os.path.join(cache or tempfile.mkdtemp(prefix="sss_lab_fidelity_"), f"{key}_{samples}")
     exr_path = os.path.join(folder, "passes_0001.exr")
     meta = os.path.join(folder, "seconds.json")
     cached = os.path.isfile(exr_path) and os.path.isfile(meta)
@@ -147,7 +148,7 @@ def _passes(scene, key: str, samples: int, cache: str | None, log):
     passes = exr.read_passes(exr_path)
     desc = sequence.load_scene(exr_path)
     if cache is None:
-        shutil.rmtree(folder, ignore_errors=True)
+        shutil.rmtree(os.path.dirname(folder), ignore_errors=True)
     return passes, desc, seconds, cached
 
 

@@ -52,3 +52,33 @@ def test_runner_scores_a_back_lit_scene(monkeypatch, tmp_path):
     assert rows["sta"]["removed"] > 0.2
     assert abs(rows["burley"]["removed"]) < 0.05
     assert out["summary"]["kinds"]["backlit"]["best_technique"] == "sta"
+
+
+def test_held_out_scenes_are_rendered_and_scored_the_same_way(tmp_path, monkeypatch):
+    # A scene module the suite has never seen: its own SCENES, references into its own folder.
+    (tmp_path / "held_out_scenes.py").write_text(
+        "from benchmarks.fidelity import scenes\n"
+        "def dim_fins():\n"
+        "    scene = scenes.fins_backlit_jade()\n"
+        "    import bpy\n"
+        "    bpy.data.objects['Back'].data.energy = 2.0\n"
+        "    return scene\n"
+        "SCENES = {'dim_fins': scenes.SuiteScene('dim_fins', 'backlit', dim_fins, 'fins, half the back light')}\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    store = str(tmp_path / "refs")
+    assert references.main(["--scenes-module", "held_out_scenes", "--store", store, "--samples", "16"]) == 0
+    monkeypatch.setattr(run, "PASS_SAMPLES", 8)
+    monkeypatch.setattr(run, "HIGH_SAMPLES", 32)
+    import held_out_scenes
+
+    out = run.run(None, scenes=held_out_scenes, qualities={"sta": ({},)}, cache=None, store=store, log=lambda s: None)
+    (result,) = out["scenes"]
+    assert result["scene"] == "dim_fins" and result["kind"] == "backlit"
+    rows = {r["technique"]: r for r in result["rows"]}
+    assert rows["sta"]["removed"] > 0.2  # the suite's fins: 36 % at 64 samples; here 16-sample references
+    # Its reference is its own: the suite's fins are refused against it.
+    scene = scenes.build("fins_backlit_jade")
+    scenes.prepare(scene)
+    with pytest.raises(references.StaleReferenceError):
+        references.load("dim_fins", references.fingerprint(scene), store=store)
