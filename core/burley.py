@@ -352,7 +352,7 @@ def _compiled(light, z, ok, scale, ids, groups, n, dmax, inv3d, reach_c, random_
     backend.run_kernel(
         "burley_kernel",
         c(light, dtype=f32),
-        c(z, dtype=f32),
+        np.where(ok, z, f32(np.inf)).astype(f32, copy=False),
         ok,
         c(scale, dtype=f32),
         id_map,

@@ -32,6 +32,7 @@ f32 = np.float32
 _ZERO = f32(0.0)
 _ONE = f32(1.0)
 _TINY = f32(1e-30)
+_INF = f32(np.inf)
 _EPS = f32(1e-6)  # core.sta._EPS
 _R2_MIN = f32(1e-12)
 _QUARTER = f32(0.25)
@@ -400,19 +401,20 @@ def ssss_kernel(light, key, ok, scale, offsets, weights, wsum, post, out):
 
 
 @njit(cache=True, fastmath={"reassoc"})
-def _burley_pixel(light, z, ok, ids, y, x, s, rc, rsn, r_su, r2, cos_a, sin_a, inv_pdf, inv3d, sums):
+def _burley_pixel(light, zkey, ids, y, x, s, rc, rsn, r_su, r2, cos_a, sin_a, inv_pdf, inv3d, sums):
     """The spiral samples of pixel (y, x) as core.burley computes them, summed into ``sums``
-    (num R, G, B, den R, G, B). ``rc``/``rsn``: the pixel's rotation (1, 0 for none); ``ids``
+    (num R, G, B, den R, G, B). ``zkey`` (H, W): the depth where pixels take part, +inf
+    elsewhere. ``rc``/``rsn``: the pixel's rotation (1, 0 for none); ``ids``
     flat object ids, or one 0 when there are none. A sample the reference weights by exactly 0
     (off the image, off the mask, another object) is selected away (its light may be NaN).
     Only the sums over the samples may be reassociated (they vectorize); the sample positions
     are the reference's to the bit (the tests compare both backends)."""
-    h, w = ok.shape
+    h, w = zkey.shape
     wl = f32(w - 1)
     hl = f32(h - 1)
     use_ids = ids.size > 1
     own = ids[y * w + x] if use_ids else ids[0]
-    zc = z[y, x]
+    zc = zkey[y, x]
     k0 = -inv3d[0]
     k1 = -inv3d[1]
     k2 = -inv3d[2]
@@ -436,9 +438,10 @@ def _burley_pixel(light, z, ok, ids, y, x, s, rc, rsn, r_su, r2, cos_a, sin_a, i
         yc = _clip(ys, hl)
         jx = int(xc)
         jy = int(yc)
-        other = ids[(jy * w + jx) if use_ids else 0]
-        valid = (xc == xs) & (yc == ys) & ok[jy, jx] & (other == own)
-        rp = z[jy, jx] - zc
+        zj = zkey[jy, jx]
+        other = ids[jy * w + jx] if use_ids else own
+        valid = (xc == xs) & (yc == ys) & (zj < _INF) & (other == own)
+        rp = zj - zc
         rp *= rp
         rp += r2[i]
         rp = math.sqrt(rp)
@@ -464,11 +467,13 @@ def _burley_pixel(light, z, ok, ids, y, x, s, rc, rsn, r_su, r2, cos_a, sin_a, i
 
 
 @njit(cache=True, parallel=True)
-def burley_kernel(light, z, ok, scale, ids, group, tables, rot_cos, rot_sin, inv3d, reach, post, out):
+def burley_kernel(light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, inv3d, reach, post, out):
     """core.burley's gather over the pixels ``ok`` into ``out`` (times ``post``).
 
-    ``tables`` (5, G, n): per object group the spiral's radii, radii squared, cosines, sines
-    and inverse pdfs; ``group`` (H, W) each pixel's group, or (1, 1) for one group;
+    ``zkey`` (H, W): the depth where ``ok``, +inf elsewhere (so that a sample's test of the
+    pixel it reads is one float comparison, not a gather of bytes); ``tables`` (5, G, n): per
+    object group the spiral's radii, radii squared, cosines, sines and inverse pdfs;
+    ``group`` (H, W) each pixel's group, or (1, 1) for one group;
     ``reach`` (3,) float64, 16 d_c per channel (0: the channel keeps its light; so does a
     channel whose reach times the pixel's scale is at most one pixel); ``rot_cos``/``rot_sin``
     (H, W) the per-pixel rotation as NumPy computed it, or (1, 1) holding 1 and 0 for none;
@@ -486,7 +491,7 @@ def burley_kernel(light, z, ok, scale, ids, group, tables, rot_cos, rot_sin, inv
             rsn = rot_sin[y, x] if rotate else rot_sin[0, 0]
             g = group[y, x] if grouped else 0
             _burley_pixel(
-                light, z, ok, ids, y, x, s, rc, rsn, tables[0, g], tables[1, g], tables[2, g], tables[3, g],
+                light, zkey, ids, y, x, s, rc, rsn, tables[0, g], tables[1, g], tables[2, g], tables[3, g],
                 tables[4, g], inv3d, sums,
             )  # fmt: skip
             for c in range(3):
