@@ -500,7 +500,7 @@ def cube_blend(path):
     material = bpy.data.materials.new("Skin")
     compat.ensure_node_tree(material)
     material.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
-    bpy.data.objects["Cube"].data.materials.append(material)
+    bpy.data.objects["Cube"].data.materials[0] = material  # the faces use slot 0
     bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
     return path
 """

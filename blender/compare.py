@@ -251,12 +251,16 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
             yield steps.next(label)
             try:
                 start = time.perf_counter()
-                layers = core_apply.apply(passes, desc, technique, **quality)
+                prepared = plan.plan(passes, desc, technique, **quality)
+                layers = core_apply.apply(passes, desc, technique, prepared=prepared, **quality)
                 apply_s = time.perf_counter() - start
             except (ValueError, KeyError) as exc:
                 notes.append(f"{label} did not run: {exc}")
                 log(f"  {label}: not run ({exc})")
                 continue
+            for m in prepared.applied:
+                if m.warning:  # a kernel beyond the material or the image (a units slip?): say so
+                    log(f"  {label}: warning: material {m.material.name or m.material.index!r}: {m.warning}")
             if not layers:
                 notes.append(f"{label}: no material scattered on screen")
                 continue

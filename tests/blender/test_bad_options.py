@@ -50,7 +50,7 @@ def _cube_with_sss(bpy):
     material = bpy.data.materials.new("Skin")
     compat.ensure_node_tree(material)
     material.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
-    bpy.data.objects["Cube"].data.materials.append(material)
+    bpy.data.objects["Cube"].data.materials[0] = material  # the faces use slot 0
 
 
 def test_render_refuses_a_folder_where_a_sidecar_goes_before_rendering(tmp_path, capsys):
@@ -64,3 +64,28 @@ def test_render_refuses_a_folder_where_a_sidecar_goes_before_rendering(tmp_path,
     err = capsys.readouterr().err
     assert code == 2 and "passes_0001.json is a folder or not a regular file" in err
     assert sorted(os.listdir(out)) == ["passes_0001.json"]  # nothing rendered, nothing half-written
+
+
+def test_compare_warns_about_a_kernel_far_beyond_the_object_and_still_scatters(tmp_path):
+    # Subsurface Scale 1000 times too large (a units slip): the rows used to equal "no SSS".
+    import bpy
+
+    from sss_lab.blender.compare import CompareSettings, compare
+
+    _cube_with_sss(bpy)
+    node = bpy.data.materials["Skin"].node_tree.nodes["Principled BSDF"]
+    node.inputs["Subsurface Scale"].default_value = 50.0
+    settings = CompareSettings(
+        resolution=(24, 24),
+        reference_samples=4,
+        pass_samples=4,
+        peer_samples=(),
+        cycles_burley=False,
+        techniques=("ssss", "burley"),
+        qualities={"ssss": ({},), "burley": ({},)},
+    )
+    lines = []
+    data = compare(bpy.context.scene, str(tmp_path / "report"), settings, log=lines.append)
+    assert any("Burley: warning: material 'Skin'" in x and "Subsurface Scale" in x for x in lines), lines
+    rows = {e["name"]: e["metrics"]["rel_rmse"] for e in data["entries"]}
+    assert rows["Burley"] != rows["no SSS"] and rows["SSSS"] != rows["no SSS"]

@@ -18,7 +18,7 @@ def cube_scene():
     material = bpy.data.materials.new("Skin")
     compat.ensure_node_tree(material)
     material.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
-    bpy.data.objects["Cube"].data.materials.append(material)
+    bpy.data.objects["Cube"].data.materials[0] = material  # the faces use slot 0
     return bpy.context.scene
 
 

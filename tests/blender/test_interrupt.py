@@ -31,7 +31,7 @@ def cube_blend(tmp_path_factory):
     bsdf = material.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Subsurface Weight"].default_value = 1.0
     bsdf.inputs["Subsurface Scale"].default_value = 0.1
-    bpy.data.objects["Cube"].data.materials.append(material)
+    bpy.data.objects["Cube"].data.materials[0] = material  # the faces use slot 0
     bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
     return path
 
