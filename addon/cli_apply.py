@@ -21,7 +21,7 @@ from ..core.techniques import TECHNIQUES
 
 
 def add_parser(subparsers):
-    from .cli_options import add_existing
+    from .cli_options import add_existing, add_frames, add_view_layer
 
     p = subparsers.add_parser(
         "apply",
@@ -58,14 +58,18 @@ def add_parser(subparsers):
     )
     p.add_argument("--out", help="output EXR (with #### for a sequence); default: <input stem>.sss.exr")
     p.add_argument("--explain", action="store_true", help="print the plan (materials, kernels, samples) and stop")
-    p.add_argument("--scene", help="scene description JSON (#### allowed); default: the .json beside each EXR")
+    p.add_argument(
+        "--description",
+        metavar="JSON",
+        help="scene description JSON (#### allowed; default: the .json beside each EXR)",
+    )
     p.add_argument(
         "--albedo-mode",
         default="post",
         help="post (albedo after scattering, the default) or pre-post (square root before and after)",
     )
-    p.add_argument("--frames", help="frames of a #### pattern, e.g. 1-10 or 1-3,7 (default: every existing file)")
-    p.add_argument("--view-layer", help="view layer to read (default: the first one in the file)")
+    add_frames(p, help="frames of a #### pattern, e.g. 1-10, 1-3,7 or 1-9:2 (default: every existing file)")
+    add_view_layer(p, help="view layer to read (default: the first one in the file)")
     add_existing(p, "output files (never the input)")
     p.set_defaults(run=run)
 
@@ -117,7 +121,8 @@ def run(args) -> int:
             continue
         print(f"apply: {progress.position()} {what}: {path}", flush=True)
         started = time.perf_counter()
-        scene_path = frame_path(args.scene, frame) if args.scene and frame is not None else args.scene
+        description = args.description
+        scene_path = frame_path(description, frame) if description and frame is not None else description
         try:
             result = apply_file(
                 path,

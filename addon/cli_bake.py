@@ -21,17 +21,17 @@ _FORMATS = {"exr": "OPEN_EXR", "png": "PNG"}
 
 
 def add_parser(subparsers):
-    from .cli_options import add_render_device
+    from .cli_options import add_blend, add_render_device, add_samples, add_scene
 
     p = subparsers.add_parser(
         "bake-thickness",
         help="bake thickness maps (inverted-normal AO) of a .blend scene into a new .blend (needs bpy)",
         description=__doc__.split("\n\n", 1)[1],
     )
-    p.add_argument("blend", help="the .blend file to read (not written unless it is OUT and --overwrite is given)")
+    add_blend(p, help="the .blend file to read (written only when it is OUT and --overwrite is given)")
     p.add_argument("--out", required=True, help="the .blend file to write")
     p.add_argument("--overwrite", action="store_true", help="allow OUT to be an existing file, the input included")
-    p.add_argument("--scene", help="scene name (default: the file's active scene)")
+    add_scene(p)
     p.add_argument(
         "--objects",
         nargs="+",
@@ -40,7 +40,7 @@ def add_parser(subparsers):
     )
     p.add_argument("--target", choices=TARGETS, default="attribute", help="default: %(default)s")
     p.add_argument("--convention", choices=tuple(CONVENTIONS), default="translucency", help="default: %(default)s")
-    p.add_argument("--samples", type=int, default=32, help="AO rays per vertex or texel (default: %(default)s)")
+    add_samples(p, default=32, help="AO rays per vertex or texel (default: %(default)s)")
     p.add_argument(
         "--distance",
         type=float,
@@ -54,7 +54,10 @@ def add_parser(subparsers):
         help="only the object itself occludes (default); --no-only-local: every rendered object does",
     )
     p.add_argument("--attribute", default="Thickness", help="attribute name (default: %(default)s)")
-    p.add_argument("--resolution", type=int, default=1024, help="image size in pixels (default: %(default)s)")
+    # Not --resolution: that is a render size WIDTHxHEIGHT in every command.
+    p.add_argument(
+        "--image-size", type=int, default=1024, metavar="PIXELS", help="image width and height (default: %(default)s)"
+    )
     p.add_argument("--margin", type=int, default=16, help="image margin in pixels (default: %(default)s)")
     p.add_argument("--format", choices=tuple(_FORMATS), default="exr", help="exr: float32; png: 16-bit")
     p.add_argument("--image-dir", help="folder for the images (default: OUT_thickness beside OUT)")
@@ -98,7 +101,7 @@ def run(args) -> int:
         distance_su=args.distance,
         only_local=args.only_local,
         attribute_name=args.attribute,
-        resolution_px=args.resolution,
+        resolution_px=args.image_size,
         margin_px=args.margin,
         image_format=_FORMATS[args.format],
         image_folder=image_dir,

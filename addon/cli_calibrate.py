@@ -18,34 +18,37 @@ from ..core.progress import saved_line
 
 def add_parser(subparsers):
     from ..core.fit_params import FIT_PARAMETERS
+    from .cli_options import add_blend, add_resolution, add_samples, add_scene, add_seed
 
     p = subparsers.add_parser(
         "calibrate",
         help="fit each subsurface material's parameters to a short Cycles random-walk render (needs bpy)",
         description=__doc__.split("\n\n", 1)[1],
     )
-    p.add_argument("blend", help="the .blend file to read")
+    add_blend(p, help="the .blend file to read (written only when it is OUT and --overwrite is given)")
     p.add_argument("--out", required=True, help="the .blend file to write, with the fitted values")
     p.add_argument("--overwrite", action="store_true", help="allow OUT to be an existing file, the input included")
-    p.add_argument("--scene", help="scene name (default: the file's active scene)")
-    p.add_argument("--samples", type=int, default=32, help="Cycles random-walk samples to fit to (default: 32)")
-    p.add_argument("--pass-samples", type=int, default=64, help="samples of the passes (default: 64)")
+    add_scene(p)
+    add_samples(p, default=32, help="Cycles random-walk samples to fit to (default: 32)")
+    add_samples(p, "--pass-samples", default=64, help="Cycles samples of the passes (default: 64)")
     p.add_argument(
         "--methods",
         default="burley,combined",
         help=f"techniques to fit: some of {', '.join(FIT_PARAMETERS)} (default: burley,combined)",
     )
-    p.add_argument("--resolution", help="render size WxH for the fit (default: the scene's)")
-    p.add_argument("--seed", type=int, default=0, help="Cycles seed (default: 0)")
+    add_resolution(p, help="render size WIDTHxHEIGHT for the fit (default: the scene's)")
+    add_seed(p, default=0, help="Cycles seed (default: 0)")
     p.add_argument("--json", help="also write the fit results (errors, values, times) to this JSON file")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
     from .cli_bake import _check_out
+    from .cli_options import read_resolution
     from .cli_scan import open_blend
 
     out = _check_out(args.blend, args.out, args.overwrite)
+    resolution = read_resolution(args)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     scene = open_blend(args.blend, args.scene)
     import bpy
@@ -60,7 +63,7 @@ def run(args) -> int:
         techniques=methods,
         samples=args.samples,
         pass_samples=args.pass_samples,
-        resolution=args.resolution,
+        resolution=resolution,
         seed=args.seed,
         log=log,
     )

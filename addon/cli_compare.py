@@ -5,18 +5,6 @@ from __future__ import annotations
 import os
 
 
-def _resolution(text: str) -> tuple[int, int]:
-    import argparse
-
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WxH such as 128x128, got {text!r}") from None
-    if w < 1 or h < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive width and height, got {text!r}")
-    return w, h
-
-
 def _methods(text: str) -> tuple[str, ...]:
     from ..core.scene import SUBSURFACE_METHODS
     from .cli import CommandError
@@ -33,17 +21,17 @@ def _methods(text: str) -> tuple[str, ...]:
 
 
 def add_parser(subparsers):
-    from .cli_options import add_render_device
+    from .cli_options import add_blend, add_methods, add_render_device, add_resolution, add_samples, add_scene, add_seed
 
     p = subparsers.add_parser(
         "compare", help="compare each technique with Cycles random walk and write a report (needs bpy)"
     )
-    p.add_argument("blend", help="the .blend scene (read only)")
+    add_blend(p)
     p.add_argument("--out", required=True, help="report folder (metrics.json, report.md, report.html, images)")
-    p.add_argument("--scene", help="scene name (default: the file's active scene)")
-    p.add_argument("--resolution", type=_resolution, help="render size WxH (default: the scene's)")
-    p.add_argument("--reference-samples", type=int, default=256, help="Cycles samples of the reference (256)")
-    p.add_argument("--pass-samples", type=int, default=64, help="Cycles samples of the passes (64)")
+    add_scene(p)
+    add_resolution(p)
+    add_samples(p, "--reference-samples", default=256, help="Cycles samples of the reference (default: 256)")
+    add_samples(p, "--pass-samples", default=64, help="Cycles samples of the passes (default: 64)")
     p.add_argument(
         "--bias-samples",
         type=int,
@@ -51,9 +39,9 @@ def add_parser(subparsers):
         help="samples of a second set of passes that splits each error into bias and pass noise"
         " (default 4 x --pass-samples; 0: no split)",
     )
-    p.add_argument("--seed", type=int, default=0, help="Cycles seed of the reference (0; the noise floor uses +1)")
+    add_seed(p, default=0, help="Cycles seed of the reference (default: 0; the noise floor uses +1)")
     p.add_argument("--box", type=int, default=2, help="box downsampling before the metrics (2)")
-    p.add_argument("--methods", default="sta,ssss,burley", help="techniques to compare (default: all)")
+    add_methods(p, default="sta,ssss,burley", what="techniques to compare")
     p.add_argument("--cache", help="reference cache folder (default: OUT/cache)")
     p.add_argument(
         "--calibrate-methods",
@@ -81,9 +69,10 @@ def run(args) -> int:
         scene.frame_set(args.frame)  # the file is only read: nothing to put back
     from ..blender.compare import CompareSettings, compare
     from .cli import parse_methods
+    from .cli_options import read_resolution
 
     settings = CompareSettings(
-        resolution=args.resolution,
+        resolution=read_resolution(args),
         reference_samples=args.reference_samples,
         pass_samples=args.pass_samples,
         bias_samples=args.bias_samples,

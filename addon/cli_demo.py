@@ -20,7 +20,8 @@ def add_parser(subparsers):
         "demo", help="build the sample scene and compare every technique with Cycles random walk (needs bpy)"
     )
     p.add_argument("--out", default="out", help="output folder (default: out)")
-    p.add_argument("--scene", default=None, help="sample scene name (default: the demo scene)")
+    # Not --scene: that names a scene of a .blend file in every command.
+    p.add_argument("--sample", default=None, metavar="NAME", help="sample scene to build (default: the demo scene)")
     p.add_argument("--reference-samples", type=int, default=512, help="Cycles samples of the reference (default 512)")
     p.add_argument("--samples", type=int, default=64, help="Cycles samples of the passes (default 64)")
     p.set_defaults(run=run)
@@ -47,7 +48,7 @@ def run(args) -> int:
         if getattr(args, name) < 1:
             raise CommandError(f"--{name.replace('_', '-')}: expected an integer >= 1, got {getattr(args, name)}")
     scenes = load_sample_scenes()
-    name = args.scene or scenes.DEFAULT_SCENE
+    name = args.sample or scenes.DEFAULT_SCENE
     if name not in scenes.SCENES:
         raise CommandError(f"unknown sample scene {name!r}; expected one of: {', '.join(scenes.SCENES)}")
     out = os.path.abspath(os.path.join(args.out, name))

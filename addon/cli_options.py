@@ -1,5 +1,12 @@
-"""Options several commands share, declared once: what to do with existing outputs, and the
-render threads and Cycles device of the commands that render with Blender (farm options).
+"""Options several commands share, declared once: their flag, their help and how they are read.
+
+A command composes the ones it takes in ``add_parser`` (``add_blend(p)``, ``add_scene(p)``,
+``add_resolution(p)`` ...) and reads the ones that need a check with the ``read_*`` functions in
+``run``, so that every error names the flag the user typed and one option means one thing in
+every command: ``--scene`` is always a scene of the .blend file (``apply`` takes the scene
+description as ``--description``, ``demo`` its sample scene as ``--sample``), ``--resolution``
+is always a render size WIDTHxHEIGHT read by one parser, ``--methods`` always techniques of the
+registry.
 
 ``add_existing(p, what)`` adds ``--overwrite`` / ``--skip-existing`` (mutually exclusive);
 ``add_render_device(p)`` adds ``--threads`` / ``--device``; ``render_device(args, scene)`` is a
@@ -13,6 +20,73 @@ import contextlib
 #: Cycles devices --device accepts (``blender.device.DEVICES``, repeated here so that the parser
 #: is built without bpy; a test holds them equal).
 DEVICES = ("CPU", "CUDA", "OPTIX", "HIP", "ONEAPI", "METAL")
+
+
+def add_blend(p, help: str = "the .blend file to read (never written)") -> None:
+    p.add_argument("blend", help=help)
+
+
+def add_scene(p) -> None:
+    """``--scene NAME``: a scene of the .blend file, the one meaning of --scene."""
+    p.add_argument("--scene", metavar="NAME", help="scene of the .blend file (default: the file's active scene)")
+
+
+def add_resolution(p, help: str = "render size WIDTHxHEIGHT at 100%% (default: the scene's)") -> None:
+    """``--resolution WxH``; read it with ``read_resolution``."""
+    p.add_argument("--resolution", metavar="WxH", help=help)
+
+
+def read_resolution(args) -> tuple[int, int] | None:
+    """``--resolution`` as (width, height), None when not given; CommandError naming the flag."""
+    from ..core.scene import parse_resolution
+    from .cli import CommandError
+
+    if args.resolution is None:
+        return None
+    try:
+        return parse_resolution(args.resolution)
+    except ValueError as exc:
+        raise CommandError(f"--resolution: {exc}") from None
+
+
+def add_samples(p, flag: str = "--samples", *, default: int | None = None, help: str) -> None:
+    """A sample count (``--samples``, ``--pass-samples`` ...); check it with ``check_at_least``."""
+    p.add_argument(flag, type=int, default=default, metavar="N", help=help)
+
+
+def add_seed(p, *, default: int | None = None, help: str = "Cycles seed (default: the scene's)") -> None:
+    p.add_argument("--seed", type=int, default=default, help=help)
+
+
+def add_frames(p, help: str = "frames, e.g. 1-10, 1-3,7 or 1-9:2 (default: the scene's current frame)") -> None:
+    p.add_argument("--frames", help=help)
+
+
+def add_view_layer(p, help: str) -> None:
+    p.add_argument("--view-layer", metavar="NAME", help=help)
+
+
+def add_methods(p, *, default: str = "all", what: str = "techniques") -> None:
+    """``--methods``: techniques of the registry, a comma-separated list, or all (read with
+    ``cli.parse_methods``)."""
+    from ..core.techniques import TECHNIQUES
+
+    p.add_argument(
+        "--methods",
+        default=default,
+        help=f"{what}: {', '.join(TECHNIQUES)}, a comma-separated list, or all (default: {default})",
+    )
+
+
+def check_at_least(args, minimum: int, *names: str) -> None:
+    """Each integer option ``names`` (attribute names) that is given is at least ``minimum``;
+    CommandError naming the flag otherwise."""
+    from .cli import CommandError
+
+    for name in names:
+        value = getattr(args, name)
+        if value is not None and value < minimum:
+            raise CommandError(f"--{name.replace('_', '-')}: expected an integer >= {minimum}, got {value}")
 
 
 def add_existing(p, what: str) -> None:

@@ -13,20 +13,20 @@ from __future__ import annotations
 
 
 def add_parser(subparsers):
-    from .cli_options import add_existing, add_render_device
+    from .cli_options import add_blend, add_existing, add_render_device, add_resolution, add_scene
 
     p = subparsers.add_parser(
         "reference",
         help="render the comparison's Cycles reference in parts, one per seed (needs bpy)",
         description=__doc__.split("\n\n", 1)[1],
     )
-    p.add_argument("blend", help="the .blend file to read (never written)")
+    add_blend(p)
     p.add_argument("--out", required=True, help="output folder (created if needed)")
-    p.add_argument("--scene", help="scene name (default: the file's active scene)")
+    add_scene(p)
     p.add_argument("--seeds", required=True, help="Cycles seeds, one part each: e.g. 1-8 or 3 or 1,4")
     p.add_argument("--samples", type=int, required=True, help="Cycles samples per part")
     p.add_argument("--frame", type=int, help="frame to render (default: the scene's current frame)")
-    p.add_argument("--resolution", help="WIDTHxHEIGHT at 100%% (default: the scene's resolution)")
+    add_resolution(p)
     add_existing(p, "parts")
     add_render_device(p)
     p.set_defaults(run=run)
@@ -35,7 +35,7 @@ def add_parser(subparsers):
 def run(args) -> int:
     from ..core.sequence import parse_frames
     from .cli import CommandError, require_bpy
-    from .cli_options import render_device
+    from .cli_options import check_at_least, read_resolution, render_device
     from .cli_scan import open_blend
 
     require_bpy()
@@ -43,16 +43,8 @@ def run(args) -> int:
         seeds = parse_frames(args.seeds)
     except ValueError as exc:
         raise CommandError(f"--seeds: {exc}".replace("frames: ", "")) from None
-    if args.samples < 1:
-        raise CommandError(f"--samples: expected an integer >= 1, got {args.samples}")
-    from ..blender.render_passes import parse_resolution
-
-    resolution = None
-    if args.resolution is not None:
-        try:
-            resolution = parse_resolution(args.resolution)
-        except ValueError as exc:
-            raise CommandError(f"--resolution: {exc}") from None
+    check_at_least(args, 1, "samples")
+    resolution = read_resolution(args)
     scene = open_blend(args.blend, args.scene)
     from ..blender.reference import render_reference_parts
 

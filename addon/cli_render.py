@@ -18,26 +18,33 @@ import sys
 
 
 def add_parser(subparsers):
-    from .cli_options import add_existing, add_render_device
+    from .cli_options import (
+        add_blend,
+        add_existing,
+        add_frames,
+        add_methods,
+        add_render_device,
+        add_resolution,
+        add_samples,
+        add_scene,
+        add_seed,
+        add_view_layer,
+    )
 
     p = subparsers.add_parser(
         "render",
         help="render the passes the SSS techniques need from a .blend scene (needs bpy)",
         description=__doc__.split("\n\n", 1)[1],
     )
-    p.add_argument("blend", help="the .blend file to read (never written)")
+    add_blend(p)
     p.add_argument("--out", required=True, help="output folder (created if needed)")
-    p.add_argument("--scene", help="scene name (default: the file's active scene)")
-    p.add_argument("--view-layer", help="view layer to render (default: the scene's active one)")
-    p.add_argument("--frames", help="frames, e.g. 1-10 or 1-3,7 (default: the scene's current frame)")
-    p.add_argument("--samples", type=int, help="Cycles samples (default: the scene's); adaptive sampling is off")
-    p.add_argument("--seed", type=int, help="Cycles seed (default: the scene's)")
-    p.add_argument("--resolution", help="WIDTHxHEIGHT at 100%% (default: the scene's resolution)")
-    p.add_argument(
-        "--methods",
-        default="all",
-        help="techniques whose passes to render: sta, ssss, burley, a comma-separated list, or all (default)",
-    )
+    add_scene(p)
+    add_view_layer(p, "view layer to render (default: the scene's active one)")
+    add_frames(p)
+    add_samples(p, help="Cycles samples (default: the scene's); adaptive sampling is off")
+    add_seed(p)
+    add_resolution(p)
+    add_methods(p, what="techniques whose passes to render")
     add_existing(p, "frames")
     add_render_device(p)
     p.set_defaults(run=run)
@@ -75,25 +82,18 @@ def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | No
 
 def run(args) -> int:
     from ..core.sequence import parse_frames
-    from .cli import EXIT_NOTHING_TO_DO, CommandError, parse_methods, require_bpy
+    from .cli import EXIT_NOTHING_TO_DO, parse_methods, require_bpy
+    from .cli_options import check_at_least, read_resolution
     from .cli_scan import open_blend
 
     require_bpy()
     techniques = parse_methods(args.methods)
     frames = parse_frames(args.frames) if args.frames else None
-    if args.samples is not None and args.samples < 1:
-        raise CommandError(f"--samples: expected an integer >= 1, got {args.samples}")
-    if args.seed is not None and args.seed < 0:
-        raise CommandError(f"--seed: expected an integer >= 0, got {args.seed}")
+    check_at_least(args, 1, "samples")
+    check_at_least(args, 0, "seed")
     from ..blender import render_passes as rp
 
-    if args.resolution is not None:
-        try:
-            resolution = rp.parse_resolution(args.resolution)
-        except ValueError as exc:
-            raise CommandError(f"--resolution: {exc}") from None
-    else:
-        resolution = None
+    resolution = read_resolution(args)
     scene = open_blend(args.blend, args.scene)
     from ..core.progress import Progress
     from .cli_options import render_device

@@ -7,16 +7,18 @@ import os
 
 
 def add_parser(subparsers):
+    from .cli_options import add_blend, add_resolution, add_samples, add_scene
+
     p = subparsers.add_parser("scan", help="list the subsurface materials of a .blend scene (needs bpy)")
-    p.add_argument("blend", help="the .blend file to read (never written)")
-    p.add_argument("--scene", help="scene name (default: the file's active scene)")
+    add_blend(p)
+    add_scene(p)
     p.add_argument(
         "--recommend",
         action="store_true",
         help="per material, the technique `apply --method auto` would choose and why (renders small passes once)",
     )
-    p.add_argument("--resolution", help="with --recommend: WxH of that render (default: long side 160 px)")
-    p.add_argument("--samples", type=int, default=16, help="with --recommend: samples of that render (default 16)")
+    add_resolution(p, help="with --recommend: WIDTHxHEIGHT of that render (default: long side 160 px)")
+    add_samples(p, default=16, help="with --recommend: samples of that render (default: 16)")
     p.add_argument("--max-error", type=float, help="with --recommend: as apply --method auto (default 0.05)")
     p.set_defaults(run=run)
 
@@ -47,14 +49,16 @@ def open_blend(path: str, scene_name: str | None = None):
 
 
 def run(args) -> int:
+    from .cli_options import check_at_least, read_resolution
+
+    check_at_least(args, 1, "samples")
+    resolution = read_resolution(args)
     scene = open_blend(args.blend, args.scene)
     from ..blender.scan import recommend, scan_report
 
     for line in scan_report(scene):
         print(line)
     if args.recommend:
-        for line in recommend(
-            scene, resolution=args.resolution, samples=args.samples, max_error=args.max_error, log=None
-        ):
+        for line in recommend(scene, resolution=resolution, samples=args.samples, max_error=args.max_error, log=None):
             print(line)
     return 0

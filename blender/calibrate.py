@@ -107,8 +107,9 @@ def calibrate(
     "passes", "fit"}}. Raises InputError (nothing changed) for bad arguments, a scene without a
     camera or without subsurface materials.
     """
+    from ..core.scene import parse_resolution
     from .reference_cache import _render_combined
-    from .render_passes import parse_resolution, render_passes
+    from .render_passes import render_passes
     from .thickness import thickness_aov_name, thickness_setup
 
     techniques = tuple(techniques)

@@ -46,6 +46,7 @@ from ..core.errors import DamagedFileError, OutputError, describe_os_error
 from ..core.passes import PASSES
 from ..core.plan import required_passes
 from ..core.progress import saved_line
+from ..core.scene import parse_resolution
 from ..core.sequence import frame_path, sidecar_path
 from ..core.techniques import TECHNIQUES, check_technique
 from ..core.thickness import CONVENTIONS
@@ -480,23 +481,3 @@ def resolve_folder(path: str) -> str:
             "an absolute folder"
         )
     return os.path.abspath(bpy.path.abspath(path))
-
-
-def parse_resolution(text) -> tuple[int, int]:
-    """``"640x480"`` or ``(640, 480)`` -> (640, 480); ValueError naming the bad value."""
-    if isinstance(text, str):
-        parts = text.lower().replace(" ", "").split("x")
-    else:
-        try:
-            parts = list(text)
-        except TypeError:
-            parts = [text]
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        w, h = (int(p) for p in parts)
-    except (TypeError, ValueError):
-        raise ValueError(f"resolution: expected WIDTHxHEIGHT like 640x480, got {text!r}") from None
-    if w < 1 or h < 1 or w > 65536 or h > 65536:
-        raise ValueError(f"resolution: expected 1..65536 pixels per side, got {text!r}")
-    return w, h

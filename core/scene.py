@@ -466,3 +466,23 @@ def _check_fields(cls, data, where: str, required: tuple[str, ...] = ()) -> dict
         if not _type_ok(kind, value):
             raise ValueError(f"{prefix}{key}: expected {_EXPECTED[kind]}, got {_kind(value)}")
     return data
+
+
+def parse_resolution(text) -> tuple[int, int]:
+    """``"640x480"`` or ``(640, 480)`` -> (640, 480); ValueError naming the bad value."""
+    if isinstance(text, str):
+        parts = text.lower().replace(" ", "").split("x")
+    else:
+        try:
+            parts = list(text)
+        except TypeError:
+            parts = [text]
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        w, h = (int(p) for p in parts)
+    except (TypeError, ValueError):
+        raise ValueError(f"resolution: expected WIDTHxHEIGHT like 640x480, got {text!r}") from None
+    if w < 1 or h < 1 or w > 65536 or h > 65536:
+        raise ValueError(f"resolution: expected 1..65536 pixels per side, got {text!r}")
+    return w, h

@@ -110,7 +110,7 @@ def load_scene(exr_path: str, scene_path: str | None = None) -> SceneDescription
     """The scene description for ``exr_path``: ``scene_path`` if given, else the sidecar JSON."""
     path = scene_path or sidecar_path(exr_path)
     if not os.path.isfile(path):
-        hint = "" if scene_path else " (the render writes it beside the EXR; or pass --scene PATH)"
+        hint = "" if scene_path else " (the render writes it beside the EXR; or pass --description PATH)"
         raise FileNotFoundError(f"{path}: no scene description{hint}")
     return read_scene_file(path)
 
@@ -191,7 +191,7 @@ def apply_file(
     out_path = os.fspath(out_path) if out_path else default_output(path)
     if os.path.abspath(out_path) == os.path.abspath(path):
         raise FileExistsError(f"{out_path} is the input file; refusing to overwrite it")
-    # The scene description is an input too (sidecar or --scene): never written over, however spelled.
+    # The scene description is an input too (sidecar or --description): never written over, however spelled.
     inputs = [path, scene_path or sidecar_path(path)]
     for source in inputs:
         if os.path.exists(out_path) and os.path.exists(source) and os.path.samefile(out_path, source):
@@ -210,7 +210,7 @@ def apply_file(
         raise InputError(
             f"{inputs[1] if scene_path or os.path.exists(inputs[1]) else 'the scene description'}: it describes "
             f"a {scene.camera.width_px}x{scene.camera.height_px} render, but {path} is {w}x{h}: they come from "
-            "different renders; pass the JSON written with these passes (--scene)"
+            "different renders; pass the JSON written with these passes (--description)"
         )
     for technique in techniques:
         if technique == _auto.AUTO:

@@ -110,7 +110,7 @@ def test_bake_stops_and_writes_no_blend(cube_blend, tmp_path):
     before = _digest(cube_blend)
     out = tmp_path / "baked.blend"
     code, stopped, stdout, err = _interrupt(
-        ["bake-thickness", cube_blend, "--out", out, "--target", "image", "--resolution", "2048", "--samples", "1024"],
+        ["bake-thickness", cube_blend, "--out", out, "--target", "image", "--image-size", "2048", "--samples", "1024"],
         after=4.0,
     )
     assert code == 130, err

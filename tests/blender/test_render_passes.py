@@ -20,10 +20,11 @@ import pytest
 
 from sss_lab.blender import compat
 from sss_lab.blender import render_passes as rp
-from sss_lab.blender.render_passes import NoSubsurfaceError, needed_passes, parse_resolution, render_passes
+from sss_lab.blender.render_passes import NoSubsurfaceError, needed_passes, render_passes
 from sss_lab.core.exr import read_layers, read_passes
 from sss_lab.core.plan import required_passes
 from sss_lab.core.presets import PRESETS, get_preset
+from sss_lab.core.scene import parse_resolution
 from sss_lab.core.sequence import load_scene, sidecar_path
 
 SIZE = 64

@@ -156,7 +156,7 @@ def test_scene_from_option_and_missing_sidecar(passes_file, tmp_path):
     os.replace(os.path.splitext(path)[0] + ".json", moved)
     proc = run_apply(path, "--method", "burley")
     assert proc.returncode == 1 and "passes.json: no scene description" in proc.stderr
-    proc = run_apply(path, "--method", "burley", "--scene", moved, "--out", tmp_path / "o.exr")
+    proc = run_apply(path, "--method", "burley", "--description", moved, "--out", tmp_path / "o.exr")
     assert proc.returncode == 0, proc.stderr
     assert SceneDescription.from_json(read_layers(tmp_path / "o.exr").header["sss_lab.scene"]) == scene
 

@@ -1,0 +1,61 @@
+"""The command line's shared options (``addon/cli_options.py``): one meaning, one help and one
+parser per option in every command that takes it (no bpy needed to build the parser)."""
+
+import argparse
+
+import pytest
+
+from sss_lab.addon import cli, cli_options
+
+
+def _commands() -> dict[str, argparse.ArgumentParser]:
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(sub.choices)
+
+
+def _option(p: argparse.ArgumentParser, flag: str):
+    return next((a for a in p._actions if flag in a.option_strings), None)
+
+
+def test_scene_means_a_scene_of_the_blend_file_everywhere():
+    commands = _commands()
+    takers = {name: _option(p, "--scene") for name, p in commands.items() if _option(p, "--scene")}
+    assert {"scan", "render", "compare", "bake-thickness", "calibrate", "reference"} <= set(takers)
+    assert len({a.help for a in takers.values()}) == 1
+    for name, p in commands.items():
+        if name not in takers:  # the commands without a .blend file
+            assert not any(a.dest == "blend" for a in p._actions), name
+    assert _option(commands["apply"], "--description") is not None
+    assert _option(commands["demo"], "--sample") is not None
+
+
+def test_resolution_is_a_render_size_and_methods_are_techniques_everywhere():
+    commands = _commands()
+    resolution = {name: _option(p, "--resolution") for name, p in commands.items() if _option(p, "--resolution")}
+    assert {"render", "compare", "calibrate", "reference", "scan"} <= set(resolution)
+    assert all(a.metavar == "WxH" and a.type is None for a in resolution.values())  # read by read_resolution
+    assert _option(commands["bake-thickness"], "--image-size") is not None  # an image size is not a --resolution
+    methods = [_option(p, "--methods") for name, p in commands.items() if name in ("render", "compare")]
+    assert all("sta, ssss, burley, combined" in a.help for a in methods)
+
+
+def test_resolution_is_read_by_one_parser_with_the_flag_in_the_error():
+    args = argparse.Namespace(resolution="640x480")
+    assert cli_options.read_resolution(args) == (640, 480)
+    assert cli_options.read_resolution(argparse.Namespace(resolution=None)) is None
+    with pytest.raises(cli.CommandError, match=r"^--resolution: resolution: expected WIDTHxHEIGHT like 640x480"):
+        cli_options.read_resolution(argparse.Namespace(resolution="64"))
+
+
+def test_integer_options_are_checked_with_their_flag():
+    cli_options.check_at_least(argparse.Namespace(samples=1, pass_samples=None), 1, "samples", "pass_samples")
+    with pytest.raises(cli.CommandError, match=r"^--pass-samples: expected an integer >= 1, got 0$"):
+        cli_options.check_at_least(argparse.Namespace(pass_samples=0), 1, "pass_samples")
+
+
+def test_apply_help_shows_param(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["apply", "--help"])
+    out = capsys.readouterr().out
+    assert "--param KEY=VALUE" in out and "TECHNIQUE.KEY=VALUE" in out
