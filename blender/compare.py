@@ -32,7 +32,7 @@ import bpy
 import numpy as np
 
 from ..core import apply as core_apply
-from ..core import exr, fidelity, metrics, report, sequence
+from ..core import exr, fidelity, metrics, plan, report, sequence
 from ..core import reference as core_reference
 from ..core.errors import InputError
 from ..core.progress import saved_line
