@@ -3,7 +3,7 @@
 PY := .venv/bin/python
 OUT ?= out
 
-.PHONY: venv demo farm-demo test lint format bench fidelity extension clean
+.PHONY: venv demo farm-demo test lint typecheck format bench fidelity extension clean
 
 venv:
 	@bash tools/bootstrap.sh
@@ -27,12 +27,18 @@ farm-demo: venv
 test: venv
 	$(PY) -m ruff check .
 	$(PY) -m ruff format --check .
+	$(PY) tools/typecheck.py
 	@bash tools/ensure_chromium.sh
 	$(PY) -m pytest tests
 
 lint: venv
 	$(PY) -m ruff check .
 	$(PY) -m ruff format --check .
+
+# mypy: default checks over core, blender, operators, nodes and addon, strict ones over the core
+# modules listed in pyproject.toml ([tool.mypy]).
+typecheck: venv
+	$(PY) tools/typecheck.py
 
 format: venv
 	$(PY) -m ruff format .

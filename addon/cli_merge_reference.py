@@ -57,7 +57,7 @@ def run(args) -> int:
         f"{'/'.join(map(str, counts))} samples each: {merged.samples} samples"
     )
     floor = reference.noise_floor(merged)
-    if floor is None:
+    if floor is None or merged.half_samples is None:
         print("merge-reference: one part only: no noise floor (it needs two halves)")
     else:
         print(

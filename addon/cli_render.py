@@ -103,7 +103,7 @@ def run(args) -> int:
 
     # The render's own lines count the frames it renders; the command counts every frame of the
     # chunk (kept ones too) and adds the elapsed time and the ETA to each frame's last line.
-    done_line = []
+    done_line: list[str] = []
 
     def render_log(line: str):
         if re.match(r"\[\d+/\d+\] frame ", line):

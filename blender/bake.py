@@ -45,6 +45,7 @@ import os
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import bpy
 import numpy as np
@@ -95,8 +96,8 @@ class BakeResult:
 
 @dataclass
 class _Item:
-    obj: object
-    mesh: object
+    obj: Any  # a bpy Object
+    mesh: Any  # its bpy Mesh
     distance_su: float
     distance_auto: bool
     vertices: int
@@ -134,10 +135,10 @@ def _world_area(obj_eval) -> float:
     co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
     mesh.vertices.foreach_get("co", co)
     m = np.array(obj_eval.matrix_world, dtype=np.float64)
-    co = co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T
+    world = co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T
     tris = np.empty(n_tri * 3, dtype=np.int32)
     mesh.loop_triangles.foreach_get("vertices", tris)
-    a, b, c = (co[tris.reshape(-1, 3)[:, k]] for k in range(3))
+    a, b, c = (world[tris.reshape(-1, 3)[:, k]] for k in range(3))
     return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
 
 
@@ -171,7 +172,7 @@ class ThicknessBake:
         self._order: list[str] = []
         self._queue: list[_Item] = []
         self._state: SceneState | None = None
-        self._material = None
+        self._material: Any = None  # the temporary bake material, while a batch runs
         self._material_images: dict[str, str] = {}
         self._image_folder = ""
         self._started = self._finished = False
@@ -208,7 +209,8 @@ class ThicknessBake:
         s = self.settings
         depsgraph = self.context.evaluated_depsgraph_get()
         in_layer = set(self.view_layer.objects)
-        errors, by_mesh = [], {}
+        errors: list[str] = []
+        by_mesh: dict[Any, Any] = {}
         for obj in objects:
             self._order.append(obj.name)
             if obj.type != "MESH":
@@ -455,6 +457,7 @@ class ThicknessBake:
                 mesh[META_KEY] = stored
                 result.data = s.attribute_name
             else:
+                assert image is not None  # the image target made one above
                 result.filepath = self._save_image(image, item, meta)
                 result.data = image.name
         except BaseException:
@@ -603,7 +606,7 @@ class ThicknessBake:
             r.message = f"shares mesh {source.mesh!r} with {source.object!r}, baked once ({source.data!r})"
             if self.settings.link_materials:
                 image = bpy.data.images.get(source.data) if source.target == "image" else None
-                uv = thickness_metadata(image).get("uv_map", "") if image is not None else ""
+                uv = (thickness_metadata(image) or {}).get("uv_map", "") if image is not None else ""
                 r.warnings.extend(self._link_materials(_Item(obj, obj.data, 0.0, False, 0, uv), image))
         else:
             r.message = f"{source.status}: shares mesh {source.mesh!r} with {source.object!r}"
@@ -658,8 +661,8 @@ def coarse_warning(obj_eval, mesh_name: str, distance_su: float) -> str:
     world = co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
     edges = np.empty(len(mesh.edges) * 2, np.int64)
     mesh.edges.foreach_get("vertices", edges)
-    edges = edges.reshape(-1, 2)
-    longest = float(np.linalg.norm(world[edges[:, 0]] - world[edges[:, 1]], axis=1).max())
+    pairs = edges.reshape(-1, 2)
+    longest = float(np.linalg.norm(world[pairs[:, 0]] - world[pairs[:, 1]], axis=1).max())
     if longest <= distance_su:
         return ""
     return (
@@ -729,7 +732,7 @@ def bake_thickness(
                     log(f"cancelled after {job.done} of {job.total} bakes")
                 break
             job.step()
-            if progress is not None:
+            if progress is not None and job.last is not None:  # (a step always leaves a result)
                 progress(job.done, job.total, job.last)
     finally:
         job.finish()

@@ -21,6 +21,7 @@ import json
 import os
 import tempfile
 import time
+from typing import Any
 
 import bpy
 
@@ -50,7 +51,7 @@ def read_fit(material) -> dict:
     fit: dict = {}
     keys = set(material.keys())
     for technique, names in FIT_PARAMETERS.items():
-        params = {}
+        params: dict[str, Any] = {}
         for name in names:
             key = fit_key(technique, name)
             if key in keys:

@@ -302,6 +302,7 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
     if merged is not None:
         noise = core_reference.noise_floor(merged, mask, box=settings.box)
     else:
+        assert second is not None  # rendered above when there is no merged reference
         noise = metrics.compare_images(second, ref, mask, box=settings.box)
     calibration = yield from _calibration(settings, passes, desc, ref, mask, reference, steps)
     yield steps.next("report")

@@ -6,6 +6,7 @@ Reads only; never changes the scene.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 
@@ -48,7 +49,7 @@ def material_sss(material, index: int) -> MaterialSSS | None:
     node = principled_node(material)
     if node is None:
         return None
-    values = {}
+    values: dict[str, Any] = {}
     for key, socket_name in _SUBSURFACE_INPUTS.items():
         socket = node.inputs.get(socket_name)
         if socket is None:
@@ -107,7 +108,7 @@ def sss_materials(scene, *, kept_weight=None) -> list[MaterialSSS]:
 
     ``kept_weight(material)``: for a material whose Subsurface Weight reads 0, a weight kept
     elsewhere (the compositor set-up keeps the one it saw) or None; default: none."""
-    result = []
+    result: list[MaterialSSS] = []
     for material in scene_materials(scene):
         info = material_sss(material, len(result) + 1)
         if info is not None and not info.scatters and kept_weight is not None:

@@ -114,7 +114,7 @@ def render_reference_parts(
         scene.frame_set(frame)
         for seed, path in todo:
             say(f"{progress.position()} seed {seed}: rendering {size[0]}x{size[1]}, {samples} samples, frame {frame}")
-            timing = []
+            timing: list[float] = []
 
             def render_to(tmp, seed=seed, timing=timing):
                 timing.append(

@@ -13,6 +13,7 @@ import math
 import os
 import struct
 import time
+from typing import Any
 
 import bpy
 import numpy as np
@@ -136,7 +137,7 @@ def _hash_rna(h, struct) -> None:
     for prop in struct.bl_rna.properties:
         if prop.is_readonly or prop.identifier == "rna_type" or prop.type == "COLLECTION":
             continue
-        value = getattr(struct, prop.identifier, None)
+        value: Any = getattr(struct, prop.identifier, None)
         if prop.type == "POINTER":
             value = getattr(value, "name", None)
         elif hasattr(value, "__len__") and not isinstance(value, str):

@@ -190,7 +190,11 @@ def _object_indices(st: SceneState, scene) -> dict[str, int]:
 def _set_passes(st: SceneState, scene, layer, names: list[str], aov_name: str | None) -> None:
     """Exactly ``names`` on ``layer``: every other pass flag, AOV and light group off."""
     # The view-layer flags of the pass table (core/passes.py); AOVs are set below.
-    flags = {PASSES[n].flag for n in names if n in PASSES and PASSES[n].flag}
+    flags: set[str] = set()
+    for n in names:
+        flag = PASSES[n].flag if n in PASSES else None
+        if flag:
+            flags.add(flag)
     for owner in (layer, getattr(layer, "cycles", None)):
         if owner is None:
             continue
@@ -287,7 +291,7 @@ def render_passes(scene, out_dir: str, *, progress: Callable[[int, int], None] |
     ``options``: those of ``render_passes_job``, which this runs to its end. ``progress(done,
     total)`` is called after each frame.
     """
-    total = []
+    total: list[int] = []
 
     def step(p: Progress) -> None:
         total[:] = [p.total]

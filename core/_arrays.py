@@ -21,7 +21,7 @@ def check_albedo_mode(mode: str) -> str:
     return mode
 
 
-def split_albedo(albedo: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
+def split_albedo(albedo: np.ndarray, mode: str) -> tuple[np.ndarray | None, np.ndarray]:
     """(factor on the light before the scatter, factor after it) for ``mode``: "post" gives
     (1, A); "pre-post" gives (sqrt(A), sqrt(A)), keeping half of the texture detail under the
     blur (Jimenez et al. 2015's pre/post scatter option). The first is None for "post"."""
@@ -75,8 +75,8 @@ def mask_array(mask, shape: tuple[int, int]) -> np.ndarray:
 
 
 def finite_pixels(*arrays: np.ndarray) -> np.ndarray:
-    """True where every array is finite over all its channels."""
-    ok = None
+    """True where every array is finite over all its channels (at least one array)."""
+    ok: np.ndarray | None = None
     for a in arrays:
         f = np.isfinite(a)
         if f.ndim == 3:
@@ -86,6 +86,8 @@ def finite_pixels(*arrays: np.ndarray) -> np.ndarray:
                 g &= f[..., c]
             f = g
         ok = f if ok is None else ok & f
+    if ok is None:
+        raise TypeError("finite_pixels: expected at least one array")
     return ok
 
 

@@ -257,8 +257,7 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
     albedo = sh.albedo[win]
     e = None if sh.light is None else sh.light[win]
     d = np.asarray(burley_d(material), np.float64)
-    scales = [fitted(material.fit, t).get("d_scale") for t in f.fitted]
-    scales = [v for v in scales if v]
+    scales = [float(v) for v in (fitted(material.fit, t).get("d_scale") for t in f.fitted) if v]
     if scales:
         d = d * float(np.median(scales))
     if e is None:
@@ -270,7 +269,8 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
         z = float(np.median(zs)) if zs.size else None
     if z is not None:
         ppu = float(scene.camera.pixels_per_unit(np.array([z], np.float32))[0])
-        f.footprint_px = tuple(float(v) * ppu for v in d)
+        r, g, b = (float(v) * ppu for v in d)
+        f.footprint_px = (r, g, b)
     visible = albedo * e if e is not None else combined
     # Light from behind, as the combined technique's transmission would add it.
     light = None
@@ -311,8 +311,8 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
         f.back = _relative_rms(light, mask, base)
         total = float(np.sum(visible[mask]))
         f.back_share = float(np.sum(light[mask])) / total if total > 0 else 0.0
-    gains = [fitted(material.fit, t).get("gain") for t in f.fitted]
-    gains = [np.asarray(g, np.float32) for g in gains if g is not None]
+    fitted_gains = [fitted(material.fit, t).get("gain") for t in f.fitted]
+    gains = [np.asarray(g, np.float32) for g in fitted_gains if g is not None]
     if gains and e is not None:
         g = np.median(np.stack(gains), axis=0)
         f.energy = _relative_rms(np.where(mask[..., None], visible * (g - 1.0), 0.0), mask, base)

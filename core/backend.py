@@ -22,6 +22,7 @@ import os
 import sys
 import threading
 import time
+from typing import Any
 
 import numpy as np
 
@@ -34,7 +35,7 @@ BACKENDS = ("numba", "numpy", "check")
 U32 = 2.0**-24
 
 _lock = threading.Lock()
-_state = {"backend": None, "cache_dir": None, "module": None, "error": None, "load_s": None}
+_state: dict[str, Any] = {"backend": None, "cache_dir": None, "module": None, "error": None, "load_s": None}
 _compile_s: dict[str, float] = {}
 
 

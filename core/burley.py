@@ -303,8 +303,8 @@ def burley(
     for group, extent_su in groups:
         r_su64, angles, inv_pdf = spiral_su(n, dmax, min(TRUNCATION * dmax, extent_su))
         r_su = r_su64.astype(f32)
-        args = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
-        _arrays.for_blocks(group.size, block, lambda a, b, o=start, args=args: run(o + a, o + b, *args))
+        tables = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
+        _arrays.for_blocks(group.size, block, lambda a, b, o=start, t=tables: run(o + a, o + b, *t))
         start += group.size
     return _smoothed(result, idx_all, groups, shape, scale, d, z, ids, int(smooth_px), post, base)
 

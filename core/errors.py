@@ -44,6 +44,6 @@ def describe_os_error(exc: OSError, path: str | None = None) -> str:
         errno.EACCES: "no permission to write there: write elsewhere with --out",
         errno.EPERM: "no permission to write there: write elsewhere with --out",
     }
-    hint = hints.get(exc.errno)
+    hint = hints.get(exc.errno) if exc.errno is not None else None
     text = f"{where}: {cause}" if where else cause
     return f"{text}; {hint}" if hint else text

@@ -410,7 +410,7 @@ class Passes(Mapping):
                 arr = np.array(arr, dtype=np.float32)  # a private float32 copy, even of half input
                 arr.flags.writeable = False
             self._arrays[name] = arr
-        self._shape = shape
+        self._shape: tuple[int, int] = (int(shape[0]), int(shape[1])) if shape is not None else (0, 0)
         self.header = dict(header or {})
         self.view_layer = view_layer
         self.source = source

@@ -37,6 +37,7 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -232,7 +233,7 @@ def fit_material(
             notes.append("no light from behind on its pixels: transmission left at its defaults")
 
     def diffusion(k: float) -> np.ndarray:
-        options = {"d_su": tuple(d0 * k)}
+        options: dict[str, Any] = {"d_su": tuple(d0 * k)}
         if spec.adds_light:
             options["transmission_scale"] = 0.0
         layers = core_apply.apply(passes, single, technique, **options)

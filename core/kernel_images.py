@@ -131,8 +131,8 @@ def burley_kernel_image(d_su, pixels_per_unit) -> np.ndarray:
     _check_radius(radius, "Burley kernel")
     n = 2 * radius + 1
     ax = np.arange(n, dtype=np.float64) - radius
-    gx, gy = np.meshgrid(ax, ax, indexing="xy")
-    gx, gy = gx.ravel(), gy.ravel()
+    grid_x, grid_y = np.meshgrid(ax, ax, indexing="xy")
+    gx, gy = grid_x.ravel(), grid_y.ravel()
     dist = np.hypot(gx, gy)
     # Only the squares that reach inside the truncation circle hold any mass.
     live = dist - math.sqrt(0.5) < cut

@@ -114,7 +114,8 @@ def burley_d(material: MaterialSSS, *, mapping=None) -> tuple[float, float, floa
         assert name in ALBEDO_SCALINGS
         d = ell / albedo_scaling(material.base_color, name)
     d = np.where(d < MIN_RADIUS, 0.0, d)
-    return tuple(float(v) for v in d)
+    r, g, b = (float(v) for v in d)
+    return r, g, b
 
 
 def technique_params(material: MaterialSSS, technique, *, mapping=None, use_fit: bool = True) -> dict:

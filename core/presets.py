@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 _JENSEN_2001 = (
     "Jensen et al. 2001, 'A Practical Model for Subsurface Light Transport' (SIGGRAPH), Figure 5: "
@@ -38,7 +39,7 @@ class Preset:
     measured: bool
     source: str
 
-    def principled_values(self, unit_scale_m: float = 1.0) -> dict:
+    def principled_values(self, unit_scale_m: float = 1.0) -> dict[str, Any]:
         """Base Color (RGBA), Subsurface Weight, Radius (largest channel 1) and Scale (scene units)."""
         if not (isinstance(unit_scale_m, (int, float)) and math.isfinite(unit_scale_m) and unit_scale_m > 0):
             raise ValueError(

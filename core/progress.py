@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable
 
 
-def saved_line(path: str | os.PathLike) -> str:
+def saved_line(path: str | os.PathLike[str]) -> str:
     """``Saved: '<absolute path>'``, the form Blender prints for every file it writes."""
     return f"Saved: '{os.path.abspath(os.fspath(path))}'"
 

@@ -251,13 +251,17 @@ def read_merged(path: str) -> MergedReference:
             meta = json.load(fh)
     halves = None
     if all(name in contents.layers for name in HALF_LAYERS):
-        halves = tuple(contents.layers[name] for name in HALF_LAYERS)
+        first, second = (contents.layers[name] for name in HALF_LAYERS)
+        halves = (first, second)
     half_samples = tuple(meta["half_samples"]) if halves is not None and meta.get("half_samples") else None
     if halves is not None and half_samples is None:
         raise InputError(f"{path}: the halves' sample counts are missing ({meta_path}); merge the parts again")
     samples = int(meta.get("samples") or contents.header.get("sss_lab_samples") or 0)
     seeds = tuple(meta.get("seeds") or ())
-    half_seeds = tuple(tuple(s) for s in meta["half_seeds"]) if meta.get("half_seeds") else None
+    half_seeds = None
+    if meta.get("half_seeds"):
+        seeds_a, seeds_b = (tuple(int(v) for v in s) for s in meta["half_seeds"])
+        half_seeds = (seeds_a, seeds_b)
     return MergedReference(
         image=contents.layers[MERGED_LAYER],
         samples=samples,

@@ -174,7 +174,7 @@ def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, heigh
     xy = [(sx(e["time_s"]["total"]), sy(e["metrics"]["rel_rmse"])) for e in pts]
     labels = place_labels(xy, [e["name"] for e in pts], (left, top, width - right, height - bottom))
     for e, (x, y), (tx, ty, anchor, leader) in zip(pts, xy, labels, strict=True):
-        colour = colours.get(e.get("kind"), "black")
+        colour = colours.get(str(e.get("kind")), "black")
         out.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{colour}"/>')
         if leader:
             out.append(

@@ -156,7 +156,7 @@ class Camera:
         """
         z = np.asarray(depth, dtype=np.float32)
         if self.type == "ORTHO":
-            out = np.full(z.shape, self.ortho_px_per_unit, dtype=np.float32)
+            out: np.ndarray = np.full(z.shape, self.ortho_px_per_unit, dtype=np.float32)
             out[~np.isfinite(z)] = 0.0
             return out
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -352,7 +352,7 @@ class SceneDescription:
             if not isinstance(items, (list, tuple)):
                 raise ValueError(f"{key}: expected a JSON list, got {_kind(items)}")
         try:
-            camera = Camera(**camera)
+            cam = Camera(**camera)
             lights = tuple(
                 Light(**_check_fields(Light, item, f"lights[{i}]", required=("type",))) for i, item in enumerate(lights)
             )
@@ -363,7 +363,7 @@ class SceneDescription:
         except TypeError as exc:  # a value of the right JSON type the class still cannot take
             raise ValueError(f"scene description: malformed entry ({exc})") from None
         rest = {k: v for k, v in data.items() if k not in ("camera", "lights", "materials", "version")}
-        return cls(camera=camera, lights=lights, materials=materials, **rest)
+        return cls(camera=cam, lights=lights, materials=materials, **rest)
 
     @classmethod
     def from_json(cls, text: str) -> SceneDescription:
@@ -427,7 +427,7 @@ _EXPECTED = {
 
 def _type_ok(kind: str, v) -> bool:
     if kind == "int":
-        return isinstance(v, (int, np.integer)) and not isinstance(v, bool) and abs(v) < 2**31
+        return isinstance(v, (int, np.integer)) and not isinstance(v, bool) and abs(int(v)) < 2**31
     if kind == "number":
         return _is_number(v) and math.isfinite(v) and abs(v) <= FLOAT32_MAX
     if kind == "str":

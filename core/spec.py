@@ -59,7 +59,7 @@ class Param:
             raise TypeError(f"parameter {self.name!r}: type {self.type!r} is not one of {PARAM_TYPES}")
 
     @property
-    def values(self) -> tuple:
+    def values(self) -> tuple[Any, ...]:
         """The allowed values when the parameter has ``choices``, else ()."""
         return tuple(value for value, _, _ in self.choices)
 
@@ -187,13 +187,13 @@ class Technique:
     #: How far it gathers and with how many samples, from a material's parameters.
     footprint: Callable[[Mapping[str, Any]], Footprint] = no_footprint
     #: What ``compare`` calibrates: ``CALIBRATE_MAPPING``, a grid {parameter: values}, or None.
-    calibration: str | Mapping[str, tuple] | None = None
+    calibration: str | Mapping[str, tuple[Any, ...]] | None = None
     #: Parameters that switch off the light it adds, so that the fidelity table measures its
     #: diffusion alone (a technique that scatters and adds light).
     diffusion_only: Mapping[str, Any] = field(default_factory=dict)
     #: Adjusts one material's parameters before it runs (may change them); returns notes for the
     #: plan, one line each. None: nothing to adjust.
-    prepare: Callable[[dict], list[str]] | None = None
+    prepare: Callable[[dict[str, Any]], list[str]] | None = None
 
     def __post_init__(self) -> None:
         where = f"technique {self.name!r}"

@@ -10,16 +10,20 @@ subsurface method, or a grid of its parameters. A technique is a registered name
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+import numpy as np
 
 from . import apply as core_apply
 from . import mapping, metrics
+from .exr import Passes
 from .scene import SceneDescription
 from .spec import CALIBRATE_MAPPING, Technique
 from .techniques import get_spec
 
 
-def mark_best(results: list[dict]) -> None:
+def mark_best(results: list[dict[str, Any]]) -> None:
     """Mark the row with the lowest error chosen, unless all are equal to 1e-4 relative (the
     technique did not change this scene, e.g. STA without light from behind): then none is."""
     errors = [r["rel_rmse"] for r in results if r.get("rel_rmse") is not None]
@@ -28,12 +32,22 @@ def mark_best(results: list[dict]) -> None:
     min((r for r in results if r.get("rel_rmse") is not None), key=lambda r: r["rel_rmse"])["chosen"] = True
 
 
-def sweep(passes, desc, ref, mask, box: int, technique: str | Technique, method: str, variants) -> list[dict]:
+def sweep(
+    passes: Passes,
+    desc: SceneDescription,
+    ref: np.ndarray,
+    mask: np.ndarray,
+    box: int,
+    technique: str | Technique,
+    method: str,
+    variants: Iterable[tuple[str, Mapping[str, Any]]],
+) -> list[dict[str, Any]]:
     """Rows for ``technique`` run with each (label, options) of ``variants``: the ones that could
     not run (with the reason), then the measured ones (relative RMSE against ``ref`` over
     ``mask``, ``box``-pixel blocks), the best marked chosen."""
     spec = get_spec(technique)
-    failed, results = [], []
+    failed: list[dict[str, Any]] = []
+    results: list[dict[str, Any]] = []
     for label, options in variants:
         row = {"method": method, "technique": spec.name, "mapping": label}
         try:
@@ -48,18 +62,26 @@ def sweep(passes, desc, ref, mask, box: int, technique: str | Technique, method:
     return failed + results
 
 
-def grid(values: Mapping[str, tuple]) -> list[tuple[str, dict]]:
+def grid(values: Mapping[str, tuple[Any, ...]]) -> list[tuple[str, dict[str, Any]]]:
     """(label, options) for every combination of the grid's values, the first key outermost;
     a label shows text values as they are and numbers as ``name=value``."""
     runs = [dict(zip(values, combo, strict=True)) for combo in itertools.product(*values.values())]
     return [(", ".join(v if isinstance(v, str) else f"{k}={v:g}" for k, v in run.items()), run) for run in runs]
 
 
-def calibrate(passes, desc: SceneDescription, ref, mask, *, box: int, techniques) -> dict:
+def calibrate(
+    passes: Passes,
+    desc: SceneDescription,
+    ref: np.ndarray,
+    mask: np.ndarray,
+    *,
+    box: int,
+    techniques: Iterable[str | Technique],
+) -> dict[str, Any]:
     """For each subsurface method in the scene and each technique that calibrates the mapping,
     the error of every mapping the core offers; for each technique with a parameter grid, the
     error of every point of it. The lowest of each sweep is marked chosen (none when all are equal)."""
-    rows = []
+    rows: list[dict[str, Any]] = []
     specs = [get_spec(t) for t in techniques]
     for method in sorted({m.method for m in desc.materials if m.scatters}):
         for spec in specs:

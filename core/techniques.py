@@ -9,6 +9,9 @@ run a technique of its own through plan, apply and compare without touching this
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Mapping
+from typing import Any
+
+import numpy as np
 
 from . import burley, combined, ssss, sta
 from .errors import InputError
@@ -64,14 +67,14 @@ def get_spec(technique: str | Technique) -> Technique:
     return TECHNIQUES.get_spec(technique)
 
 
-def parse_params(texts, techniques) -> dict[str, dict]:
+def parse_params(texts: Iterable[str], techniques: Iterable[str | Technique]) -> dict[str, dict[str, Any]]:
     """``["n_samples=16"]`` or ``["burley.n_samples=16", "sta.power=3"]`` (the command line's
     ``--param``) -> {technique: {parameter: value}}, each value checked against the spec.
 
     A key names a parameter of the one technique that runs, or ``TECHNIQUE.KEY`` when several
     run. InputError, one line, for anything else: the text, and the allowed keys or range."""
     specs = [get_spec(t) for t in techniques]
-    out: dict[str, dict] = {s.name: {} for s in specs}
+    out: dict[str, dict[str, Any]] = {s.name: {} for s in specs}
     for text in texts:
         key, eq, value = str(text).partition("=")
         key = key.strip()
@@ -94,7 +97,7 @@ def parse_params(texts, techniques) -> dict[str, dict]:
     return out
 
 
-def _example(specs) -> str:
+def _example(specs: list[Technique]) -> str:
     """An example ``--param`` for the techniques that run."""
     qualified = len(specs) > 1
     for s in specs:
@@ -108,6 +111,6 @@ def check_technique(name: str) -> str:
     return TECHNIQUES.get_spec(name).name
 
 
-def get_technique(name: str | Technique) -> Callable:
+def get_technique(name: str | Technique) -> Callable[..., np.ndarray]:
     """The function of the technique ``name``."""
     return get_spec(name).function

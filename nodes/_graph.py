@@ -116,7 +116,9 @@ def set_menu_defaults(group, interface: Interface) -> None:
 def read_meta(group) -> dict:
     """The build parameters stored on a group (lists for tuples), or {}."""
     value = group.get(META_KEY) if group is not None else None
-    return value.to_dict() if hasattr(value, "to_dict") else dict(value or {})
+    if value is None:
+        return {}
+    return value.to_dict() if hasattr(value, "to_dict") else dict(value)
 
 
 def ensure_image(name: str, pixels: np.ndarray, owner: str):

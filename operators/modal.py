@@ -12,6 +12,9 @@ The convention is Blender's own for long jobs (``event_timer_add``, ``modal_hand
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import bpy
 
 from ..blender.jobs import Job, Progress, run
@@ -31,6 +34,9 @@ class ModalJob:
     is a window to draw in. Interactive input other than Esc is held back while the job runs:
     the job has changed the scene temporarily, and edits made now would be undone by the restore.
     """
+
+    #: Provided by ``bpy.types.Operator``, which this class is mixed into.
+    report: Callable[..., Any]
 
     job_label = "Working"
     #: Errors reported in one line (the job stopped and restored the scene); anything else is a bug.
