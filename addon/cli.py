@@ -105,21 +105,24 @@ def main(argv: list[str] | None = None, *, prog: str = "python -m sss_lab") -> i
     and the operating system's refusals (a full or read-only disk) end as one line on stderr
     with a non-zero exit: 2 for bad input, 1 for a failure to write or run, 130 for Ctrl-C.
     Anything else is a bug and keeps its traceback. ``--debug`` shows the traceback always."""
-    parser = build_parser(prog)
-    args = parser.parse_args(argv)
-    debug = getattr(args, "debug", False)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    # The guard is on before anything is imported or parsed: a Ctrl-C at start-up is one too.
+    command = next((a for a in argv if not a.startswith("-")), "")
+    debug = "--debug" in argv
     try:
-        with interrupt_guard(args.command):
+        with interrupt_guard(command):
+            args = build_parser(prog).parse_args(argv)
+            debug = getattr(args, "debug", False)
             return int(args.run(args) or 0)
     except KeyboardInterrupt:
         if debug:
             traceback.print_exc()
-        print(f"sss_lab {args.command}: interrupted (Ctrl-C){finished_summary()}", file=sys.stderr)
+        print(f"sss_lab {command}: interrupted (Ctrl-C){finished_summary()}", file=sys.stderr)
         return EXIT_INTERRUPTED
     except (SSSLabError, ValueError, OSError) as exc:
         if debug:
             traceback.print_exc()
-        print(f"sss_lab {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+        print(f"sss_lab {command}: error: {_one_line(exc)}", file=sys.stderr)
         failed_to_write = isinstance(exc, OSError) and not isinstance(exc, (FileNotFoundError, FileExistsError))
         return 1 if failed_to_write else 2
 

@@ -24,6 +24,8 @@ place any more (``core._files.INTERRUPTED``), and a job that finishes anyway exi
 from __future__ import annotations
 
 import contextlib
+import functools
+import importlib.util
 import os
 import signal
 import sys
@@ -52,13 +54,45 @@ def _force_exit(command: str) -> None:
     except (OSError, ValueError):
         pass
     message = (
-        f"sss_lab {command}: interrupted (Ctrl-C) during a render or bake: stopped{finished_summary()}; "
-        "no partial file left\n"
+        f"sss_lab {command}: interrupted (Ctrl-C) while Blender was busy (starting, rendering or baking): "
+        f"stopped{finished_summary()}; no partial file left\n"
     )
     try:
         os.write(2, message.encode("utf-8", "replace"))
     finally:
         os._exit(EXIT_INTERRUPTED)
+
+
+@functools.cache
+def _blender_scripts() -> tuple[str, ...]:
+    """Folders of the Python code that Blender itself runs and calls back (its start-up scripts,
+    Cycles' render engine); empty without Blender. Found without importing bpy, so that it is
+    known before the command imports it."""
+    bpy = sys.modules.get("bpy")
+    if bpy is not None and hasattr(bpy, "utils"):  # inside Blender, or bpy already imported
+        folders = [bpy.utils.system_resource("SCRIPTS"), bpy.utils.user_resource("SCRIPTS")]
+    else:  # the bpy module from the package index keeps its scripts inside its package folder
+        try:
+            spec = importlib.util.find_spec("bpy")
+        except (ImportError, ValueError):
+            spec = None
+        folders = list(spec.submodule_search_locations or ()) if spec else []
+    return tuple(os.path.join(os.path.abspath(f), "") for f in folders if f)
+
+
+def _handler(signum, frame) -> None:
+    """Python's default SIGINT behaviour (KeyboardInterrupt), except inside one of Blender's own
+    Python callbacks: Blender prints an exception raised there as a traceback and carries on, so
+    there the interrupt is left to the watcher, which ends the process within the grace period."""
+    scripts = _blender_scripts()
+    while frame is not None:  # the whole stack: Blender may be importing or calling its scripts
+        name = frame.f_code.co_filename
+        # An import in progress is no place either: an exception inside bpy's start-up (its C
+        # code runs Python through the import machinery) crashes Blender.
+        if name.startswith("<frozen importlib") or os.path.abspath(name).startswith(scripts):
+            return
+        frame = frame.f_back
+    raise KeyboardInterrupt
 
 
 @contextlib.contextmanager
@@ -69,9 +103,10 @@ def interrupt_guard(command: str, grace: float = GRACE_SECONDS):
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    _blender_scripts()  # known before the first signal: the handler only compares strings
     read_fd, write_fd = os.pipe()
     os.set_blocking(write_fd, False)
-    previous_handler = signal.signal(signal.SIGINT, signal.default_int_handler)
+    previous_handler = signal.signal(signal.SIGINT, _handler)
     try:
         previous_fd = signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
     except ValueError:  # not the main interpreter

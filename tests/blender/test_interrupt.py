@@ -118,3 +118,27 @@ def test_bake_stops_and_writes_no_blend(cube_blend, tmp_path):
     assert "interrupted (Ctrl-C)" in err and "Traceback" not in err
     assert not out.exists() and _temporaries(tmp_path) == []
     assert _digest(cube_blend) == before
+
+
+def _frame_in(filename: str):
+    """A live frame whose code claims to come from ``filename``."""
+    code = compile("import sys\nframe = sys._getframe()", filename, "exec")
+    namespace: dict = {}
+    exec(code, namespace)
+    return namespace["frame"]
+
+
+def test_ctrl_c_is_left_to_the_watcher_inside_blender_and_imports():
+    """Raised inside Blender's own Python (its start-up scripts, Cycles' engine) or inside an
+    import, a KeyboardInterrupt is printed by Blender as a traceback or crashes its start-up; the
+    handler leaves those to the watcher (which ends the process within the grace period) and
+    raises everywhere else."""
+    from sss_lab.addon import interrupt
+
+    scripts = interrupt._blender_scripts()
+    assert scripts, "the bpy module's scripts folder was not found"
+    inside = os.path.join(scripts[0], "addons_core", "cycles", "__init__.py")
+    assert interrupt._handler(signal.SIGINT, _frame_in(inside)) is None
+    assert interrupt._handler(signal.SIGINT, _frame_in("<frozen importlib._bootstrap>")) is None
+    with pytest.raises(KeyboardInterrupt):
+        interrupt._handler(signal.SIGINT, _frame_in(__file__))
