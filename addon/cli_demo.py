@@ -62,6 +62,7 @@ def run(args) -> int:
     import bpy
 
     from ..blender.compare import CompareSettings, compare
+    from ..core.report_schema import Report
     from ..core.scene import SUBSURFACE_METHODS
 
     # Every subsurface method gets its mapping calibrated (one more cached reference each).
@@ -74,18 +75,19 @@ def run(args) -> int:
         raise CommandError(str(exc)) from None
     print(f"Demo done in {time.perf_counter() - start:.0f} s. On {name}, against Cycles random walk")
     print("(relative RMSE over the subsurface pixels; lower is better):")
-    noise = data["noise_floor"]["rel_rmse"]
-    shown = data.get("summary", {}).get("columns", [])
-    front = set(data["pareto"])
-    for e in data["entries"]:
-        if e["name"] in shown or (e["kind"] == "technique" and e["name"] in front):
-            apply_s = e["time_s"].get("apply")
+    report = Report.from_dict(data)
+    noise = report.noise_floor["rel_rmse"]
+    shown = report.extra.get("summary", {}).get("columns", [])
+    front = set(report.pareto)
+    for e in report.entries:
+        if e.name in shown or (e.kind == "technique" and e.name in front):
+            apply_s = e.time_s.get("apply")
             cost = f", apply {apply_s * 1e3:.0f} ms" if apply_s is not None else ""
-            mark = " (on the error/time Pareto front)" if e["name"] in front else ""
-            print(f"  {e['name']:22s} {e['metrics']['rel_rmse']:.3f}{cost}{mark}")
+            mark = " (on the error/time Pareto front)" if e.name in front else ""
+            print(f"  {e.name:22s} {e.metrics['rel_rmse']:.3f}{cost}{mark}")
     print(f"  noise floor of the reference: {noise:.3f}")
     print(f"Report: {os.path.join(out, 'report.html')} (and report.md, metrics.json)")
-    if not data["complete"]:
-        print("The report is incomplete: " + "; ".join(data["notes"]))
+    if not report.complete:
+        print("The report is incomplete: " + "; ".join(report.notes))
         return 1
     return 0

@@ -8,6 +8,7 @@ import os
 import bpy
 
 from ..blender.compare import CompareSettings, compare_job
+from ..core.report_schema import Report
 from .modal import ModalJob
 
 
@@ -71,16 +72,14 @@ class SSS_LAB_OT_compare(ModalJob, bpy.types.Operator):
         return compare_job(context.scene, out_dir, settings, log=print)
 
     def job_done(self, context, data):
-        best = [e for e in data["entries"] if e["name"] in data["pareto"] and e["kind"] == "technique"]
-        for e in best:
-            self.report(
-                {"INFO"}, f"{e['name']}: rel. RMSE {e['metrics']['rel_rmse']:.4f}, {e['time_s']['total']:.2f} s"
-            )
-        level = {"INFO"} if data["complete"] else {"WARNING"}
+        result = Report.from_dict(data)
+        for e in result.best_techniques:
+            self.report({"INFO"}, f"{e.name}: rel. RMSE {e.metrics['rel_rmse']:.4f}, {e.time_s['total']:.2f} s")
+        level = {"INFO"} if result.complete else {"WARNING"}
         self.report(
             level,
             f"Report: {os.path.join(self._out_dir, 'report.html')}"
-            + ("" if data["complete"] else " (incomplete: " + "; ".join(data["notes"]) + ")"),
+            + ("" if result.complete else " (incomplete: " + "; ".join(result.notes) + ")"),
         )
         return {"FINISHED"}
 
