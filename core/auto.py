@@ -50,13 +50,13 @@ from . import _arrays
 from . import apply as core_apply
 from .combined import transmission
 from .errors import InputError
-from .exr import MissingPassError, Passes
+from .exr import Passes
 from .fit_params import fitted
-from .mapping import burley_d
+from .mapping import burley_d, technique_params
 from .metrics import box_downsample
-from .plan import Plan, _index_map, plan, required_passes
+from .plan import Plan, _index_map, _samples, plan, required_passes
 from .scene import MaterialSSS, SceneDescription
-from .techniques import TECHNIQUES
+from .techniques import TECHNIQUES, get_technique
 
 #: The name ``apply --method auto`` and the output layers (``SSSLab.auto.*``) use.
 AUTO = "auto"
@@ -418,12 +418,13 @@ class AutoPlan:
         return "\n".join(lines)
 
 
-def _work(technique: str, mp, lights: int) -> float:
+def _work(technique: str, material: MaterialSSS, pixels: int, lights: int, mapping) -> float:
     """pixels x (samples per pixel + one per light when the technique adds light from behind)."""
-    per_pixel = float(mp.samples or 0)
+    params = technique_params(material, technique, mapping=mapping)
+    per_pixel = float(_samples(technique, params, get_technique(technique)) or 0)
     if "Normal" in required_passes(technique):  # it reads the geometry to add light from behind
         per_pixel += max(lights, 1)
-    return mp.pixels * max(per_pixel, 1.0)
+    return pixels * max(per_pixel, 1.0)
 
 
 def choose(
@@ -449,13 +450,12 @@ def choose(
         raise InputError(f"max_error: expected a number >= 0 (0.05 = within 5 % of the best), got {max_error!r}")
     model = model or load_model()
     names = list(techniques) if techniques is not None else [t for t in TECHNIQUES if t in model.coefficients]
-    plans: dict[str, Plan] = {}
+    # Only the chosen techniques are planned (below); a candidate needs its passes and its work.
     missing: dict[str, str] = {}
     for t in names:
-        try:
-            plans[t] = plan(passes, scene, t, albedo_mode=albedo_mode, mapping=mapping)
-        except MissingPassError as exc:
-            missing[t] = str(exc.args[0]) if exc.args else str(exc)
+        lacking = [p for p in required_passes(t, scene.thickness_aov) if p not in passes]
+        if lacking:
+            missing[t] = f"missing pass(es) {', '.join(lacking)}"
     auto = AutoPlan(shape=passes.shape, max_error=float(max_error), choices=[], plans={}, model=model)
     chosen_by: dict[str, set[int]] = {}
     shared = _Shared(passes, scene)
@@ -476,11 +476,7 @@ def choose(
             if t in missing:
                 cands.append(Candidate(t, math.nan, math.nan, f"its passes are missing ({missing[t]})"))
                 continue
-            mp = next(m for m in plans[t].materials if m.material.index == material.index)
-            if mp.skip:
-                cands.append(Candidate(t, math.nan, math.nan, mp.skip))
-                continue
-            work = _work(t, mp, len(scene.lights))
+            work = _work(t, material, f.pixels, len(scene.lights), mapping)
             cands.append(Candidate(t, model.predict(t, f), model.seconds(t, work), work=work))
         ok = [c for c in cands if c.excluded is None]
         best = min(ok, key=lambda c: c.predicted)
@@ -503,17 +499,20 @@ def choose(
             if held is not None:
                 reason = f"kept from the first frame (this frame alone would choose {pick.name}: {reason})"
                 pick = held
-        mp_warning = None
         if pick.name != NONE:
-            mp = next(m for m in plans[pick.name].materials if m.material.index == material.index)
-            mp_warning = mp.warning
             chosen_by.setdefault(pick.name, set()).add(material.index)
-        auto.choices.append(MaterialChoice(material, f, cands, pick.name, reason, mp_warning))
+        auto.choices.append(MaterialChoice(material, f, cands, pick.name, reason))
     for t, indices in chosen_by.items():
-        p = plans[t]
+        p = plan(passes, scene, t, albedo_mode=albedo_mode, mapping=mapping)
         for mp in p.materials:
-            if mp.material.index not in indices and mp.skip is None:
-                mp.skip = "auto chose another technique for it"
+            if mp.material.index not in indices:
+                if mp.skip is None:
+                    mp.skip = "auto chose another technique for it"
+                continue
+            choice = next(c for c in auto.choices if c.material.index == mp.material.index)
+            choice.warning = mp.warning
+            if mp.skip:
+                choice.reason += f"; {t} leaves it as it is: {mp.skip}"
         auto.plans[t] = p
     return auto
 

@@ -21,6 +21,7 @@ default first; the comparison (``blender/compare.py``) measures each against Cyc
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -55,6 +56,18 @@ def skin_radius_factor(albedo, ior: float) -> np.ndarray:
     """
     if not (math.isfinite(ior) and ior > 0):
         raise ValueError(f"subsurface_ior: expected a finite number > 0, got {ior!r}")
+    if np.ndim(albedo) == 1 and len(albedo) == 3:
+        # A material's colour: solved once per (colour, IOR); every plan of every frame asks again.
+        return np.array(_skin_factor_rgb(tuple(float(v) for v in albedo), float(ior)))
+    return _skin_factor(albedo, ior)
+
+
+@functools.lru_cache(maxsize=1024)
+def _skin_factor_rgb(albedo: tuple, ior: float) -> tuple:
+    return tuple(float(v) for v in _skin_factor(albedo, ior))
+
+
+def _skin_factor(albedo, ior: float) -> np.ndarray:
     a = np.clip(np.asarray(albedo, dtype=np.float64), 0.0, 1.0)
     inv = 1.0 / ior
     f_dr = inv * (-1.440 * inv + 0.710) + 0.668 + 0.0636 * ior

@@ -311,3 +311,16 @@ def test_command_line_auto_keeps_the_first_frames_choice_on_a_sequence(tmp_path,
     expected = auto.apply_auto(Passes(flat), scene, prepared=auto.choose(Passes(flat), scene, keep=first.chosen))
     got = read_layers(str(tmp_path / "passes_0002.sss.exr")).layers["SSSLab.auto.SSS"]
     np.testing.assert_array_equal(got, expected["SSSLab.auto.SSS"])
+
+
+def test_costs_are_work_times_each_techniques_measured_rate():
+    timings = [("ssss", 100.0, 2.0), ("ssss", 200.0, 2.0), ("ssss", 50.0, 1.5), ("burley", 100.0, 1.0)]
+    f = auto.Features(name="m", index=1, pixels=1)
+    model = auto.train([(f, {"none": 1.0, "ssss": 0.5})], timings=timings)
+    assert model.seconds_per_work == {"ssss": pytest.approx(0.02), "burley": pytest.approx(0.01)}  # medians
+    assert model.seconds("ssss", 1000.0) == pytest.approx(20.0)
+    assert model.seconds("combined", 1000.0) == pytest.approx(20.0)  # unmeasured: the median rate (upper of two)
+    assert model.seconds("none", 1000.0) == 0.0
+    assert auto.Model.from_dict(model.to_dict()).seconds_per_work == model.seconds_per_work
+    with pytest.raises(InputError, match="seconds_per_work"):
+        auto.Model.from_dict({"coefficients": {"none": [1, 1, 0]}, "seconds_per_work": {"ssss": -1}})
