@@ -25,8 +25,8 @@ the fidelity suite and validates the choice leave-one-scene-out; the shipped coe
 ``auto_model.json`` beside this module, with the command that made them). ``choose`` then takes,
 per material, the cheapest candidate (no SSS included) whose predicted error is within
 ``max_error`` (relative) of the best predicted error. The cost of a technique is its work
-estimate, pixels x (samples per pixel of its kernel + one per light for a technique that adds
-light from behind, from the plan, ``core/plan.py``), times the technique's measured seconds per
+estimate, pixels x (samples per pixel of its kernel, from its spec's ``footprint``, + one per
+light for a technique whose spec says it adds light), times the technique's measured seconds per
 unit of work (learnt with the coefficients: one sample of the separable filter and one of
 Burley's spiral do not cost the same).
 
@@ -54,9 +54,9 @@ from .exr import Passes
 from .fit_params import fitted
 from .mapping import burley_d, technique_params
 from .metrics import box_downsample
-from .plan import Plan, _index_map, _samples, plan, required_passes
+from .plan import Plan, _index_map, plan, required_passes
 from .scene import MaterialSSS, SceneDescription
-from .techniques import TECHNIQUES, get_technique
+from .techniques import TECHNIQUES, get_spec
 
 #: The name ``apply --method auto`` and the output layers (``SSSLab.auto.*``) use.
 AUTO = "auto"
@@ -420,9 +420,10 @@ class AutoPlan:
 
 def _work(technique: str, material: MaterialSSS, pixels: int, lights: int, mapping) -> float:
     """pixels x (samples per pixel + one per light when the technique adds light from behind)."""
+    spec = get_spec(technique)
     params = technique_params(material, technique, mapping=mapping)
-    per_pixel = float(_samples(technique, params, get_technique(technique)) or 0)
-    if "Normal" in required_passes(technique):  # it reads the geometry to add light from behind
+    per_pixel = float(spec.footprint(params).samples or 0)
+    if spec.adds_light:  # one evaluation per light for the light it adds
         per_pixel += max(lights, 1)
     return pixels * max(per_pixel, 1.0)
 
@@ -449,7 +450,9 @@ def choose(
     if not (isinstance(max_error, (int, float)) and math.isfinite(max_error) and max_error >= 0):
         raise InputError(f"max_error: expected a number >= 0 (0.05 = within 5 % of the best), got {max_error!r}")
     model = model or load_model()
-    names = list(techniques) if techniques is not None else [t for t in TECHNIQUES if t in model.coefficients]
+    # Every registered technique is a candidate (a new one too: without coefficients it is listed
+    # as not a candidate until the model is learnt again with it).
+    names = [get_spec(t).name for t in techniques] if techniques is not None else list(TECHNIQUES)
     # Only the chosen techniques are planned (below); a candidate needs its passes and its work.
     missing: dict[str, str] = {}
     for t in names:
