@@ -6,7 +6,9 @@ sample scenes with references rendered here, ``--source samples``):
 1. each technique at its default quality on the scene's passes, and no SSS: relative RMSE against
    the scene's Cycles reference over the subsurface pixels after 2 x 2 box downsampling (the
    measure ``compare`` and the fidelity suite use, docs/references.md §8), over the whole scene
-   and per material; apply time (process CPU time, fastest of ``--repeat`` runs);
+   and per material; apply time (process CPU time, fastest of ``--repeat`` runs) on the same
+   passes repeated ``--time-scale`` x ``--time-scale`` per pixel with the camera as many times
+   finer (at the suite's 128 px a technique takes a few ms and fixed costs would dominate);
 2. the features of every material (``core.auto.features``).
 
 Then, for each scene in turn, the auto model is learnt on the *other* scenes only
@@ -126,32 +128,41 @@ def _fastest(fn, repeat):
     return result, best
 
 
-def measure(scene: Scene, techniques, repeat: int) -> dict:
-    """Errors (scene and per material) and times of no SSS and each technique at default quality,
-    and the features of every material."""
+def upscaled(passes, desc, k: int):
+    """The passes repeated ``k`` x ``k`` per pixel and the camera ``k`` times finer: the same view
+    at ``k`` times the resolution, for timing at a size where the techniques' work dominates."""
+    from sss_lab.core.exr import Passes
+
+    if k == 1:
+        return passes, desc
+    arrays = {n: np.repeat(np.repeat(passes[n], k, axis=0), k, axis=1) for n in passes}
+    cam = desc.camera
+    camera = dataclasses.replace(cam, width_px=cam.width_px * k, height_px=cam.height_px * k)
+    return Passes(arrays), dataclasses.replace(desc, camera=camera)
+
+
+def measure(scene: Scene, techniques, repeat: int, time_scale: int = 1) -> dict:
+    """Errors (scene and per material) of no SSS and each technique at default quality, their
+    times on the passes at ``time_scale`` x the resolution, and the features of every material."""
     from sss_lab.core import apply as core_apply
     from sss_lab.core import auto
 
     images = {auto.NONE: scene.passes["Combined"]}
     seconds = {auto.NONE: 0.0}
+    big, big_desc = upscaled(scene.passes, scene.desc, time_scale)
     for t in techniques:
         try:
             core_apply.plan(scene.passes, scene.desc, t)
         except KeyError:  # its passes are missing on this scene
             continue
-
-        def run(t=t):
-            return core_apply.apply(scene.passes, scene.desc, t)
-
-        layers, seconds[t] = _fastest(run, repeat)
+        layers = core_apply.apply(scene.passes, scene.desc, t)
         images[t] = layers[core_apply.layer_names(t)[0]] if layers else scene.passes["Combined"]
+        _, seconds[t] = _fastest(lambda t=t: core_apply.apply(big, big_desc, t), repeat)
     errors = {t: scene.error(img) for t, img in images.items()}
     # Each technique's work on this scene (pixels x samples, from its plan): the model's cost unit.
     unit = auto.Model({auto.NONE: (1.0, 1.0, 0.0), **{t: (1.0, 1.0, 0.0) for t in images}})
     work = {}
-    for c in auto.choose(
-        scene.passes, scene.desc, model=unit, techniques=[t for t in images if t != auto.NONE]
-    ).choices:
+    for c in auto.choose(big, big_desc, model=unit, techniques=[t for t in images if t != auto.NONE]).choices:
         for k in c.candidates:
             if k.excluded is None and k.name != auto.NONE:
                 work[k.name] = work.get(k.name, 0.0) + k.work
@@ -161,16 +172,16 @@ def measure(scene: Scene, techniques, repeat: int) -> dict:
         f = auto.features(scene.passes, scene.desc, m)
         per_material.append((f, {t: scene.error(img, mask) for t, img in images.items()}))
     timings = [(t, work[t], seconds[t]) for t in work if t in seconds]
-    return {"errors": errors, "seconds": seconds, "materials": per_material, "timings": timings}
+    return {"errors": errors, "seconds": seconds, "materials": per_material, "timings": timings, "big": (big, big_desc)}
 
 
-def run(scenes, *, techniques, repeat: int, max_error: float, log=print) -> dict:
+def run(scenes, *, techniques, repeat: int, max_error: float, time_scale: int = 1, log=print) -> dict:
     from sss_lab.core import auto
 
     measured = {}
     for s in scenes:
         log(f"{s.name}: measuring")
-        measured[s.name] = measure(s, techniques, repeat)
+        measured[s.name] = measure(s, techniques, repeat, time_scale)
         e = measured[s.name]["errors"]
         log("  " + ", ".join(f"{t} {v:.4f}" for t, v in e.items()))
     # "The most expensive technique": the one with the largest total time over the scenes (always run).
@@ -189,14 +200,15 @@ def run(scenes, *, techniques, repeat: int, max_error: float, log=print) -> dict
             command="leave-one-scene-out",
         )
 
-        def choose_and_apply(s=s, model=model):
-            plan = auto.choose(s.passes, s.desc, max_error=max_error, model=model, techniques=techniques)
-            return plan, auto.apply_auto(s.passes, s.desc, prepared=plan)
+        def choose_and_apply(passes, desc, model=model):
+            plan = auto.choose(passes, desc, max_error=max_error, model=model, techniques=techniques)
+            return plan, auto.apply_auto(passes, desc, prepared=plan)
 
-        (plan, layers), t_auto = _fastest(choose_and_apply, repeat)
+        plan, layers = choose_and_apply(s.passes, s.desc)
         image = layers["SSSLab.auto.Image"] if layers else s.passes["Combined"]
         err = s.error(image)
         m = measured[s.name]
+        _, t_auto = _fastest(lambda m=m, f=choose_and_apply: f(*m["big"]), repeat)
         best = min(m["errors"], key=m["errors"].get)
         # Work (pixels x samples, core.auto) per candidate and of the choice, for the record.
         work = {}
@@ -304,6 +316,13 @@ def main(argv=None) -> int:
     parser.add_argument("--source", choices=("fidelity", "samples"), default=None, help="default: fidelity if present")
     parser.add_argument("--max-error", type=float, default=None, help="auto's margin (default: core.auto's)")
     parser.add_argument("--repeat", type=int, default=7, help="timed runs per case, fastest kept (default 7)")
+    parser.add_argument(
+        "--time-scale",
+        type=int,
+        default=4,
+        help="time every run on the passes at this many times the scenes' resolution (default 4: 512 px for"
+        " 128 px scenes; at 128 px a technique takes a few ms and fixed costs dominate)",
+    )
     parser.add_argument("--reference-samples", type=int, default=512, help="samples of the sample scenes' references")
     parser.add_argument("--pass-samples", type=int, default=64, help="samples of the sample scenes' passes")
     parser.add_argument("--cache", default=os.path.join(tempfile.gettempdir(), "sss_lab_auto_bench"))
@@ -330,7 +349,7 @@ def main(argv=None) -> int:
     if args.sweep_transmission:
         values = [float(v) for v in args.sweep_transmission.split(",")]
         swept = sweep(scenes, "combined", "transmission_scale", values)
-    out = run(scenes, techniques=list(TECHNIQUES), repeat=args.repeat, max_error=max_error)
+    out = run(scenes, techniques=list(TECHNIQUES), repeat=args.repeat, max_error=max_error, time_scale=args.time_scale)
     command = " ".join(["python -m benchmarks.auto", *(argv if argv is not None else sys.argv[1:])])
     model = dataclasses.replace(out.pop("model"), command=command)
     if args.write_model:
@@ -340,6 +359,7 @@ def main(argv=None) -> int:
         "definition": __doc__.split("\n\n")[2].strip(),
         "source": source,
         "max_error": max_error,
+        "time_scale": args.time_scale,
         "command": command,
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "note": "shared, loaded 2-core machine"},
         "blender": bpy.app.version_string,

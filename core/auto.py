@@ -4,12 +4,13 @@
 any technique, how much the two things SSS adds to a plain diffuse render matter there:
 
 - **diffusion** D: how much the material's visible diffuse light changes when it is spread over
-  its footprint. The irradiance (Diffuse Direct + Indirect) is averaged, per channel, over a box
-  of half-width 2.5 d (the mean distance light travels under the Burley profile,
-  docs/references.md §1) in pixels at each pixel's depth, inside the material only; D is the RMS
-  of albedo x (averaged - original) over the material's 2 x 2 blocks, relative to the mean of
-  Combined there (the measure ``compare`` uses, docs/references.md §8). A footprint under a pixel,
-  or a flatly lit material, gives D = 0 whatever the radius.
+  its footprint. Everything is measured on the 2 x 2 block means wholly inside the material (the
+  blocks of the error measure ``compare`` uses, docs/references.md §8; a quarter of the pixels).
+  The irradiance (Diffuse Direct + Indirect) is averaged, per channel, over a box of half-width
+  2.5 d (the mean distance light travels under the Burley profile, docs/references.md §1; in
+  whole blocks) at the material's median depth, inside the material only; D is the RMS of
+  albedo x (averaged - original) relative to the mean of Combined (plus the light from behind).
+  A footprint of 2.5 d under half a block (one pixel), or a flatly lit material, gives D = 0.
 - **light from behind** B: the light the combined technique's transmission would add
   (``core/combined.py``: back irradiance x per-channel Burley transmittance through the baked
   thickness), measured the same way. Needs the thickness map and its bake distance; without them
@@ -82,7 +83,7 @@ class Features:
 
     name: str
     index: int
-    pixels: int
+    pixels: int = 0
     #: The profile's d per channel (R, G, B) in pixels at the material's median depth.
     footprint_px: tuple[float, float, float] = (0.0, 0.0, 0.0)
     diffusion: float = 0.0
@@ -194,43 +195,25 @@ def _blurred(e: np.ndarray, mask: np.ndarray, h: int) -> np.ndarray:
     return np.where(den > 0, num / np.maximum(den, 1e-300), e)
 
 
-def _relative_rms(term: np.ndarray, mask: np.ndarray, base: np.ndarray) -> float:
-    """RMS of ``term`` (H, W, 3) over the 2 x 2 blocks inside ``mask``, over the mean of ``base``
-    there (the measure of ``core/metrics.py``)."""
-    if min(mask.shape) < BOX:
-        keep, t, b = mask, term, base
-    else:
-        keep = box_downsample(mask.astype(np.float64), BOX) >= 1.0
-        t, b = box_downsample(term, BOX), box_downsample(base, BOX)
-    if not keep.any():
-        keep, t, b = mask, term, base
-    mean = float(np.mean(b[keep]))
-    if not keep.any() or mean <= 0:
-        return 0.0
-    return float(np.sqrt(np.mean(t[keep] ** 2))) / mean
-
-
 class _Shared:
-    """The passes ``features`` reads, cleaned once per call of ``choose`` (not per material)."""
+    """What ``features`` reads, found once per call of ``choose``: the Material Index map and the
+    passes (read-only views; each material's features clean only its own window of them)."""
 
     def __init__(self, passes: Passes, scene: SceneDescription):
         self.index = _index_map(passes)
-        raw = passes["Combined"][..., :3]
-        self.finite = core_apply._finite(raw)
-        self.combined = core_apply._clean(raw)
-        self.albedo = core_apply._clean(passes["Diffuse Color"][..., :3])
-        if "Diffuse Direct" in passes and "Diffuse Indirect" in passes:
-            self.light = core_apply._clean(passes["Diffuse Direct"]) + core_apply._clean(passes["Diffuse Indirect"])
-        else:
-            self.light = None
+        self.combined = passes["Combined"][..., :3]
+        self.albedo = passes["Diffuse Color"][..., :3]
+        have = "Diffuse Direct" in passes and "Diffuse Indirect" in passes
+        self.direct = passes["Diffuse Direct"] if have else None
+        self.indirect = passes["Diffuse Indirect"] if have else None
         self.depth = passes.get("Depth")
         aov = scene.thickness_aov
         self.missing_back = [p for p in ("Normal", "Position", aov) if p not in passes]
         if not self.missing_back:
             t = passes[aov]
-            self.thickness = core_apply._clean(t if t.ndim == 2 else t[..., 0])
-            self.normal = core_apply._clean(passes["Normal"])
-            self.position = core_apply._clean(passes["Position"])
+            self.thickness = t if t.ndim == 2 else t[..., 0]
+            self.normal = passes["Normal"]
+            self.position = passes["Position"]
 
 
 def _crop(mask: np.ndarray) -> tuple[slice, slice]:
@@ -241,21 +224,46 @@ def _crop(mask: np.ndarray) -> tuple[slice, slice]:
     return slice(y0, int(ys.max()) + 1), slice(x0, int(xs.max()) + 1)
 
 
+def _rms(term: np.ndarray, keep: np.ndarray, base: np.ndarray) -> float:
+    """RMS of ``term`` over ``keep`` relative to the mean of ``base`` there."""
+    mean = float(np.mean(base[keep]))
+    if mean <= 0:
+        return 0.0
+    return float(np.sqrt(np.mean(np.square(term[keep], dtype=np.float64)))) / mean
+
+
 def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, _shared=None) -> Features:
-    """The features of ``material`` on ``passes`` (module docstring); pure NumPy, no technique run."""
+    """The features of ``material`` on ``passes`` (module docstring); pure NumPy, no technique run.
+
+    Measured on the 2 x 2 block means of the material's bounding box (the blocks the error measure
+    uses, blocks wholly inside the material), which costs a quarter of the pixels; a material too
+    small for one whole block is measured on its pixels."""
     start = time.perf_counter()
     sh = _shared or _Shared(passes, scene)
-    full_mask = (sh.index == material.index) & sh.finite
-    f = Features(name=material.name or str(material.index), index=material.index, pixels=int(full_mask.sum()))
+    on = sh.index == material.index
+    f = Features(name=material.name or str(material.index), index=material.index)
     f.fitted = tuple(t for t in material.fit if fitted(material.fit, t))
+    if on.any():
+        win = _crop(on)
+        mask = on[win] & core_apply._finite(sh.combined[win])
+        f.pixels = int(mask.sum())
     if not f.pixels:
         f.notes.append("no pixel on screen")
         return f
-    win = _crop(full_mask)
-    mask = full_mask[win]
-    combined = sh.combined[win]
-    albedo = sh.albedo[win]
-    e = None if sh.light is None else sh.light[win]
+    keep, step = mask, 1
+    if min(mask.shape) >= BOX:
+        blocks = box_downsample(mask.astype(np.float32), BOX) >= 1.0
+        if blocks.any():
+            keep, step = blocks, BOX
+
+    def at(a):
+        """``a`` on the window, NaN/Inf as 0, as block means when measured on blocks."""
+        w = core_apply._clean(a[win])
+        return w if step == 1 else box_downsample(w, BOX)
+
+    combined = at(sh.combined)
+    albedo = at(sh.albedo)
+    e = None if sh.direct is None else at(sh.direct) + at(sh.indirect)
     d = np.asarray(burley_d(material), np.float64)
     scales = [float(v) for v in (fitted(material.fit, t).get("d_scale") for t in f.fitted) if v]
     if scales:
@@ -281,12 +289,12 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
     elif not distance:
         f.notes.append("the thickness map has no bake distance: light from behind not measured")
     else:
-        t_map = sh.thickness[win]
+        t_map = at(sh.thickness)
         light = transmission(
-            normal=sh.normal[win],
-            position=sh.position[win],
+            normal=at(sh.normal),
+            position=at(sh.position),
             thickness=t_map,
-            mask=mask,
+            mask=keep,
             lights=scene.lights,
             d_su=tuple(tr_fit.get("transmission_d_su", tuple(d))),
             thickness_distance_su=distance,
@@ -294,7 +302,7 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
             thickness_convention=scene.thickness_convention,
         )
         t_lin = t_map if scene.thickness_convention == "translucency" else 1.0 - t_map
-        x = distance * np.sqrt(1.0 - np.clip(t_lin[mask], 0.0, 1.0))
+        x = distance * np.sqrt(1.0 - np.clip(t_lin[keep], 0.0, 1.0))
         if float(d.mean()) > 0:
             f.thickness_over_d = float(np.median(x)) / float(d.mean())
     # The error measure divides by the reference's mean, which holds the light from behind too.
@@ -302,20 +310,20 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
     if e is not None and z is not None:
         change = np.zeros(e.shape, np.float32)
         for c in range(3):
-            h = MEAN_DISTANCE * f.footprint_px[c]
-            if h < 0.5:
-                continue  # the light stays within its pixel
-            change[..., c] = _blurred(e[..., c], mask, min(int(round(h)), MAX_BOX)) - e[..., c]
-        f.diffusion = _relative_rms(np.where(mask[..., None], albedo * change, 0.0), mask, base)
+            half = min(int(round(MEAN_DISTANCE * f.footprint_px[c] / step)), MAX_BOX)
+            if half < 1:
+                continue  # the light stays within its block
+            change[..., c] = _blurred(e[..., c], keep, half) - e[..., c]
+        f.diffusion = _rms(albedo * change, keep, base)
     if light is not None:
-        f.back = _relative_rms(light, mask, base)
-        total = float(np.sum(visible[mask]))
-        f.back_share = float(np.sum(light[mask])) / total if total > 0 else 0.0
+        f.back = _rms(light, keep, base)
+        total = float(np.sum(visible[keep]))
+        f.back_share = float(np.sum(light[keep])) / total if total > 0 else 0.0
     fitted_gains = [fitted(material.fit, t).get("gain") for t in f.fitted]
     gains = [np.asarray(g, np.float32) for g in fitted_gains if g is not None]
     if gains and e is not None:
         g = np.median(np.stack(gains), axis=0)
-        f.energy = _relative_rms(np.where(mask[..., None], visible * (g - 1.0), 0.0), mask, base)
+        f.energy = _rms(visible * (g - 1.0), keep, base)
     f.seconds = time.perf_counter() - start
     return f
 

@@ -98,19 +98,20 @@ def test_diffusion_grows_with_the_footprint_at_a_shadow_edge():
     edge = np.ones((32, 32, 3), np.float32)
     edge[:, 16:] = 0.0
     values = []
-    for d in (0.004, 0.02, 0.06):
+    for d in (0.01, 0.04, 0.1):
         passes, scene = _flat(light=edge, d_su=d)
         values.append(auto.features(passes, scene, scene.materials[0]).diffusion)
     assert 0 < values[0] < values[1] < values[2]
-    # Independently: a box of half-width h = round(2.5 d) px; with albedo 0.5 the change at the
-    # columns next to the edge is 0.5 x (mean of the box - own value), the same in every channel.
-    passes, scene = _flat(light=edge, d_su=0.02)
-    h = round(MEAN_DISTANCE_CHECK * burley_d(scene.materials[0])[0] * 100.0)
+    # Independently, on the 2 x 2 blocks (the edge falls between blocks 7 and 8): a box of
+    # half-width round(2.5 d / 2) blocks; with albedo 0.5 the change is 0.5 x (mean of the box -
+    # own value), the same in every channel and row.
+    passes, scene = _flat(light=edge, d_su=0.04)
+    h = round(MEAN_DISTANCE_CHECK * burley_d(scene.materials[0])[0] * 100.0 / 2)
     assert h >= 2
-    blurred = np.array([edge[0, max(x - h, 0) : x + h + 1, 0].mean() for x in range(32)])
-    change = 0.5 * (blurred - edge[0, :, 0])
-    blocks = change.reshape(16, 2).mean(axis=1)  # 2 x 2 blocks (rows are all alike)
-    expected = math.sqrt(np.mean(blocks**2)) / np.mean(0.5 * edge[0, :, 0])
+    e = edge[0, :, 0].reshape(16, 2).mean(axis=1)
+    blurred = np.array([e[max(x - h, 0) : x + h + 1].mean() for x in range(16)])
+    change = 0.5 * (blurred - e)
+    expected = math.sqrt(np.mean(change**2)) / np.mean(0.5 * e)
     assert values[1] == pytest.approx(expected, rel=1e-6)
 
 
@@ -122,19 +123,24 @@ def test_light_from_behind_is_the_combined_techniques_transmission():
     from sss_lab.core.combined import transmission
 
     mask = np.rint(arrays["Material Index"]) == wax.index
+    # On the 2 x 2 block means wholly inside the material (the whole image's blocks).
+    keep = auto.box_downsample(mask.astype(float), 2) >= 1
+
+    def blocks(name):
+        return auto.box_downsample(arrays[name].astype(np.float64), 2)
+
     term = transmission(
-        normal=arrays["Normal"],
-        position=arrays["Position"],
-        thickness=arrays["Thickness"],
-        mask=mask,
+        normal=blocks("Normal"),
+        position=blocks("Position"),
+        thickness=blocks("Thickness"),
+        mask=keep,
         lights=scene.lights,
         d_su=burley_d(wax),
         thickness_distance_su=0.5,
     ).astype(np.float64)
-    keep = auto.box_downsample(mask.astype(float), 2) >= 1
-    t = auto.box_downsample(term, 2)[keep]
+    t = term[keep]
     # Relative to the mean of the image with that light (the reference's mean holds it too).
-    base = auto.box_downsample(arrays["Combined"][..., :3].astype(np.float64) + term, 2)[keep]
+    base = (blocks("Combined")[..., :3] + term)[keep]
     assert f.back > 0
     assert f.back == pytest.approx(math.sqrt(np.mean(t**2)) / base.mean(), rel=1e-5)
     # Without the bake distance it cannot be measured, and says so.
@@ -198,9 +204,10 @@ def test_bad_margin_is_one_clear_error(bad):
 def test_the_composite_is_each_materials_chosen_technique():
     arrays, scene = _scene()
     passes = Passes(arrays)
-    # SSSS predicted better where the diffusion is small (Skin, D < 0.01), Burley where it is large
-    # (Wax, D > 0.2): a model made up so that the two materials choose differently.
-    model = auto.Model({"none": (1.0, 1.0, 0.0), "ssss": (0.5, 1.0, 0.0), "burley": (0.1, 1.0, 1e-4)})
+    # SSSS predicted better where the diffusion is small (Skin), Burley where it is large (Wax):
+    # a model made up so that the two materials choose differently.
+    # SSSS wins where 0.4 D^2 < 0.003, i.e. D < 0.087.
+    model = auto.Model({"none": (1.0, 1.0, 0.0), "ssss": (0.5, 1.0, 0.0), "burley": (0.1, 1.0, 0.003)})
     plan = auto.choose(passes, scene, model=model, max_error=0.0, techniques=("ssss", "burley"))
     chosen = {c.features.name: c.chosen for c in plan.choices}
     assert chosen == {"Skin": "ssss", "Wax": "burley"}, plan.explain()
