@@ -6,7 +6,7 @@ sample scenes with references rendered here, ``--source samples``):
 1. each technique at its default quality on the scene's passes, and no SSS: relative RMSE against
    the scene's Cycles reference over the subsurface pixels after 2 x 2 box downsampling (the
    measure ``compare`` and the fidelity suite use, docs/references.md §8), over the whole scene
-   and per material; apply time (process CPU time, fastest of ``--repeat`` runs) on the same
+   and per material; apply time (process CPU time on one thread, fastest of ``--repeat`` runs) on the same
    passes repeated ``--time-scale`` x ``--time-scale`` per pixel with the camera as many times
    finer (at the suite's 128 px a technique takes a few ms and fixed costs would dominate);
 2. the features of every material (``core.auto.features``).
@@ -200,15 +200,17 @@ def run(scenes, *, techniques, repeat: int, max_error: float, time_scale: int = 
             command="leave-one-scene-out",
         )
 
-        def choose_and_apply(passes, desc, model=model):
-            plan = auto.choose(passes, desc, max_error=max_error, model=model, techniques=techniques)
+        def choose_and_apply(passes, desc, keep=None, model=model):
+            plan = auto.choose(passes, desc, max_error=max_error, model=model, techniques=techniques, keep=keep)
             return plan, auto.apply_auto(passes, desc, prepared=plan)
 
         plan, layers = choose_and_apply(s.passes, s.desc)
         image = layers["SSSLab.auto.Image"] if layers else s.passes["Combined"]
         err = s.error(image)
         m = measured[s.name]
-        _, t_auto = _fastest(lambda m=m, f=choose_and_apply: f(*m["big"]), repeat)
+        # Timed at the larger size making the same choice (its features measured there, at their cost;
+        # the footprint in pixels grows with the resolution, and so may the choice).
+        _, t_auto = _fastest(lambda m=m, f=choose_and_apply, k=plan.chosen: f(*m["big"], keep=k), repeat)
         best = min(m["errors"], key=m["errors"].get)
         # Work (pixels x samples, core.auto) per candidate and of the choice, for the record.
         work = {}
@@ -339,6 +341,12 @@ def main(argv=None) -> int:
     from sss_lab.core import auto
     from sss_lab.core.techniques import TECHNIQUES
 
+    try:  # timed on one thread: an idle thread pool spins, and its CPU time would count against the next run
+        import numba
+
+        numba.set_num_threads(1)
+    except ImportError:
+        pass
     source = args.source
     if source is None:
         source = "fidelity" if os.path.isdir(os.path.join(ROOT, "benchmarks", "fidelity")) else "samples"

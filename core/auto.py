@@ -5,7 +5,8 @@ any technique, how much the two things SSS adds to a plain diffuse render matter
 
 - **diffusion** D: how much the material's visible diffuse light changes when it is spread over
   its footprint. Everything is measured on the 2 x 2 block means wholly inside the material (the
-  blocks of the error measure ``compare`` uses, docs/references.md §8; a quarter of the pixels).
+  blocks of the error measure ``compare`` uses, docs/references.md §8; a quarter of the pixels;
+  larger blocks on a window wider than ``GRID`` blocks, so that the cost stays bounded).
   The irradiance (Diffuse Direct + Indirect) is averaged, per channel, over a box of half-width
   2.5 d (the mean distance light travels under the Burley profile, docs/references.md §1; in
   whole blocks) at the material's median depth, inside the material only; D is the RMS of
@@ -74,6 +75,8 @@ MEAN_DISTANCE = 2.5
 MAX_BOX = 64
 #: Blocks of the error measure (as ``compare`` and the fidelity suite: 2 x 2).
 BOX = 2
+#: Most blocks across a material's window the features are measured on (larger blocks beyond).
+GRID = 96
 MODEL_PATH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "auto_model.json")
 
 
@@ -236,8 +239,9 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
     """The features of ``material`` on ``passes`` (module docstring); pure NumPy, no technique run.
 
     Measured on the 2 x 2 block means of the material's bounding box (the blocks the error measure
-    uses, blocks wholly inside the material), which costs a quarter of the pixels; a material too
-    small for one whole block is measured on its pixels."""
+    uses, blocks wholly inside the material; larger blocks when the window is wider than ``GRID``
+    blocks), which costs a quarter of the pixels or less; a material too small for one whole block
+    is measured on its pixels."""
     start = time.perf_counter()
     sh = _shared or _Shared(passes, scene)
     on = sh.index == material.index
@@ -251,15 +255,19 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
         f.notes.append("no pixel on screen")
         return f
     keep, step = mask, 1
-    if min(mask.shape) >= BOX:
-        blocks = box_downsample(mask.astype(np.float32), BOX) >= 1.0
+    # Blocks of 2 x 2 pixels, larger on a large window so that a material is measured on at most
+    # about GRID x GRID blocks: the features are statistics, and their cost stays bounded at any
+    # resolution (at 128 px, the fidelity suite's size, the blocks are those of the error measure).
+    size = BOX * max(1, math.ceil(max(mask.shape) / (BOX * GRID)))
+    if min(mask.shape) >= size:
+        blocks = box_downsample(mask.astype(np.float32), size) >= 1.0
         if blocks.any():
-            keep, step = blocks, BOX
+            keep, step = blocks, size
 
     def at(a):
         """``a`` on the window, NaN/Inf as 0, as block means when measured on blocks."""
         w = core_apply._clean(a[win])
-        return w if step == 1 else box_downsample(w, BOX)
+        return w if step == 1 else box_downsample(w, step)
 
     combined = at(sh.combined)
     albedo = at(sh.albedo)
