@@ -210,9 +210,16 @@ def load_scene(name: str, *, scenes=None, cache: str | None = CACHE, store: str 
     )
 
 
+#: Techniques applied once already in this process: their compiled kernels are loaded.
+_WARM: set[str] = set()
+
+
 def _apply(passes, desc, technique, quality):
     from sss_lab.core import apply as core_apply
 
+    if technique not in _WARM:  # untimed: the first call compiles (or loads) the Numba kernels
+        core_apply.apply(passes, desc, technique, **quality)
+        _WARM.add(technique)
     start = time.perf_counter()
     layers = core_apply.apply(passes, desc, technique, **quality)
     seconds = time.perf_counter() - start
