@@ -171,6 +171,8 @@ def run(args) -> int:
                         print(f"  auto: material {c.features.name!r}: {c.chosen} ({c.reason})")
                 names = ", ".join(m.material.name or str(m.material.index) for m in applied) or "none on screen"
                 extra = f"; {p.nonfinite_pixels} NaN/Inf pixels left as they are" if p.nonfinite_pixels else ""
+                if p.overflow_pixels:
+                    extra += f"; {p.overflow_pixels} pixels overflowed float32 (light near 3.4e38), left as they were"
                 print(f"  {p.technique}: {len(applied)} material(s) computed ({names}){extra}")
                 for m in applied:
                     if m.warning:

@@ -140,7 +140,7 @@ def apply(
     index = _index_map(passes)
     inputs, original, ok = _inputs(spec, passes, scene, albedo_mode)
     ok &= _finite(rgb)
-    nonfinite = 0
+    nonfinite = overflow = 0
     for mp in p.applied:
         mask = index == mp.material.index
         nonfinite += int((mask & ~ok).sum())
@@ -153,15 +153,19 @@ def apply(
         # diffusion only); for the others it scales their result below.
         gain = None if "gain" in spec.keywords else kwargs.pop("gain", None)
         kwargs["mask"] = mask
-        out = np.asarray(_call(spec.function, kwargs), dtype=np.float32)
+        # Light near float32's limit can overflow in a technique's sums: counted below and said
+        # (overflow_pixels), instead of NumPy's raw RuntimeWarning.
+        with np.errstate(over="ignore", invalid="ignore"):
+            out = np.asarray(_call(spec.function, kwargs), dtype=np.float32)
         if out.shape != rgb.shape:
             raise ValueError(f"{spec.name} returned shape {out.shape}; expected {rgb.shape}")
         if gain is not None:
             # The fitted per-channel energy (core/fit_params.py): on the material's light after the
             # technique (for STA, on the light it adds).
             out = out * np.asarray(gain, np.float32)
-        good = mask & _finite(out)
-        nonfinite += int((mask & ~good).sum())
+        with np.errstate(over="ignore", invalid="ignore"):
+            good = mask & _finite(out)
+        overflow += int((mask & ~good).sum())
         if not spec.scatters:
             term = out
         else:
@@ -172,5 +176,6 @@ def apply(
         image[..., :3][good] = rgb[good] + term[good]
         sss[good] = term[good]
     p.nonfinite_pixels = nonfinite
+    p.overflow_pixels = overflow
     name_image, name_sss = layer_names(spec.name)
     return {name_image: image, name_sss: sss}

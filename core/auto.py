@@ -381,6 +381,7 @@ class AutoPlan:
     skipped_materials: list[str] = field(default_factory=list)
     technique: str = AUTO
     nonfinite_pixels: int = 0
+    overflow_pixels: int = 0
 
     @property
     def scattering(self) -> list[MaterialChoice]:
@@ -558,14 +559,16 @@ def apply_auto(passes: Passes, scene: SceneDescription, *, prepared: AutoPlan | 
     combined = passes["Combined"]
     image = np.array(combined, dtype=np.float32)
     sss = np.zeros(combined.shape[:2] + (3,), np.float32)
-    nonfinite = 0
+    nonfinite = overflow = 0
     for t, p in auto.plans.items():
         layers = core_apply.apply(passes, scene, t, albedo_mode=p.albedo_mode, prepared=p)
         if layers:
             sss += layers[core_apply.layer_names(t)[1]]
         nonfinite += p.nonfinite_pixels
+        overflow += p.overflow_pixels
     image[..., :3] += sss
     auto.nonfinite_pixels = nonfinite
+    auto.overflow_pixels = overflow
     name_image, name_sss = core_apply.layer_names(AUTO)
     return {name_image: image, name_sss: sss}
 

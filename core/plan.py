@@ -77,6 +77,9 @@ class Plan:
     unknown_indices: dict[int, int] = field(default_factory=dict)
     #: Pixels of applied materials with a NaN or Inf input, left as they are.
     nonfinite_pixels: int = 0
+    #: Pixels whose inputs were finite but whose result was not (light near float32's limit,
+    #: 3.4e38, overflowing in the technique's sums): left as they were.
+    overflow_pixels: int = 0
     options: dict = field(default_factory=dict)
 
     @property
@@ -129,6 +132,11 @@ class Plan:
             )
         if self.nonfinite_pixels:
             lines.append(f"  {self.nonfinite_pixels} pixels with NaN/Inf inputs: left as they are")
+        if self.overflow_pixels:
+            lines.append(
+                f"  {self.overflow_pixels} pixels whose result overflowed float32 (light near 3.4e38): "
+                "left as they were"
+            )
         applied = self.applied
         lines.append(
             f"  => {len(applied)} of {len(self.materials)} materials computed"

@@ -8,6 +8,7 @@ the input; and the plan warns when the kernel exceeds the object or the image.
 
 import dataclasses
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -127,3 +128,20 @@ def test_the_plan_warns_when_the_kernel_exceeds_the_object():
     sss = layers["SSSLab.burley.SSS"]
     on_skin = arrays["Material Index"] == 2
     assert np.abs(sss[on_skin]).mean() > 0.05 * np.abs(arrays["Combined"][on_skin, :3]).mean()
+
+
+def test_light_near_the_float32_limit_is_counted_as_overflow_not_as_bad_input():
+    # Diffuse light of 3e38 is finite in the passes; Burley's weighted sums overflow float32.
+    arrays, scene = sphere_scene(width=24, height=16)
+    on_skin = arrays["Material Index"] == 2
+    arrays["Diffuse Direct"] = np.where(on_skin[..., None], np.float32(3e38), arrays["Diffuse Direct"])
+    passes = Passes(arrays)
+    plan = core_apply.plan(passes, scene, "burley")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no raw NumPy RuntimeWarning reaches the user
+        layers = core_apply.apply(passes, scene, "burley", prepared=plan)
+    assert plan.nonfinite_pixels == 0  # the inputs were finite
+    assert 0 < plan.overflow_pixels <= on_skin.sum()
+    assert "overflowed float32" in plan.explain()
+    # The overflowed pixels kept their (finite) Combined value instead of taking Inf.
+    assert np.isfinite(layers["SSSLab.burley.Image"]).all()
