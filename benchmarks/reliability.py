@@ -585,7 +585,7 @@ jobs = {
     "compare (reference at 50000 samples)": ["compare", blend, "--out", os.path.join(folder, "c"), "--resolution",
                                              "48x48", "--reference-samples", "50000", "--methods", "ssss,burley"],
     "bake-thickness (2048 px image, 1024 rays)": ["bake-thickness", blend, "--out", os.path.join(folder, "b.blend"),
-                                                  "--target", "image", "--resolution", "2048", "--samples", "1024"],
+                                                  "--target", "image", "--image-size", "2048", "--samples", "1024"],
     "apply (1024x768, all techniques)": ["apply", big, "--method", "all", "--out", os.path.join(folder, "a.exr")],
 }
 for label, argv in jobs.items():
