@@ -1,12 +1,20 @@
 # SSS Lab: `make demo` runs the main job on the sample scene, `make test` runs lint and tests.
 # Each target sets up .venv by itself (tools/bootstrap.sh) on a fresh machine.
-PY := .venv/bin/python
+# BLENDER=4.5 picks Blender 4.5 LTS (.venv-4.5, Python 3.11, bpy 4.5) instead of 5.2 (.venv);
+# `make test` without it tests both versions, as CI does.
+BLENDER ?=
+ifneq ($(filter-out 5.2 4.5,$(BLENDER)),)
+$(error BLENDER=$(BLENDER): expected 5.2 or 4.5 (or nothing: make test then tests both))
+endif
+venv_of = $(if $(filter 4.5,$(1)),.venv-4.5,.venv)
+PY := $(call venv_of,$(BLENDER))/bin/python
+TEST_VERSIONS := $(or $(BLENDER),5.2 4.5)
 OUT ?= out
 
 .PHONY: venv demo farm-demo test lint typecheck format bench fidelity extension clean
 
 venv:
-	@bash tools/bootstrap.sh
+	@bash tools/bootstrap.sh $(or $(BLENDER),5.2)
 
 demo: venv
 	$(PY) -m sss_lab demo --out $(OUT)
@@ -24,12 +32,20 @@ farm-demo: venv
 		-p SceneFile=$(abspath $(FARM_OUT))/head_frontlit.blend -p OutputDir=$(abspath $(FARM_OUT))/job \
 		-p "SSSLab=$(abspath $(PY)) -m sss_lab" -p "SSSLabNumpy=$(abspath $(PY)) -m sss_lab" $(FARM_PARAMS)
 
+# Lint once, then the whole suite in each version's environment; every version runs even when
+# an earlier one fails, and the target fails if any did.
 test: venv
 	$(PY) -m ruff check .
 	$(PY) -m ruff format --check .
 	$(PY) tools/typecheck.py
 	@bash tools/ensure_chromium.sh
-	$(PY) -m pytest tests
+	@failed=; for v in $(TEST_VERSIONS); do \
+	  bash tools/bootstrap.sh $$v || { failed="$$failed $$v"; continue; }; \
+	  venv=.venv; [ "$$v" = 4.5 ] && venv=.venv-4.5; \
+	  echo "make test: Blender $$v ($$venv)"; \
+	  $$venv/bin/python -m pytest tests || failed="$$failed $$v"; \
+	done; \
+	if [ -n "$$failed" ]; then echo "make test: failed on Blender$$failed"; exit 1; fi
 
 lint: venv
 	$(PY) -m ruff check .

@@ -11,7 +11,9 @@ def _methods(text: str) -> tuple[str, ...]:
 
     names = [t.strip().upper() for t in text.split(",") if t.strip()]
     if names == ["ALL"]:
-        return SUBSURFACE_METHODS
+        from ..blender import compat
+
+        return compat.subsurface_methods()  # those this Blender renders
     unknown = [n for n in names if n not in SUBSURFACE_METHODS]
     if unknown:
         raise CommandError(

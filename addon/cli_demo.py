@@ -61,13 +61,16 @@ def run(args) -> int:
 
     import bpy
 
+    from ..blender import compat
     from ..blender.compare import CompareSettings, compare
     from ..core.report_schema import Report
-    from ..core.scene import SUBSURFACE_METHODS
 
-    # Every subsurface method gets its mapping calibrated (one more cached reference each).
+    # Every subsurface method of this Blender gets its mapping calibrated (one more cached
+    # reference each).
     settings = CompareSettings(
-        reference_samples=args.reference_samples, pass_samples=args.samples, calibrate_methods=SUBSURFACE_METHODS
+        reference_samples=args.reference_samples,
+        pass_samples=args.samples,
+        calibrate_methods=compat.subsurface_methods(),
     )
     try:
         data = compare(bpy.context.scene, out, settings)

@@ -65,6 +65,17 @@ def _note(layout, text: str) -> None:
     col.label(text=text, icon="INFO")
 
 
+def draw_setup_compositor(layout) -> None:
+    """The Set Up Compositor button; on a Blender that cannot run the node groups (4.5) it is greyed
+    out by its poll (the tooltip has the whole reason) and two lines say what that version lacks."""
+    from ..blender import compat
+
+    layout.operator("sss_lab.setup_compositor", icon="NODE_COMPOSITING")
+    if compat.compositor_groups_missing() is not None:
+        _note(layout, f"Blender {bpy.app.version_string.split()[0]}: no Convolve node, no compositor groups")
+        _note(layout, "Use Render Passes and Apply (same techniques)")
+
+
 class _Panel:
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
@@ -132,7 +143,7 @@ class SSS_LAB_PT_compositor(_Step, bpy.types.Panel):
 
     def draw(self, context):
         layout = split(self.layout)
-        layout.operator("sss_lab.setup_compositor", icon="NODE_COMPOSITING")
+        draw_setup_compositor(layout)
 
 
 class SSS_LAB_PT_compare(_Step, bpy.types.Panel):

@@ -348,9 +348,9 @@ class ThicknessBake:
             st.set(cycles, "film_exposure", 1.0)  # Cycles scales baked emission by it
             st.set(cycles, "bake_type", "EMIT")
             bake = scene.render.bake
+            st.set(*compat.multires_bake_switch(scene), False)
             for attr, value in (
                 ("target", "VERTEX_COLORS" if s.target == "attribute" else "IMAGE_TEXTURES"),
-                ("use_multires", False),
                 ("use_selected_to_active", False),
                 ("use_cage", False),
                 ("use_clear", True),

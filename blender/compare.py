@@ -40,6 +40,7 @@ from ..core.scene import SUBSURFACE_METHODS, SceneDescription
 from ..core.spec import CALIBRATE_MAPPING
 from ..core.sweep import calibrate
 from ..core.techniques import TECHNIQUES, check_technique
+from . import compat
 from .describe import sss_materials
 from .jobs import Job, Steps, run
 from .reference_cache import cached_reference, scene_fingerprint
@@ -105,6 +106,11 @@ class CompareSettings:
         for m in self.calibrate_methods:
             if m not in SUBSURFACE_METHODS:
                 raise ValueError(f"calibrate_methods: unknown subsurface method {m!r}; expected: {SUBSURFACE_METHODS}")
+            if m not in compat.subsurface_methods():
+                raise ValueError(
+                    f"calibrate_methods: Blender {bpy.app.version_string} has no subsurface method {m!r};"
+                    f" expected some of: {compat.subsurface_methods()}"
+                )
 
 
 def _number(value) -> str:

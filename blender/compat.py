@@ -1,7 +1,7 @@
 """The one place that knows how Blender versions differ.
 
-SSS Lab targets Blender 5.2 LTS; Blender 4.5 LTS is next. Every call whose spelling changed
-between them goes through a function here, so that supporting another version means editing
+SSS Lab runs on Blender 5.2 and on 4.5 LTS (docs/blender45.md). Every call whose spelling or
+meaning changed between them goes through a function here, so that supporting another version means editing
 this module alone. Only bpy-facing code imports it (core never does).
 """
 
@@ -9,8 +9,11 @@ from __future__ import annotations
 
 import bpy
 
+from ..core.errors import SSSLabError
+from ..core.passes import PASSES
+
 #: Oldest Blender this module knows how to drive (blender_manifest.toml says the same).
-MIN_VERSION = (5, 2, 0)
+MIN_VERSION = (4, 5, 0)
 
 
 def blender_version() -> tuple[int, int, int]:
@@ -19,6 +22,65 @@ def blender_version() -> tuple[int, int, int]:
 
 def is_supported() -> bool:
     return blender_version() >= MIN_VERSION
+
+
+# --- Subsurface methods -----------------------------------------------------------------------
+# The scene description and core/ name a method by its Cycles convention in Blender 5.x's words
+# (core.scene.SUBSURFACE_METHODS). 4.5's "Random Walk" is what 5.x calls "Random Walk (Legacy)"
+# (mean free path = radius / 4 pi; 5.x converts it so when it opens a 4.5 file, and renders it
+# alike: docs/blender45.md); 4.5 has no counterpart of 5.x's new "Random Walk".
+
+#: This version's ``subsurface_method`` enum item -> the method's name in the scene description.
+_METHOD_NAMES_45 = {"BURLEY": "BURLEY", "RANDOM_WALK": "RANDOM_WALK_LEGACY", "RANDOM_WALK_SKIN": "RANDOM_WALK_SKIN"}
+
+
+def _method_names() -> dict[str, str]:
+    if bpy.app.version >= (5, 0, 0):
+        return {m: m for m in ("BURLEY", "RANDOM_WALK", "RANDOM_WALK_SKIN", "RANDOM_WALK_LEGACY")}
+    return _METHOD_NAMES_45
+
+
+def subsurface_methods() -> tuple[str, ...]:
+    """The subsurface methods this Blender renders, as the scene description names them."""
+    return tuple(_method_names().values())
+
+
+def random_walk_method() -> str:
+    """This Blender's newest random walk, as the scene description names it: ``RANDOM_WALK`` in
+    5.x, ``RANDOM_WALK_LEGACY`` in 4.5 (whose Random Walk that is)."""
+    return "RANDOM_WALK" if "RANDOM_WALK" in subsurface_methods() else "RANDOM_WALK_LEGACY"
+
+
+def subsurface_method(bsdf) -> str:
+    """The Principled BSDF's subsurface method, as the scene description names it."""
+    return _method_names()[bsdf.subsurface_method]
+
+
+def subsurface_method_item(method: str) -> str:
+    """The ``subsurface_method`` enum item of this Blender for ``method`` (a scene-description
+    name). Raises ValueError naming the methods this version has when it has no such method."""
+    for item, name in _method_names().items():
+        if name == method:
+            return item
+    raise ValueError(
+        f"subsurface method {method!r}: Blender {bpy.app.version_string} has no such method; "
+        f"expected one of: {', '.join(subsurface_methods())}"
+    )
+
+
+def eevee_engine() -> str:
+    """EEVEE's ``render.engine`` identifier: ``BLENDER_EEVEE`` in 5.x, ``BLENDER_EEVEE_NEXT`` in 4.5."""
+    return "BLENDER_EEVEE" if bpy.app.version >= (5, 0, 0) else "BLENDER_EEVEE_NEXT"
+
+
+def set_thin_wall(bsdf, value: bool) -> None:
+    """Set the Principled BSDF's "Thin Wall" input (5.x). 4.5 has no such input: its surfaces are
+    always solid, which is what ``value`` False asks for; True there raises, naming the version."""
+    socket = bsdf.inputs.get("Thin Wall")
+    if socket is not None:
+        socket.default_value = value
+    elif value:
+        raise RuntimeError(f"the Principled BSDF of Blender {bpy.app.version_string} has no Thin Wall input")
 
 
 def set_multilayer_exr(image_settings, *, color_depth: str = "32") -> None:
@@ -32,6 +94,21 @@ def set_multilayer_exr(image_settings, *, color_depth: str = "32") -> None:
     image_settings.file_format = "OPEN_EXR_MULTILAYER"
     image_settings.color_depth = color_depth
     image_settings.exr_codec = "ZIP"
+
+
+def exr_part_per_pass() -> bool:
+    """Whether this Blender writes a multilayer EXR as one part per pass (5.x) rather than one
+    part holding every channel (4.5; ``core.exr`` reads both)."""
+    return bpy.app.version >= (5, 0, 0)
+
+
+def exr_pass_name(name: str) -> str:
+    """The name this Blender gives render pass ``name`` (5.x's name, e.g. "Diffuse Direct") in a
+    multilayer EXR and in an Image node's outputs: 4.5 uses the short names ("DiffDir")."""
+    if bpy.app.version >= (5, 0, 0):
+        return name
+    info = PASSES.get(name)
+    return info.short_name if info is not None and info.short_name else name
 
 
 #: Image-format settings that ``set_multilayer_exr`` changes, in the order they must be restored.
@@ -92,6 +169,16 @@ def ensure_node_tree(idblock) -> None:
         idblock.use_nodes = True
 
 
+def multires_bake_switch(scene) -> tuple[object, str]:
+    """Where the "bake from multires" switch lives: (owner, attribute) to set or record.
+
+    5.x: ``scene.render.bake.use_multires``; 4.5: ``scene.render.use_bake_multires``."""
+    bake = scene.render.bake
+    if hasattr(bake, "use_multires"):
+        return bake, "use_multires"
+    return scene.render, "use_bake_multires"
+
+
 def run_bake(*, target: str, margin: int | None = None, uv_layer: str = "") -> set:
     """Cycles' Emit bake of the selected objects into ``target`` (``VERTEX_COLORS``: the active
     colour attribute; ``IMAGE_TEXTURES``: the active Image Texture node of each material).
@@ -136,6 +223,33 @@ def remove_last_material_slot(obj) -> None:
 
 
 # --- Compositor nodes (nodes/ builds its node groups through these) ---------------------------
+
+
+class MissingFeature(SSSLabError, RuntimeError):
+    """This Blender lacks something SSS Lab needs for the job; the message says what and what to
+    use instead."""
+
+
+def compositor_groups_missing() -> str | None:
+    """Why this Blender cannot run SSS Lab's compositor node groups, or None when it can.
+
+    The groups convolve with the Convolve node and choose options with Menu sockets in their
+    interfaces; Blender 4.5's compositor has neither."""
+    if hasattr(bpy.types, "CompositorNodeConvolve"):
+        return None
+    return (
+        f"Blender {bpy.app.version_string.split()[0]} has no compositor Convolve node and no Menu sockets in "
+        "compositor node groups, which SSS Lab's compositor node groups need (Blender 5.2 has both); "
+        "use Render Passes and Apply instead (the same techniques in NumPy)"
+    )
+
+
+def require_compositor_groups() -> None:
+    """Raise ``MissingFeature`` saying what this Blender lacks when it cannot run the groups."""
+    reason = compositor_groups_missing()
+    if reason is not None:
+        raise MissingFeature(reason)
+
 
 #: The node type of a node group instance inside a compositor tree.
 COMPOSITOR_GROUP_NODE = "CompositorNodeGroup"

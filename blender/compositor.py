@@ -128,8 +128,11 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
     (technique, groups, nodes, passes_enabled, pass_indices, notes, warnings).
 
     ``options``: technique parameters under ``core``'s names (and ``albedo_mode``).
-    Raises ValueError (no camera, no subsurface material) with a clear message.
+    Raises ValueError (no camera, no subsurface material) with a clear message, and
+    ``compat.MissingFeature`` on a Blender whose compositor cannot run the groups (4.5), before
+    changing anything.
     """
+    compat.require_compositor_groups()
     builder = chain.builder(technique)  # ValueError naming why for a technique without node groups
     layer = view_layer or bpy.context.view_layer
     if layer is None or layer.name not in scene.view_layers:

@@ -62,7 +62,7 @@ def material_sss(material, index: int) -> MaterialSSS | None:
     return MaterialSSS(
         index=index,
         name=material.name,
-        method=node.subsurface_method,
+        method=compat.subsurface_method(node),
         base_color=tuple(min(float(c), 1.0) for c in base[:3]),
         fit=read_fit(material),
         **values,

@@ -207,7 +207,7 @@ def _with_method(scene, method: str, state: SceneState) -> None:
     for mat in scene_materials(scene):
         node = principled_node(mat)
         if node is not None and node.inputs["Subsurface Weight"].default_value > 0:
-            state.set(node, "subsurface_method", method)
+            state.set(node, "subsurface_method", compat.subsurface_method_item(method))
 
 
 def cached_reference(

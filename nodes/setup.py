@@ -139,7 +139,9 @@ def build_chain(
     ambient; SSSS: kernel_type, n_taps, ...; all: albedo_mode); missing ones keep the defaults.
     ``pixels_per_unit``: material index -> the kernel's fixed screen scale (SSSS, Burley).
     Notes say what was left out and why (no lights, no screen scale for a material...).
+    Raises ``compat.MissingFeature`` on a Blender without the nodes the groups need (4.5).
     """
+    compat.require_compositor_groups()
     chain = builder(technique)
     options = dict(options or {})
     notes: list[str] = []

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import bpy
 
+from ..blender import compat
 from ..blender.compositor import setup_compositor
 from ..core.techniques import DEFAULT_TECHNIQUE, TECHNIQUES
 
@@ -24,6 +25,10 @@ class SSS_LAB_OT_setup_compositor(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
+        missing = compat.compositor_groups_missing()
+        if missing is not None:
+            cls.poll_message_set(missing)
+            return False
         return context.scene is not None
 
     def execute(self, context):
@@ -38,7 +43,7 @@ class SSS_LAB_OT_setup_compositor(bpy.types.Operator):
             options["albedo_mode"] = settings.albedo_mode
         try:
             report = setup_compositor(scene, technique, options=options, view_layer=context.view_layer)
-        except ValueError as exc:
+        except (ValueError, compat.MissingFeature) as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         for line in report["warnings"]:

@@ -3,7 +3,9 @@
 This script is the source of the sample scenes: the .blend files are generated from it
 (``python sample_blends/build_scenes.py [NAME ...] --out DIR``; the project's commands load
 this file with ``addon.cli_demo.load_sample_scenes`` and call ``build(name, path)``). Every scene uses Principled BSDF
-materials with Blender 5.2's Random Walk subsurface method and realistic scales (metres).
+materials with Blender 5.2's Random Walk subsurface method and realistic scales (metres); on
+Blender 4.5 the legacy Random Walk, its only one, with the Subsurface Scale that gives the same
+mean free path (see ``_material``).
 
 The scenes (``SCENES``), each meant for some of the techniques:
 
@@ -93,23 +95,34 @@ def _material(
     radius=(1.0, 0.2, 0.1),
     scale=0.005,
     weight=1.0,
-    method="RANDOM_WALK",
+    method=None,
     ior=1.4,
     anisotropy=0.0,
     roughness=0.5,
 ):
     """A Principled BSDF material with every subsurface input set. ``radius`` x ``scale`` is
-    the mean free path per channel, in metres; ``weight`` 0 makes a material without SSS."""
+    the mean free path per channel, in metres; ``weight`` 0 makes a material without SSS.
+
+    ``method`` (a scene-description name) defaults to this Blender's newest random walk. On
+    Blender 4.5 that is the legacy random walk, whose mean free path is radius x scale / (4 pi)
+    (``core/mapping.py``): the scale is multiplied by 4 pi there, so that the material keeps its
+    mean free path on both versions."""
     import bpy
+
+    from sss_lab.blender import compat
 
     mat = bpy.data.materials.new(name)
     _nodes(mat)
     bsdf = mat.node_tree.nodes["Principled BSDF"]
-    bsdf.subsurface_method = method
+    if method is None:
+        method = compat.random_walk_method()
+        if method == "RANDOM_WALK_LEGACY":
+            scale *= 4.0 * math.pi
+    bsdf.subsurface_method = compat.subsurface_method_item(method)
     bsdf.inputs["Base Color"].default_value = (*base_color, 1.0)
     bsdf.inputs["Roughness"].default_value = roughness
     bsdf.inputs["IOR"].default_value = ior  # Random Walk's boundary IOR
-    bsdf.inputs["Thin Wall"].default_value = False
+    compat.set_thin_wall(bsdf, False)
     bsdf.inputs["Subsurface Weight"].default_value = weight
     bsdf.inputs["Subsurface Radius"].default_value = radius
     bsdf.inputs["Subsurface Scale"].default_value = scale

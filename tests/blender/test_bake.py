@@ -504,7 +504,7 @@ def _busy_scene():
     """A scene whose settings all differ from what a bake uses, with hidden and selected
     objects, material slots linked to data and to the object, and an active colour attribute."""
     scene = bpy.context.scene
-    scene.render.engine = "BLENDER_EEVEE"
+    scene.render.engine = compat.eevee_engine()
     scene.cycles.samples = 7
     scene.cycles.use_adaptive_sampling = True
     scene.cycles.film_exposure = 1.5

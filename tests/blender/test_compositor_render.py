@@ -20,6 +20,9 @@ from sss_lab.core import exr
 from sss_lab.nodes import _graph
 from sss_lab.nodes.setup import NODE_TAG, group_name
 
+# Skipped where the groups cannot run (Blender 4.5; tests/blender/conftest.py).
+pytestmark = pytest.mark.compositor_groups
+
 
 def _scene():
     """The ``sss_quads`` scene with a user's grade node in the compositor."""

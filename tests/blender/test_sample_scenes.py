@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 
 from sss_lab.addon.cli_demo import load_sample_scenes
-from sss_lab.blender.describe import principled_node, sss_materials
+from sss_lab.blender import compat
+from sss_lab.blender.describe import material_sss, principled_node, sss_materials
+from sss_lab.core import mapping
 from sss_lab.core.exr import read_passes
 
 scenes = load_sample_scenes()
@@ -75,12 +77,12 @@ def test_sss_materials_are_random_walk_with_distinct_pass_indices_and_explicit_i
     assert len(set(indices)) == len(indices), indices
     for mat in mats:
         node = principled_node(mat)
-        assert node.subsurface_method == "RANDOM_WALK", mat.name
+        # Blender's newest random walk: 5.2's Random Walk, 4.5's (legacy) Random Walk.
+        assert compat.subsurface_method(node) == compat.random_walk_method(), mat.name
         ids = {s.identifier for s in node.inputs}
         assert set(SUBSURFACE_INPUTS) | {"Subsurface Anisotropy"} <= ids
-        radius = tuple(node.inputs["Subsurface Radius"].default_value)
-        scale = node.inputs["Subsurface Scale"].default_value
-        mfp = [r * scale for r in radius]
+        # The mean free path under the method's convention (Radius x Scale for 5.2's Random Walk).
+        mfp = mapping.mean_free_path(material_sss(mat, 1)).tolist()
         # The scenes' convention; float32 inputs, hence the 1e-6 m slack.
         assert 0.003 - 1e-6 <= max(mfp) <= 0.02 + 1e-6 and min(mfp) >= 0.001 - 1e-6, (mat.name, mfp)
     # The numbering describe.py gives the scene (the comparison's) is the pass index on disk.
@@ -134,9 +136,7 @@ def test_scene_renders_tiny_with_every_sss_material_and_its_thickness_on_screen(
     scene.cycles.samples = 2
     layer = scene.view_layers[0]
     layer.use_pass_material_index = True
-    settings = scene.render.image_settings
-    settings.media_type = "MULTI_LAYER_IMAGE"
-    settings.file_format = "OPEN_EXR_MULTILAYER"
+    compat.set_multilayer_exr(scene.render.image_settings)
     scene.render.filepath = str(tmp_path / "render.exr")
     bpy.ops.render.render(write_still=True)
     passes = read_passes(str(tmp_path / "render.exr"))
