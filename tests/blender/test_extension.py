@@ -79,23 +79,6 @@ def test_zip_holds_the_extension_but_no_tooling(built_zip):
         assert not any(n.startswith(excluded) for n in names), excluded
 
 
-def _manifest_has_wheels_for_this_python() -> bool:
-    import tomllib
-
-    with open(os.path.join(ROOT, "blender_manifest.toml"), "rb") as fh:
-        wheels = tomllib.load(fh).get("wheels", [])
-    tag = f"-cp{sys.version_info.major}{sys.version_info.minor}-"
-    return any(tag in w for w in wheels)
-
-
-# Blender refuses a zip whose wheels are all for another Python ("Python version (3.11) isn't
-# compatible with (3.13)"): until the manifest lists this Python's wheels (cp311 for 4.5, issue
-# 15), installing is expected to fail here; strict, so that it must pass once they are listed.
-@pytest.mark.xfail(
-    not _manifest_has_wheels_for_this_python(),
-    reason=f"the manifest lists no wheels for Python {sys.version_info.major}.{sys.version_info.minor}",
-    strict=True,
-)
 def test_install_enable_run_disable_leaves_nothing_registered(built_zip):
     assert registered_sss_lab_names() == []
     result = bpy.ops.extensions.package_install_files(filepath=built_zip, repo="user_default", enable_on_install=True)
