@@ -11,6 +11,7 @@ import os
 import bpy
 import pytest
 
+from sss_lab.blender import compat
 from sss_lab.blender import render_passes as rp
 from sss_lab.operators.comparison import SSS_LAB_OT_compare
 from sss_lab.operators.render import SSS_LAB_OT_render_passes
@@ -27,7 +28,7 @@ def _files(folder):
 def frames(sss_quads):
     scene = sss_quads
     scene.frame_start, scene.frame_end, scene.frame_current = 1, 3, 2
-    scene.render.engine = "BLENDER_EEVEE"  # the user's engine: Render Passes switches to Cycles and back
+    scene.render.engine = compat.eevee_engine()  # the user's engine: Render Passes switches to Cycles and back
     scene.sss_lab.render_samples = 2
     scene.sss_lab.technique = "ssss"
     return scene
@@ -44,7 +45,7 @@ def test_render_passes_runs_frame_by_frame_and_esc_restores_the_scene_keeping_fi
     assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
     assert window.progress == [("begin", 0, 3)] and len(window.timers) == 1
     assert window.status[-1] == "Render Passes 1/3: frame 1 (Esc: cancel after this step)"
-    assert _files(tmp_path) == [] and scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE
+    assert _files(tmp_path) == [] and scene.render.engine == compat.eevee_engine() and quad_weights() == BEFORE
 
     # One timer event renders one frame; the scene is changed for the job while it runs.
     assert op.modal(context, modal.event("TIMER")) == {"RUNNING_MODAL"}
@@ -59,7 +60,7 @@ def test_render_passes_runs_frame_by_frame_and_esc_restores_the_scene_keeping_fi
     # Esc: cancelled between frames; the finished frame stays, the scene is back, the UI cleaned up.
     assert op.modal(context, modal.event("ESC")) == {"CANCELLED"}
     assert _files(tmp_path) == ["passes_0001.exr", "passes_0001.json"]
-    assert scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE and scene.frame_current == 2
+    assert scene.render.engine == compat.eevee_engine() and quad_weights() == BEFORE and scene.frame_current == 2
     assert window.progress[-1] == ("end",) and window.timers == [] and window.status[-1] is None
     level, message = op.reports[-1]
     assert level == "WARNING" and "cancelled after 1 of 3 steps" in message and "passes_0001.exr" in message
@@ -77,7 +78,7 @@ def test_render_passes_modal_run_to_the_end_reports_like_the_blocking_one(addon,
     assert window.progress[-1] == ("end",) and window.timers == [] and window.status[-1] is None
     assert len([f for f in _files(tmp_path) if f.endswith(".exr")]) == 3
     assert scene.sss_lab.passes_file == str(tmp_path / "passes_0003.exr")
-    assert scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE
+    assert scene.render.engine == compat.eevee_engine() and quad_weights() == BEFORE
     assert op.reports[-1] == ("INFO", f"Rendered the ssss passes of 3 frame(s) into {tmp_path}")
     # Headless (no window), bpy.ops runs the same job to its end.
     assert bpy.ops.sss_lab.render_passes(directory=str(tmp_path / "b"), use_frame_range=True) == {"FINISHED"}
@@ -103,7 +104,7 @@ def test_render_passes_failing_or_ended_by_blender_restores_the_scene(
     op.modal(context, modal.event("TIMER"))
     assert op.modal(context, modal.event("TIMER")) == {"CANCELLED"}
     assert op.reports[-1] == ("ERROR", "the render failed (test)")
-    assert scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE
+    assert scene.render.engine == compat.eevee_engine() and quad_weights() == BEFORE
     assert window.timers == [] and window.status[-1] is None
     assert _files(tmp_path) == ["passes_0001.exr", "passes_0001.json"]  # no half-written frame 2
 
@@ -114,7 +115,7 @@ def test_render_passes_failing_or_ended_by_blender_restores_the_scene(
     op.modal(context, modal.event("TIMER"))
     assert quad_weights() == PLAIN
     op.cancel(context)
-    assert scene.render.engine == "BLENDER_EEVEE" and quad_weights() == BEFORE and window.timers == []
+    assert scene.render.engine == compat.eevee_engine() and quad_weights() == BEFORE and window.timers == []
 
 
 def test_render_passes_bad_input_is_refused_at_start_without_a_timer(addon, modal, quad_weights, frames, tmp_path):
