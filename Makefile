@@ -28,7 +28,7 @@ FARM_PARAMS ?= -p Frames=1-3 -p FramesPerTask=2 -p Resolution=64x64 -p PassSampl
 
 farm-demo: venv
 	@[ -f $(FARM_OUT)/head_frontlit.blend ] || $(PY) sample_blends/build_scenes.py head_frontlit --out $(FARM_OUT)
-	.venv/bin/openjd run farm/openjd/template.yaml --step Compare --run-dependencies \
+	$(dir $(PY))openjd run farm/openjd/template.yaml --step Compare --run-dependencies \
 		-p SceneFile=$(abspath $(FARM_OUT))/head_frontlit.blend -p OutputDir=$(abspath $(FARM_OUT))/job \
 		-p "SSSLab=$(abspath $(PY)) -m sss_lab" -p "SSSLabNumpy=$(abspath $(PY)) -m sss_lab" $(FARM_PARAMS)
 
