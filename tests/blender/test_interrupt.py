@@ -72,11 +72,11 @@ def _temporaries(folder):
 def test_render_stops_and_keeps_the_finished_frame(cube_blend, tmp_path):
     before = _digest(cube_blend)
     out = tmp_path / "passes"
-    # 3000 samples: several seconds a frame under load, so frames 2 and 3 would take far longer than
-    # STOP_WITHIN; the interrupt comes 0.2 s into frame 2 (an idle machine renders a frame in about
-    # 1 s, which let frame 2 finish before a 1 s interrupt on Blender 4.5).
+    # 10000 samples: about 3 s a frame on an idle machine (3000 took about 1 s, which let frame 2
+    # finish before a 1 s interrupt), longer under load; the interrupt comes 0.2 s into frame 2,
+    # so frame 2 cannot finish first, and frames 2 and 3 would take far longer than STOP_WITHIN.
     code, stopped, stdout, err = _interrupt(
-        ["render", cube_blend, "--out", out, "--frames", "1-3", "--resolution", "48x48", "--samples", "3000"]
+        ["render", cube_blend, "--out", out, "--frames", "1-3", "--resolution", "48x48", "--samples", "10000"]
         + ["--methods", "ssss,burley"],
         when_line="frame 1 done",
         after=0.2,
