@@ -21,16 +21,14 @@ _FORMATS = {"exr": "OPEN_EXR", "png": "PNG"}
 
 
 def add_parser(subparsers):
-    from .cli_options import add_blend, add_render_device, add_samples, add_scene
+    from .cli_options import add_blend_to_blend, add_render_device, add_samples, add_scene
 
     p = subparsers.add_parser(
         "bake-thickness",
         help="bake thickness maps (inverted-normal AO) of a .blend scene into a new .blend (needs bpy)",
         description=__doc__.split("\n\n", 1)[1],
     )
-    add_blend(p, help="the .blend file to read (written only when it is OUT and --overwrite is given)")
-    p.add_argument("--out", required=True, help="the .blend file to write")
-    p.add_argument("--overwrite", action="store_true", help="allow OUT to be an existing file, the input included")
+    add_blend_to_blend(p, out_help="the .blend file to write")
     add_scene(p)
     p.add_argument(
         "--objects",
@@ -66,21 +64,6 @@ def add_parser(subparsers):
     p.set_defaults(run=run)
 
 
-def _check_out(blend: str, out: str, overwrite: bool) -> str:
-    from .cli import CommandError
-
-    if not out.endswith(".blend"):
-        raise CommandError(f"--out {out!r}: expected a .blend file name")
-    out_abs = os.path.abspath(out)
-    if os.path.exists(out_abs) and not overwrite:
-        same = os.path.exists(blend) and os.path.samefile(blend, out_abs)
-        what = "is the input file" if same else "exists"
-        raise CommandError(f"--out {out!r} {what}; refusing to overwrite it (pass --overwrite to allow it)")
-    if os.path.isdir(out_abs):
-        raise CommandError(f"--out {out!r} is a folder; expected a .blend file name")
-    return out_abs
-
-
 def _default_objects(scene) -> list[str]:
     from ..blender.bake import subsurface_meshes
 
@@ -89,9 +72,10 @@ def _default_objects(scene) -> list[str]:
 
 def run(args) -> int:
     from .cli import CommandError
+    from .cli_options import read_blend_out
     from .cli_scan import open_blend
 
-    out = _check_out(args.blend, args.out, args.overwrite)
+    out = read_blend_out(args)
     _check_writable(os.path.dirname(out))
     image_dir = os.path.abspath(args.image_dir or os.path.splitext(out)[0] + "_thickness")
     settings = BakeSettings(

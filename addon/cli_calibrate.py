@@ -18,16 +18,14 @@ from ..core.progress import saved_line
 
 def add_parser(subparsers):
     from ..core.fit_params import FIT_PARAMETERS
-    from .cli_options import add_blend, add_resolution, add_samples, add_scene, add_seed
+    from .cli_options import add_blend_to_blend, add_resolution, add_samples, add_scene, add_seed
 
     p = subparsers.add_parser(
         "calibrate",
         help="fit each subsurface material's parameters to a short Cycles random-walk render (needs bpy)",
         description=__doc__.split("\n\n", 1)[1],
     )
-    add_blend(p, help="the .blend file to read (written only when it is OUT and --overwrite is given)")
-    p.add_argument("--out", required=True, help="the .blend file to write, with the fitted values")
-    p.add_argument("--overwrite", action="store_true", help="allow OUT to be an existing file, the input included")
+    add_blend_to_blend(p, out_help="the .blend file to write, with the fitted values")
     add_scene(p)
     add_samples(p, default=32, help="Cycles random-walk samples to fit to (default: 32)")
     add_samples(p, "--pass-samples", default=64, help="Cycles samples of the passes (default: 64)")
@@ -43,11 +41,10 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    from .cli_bake import _check_out
-    from .cli_options import read_resolution
+    from .cli_options import read_blend_out, read_resolution
     from .cli_scan import open_blend
 
-    out = _check_out(args.blend, args.out, args.overwrite)
+    out = read_blend_out(args)
     resolution = read_resolution(args)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     scene = open_blend(args.blend, args.scene)

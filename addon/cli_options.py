@@ -26,6 +26,34 @@ def add_blend(p, help: str = "the .blend file to read (never written)") -> None:
     p.add_argument("blend", help=help)
 
 
+def add_blend_to_blend(p, out_help: str) -> None:
+    """The .blend to read, ``--out`` the .blend to write and ``--overwrite``, for commands that
+    change a scene and save it as a new file; check them with ``read_blend_out``."""
+    add_blend(p, help="the .blend file to read (written only when it is OUT and --overwrite is given)")
+    p.add_argument("--out", required=True, help=out_help)
+    p.add_argument("--overwrite", action="store_true", help="allow OUT to be an existing file, the input included")
+
+
+def read_blend_out(args) -> str:
+    """The absolute path of ``--out``: a .blend file name that is not a folder and, without
+    ``--overwrite``, no existing file (the input least of all)."""
+    import os
+
+    from .cli import CommandError
+
+    blend, out = args.blend, args.out
+    if not out.endswith(".blend"):
+        raise CommandError(f"--out {out!r}: expected a .blend file name")
+    out_abs = os.path.abspath(out)
+    if os.path.exists(out_abs) and not args.overwrite:
+        same = os.path.exists(blend) and os.path.samefile(blend, out_abs)
+        what = "is the input file" if same else "exists"
+        raise CommandError(f"--out {out!r} {what}; refusing to overwrite it (pass --overwrite to allow it)")
+    if os.path.isdir(out_abs):
+        raise CommandError(f"--out {out!r} is a folder; expected a .blend file name")
+    return out_abs
+
+
 def add_scene(p) -> None:
     """``--scene NAME``: a scene of the .blend file, the one meaning of --scene."""
     p.add_argument("--scene", metavar="NAME", help="scene of the .blend file (default: the file's active scene)")
