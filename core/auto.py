@@ -50,11 +50,11 @@ import numpy as np
 
 from . import _arrays
 from . import apply as core_apply
-from .combined import transmission
+from .combined import medium_of, transmission
 from .errors import InputError
 from .exr import Passes
 from .fit_params import fitted
-from .mapping import burley_d, technique_params
+from .mapping import burley_d, mean_free_path, technique_params
 from .metrics import box_downsample
 from .plan import Plan, _index_map, plan, required_passes
 from .scene import MaterialSSS, SceneDescription
@@ -304,10 +304,13 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
             thickness=t_map,
             mask=keep,
             lights=scene.lights,
-            d_su=tuple(tr_fit.get("transmission_d_su", tuple(d))),
+            d_su=tuple(tr_fit.get("transmission_d_su", tuple(mean_free_path(material)))),
             thickness_distance_su=distance,
             transmission_scale=tr_fit.get("transmission_scale", 1.0),
             thickness_convention=scene.thickness_convention,
+            medium=medium_of(material),
+            albedo=albedo,
+            camera=scene.camera,
         )
         t_lin = t_map if scene.thickness_convention == "translucency" else 1.0 - t_map
         x = distance * np.sqrt(1.0 - np.clip(t_lin[keep], 0.0, 1.0))

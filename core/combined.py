@@ -6,31 +6,40 @@ with the albedo, where random walk filters it through the medium (thin green jad
 saturated green, not pale). Real-time engines combine the two (HDRP's diffusion profile with
 ``ComputeTransmittanceDisney``, EEVEE Next likewise, docs/references.md §4 and §9):
 
-    out = A x diffusion(E)                                (Burley or SSSS, the visible light)
-        + s_tr x sum_lights (E_L / pi) max(0, -N . L) x T_c(x)     (light from behind)
+    out = A x diffusion(E)                                      (Burley or SSSS, the visible light)
+        + s_tr x W x sum_lights (E_L / pi) max(0, -N . L) x T_c(x)        (light from behind)
 
 - ``diffusion`` is ``core.burley.burley`` or ``core.ssss.ssss`` with the material's d per
   channel (docs/references.md §1); it conserves the visible diffuse light.
-- The transmitted term is the irradiance the back of the object receives from each light
+- The transmitted term follows what Cycles does for the material's subsurface method
+  (docs/references.md §14): the irradiance the back of the object receives from each light
   (Lambert's cosine against the reversed visible normal, E_L as in ``core.sta.light_at``: sun,
-  point, spot and area lights), divided by pi (a diffuse exit), times the per-channel Burley
-  transmittance T_c(x) = (e^{-x/d_c} + 3 e^{-x/(3 d_c)}) / 4 through the slab thickness x read
-  back from the baked map, x = D sqrt(1 - t) with D the bake distance (``core/thickness.py``:
-  a slab of thickness x bakes to AO (x / D)^2). The channels that scatter further pass more
-  light: the colour comes from the medium, not from the albedo.
+  point, spot and area lights), divided by pi (Cycles puts a diffuse closure at the walk's exit),
+  times the per-channel transmittance T_c(x) through the slab thickness x read back from the
+  baked map, x = D sqrt(1 - t) with D the bake distance (``core/thickness.py``: a slab of
+  thickness x bakes to AO (x / D)^2), times the exit weight W at the visible surface.
+  - Random walks (Random Walk, Skin, Legacy): T_c is the walk's own expectation through a slab
+    (``core/transmittance.py``: Cycles' extinction 1 / l_c and single-scattering albedo from Base
+    Color, entry refracted from the view, 256 segments), and W = Diffuse Color / Base Color (the
+    walk divides the closure weight by Base Color: the colour comes from the medium, not the albedo).
+  - Christensen-Burley: its disk probes reach the far side with the profile at the 3-D distance,
+    whose integral over that side is Burley's T_c(x) = (e^{-x/d_c} + 3 e^{-x/(3 d_c)}) / 4, and the
+    closure keeps its weight: W = Diffuse Color.
+  - Without a material (``subsurface_method`` None), Burley's T_c with W = 1.
 - No double counting: a light contributes to the transmitted term only where the visible
   surface faces away from it (N . L < 0), which is exactly where it adds nothing to the Diffuse
   Direct pass that the diffusion redistributes; the two terms meet at zero at the terminator.
 
 ``transmission_scale`` s_tr (one number, or one per channel: the fit's tint of the transmitted
-light) and ``transmission_d_su`` (d per channel for the transmittance, the diffusion's d by
-default) are what ``calibrate`` fits against Cycles per material (``core/fit.py``).
+light) and ``transmission_d_su`` (the transmittance's length per channel: the walk's mean free
+path, Christensen-Burley's d; the material's own by default) are what ``calibrate`` fits
+against Cycles per material (``core/fit.py``).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -43,6 +52,7 @@ from .spec import Footprint, Param, Technique, profile_footprint
 from .ssss import TECHNIQUE as SSSS
 from .ssss import ssss
 from .sta import THICKNESS_CONVENTIONS, _norm, light_at
+from .transmittance import transmittance_rgb
 
 #: The diffusion part: Burley's spiral gather or the separable filter (faster at large kernels).
 DIFFUSIONS = ("burley", "ssss")
@@ -102,6 +112,74 @@ def back_irradiance(*, normal, position, mask, lights) -> np.ndarray:
     return out
 
 
+@dataclass(frozen=True)
+class Medium:
+    """What the light from behind needs to know of a material's random walk (``core/transmittance.py``):
+    its subsurface method, Base Color, the IOR its camera paths refract through and its
+    anisotropy. Christensen-Burley ("BURLEY") is not a walk: its disk probes find the far side
+    with the profile at the 3-D distance, whose integral over that side is Burley's
+    transmittance (module docstring)."""
+
+    method: str = "RANDOM_WALK"
+    base_color: tuple = (0.8, 0.8, 0.8)
+    ior: float = 1.4
+    anisotropy: float = 0.0
+
+    @property
+    def walks(self) -> bool:
+        return self.method != "BURLEY"
+
+
+def medium_of(material) -> Medium:
+    """The ``Medium`` of a ``core.scene.MaterialSSS``."""
+    m = material
+    return Medium(m.method, tuple(m.base_color), float(m.subsurface_ior), float(m.subsurface_anisotropy))
+
+
+def view_cosine(normal, position, camera: Camera) -> np.ndarray:
+    """|N . V| per pixel, float32 (H, W): the visible normal's cosine to the direction of the camera."""
+    n = _arrays.image(normal, "normal")
+    nn = n / np.maximum(np.linalg.norm(n, axis=2, keepdims=True), np.float32(1e-20))
+    v = camera.view_vectors(_arrays.image(position, "position"))
+    return np.abs(np.nan_to_num(np.sum(nn * v, axis=2))).astype(np.float32)
+
+
+def slab_transmittance_rgb(x_su, length_su, medium: Medium | None, *, view_cos=None) -> np.ndarray:
+    """T_c through thickness ``x_su`` (..., 3) float32: Burley's transmittance with d = ``length_su``
+    when ``medium`` is None or Christensen-Burley, else the random walk's (``core.transmittance``,
+    ``length_su`` its mean free path per channel; ``view_cos`` the visible normal's cosine to the view)."""
+    if medium is None or not medium.walks:
+        return burley_transmittance_rgb(x_su, length_su)
+    return transmittance_rgb(
+        x_su,
+        length_su,
+        medium.base_color,
+        view_cos=view_cos,
+        ior=medium.ior,
+        anisotropy=medium.anisotropy,
+        cosine_share=0.5 if medium.method == "RANDOM_WALK_SKIN" else 0.0,
+    )
+
+
+def exit_weight(albedo, medium: Medium | None, albedo_mode: str = "post") -> np.ndarray | None:
+    """Per pixel and channel, what multiplies the transmitted light at the visible surface, or
+    None for 1: a random walk divides the closure's weight (the Diffuse Color pass: Base Color x
+    the specular layer's share x Subsurface Weight) by Base Color (the walk's albedo does the
+    colouring), so the weight is Diffuse Color / Base Color, at most 1; Christensen-Burley keeps
+    the closure weight, Diffuse Color itself. ``albedo`` as the technique receives it (the square
+    root of Diffuse Color in the "pre-post" albedo mode)."""
+    if albedo is None or medium is None:
+        return None
+    a = _arrays.image(albedo, "albedo")
+    if _arrays.check_albedo_mode(albedo_mode) == "pre-post":
+        a = a * a
+    if not medium.walks:
+        return a
+    base = np.asarray(medium.base_color, np.float32)
+    w = np.where(base > 0, a / np.maximum(base, np.float32(1e-6)), np.float32(0.0))
+    return np.clip(w, 0.0, 1.0).astype(np.float32)
+
+
 def transmission(
     *,
     normal,
@@ -113,13 +191,20 @@ def transmission(
     thickness_distance_su: float,
     transmission_scale=1.0,
     thickness_convention: str = "translucency",
+    medium: Medium | None = None,
+    albedo=None,
+    camera: Camera | None = None,
+    albedo_mode: str = "post",
 ) -> np.ndarray:
-    """The light from behind alone, float32 (H, W, 3): ``transmission_scale`` x
-    ``back_irradiance`` x T_c(x), with x = ``slab_thickness`` of the map (scene units).
+    """The light from behind alone, float32 (H, W, 3): ``transmission_scale`` x ``exit_weight`` x
+    ``back_irradiance`` x T_c(x), with x = ``slab_thickness`` of the map (scene units) and T_c
+    from ``slab_transmittance_rgb`` (``d_su`` its length per channel: the walk's mean free path,
+    or Burley's d without a ``medium``).
 
     ``thickness`` (H, W) baked map in ``thickness_convention`` ("translucency": 1 = thin);
-    ``d_su`` the transmittance's d per channel (scene units); ``thickness_distance_su`` the
-    bake's distance D (> 0: without it the map cannot be read as a thickness)."""
+    ``thickness_distance_su`` the bake's distance D (> 0: without it the map cannot be read as a
+    thickness). ``albedo`` (the Diffuse Color pass) and ``camera`` (for the view cosine of the
+    walk's refracted entry) are optional: without them the exit weight is 1 and the entry normal."""
     if thickness_convention not in THICKNESS_CONVENTIONS:
         raise ValueError(
             f"thickness_convention: {thickness_convention!r} is not one of {', '.join(THICKNESS_CONVENTIONS)}"
@@ -134,9 +219,19 @@ def transmission(
     tt = np.where(ok, t, np.float32(0.0))
     if thickness_convention == "thickness":
         tt = np.float32(1.0) - tt
-    tr = burley_transmittance_rgb(slab_thickness(tt, distance), d_su)
-    out = e * tr
-    out[~ok] = 0.0
+    view_cos = None
+    if camera is not None and medium is not None and medium.walks:
+        view_cos = view_cosine(normal, position, camera)
+    lit = (e.max(axis=2) > 0) & ok
+    out = np.zeros_like(e)
+    if lit.any():
+        x = slab_thickness(tt[lit], distance)
+        tr = slab_transmittance_rgb(x, d_su, medium, view_cos=None if view_cos is None else view_cos[lit])
+        out[lit] = e[lit] * tr
+    w = exit_weight(albedo, medium, albedo_mode)
+    if w is not None:
+        _arrays.same_size(e.shape[:2], albedo=w)
+        out *= w
     if np.any(scale != 1):
         out *= scale
     return out
@@ -167,6 +262,11 @@ def combined(
     gain=(1.0, 1.0, 1.0),
     thickness_convention: str = "translucency",
     albedo_mode: str = "post",
+    mfp_su=None,
+    subsurface_method: str | None = None,
+    base_color=(0.8, 0.8, 0.8),
+    subsurface_ior: float = 1.4,
+    subsurface_anisotropy: float = 0.0,
 ) -> np.ndarray:
     """Diffusion of the visible light plus transmission of the light from behind, float32 (H, W, 3).
 
@@ -174,16 +274,28 @@ def combined(
     ``d_su``, ``object_id``) and ``transmission`` (``normal``, ``position``, ``thickness``,
     ``lights``, ``thickness_distance_su``, ``thickness_convention``). ``diffusion`` "burley"
     (``n_samples``, ``random_rotation``, ``seed``, ``smooth_px``, Burley's defaults) or "ssss"
-    (``n_taps``, pre-integrated kernel). ``transmission_d_su`` None uses ``d_su``. ``gain`` (R, G, B) multiplies the
-    diffusion's light on the mask (the fitted energy, ``core/fit_params.py``), not the transmitted
-    light, whose level is ``transmission_scale``. Returns, like Burley and SSSS, the
-    albedo-applied scattered light on the mask (plus the transmitted light) and albedo x diffuse
-    elsewhere. Formula, sources and why nothing is counted twice: the module docstring.
+    (``n_taps``, pre-integrated kernel). ``transmission_d_su`` None uses ``mfp_su``
+    (the method's length, ``core.mapping.mean_free_path``), or ``d_su`` without it;
+    ``subsurface_method``, ``base_color``, ``subsurface_ior``, ``subsurface_anisotropy``: the
+    material's medium for the light from behind (module docstring), None for Burley's law.
+    ``gain`` (R, G, B) multiplies the diffusion's light on the mask (the fitted energy,
+    ``core/fit_params.py``), not the transmitted light, whose level is ``transmission_scale``.
+    Returns, like Burley and SSSS, the albedo-applied scattered light on the mask (plus the
+    transmitted light) and albedo x diffuse elsewhere. Formula, sources and why nothing is
+    counted twice: the module docstring.
     """
     if diffusion not in DIFFUSIONS:
         raise ValueError(f"diffusion: {diffusion!r} is not one of {', '.join(DIFFUSIONS)}")
     d = _arrays.rgb_lengths(d_su, "d_su")
-    d_tr = d if transmission_d_su is None else _arrays.rgb_lengths(transmission_d_su, "transmission_d_su")
+    medium = None
+    if subsurface_method is not None:
+        medium = Medium(subsurface_method, tuple(base_color), float(subsurface_ior), float(subsurface_anisotropy))
+    if transmission_d_su is not None:
+        d_tr = _arrays.rgb_lengths(transmission_d_su, "transmission_d_su")
+    elif mfp_su is not None:
+        d_tr = _arrays.rgb_lengths(mfp_su, "mfp_su")
+    else:
+        d_tr = d
     if diffusion == "burley":
         out = burley(
             diffuse=diffuse,
@@ -226,6 +338,10 @@ def combined(
             thickness_distance_su=thickness_distance_su,
             transmission_scale=tuple(scale),
             thickness_convention=thickness_convention,
+            medium=medium,
+            albedo=albedo if medium is not None else None,
+            camera=camera,
+            albedo_mode=albedo_mode,
         )
     return out
 

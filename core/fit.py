@@ -11,7 +11,7 @@ that minimize the squared error over the material's pixels:
 
 with S(k) the technique's albedo-applied light with d times k (Burley, SSSS, the combined
 technique's diffusion), g the per-channel gain, and for the combined technique T(f) its light
-from behind with the transmission d per channel times f_c and the scale s_c (``core/combined.py``);
+from behind with the transmittance's length per channel times f_c and the scale s_c (``core/combined.py``);
 STA: Combined + s x its term at scale 1.
 
 Robust to Monte Carlo noise (docs/references.md §8):
@@ -43,7 +43,7 @@ import numpy as np
 
 from . import apply as core_apply
 from . import mapping as _mapping
-from .combined import back_irradiance, burley_transmittance_rgb, slab_thickness
+from .combined import Medium, back_irradiance, exit_weight, slab_thickness, slab_transmittance_rgb, view_cosine
 from .errors import InputError
 from .fit_params import FIT_PARAMETERS, INFO, PARAMETERS
 from .metrics import box_downsample
@@ -225,9 +225,20 @@ def fit_material(
         if scene.thickness_convention == "thickness":
             t_map = 1.0 - t_map
         x = slab_thickness(t_map, distance)
-        d_tr0 = np.asarray(params0.get("transmission_d_su", d0), np.float64)
-        # trans[i] (N, 3): the light from behind at scale 1 with every channel's d times GRID[i].
-        trans = np.stack([_blocks(e_back * burley_transmittance_rgb(x, tuple(d_tr0 * f)), keep, box) for f in GRID])
+        d_tr0 = np.asarray(params0.get("transmission_d_su", params0["mfp_su"]), np.float64)
+        # The combined technique's light from behind (core/combined.py): the material's medium, the
+        # exit weight and the view cosine of the walk's entry, as ``transmission`` computes them.
+        keys = ("subsurface_method", "base_color", "subsurface_ior", "subsurface_anisotropy")
+        medium = Medium(*(params0[k] for k in keys))
+        e_back = e_back * exit_weight(albedo, medium)
+        view_cos = view_cosine(core_apply._clean(passes["Normal"]), core_apply._clean(passes["Position"]), scene.camera)
+        # trans[i] (N, 3): the light from behind at scale 1 with every channel's length times GRID[i].
+        trans = np.stack(
+            [
+                _blocks(e_back * slab_transmittance_rgb(x, tuple(d_tr0 * f), medium, view_cos=view_cos), keep, box)
+                for f in GRID
+            ]
+        )
         if float(np.sum(trans[:, train] ** 2)) <= _ABSENT * float(np.sum(y[train] ** 2)):
             trans = None
             notes.append("no light from behind on its pixels: transmission left at its defaults")
@@ -275,7 +286,7 @@ def fit_material(
     )
     params = {"gain": tuple(float(v) for v in g), "d_scale": float(best_k)}
     if spec.adds_light and trans is not None:
-        d_tr0 = np.asarray(params0.get("transmission_d_su", d0), np.float64)
+        d_tr0 = np.asarray(params0.get("transmission_d_su", params0["mfp_su"]), np.float64)
         params["transmission_scale"] = tuple(float(v) for v in s)
         params["transmission_d_su"] = tuple(float(d_tr0[c] * GRID[f_idx[c]]) for c in range(3))
     _bounds(params, result)

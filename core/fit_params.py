@@ -10,8 +10,9 @@ side stores it on the material as custom properties (``sss_lab_fit_<technique>_<
 - ``d_scale``: multiplies the profile's d of every channel (Burley, SSSS, the combined
   technique's diffusion).
 - ``transmission_scale`` (R, G, B) and ``transmission_d_su`` (R, G, B, scene units): the
-  combined technique's light from behind (``core/combined.py``); a single number is read as
-  the same for the three channels.
+  combined technique's light from behind (``core/combined.py``): its scale and the length per
+  channel of its transmittance (the random walk's mean free path, Christensen-Burley's d); a
+  single number is read as the same for the three channels.
 - ``scale``: STA's s_T.
 
 Anything else in the dict (``info``: samples, errors) is provenance and never read by a technique.

@@ -150,7 +150,16 @@ def technique_params(material: MaterialSSS, technique, *, mapping=None, use_fit:
     fit = fitted(material.fit, spec.name) if use_fit else {}
     if "d_scale" in fit:
         d = tuple(v * fit["d_scale"] for v in d)
-    from_material = {"d_su": d, "thickness_distance_su": material.thickness_distance}
+    from_material = {
+        "d_su": d,
+        "thickness_distance_su": material.thickness_distance,
+        # The light from behind follows Cycles' own medium (core/transmittance.py).
+        "mfp_su": tuple(float(v) for v in mean_free_path(material)),
+        "subsurface_method": material.method,
+        "base_color": tuple(material.base_color),
+        "subsurface_ior": material.subsurface_ior,
+        "subsurface_anisotropy": material.subsurface_anisotropy,
+    }
     params = dict(spec.defaults)
     params.update({k: v for k, v in from_material.items() if k in spec.keywords})
     params.update({k: v for k, v in fit.items() if k != "d_scale"})

@@ -120,7 +120,8 @@ def test_light_from_behind_is_the_combined_techniques_transmission():
     passes = Passes(arrays)
     wax = scene.materials[2]
     f = auto.features(passes, scene, wax)
-    from sss_lab.core.combined import transmission
+    from sss_lab.core.combined import medium_of, transmission
+    from sss_lab.core.mapping import mean_free_path
 
     mask = np.rint(arrays["Material Index"]) == wax.index
     # On the 2 x 2 block means wholly inside the material (the whole image's blocks).
@@ -135,8 +136,11 @@ def test_light_from_behind_is_the_combined_techniques_transmission():
         thickness=blocks("Thickness"),
         mask=keep,
         lights=scene.lights,
-        d_su=burley_d(wax),
+        d_su=tuple(mean_free_path(wax)),
         thickness_distance_su=0.5,
+        medium=medium_of(wax),
+        albedo=blocks("Diffuse Color"),
+        camera=scene.camera,
     ).astype(np.float64)
     t = term[keep]
     # Relative to the mean of the image with that light (the reference's mean holds it too).

@@ -142,3 +142,28 @@ def test_fitted_gain_scales_the_diffusion_only():
     only = {k: kw[k] for k in ("normal", "position", "thickness", "mask", "thickness_distance_su")}
     term = transmission(**only, lights=back, d_su=D)
     np.testing.assert_allclose(gained - term, (plain - term) * np.float32([2.0, 1.0, 0.5]), rtol=1e-6, atol=1e-6)
+
+
+def test_random_walk_material_uses_the_walk_transmittance_and_exit_weight():
+    """With the material's medium (what ``core.mapping`` passes): T from ``core.transmittance`` at
+    the material's mean free path, times Diffuse Color / Base Color (the walk divides the closure's
+    weight by Base Color), not times the albedo's colour; Christensen-Burley keeps Burley's law
+    times Diffuse Color."""
+    from sss_lab.core.transmittance import transmittance_rgb
+
+    kw = _slab(translucency=0.75)
+    base = (0.8, 0.6, 0.5)
+    kw["albedo"] = np.full((N, N, 3), base, np.float32) * np.float32(0.9)  # the specular layer's share 0.9
+    back = (_sun((0.0, 0.0, 1.0), energy=2.0),)
+    mfp = (0.03, 0.01, 0.005)
+    medium = {"mfp_su": mfp, "base_color": base, "subsurface_ior": 1.4}
+    plain = burley(**{k: kw[k] for k in ("diffuse", "albedo", "depth", "mask", "camera", "d_su")})
+    walk = combined(**kw, lights=back, subsurface_method="RANDOM_WALK", **medium) - plain
+    x = 0.05 * math.sqrt(1.0 - 0.75)
+    # The orthographic camera looks straight at the slab: view cosine 1, entry along the normal.
+    expected = 0.9 * 2.0 / math.pi * transmittance_rgb(np.array([x]), mfp, base)[0]
+    np.testing.assert_allclose(walk[4, 4], expected, rtol=1e-5)
+    assert walk[4, 4, 0] > walk[4, 4, 1] > walk[4, 4, 2] > 0
+    disk = combined(**kw, lights=back, subsurface_method="BURLEY", **medium) - plain
+    expected_disk = [0.9 * b * 2 / math.pi * float(burley_transmittance(x, d)) for b, d in zip(base, mfp, strict=True)]
+    np.testing.assert_allclose(disk[4, 4], expected_disk, rtol=1e-5)

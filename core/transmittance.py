@@ -1,0 +1,186 @@
+"""How much light Cycles' random walk carries through a slab, per channel (docs/references.md §14).
+
+The combined technique's light from behind is this function of the slab's thickness times the
+irradiance on the far side. It is not a profile fitted to pictures: it is the expectation of the
+random walk Cycles 5.2 runs (``kernel/integrator/subsurface_random_walk.h``, ``subsurface.h``),
+computed for an infinite slab:
+
+- the medium of each channel: extinction sigma_t = 1 / l (l the method's length,
+  ``core.mapping.mean_free_path``) and single-scattering albedo alpha from Base Color A by the
+  inversion Cycles uses for its random walks (d'Eon, *A Hitchhiker's Guide to Multiple
+  Scattering*, eq. 53.7): s = 4.09712 + 4.20863 A - sqrt(9.59217 + 41.6808 A + 17.7126 A^2),
+  alpha = (1 - s^2) / (1 - g s^2), at most 0.999999; below 0.2 alpha is raised to 0.2 and the
+  light scaled by alpha / 0.2, as Cycles does;
+- the walk enters through the visible surface (the camera's path refracted into the medium: its
+  cosine to the normal is mu0 = sqrt(1 - (1 - mu_v^2) / eta^2) for a view cosine mu_v; the Skin
+  method enters half of its paths cosine-distributed instead), flies exponential distances,
+  scatters isotropically (anisotropy through the similarity relation, below), and ends where it
+  crosses a surface: crossing the far side of the slab, it picks up the light there with a
+  diffuse (Lambert) closure, E cos / pi; at most 256 segments (``BSSRDF_MAX_BOUNCES``), after
+  which the path is dropped;
+- its weight is alpha^n after n scatterings; so T(tau, alpha) = sum_n P_n(tau) alpha^n with
+  P_n(tau) the probability that a walk first reaches optical depth tau = x / l after exactly n
+  scatterings without leaving through the front. ``passage_table`` estimates P_n once per entry
+  (a fixed-seed Monte Carlo of 2^15 walks, a few seconds, cached), and every material and
+  thickness then costs a polynomial in alpha and an interpolation.
+
+Anisotropy g != 0 is folded in by the similarity relation Cycles itself switches to after nine
+bounces: sigma_s* = (1 - g) sigma_s, sigma_t* = sigma_t - g sigma_s, an isotropic walk in the
+reduced medium (exact in the diffusive limit, approximate for the first few scatterings).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from . import _arrays
+
+#: Cycles' cap on random-walk segments (``BSSRDF_MAX_BOUNCES``): a path still inside after it is lost.
+MAX_SEGMENTS = 256
+#: Cycles' floor on the single-scattering albedo (``subsurface_random_walk_coefficients``).
+MIN_ALPHA = 0.2
+#: Walks per entry direction of the passage table, and its seed (the table is deterministic).
+WALKS = 1 << 15
+SEED = 20261127
+#: Optical depths tabulated (0 and 48 steps from 0.01 to 64); beyond 64 nothing crosses in 256
+#: segments at any albedo (the table's last column is below 1e-4).
+TAUS = np.concatenate(([0.0], np.geomspace(0.01, 64.0, 48)))
+#: Entry cosines of the refracted camera path (Snell at eta >= 1.01 keeps mu0 >= 0.14; below the
+#: first value the table is read at it) and the key of the cosine-distributed entry.
+ENTRY_COSINES = (0.5, 0.7, 0.85, 1.0)
+COSINE_ENTRY = "cosine"
+
+
+def single_scattering_albedo(base_color, anisotropy: float = 0.0) -> np.ndarray:
+    """Per-channel single-scattering albedo of Cycles' random walk for Base Color ``base_color``
+    (the inversion of the module docstring, clipped to [0, 0.999999]); float64 (3,)."""
+    a = np.clip(np.asarray(base_color, np.float64), 0.0, 1.0)
+    s2 = (4.09712 + 4.20863 * a - np.sqrt(9.59217 + 41.6808 * a + 17.7126 * a * a)) ** 2
+    g = float(anisotropy)
+    return np.clip((1.0 - s2) / np.maximum(1.0 - g * s2, 1e-12), 0.0, 0.999999)
+
+
+def reduced_medium(mfp, alpha, anisotropy: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(length, single-scattering albedo) of the isotropic walk equivalent to one with
+    anisotropy g (the similarity relation): sigma_t* = sigma_t (1 - g alpha), alpha* = alpha
+    (1 - g) / (1 - g alpha). g = 0 returns the inputs."""
+    ell = np.asarray(mfp, np.float64)
+    a = np.asarray(alpha, np.float64)
+    g = float(anisotropy)
+    if g == 0.0:
+        return ell, a
+    shrink = 1.0 - g * a
+    return ell / np.maximum(shrink, 1e-12), a * (1.0 - g) / np.maximum(shrink, 1e-12)
+
+
+@functools.lru_cache(maxsize=8)
+def passage_table(entry) -> np.ndarray:
+    """P[t, n]: probability that a walk entering with cosine ``entry`` (a number in (0, 1], or
+    ``COSINE_ENTRY``) first reaches optical depth ``TAUS[t]`` after exactly n scatterings, n <
+    ``MAX_SEGMENTS``, without leaving through its entry plane. float64 (len(TAUS), MAX_SEGMENTS),
+    read-only; a fixed-seed estimate from ``WALKS`` walks."""
+    rng = np.random.default_rng(SEED)
+    n = WALKS
+    if entry == COSINE_ENTRY:
+        mu = np.sqrt(rng.random(n))  # cosine-weighted hemisphere
+    else:
+        mu0 = float(entry)
+        if not 0.0 < mu0 <= 1.0:
+            raise ValueError(f"entry: expected a cosine in (0, 1] or {COSINE_ENTRY!r}, got {entry!r}")
+        mu = np.full(n, mu0)
+    z = np.zeros(n)
+    deepest = np.zeros(n)
+    alive = np.arange(n)
+    counts = np.zeros((len(TAUS), MAX_SEGMENTS), np.float64)
+    taus = TAUS[1:]
+    counts[0, 0] = n  # depth 0 is reached at once
+    for segment in range(MAX_SEGMENTS):
+        if alive.size == 0:
+            break
+        step = rng.exponential(size=alive.size)
+        z_new = z + mu * step
+        # Depths first crossed on this segment, after `segment` scatterings.
+        lo = np.searchsorted(taus, deepest, side="right")
+        hi = np.searchsorted(taus, z_new, side="right")
+        crossed = hi > lo
+        if crossed.any():
+            first = np.zeros(len(taus) + 1, np.int64)
+            np.add.at(first, lo[crossed], 1)
+            np.add.at(first, hi[crossed], -1)
+            counts[1:, segment] += np.cumsum(first)[:-1]
+        deepest = np.maximum(deepest, z_new)
+        keep = (z_new > 0.0) & (deepest < taus[-1])
+        alive, z, deepest = alive[keep], z_new[keep], deepest[keep]
+        mu = rng.uniform(-1.0, 1.0, size=alive.size)  # isotropic scattering
+    table = counts / n
+    table.setflags(write=False)
+    return table
+
+
+def slab_transmittance(tau, alpha, entry) -> np.ndarray:
+    """T(tau) for one channel: the light a walk of single-scattering albedo ``alpha`` entering
+    with ``entry`` carries through optical depth ``tau`` (array), with Cycles' alpha floor;
+    float64, same shape as ``tau``. T(0) = 1 (above the floor); beyond the table, 0."""
+    a = float(alpha)
+    scale = 1.0
+    if a < MIN_ALPHA:
+        scale, a = a / MIN_ALPHA, MIN_ALPHA
+    powers = a ** np.arange(MAX_SEGMENTS, dtype=np.float64)
+    column = passage_table(entry) @ powers * scale
+    t = np.asarray(tau, np.float64)
+    return np.interp(t, TAUS, column, right=0.0)
+
+
+def transmittance_rgb(
+    x_su, mfp_su, base_color, *, view_cos=None, ior: float = 1.4, anisotropy: float = 0.0, cosine_share: float = 0.0
+) -> np.ndarray:
+    """Per-channel slab transmittance (..., 3) float32 through thickness ``x_su`` (scene units).
+
+    ``mfp_su`` the method's length per channel (``core.mapping.mean_free_path``), ``base_color``
+    the material's Base Color, ``view_cos`` (same shape as ``x_su``, or None for 1) the cosine
+    between the visible normal and the view, ``ior`` the index the camera's path refracts
+    through, ``cosine_share`` the share of walks that enter cosine-distributed (0.5 for the Skin
+    method). A channel with length 0 passes light only where x = 0."""
+    x = np.asarray(x_su, np.float64)
+    ell = _arrays.rgb_lengths(mfp_su, "mfp_su").astype(np.float64)
+    alpha = single_scattering_albedo(base_color, anisotropy)
+    ell, alpha = reduced_medium(ell, alpha, anisotropy)
+    if not (np.isfinite(ior) and ior >= 1.0):
+        raise ValueError(f"ior: expected a finite number >= 1, got {ior!r}")
+    if not 0.0 <= cosine_share <= 1.0:
+        raise ValueError(f"cosine_share: expected a number in [0, 1], got {cosine_share!r}")
+    if view_cos is None:
+        mu0 = np.ones_like(x)
+    else:
+        mu_v = np.clip(np.asarray(view_cos, np.float64), 0.0, 1.0)
+        mu0 = np.sqrt(np.clip(1.0 - (1.0 - mu_v * mu_v) / (ior * ior), 0.0, 1.0))
+    mu0 = np.clip(mu0, ENTRY_COSINES[0], 1.0)
+    out = np.empty(x.shape + (3,), np.float32)
+    for c in range(3):
+        if ell[c] <= 0:
+            out[..., c] = (x == 0).astype(np.float32)
+            continue
+        tau = x / ell[c]
+        refracted = _interp_entry(tau, mu0, alpha[c])
+        if cosine_share > 0:
+            refracted = (1.0 - cosine_share) * refracted + cosine_share * slab_transmittance(
+                tau, alpha[c], COSINE_ENTRY
+            )
+        out[..., c] = refracted
+    return out
+
+
+def _interp_entry(tau: np.ndarray, mu0: np.ndarray, alpha: float) -> np.ndarray:
+    """T at each (tau, mu0), linear in mu0 between the tabulated entry cosines."""
+    grid = ENTRY_COSINES
+    values = [slab_transmittance(tau, alpha, g) for g in grid]
+    out = values[-1].copy()
+    for i in range(len(grid) - 1):
+        lo, hi = grid[i], grid[i + 1]
+        sel = (mu0 >= lo) & (mu0 < hi)
+        if sel.any():
+            w = (mu0[sel] - lo) / (hi - lo)
+            out[sel] = (1.0 - w) * values[i][sel] + w * values[i + 1][sel]
+    return out
