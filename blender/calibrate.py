@@ -32,6 +32,7 @@ from ..core.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
 from ..core.sequence import load_scene
 from ..core.techniques import TECHNIQUES
 from .describe import sss_materials
+from .jobs import Job, Steps, run
 from .state import SceneState
 
 #: Custom-property prefix of the fitted values on a material.
@@ -91,7 +92,18 @@ def clear_fit(material, technique: str | None = None) -> list[str]:
     return removed
 
 
-def calibrate(
+def calibrate(scene, **options) -> dict:
+    """Fit the scene's subsurface materials to Cycles random walk and store the fits on them
+    (``calibrate_job`` run to its end; ``options`` are its keywords).
+
+    Returns {"results": [FitResult.to_dict()], "problems": [one line each], "seconds": {"reference",
+    "passes", "fit"}}. Raises InputError (nothing changed) for bad arguments, a scene without a
+    camera or without subsurface materials.
+    """
+    return run(calibrate_job(scene, **options))
+
+
+def calibrate_job(
     scene,
     *,
     techniques=DEFAULT_TECHNIQUES,
@@ -101,13 +113,11 @@ def calibrate(
     seed: int = 0,
     box: int = 4,
     log=print,
-) -> dict:
-    """Fit the scene's subsurface materials to Cycles random walk and store the fits on them.
-
-    Returns {"results": [FitResult.to_dict()], "problems": [one line each], "seconds": {"reference",
-    "passes", "fit"}}. Raises InputError (nothing changed) for bad arguments, a scene without a
-    camera or without subsurface materials.
-    """
+) -> Job:
+    """``calibrate`` as a job (``blender/jobs.py``) of three steps: the random-walk render, the
+    passes, the fit. Its checks raise before the first ``yield``; the materials are written only
+    after the last step, so that a job closed between steps (Esc in the panel) leaves every
+    material as it was (the scene itself is restored by the renders' own ``SceneState``)."""
     from ..core.scene import parse_resolution
     from .reference_cache import _render_combined
     from .render_passes import render_passes
@@ -140,6 +150,8 @@ def calibrate(
             if not techniques:
                 raise InputError(problems[-1]) from None
     seconds = {}
+    steps = Steps(3)
+    yield steps.next(f"Cycles random walk, {samples} samples")
     with tempfile.TemporaryDirectory(prefix="sss_lab_fit_") as tmp:
         log(f"Cycles random walk, {samples} samples (seed {seed})")
         ref_path = os.path.join(tmp, "reference.exr")
@@ -148,6 +160,7 @@ def calibrate(
                 scene, samples=samples, seed=seed, resolution=resolution, path=ref_path, state=state
             )
         reference = exr.read_passes(ref_path)["Combined"]
+        yield steps.next(f"passes, {pass_samples} samples")
         log(f"Passes, {pass_samples} samples")
         start = time.perf_counter()
         written = render_passes(
@@ -164,6 +177,7 @@ def calibrate(
         exr_path = next(p for p in written if p.endswith(".exr"))
         passes = exr.read_passes(exr_path)
         desc = load_scene(exr_path)
+    yield steps.next(f"fit of {len(materials)} material(s)")
     start = time.perf_counter()
     results, fit_problems = fit_scene(passes, desc, reference, techniques=techniques, box=box, samples=samples, log=log)
     seconds["fit"] = time.perf_counter() - start

@@ -1,39 +1,57 @@
-"""``bpy.ops.sss_lab.fit_to_cycles`` and ``clear_fit``: the fit to Cycles (``blender.calibrate``) for the panel."""
+"""``bpy.ops.sss_lab.fit_to_cycles`` and ``clear_fit``: the fit to Cycles (``blender.calibrate``) for the panel.
+
+Fit to Cycles runs as a modal job (``operators/modal.py``): the random-walk render, the passes and
+the fit are its three steps, with progress in the status bar; Esc cancels between steps and leaves
+every material as it was (the fitted values are written only after the last step)."""
 
 from __future__ import annotations
 
 import bpy
 
-from ..blender.calibrate import PREFIX, calibrate, clear_fit
-from ..core.errors import InputError
+from ..blender.calibrate import PREFIX, calibrate_job, clear_fit
+from .modal import ModalJob
 
 
-class SSS_LAB_OT_fit_to_cycles(bpy.types.Operator):
-    """Fit each subsurface material's parameters to a short Cycles random-walk render of this view"""
+class SSS_LAB_OT_fit_to_cycles(ModalJob, bpy.types.Operator):
+    """Fit each subsurface material's parameters to a short Cycles random-walk render of this view (Esc: cancel)"""
 
     bl_idname = "sss_lab.fit_to_cycles"
     bl_label = "Fit to Cycles"
     bl_options = {"REGISTER", "UNDO"}
+    job_label = "Fit to Cycles"
 
     samples: bpy.props.IntProperty(
         name="Samples", min=1, default=32, description="Cycles random-walk samples of the image the fit is made on"
     )
 
+    # The dialog's OK button calls execute(), which starts the modal run as a new invocation
+    # (as ``sss_lab.compare`` does).
+    confirmed: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
+    from_dialog: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
+
     def invoke(self, context, event):
+        if self.confirmed or not self.interactive(context):
+            return ModalJob.invoke(self, context, event)
+        self.from_dialog = True
         return context.window_manager.invoke_props_dialog(self)
 
     def execute(self, context):
-        try:
-            data = calibrate(context.scene, samples=self.samples, log=print)
-        except (InputError, ValueError) as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        for line in data["problems"]:
+        if self.from_dialog and self.interactive(context):
+            started = bpy.ops.sss_lab.fit_to_cycles("INVOKE_DEFAULT", samples=self.samples, confirmed=True)
+            # This call only started the modal run (which reports when it ends).
+            return {"FINISHED"} if "RUNNING_MODAL" in started else started
+        return ModalJob.execute(self, context)
+
+    def new_job(self, context):
+        return calibrate_job(context.scene, samples=self.samples, log=print)
+
+    def job_done(self, context, result):
+        for line in result["problems"]:
             self.report({"WARNING"}, line)
-        for r in data["results"]:
+        for r in result["results"]:
             errors = f"{r['heldout_before']:.3g} -> {r['heldout_after']:.3g}"
             self.report({"INFO"}, f"{r['material']} {r['technique']}: held-out error {errors}")
-        if not data["results"]:
+        if not result["results"]:
             self.report({"ERROR"}, "no material could be fitted (see the warnings); nothing changed")
             return {"CANCELLED"}
         return {"FINISHED"}

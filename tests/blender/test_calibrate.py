@@ -73,3 +73,40 @@ def test_bad_input_changes_nothing(backlit, tmp_path):
     bpy.ops.wm.save_as_mainfile(filepath=plain)
     assert main(["calibrate", plain, "--out", str(tmp_path / "out.blend")]) == 2
     assert not (tmp_path / "out.blend").exists()
+
+
+def _fits(scene):
+    return {
+        m.name: sorted(k for k in bpy.data.materials[m.name].keys() if k.startswith(cal.PREFIX))
+        for m in sss_materials(scene)
+    }
+
+
+def test_fit_to_cycles_runs_modal_and_esc_leaves_the_materials_unchanged(backlit, modal):
+    """The panel's operator as a modal job: three steps (render, passes, fit) with progress; Esc
+    after the first render leaves every material and the render settings as they were."""
+    from sss_lab.operators.fit import SSS_LAB_OT_fit_to_cycles
+
+    bpy.ops.wm.open_mainfile(filepath=backlit)
+    scene = bpy.context.scene
+    before, fits = _state(scene), _fits(scene)
+    assert not any(fits.values())
+    window = modal.Window()
+    context = modal.context(window)
+    op = modal.driver(SSS_LAB_OT_fit_to_cycles, samples=8, confirmed=True)
+    assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
+    assert window.progress == [("begin", 0, 3)]
+    assert window.status[-1].startswith("Fit to Cycles 1/3: Cycles random walk, 8 samples")
+    assert op.modal(context, modal.event("TIMER")) == {"RUNNING_MODAL"}  # the random-walk render
+    assert window.progress[-1] == ("update", 1) and window.status[-1].startswith("Fit to Cycles 2/3: passes")
+    assert op.modal(context, modal.event("ESC")) == {"CANCELLED"}
+    assert window.timers == [] and window.progress[-1] == ("end",) and window.status[-1] is None
+    assert "cancelled" in op.reports[-1][1]
+    assert _fits(scene) == fits and _state(scene) == before
+    # Run to the end: one TIMER event per step; the fits are on the materials.
+    op = modal.driver(SSS_LAB_OT_fit_to_cycles, samples=8, confirmed=True)
+    assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
+    assert op.modal(context, modal.event("TIMER")) == {"RUNNING_MODAL"}
+    assert op.modal(context, modal.event("TIMER")) == {"RUNNING_MODAL"}
+    assert op.modal(context, modal.event("TIMER")) == {"FINISHED"}, op.reports
+    assert any(_fits(scene).values()) and _state(scene) == before
