@@ -158,6 +158,7 @@ def slab_transmittance_rgb(x_su, length_su, medium: Medium | None, *, view_cos=N
         ior=medium.ior,
         anisotropy=medium.anisotropy,
         cosine_share=0.5 if medium.method == "RANDOM_WALK_SKIN" else 0.0,
+        legacy=medium.method == "RANDOM_WALK_LEGACY",
     )
 
 

@@ -9,8 +9,9 @@ computed for an infinite slab:
   ``core.mapping.mean_free_path``) and single-scattering albedo alpha from Base Color A by the
   inversion Cycles uses for its random walks (d'Eon, *A Hitchhiker's Guide to Multiple
   Scattering*, eq. 53.7): s = 4.09712 + 4.20863 A - sqrt(9.59217 + 41.6808 A + 17.7126 A^2),
-  alpha = (1 - s^2) / (1 - g s^2), at most 0.999999; below 0.2 alpha is raised to 0.2 and the
-  light scaled by alpha / 0.2, as Cycles does;
+  alpha = (1 - s^2) / (1 - g s^2), at most 0.999999 (Random Walk (Legacy) keeps Chiang et al.'s
+  fit, ``legacy_single_scattering_albedo``); below 0.2 alpha is raised to 0.2 and the light
+  scaled by alpha / 0.2, as Cycles does;
 - the walk enters through the visible surface (the camera's path refracted into the medium: its
   cosine to the normal is mu0 = sqrt(1 - (1 - mu_v^2) / eta^2) for a view cosine mu_v; the Skin
   method enters half of its paths cosine-distributed instead), flies exponential distances,
@@ -32,6 +33,7 @@ reduced medium (exact in the diffusive limit, approximate for the first few scat
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
@@ -60,6 +62,65 @@ def single_scattering_albedo(base_color, anisotropy: float = 0.0) -> np.ndarray:
     s2 = (4.09712 + 4.20863 * a - np.sqrt(9.59217 + 41.6808 * a + 17.7126 * a * a)) ** 2
     g = float(anisotropy)
     return np.clip((1.0 - s2) / np.maximum(1.0 - g * s2, 1e-12), 0.0, 0.999999)
+
+
+def legacy_single_scattering_albedo(base_color, anisotropy: float = 0.0) -> np.ndarray:
+    """Random Walk (Legacy)'s single-scattering albedo (Cycles ``subsurface_random_walk_remap``
+    for g >= 0: Chiang et al. 2016's fit, its coefficients polynomials in g); float64 (3,)."""
+    a = np.clip(np.asarray(base_color, np.float64), 0.0, 1.0)
+    g = float(anisotropy)
+    gp = g ** np.arange(8)
+    big_a = gp @ (
+        1.8260523782,
+        -1.28451056436,
+        -1.79904629312,
+        9.19393289202,
+        -22.8215585862,
+        32.0234874259,
+        -23.6264803333,
+        7.21067002658,
+    )
+    big_b = 4.98511194385 + 0.127355959438 * math.exp(
+        gp[1:]
+        @ (31.1491581433, -201.847017512, 841.576016723, -2018.09288505, 2731.71560286, -1935.41424244, 559.009054474)
+    )
+    big_c = gp @ (
+        1.09686102424,
+        -0.394704063468,
+        1.05258115941,
+        -8.83963712726,
+        28.8643230661,
+        -46.8802913581,
+        38.5402837518,
+        -12.7181042538,
+    )
+    big_d = gp @ (
+        0.496310210422,
+        0.360146581622,
+        -2.15139309747,
+        17.8896899217,
+        -55.2984010333,
+        82.065982243,
+        -58.5106008578,
+        15.8478295021,
+    )
+    big_e = 4.23190299701 + 0.00310603949088 * math.exp(
+        gp[1:]
+        @ (76.7316253952, -594.356773233, 2448.8834203, -5576.68528998, 7116.60171912, -4763.54467887, 1303.5318055)
+    )
+    big_f = gp @ (
+        2.40602999408,
+        -2.51814844609,
+        9.18494908356,
+        -79.2191708682,
+        259.082868209,
+        -403.613804597,
+        302.85712436,
+        -87.4370473567,
+    )
+    blend = a**0.25
+    alpha = (1.0 - blend) * big_a * np.arctan(big_b * a) ** big_c + blend * big_d * np.arctan(big_e * a) ** big_f
+    return np.clip(alpha, 0.0, 0.999999)
 
 
 def reduced_medium(mfp, alpha, anisotropy: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -134,7 +195,15 @@ def slab_transmittance(tau, alpha, entry) -> np.ndarray:
 
 
 def transmittance_rgb(
-    x_su, mfp_su, base_color, *, view_cos=None, ior: float = 1.4, anisotropy: float = 0.0, cosine_share: float = 0.0
+    x_su,
+    mfp_su,
+    base_color,
+    *,
+    view_cos=None,
+    ior: float = 1.4,
+    anisotropy: float = 0.0,
+    cosine_share: float = 0.0,
+    legacy: bool = False,
 ) -> np.ndarray:
     """Per-channel slab transmittance (..., 3) float32 through thickness ``x_su`` (scene units).
 
@@ -142,10 +211,15 @@ def transmittance_rgb(
     the material's Base Color, ``view_cos`` (same shape as ``x_su``, or None for 1) the cosine
     between the visible normal and the view, ``ior`` the index the camera's path refracts
     through, ``cosine_share`` the share of walks that enter cosine-distributed (0.5 for the Skin
-    method). A channel with length 0 passes light only where x = 0."""
+    method). ``legacy``: Random Walk (Legacy)'s medium (Chiang et al.'s albedo fit and, for g >= 0,
+    extinction 1 / (l (1 - g))). A channel with length 0 passes light only where x = 0."""
     x = np.asarray(x_su, np.float64)
     ell = _arrays.rgb_lengths(mfp_su, "mfp_su").astype(np.float64)
-    alpha = single_scattering_albedo(base_color, anisotropy)
+    if legacy and anisotropy >= 0:
+        alpha = legacy_single_scattering_albedo(base_color, anisotropy)
+        ell = ell * (1.0 - anisotropy)
+    else:
+        alpha = single_scattering_albedo(base_color, anisotropy)
     ell, alpha = reduced_medium(ell, alpha, anisotropy)
     if not (np.isfinite(ior) and ior >= 1.0):
         raise ValueError(f"ior: expected a finite number >= 1, got {ior!r}")
