@@ -26,6 +26,11 @@ saturated green, not pale). Real-time engines combine the two (HDRP's diffusion 
     whose integral over that side is Burley's T_c(x) = (e^{-x/d_c} + 3 e^{-x/(3 d_c)}) / 4, and the
     closure keeps its weight: W = Diffuse Color.
   - Without a material (``subsurface_method`` None), Burley's T_c with W = 1.
+  - Lateral spread (with ``depth`` and ``camera``): the light leaves the visible side up to about
+    the thickness away from where it entered the far side. Each pixel gathers the transmitted
+    light of its material and object with a Gaussian whose second moment is the walk's
+    light-weighted squared lateral distance at its thickness (``core.transmittance.lateral_spread``;
+    Christensen-Burley: the profile's over the far side, ``spread_sigma``).
 - No double counting: a light contributes to the transmitted term only where the visible
   surface faces away from it (N . L < 0), which is exactly where it adds nothing to the Diffuse
   Direct pass that the diffusion redistributes; the two terms meet at zero at the terminator.
@@ -52,7 +57,12 @@ from .spec import Footprint, Param, Technique, profile_footprint
 from .ssss import TECHNIQUE as SSSS
 from .ssss import ssss
 from .sta import THICKNESS_CONVENTIONS, _norm, light_at
-from .transmittance import transmittance_rgb
+from .transmittance import (
+    lateral_spread,
+    legacy_single_scattering_albedo,
+    single_scattering_albedo,
+    transmittance_rgb,
+)
 
 #: The diffusion part: Burley's spiral gather or the separable filter (faster at large kernels).
 DIFFUSIONS = ("burley", "ssss")
@@ -181,6 +191,89 @@ def exit_weight(albedo, medium: Medium | None, albedo_mode: str = "post") -> np.
     return np.clip(w, 0.0, 1.0).astype(np.float32)
 
 
+def _box(a: np.ndarray, radius: int, axis: int) -> np.ndarray:
+    """Sum over a window of 2 radius + 1 along ``axis`` (zero outside), by cumulative sums."""
+    pad = [(0, 0)] * a.ndim
+    pad[axis] = (radius + 1, radius)
+    c = np.cumsum(np.pad(a, pad), axis=axis, dtype=np.float64)
+    n = a.shape[axis]
+    hi = np.take(c, np.arange(2 * radius + 1, 2 * radius + 1 + n), axis=axis)
+    lo = np.take(c, np.arange(0, n), axis=axis)
+    return (hi - lo).astype(np.float32)
+
+
+def _blur(a: np.ndarray, sigma_px: float) -> np.ndarray:
+    """Three box filters per axis, whose variance is sigma_px^2 (an approximate Gaussian; the width
+    2 r + 1 of each box satisfies 3 ((2 r + 1)^2 - 1) / 12 = sigma^2 to the nearest integer r)."""
+    r = max(1, int(round((math.sqrt(4.0 * sigma_px * sigma_px + 1.0) - 1.0) / 2.0)))
+    for axis in (0, 1):
+        for _ in range(3):
+            a = _box(a, r, axis)
+    return a
+
+
+#: Blur widths (px) the light from behind is spread at; a pixel's width is interpolated between two.
+SPREAD_LEVELS_PX = tuple(0.5 * 2.0**k for k in range(1, 9))
+
+
+def spread_sigma(x_su: np.ndarray, length_su, medium: Medium | None) -> np.ndarray:
+    """Per-axis standard deviation (scene units, (..., 3)) of the Gaussian whose second moment is the
+    light-weighted mean squared lateral distance between where light enters the far side and
+    where it leaves the visible one, through thickness ``x_su``: the random walk's
+    (``core.transmittance.lateral_spread``, entering along the normal), or for Burley's law the
+    profile's over the far side, E[rho^2] = sum_a a e^{-x/a} (2 a x + 2 a^2) / sum_a a e^{-x/a}
+    with a in (d, 3 d) (rho^2 = r^2 - x^2 against R(r) 2 pi r dr). E[r^2] = 2 sigma^2."""
+    x = np.asarray(x_su, np.float64)
+    lengths = _arrays.rgb_lengths(length_su, "transmission_d_su").astype(np.float64)
+    out = np.zeros(x.shape + (3,), np.float32)
+    if medium is not None and medium.walks:
+        alpha = single_scattering_albedo(medium.base_color, medium.anisotropy)
+        if medium.method == "RANDOM_WALK_LEGACY" and medium.anisotropy >= 0:
+            alpha = legacy_single_scattering_albedo(medium.base_color, medium.anisotropy)
+        for c in range(3):
+            if lengths[c] > 0:
+                rms = lateral_spread(x / lengths[c], alpha[c]) * lengths[c]
+                out[..., c] = np.nan_to_num(rms, nan=float(np.nanmax(rms, initial=0.0))) / math.sqrt(2.0)
+        return out
+    for c in range(3):
+        d = lengths[c]
+        if d <= 0:
+            continue
+        num = sum(a * np.exp(-x / a) * (2 * a * x + 2 * a * a) for a in (d, 3 * d))
+        den = sum(a * np.exp(-x / a) for a in (d, 3 * d))
+        out[..., c] = np.sqrt(num / np.maximum(den, 1e-300) / 2.0)
+    return out
+
+
+def spread_back_light(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> np.ndarray:
+    """``e`` (H, W, 3) on ``mask`` blurred per pixel and channel by a Gaussian of ``sigma_px``
+    (H, W, 3) px, renormalized over the mask (light from outside it is not gathered; the
+    normalization keeps a uniform light unchanged): interpolated between blurs at
+    ``SPREAD_LEVELS_PX``. Pixels with sigma below the first level keep a share of their own value."""
+    m = mask.astype(np.float32)
+    top = float(np.max(sigma_px[mask], initial=0.0))
+    levels = [e]
+    sigmas = [0.0]
+    for sg in SPREAD_LEVELS_PX:
+        if sigmas[-1] >= top:
+            break
+        num = _blur(e * m[..., None], sg)
+        den = _blur(m, sg)
+        levels.append(num / np.maximum(den, np.float32(1e-6))[..., None])
+        sigmas.append(sg)
+    if len(levels) == 1:
+        return e
+    grid = np.asarray(sigmas)
+    s = np.clip(sigma_px, 0.0, grid[-1])
+    hi = np.clip(np.searchsorted(grid, s, side="left"), 1, len(grid) - 1)
+    lo = hi - 1
+    w = ((s - grid[lo]) / (grid[hi] - grid[lo])).astype(np.float32)
+    stack = np.stack(levels)  # (L, H, W, 3)
+    yy, xx, cc = np.indices(e.shape)
+    out = (1.0 - w) * stack[lo, yy, xx, cc] + w * stack[hi, yy, xx, cc]
+    return np.where(mask[..., None], out, e).astype(np.float32)
+
+
 def transmission(
     *,
     normal,
@@ -196,6 +289,8 @@ def transmission(
     albedo=None,
     camera: Camera | None = None,
     albedo_mode: str = "post",
+    depth=None,
+    object_id=None,
 ) -> np.ndarray:
     """The light from behind alone, float32 (H, W, 3): ``transmission_scale`` x ``exit_weight`` x
     ``back_irradiance`` x T_c(x), with x = ``slab_thickness`` of the map (scene units) and T_c
@@ -205,7 +300,9 @@ def transmission(
     ``thickness`` (H, W) baked map in ``thickness_convention`` ("translucency": 1 = thin);
     ``thickness_distance_su`` the bake's distance D (> 0: without it the map cannot be read as a
     thickness). ``albedo`` (the Diffuse Color pass) and ``camera`` (for the view cosine of the
-    walk's refracted entry) are optional: without them the exit weight is 1 and the entry normal."""
+    walk's refracted entry) are optional: without them the exit weight is 1 and the entry normal.
+    ``depth`` (the Depth pass, with ``camera``) turns on the lateral spread, ``object_id`` keeps it
+    within each object."""
     if thickness_convention not in THICKNESS_CONVENTIONS:
         raise ValueError(
             f"thickness_convention: {thickness_convention!r} is not one of {', '.join(THICKNESS_CONVENTIONS)}"
@@ -229,6 +326,19 @@ def transmission(
         x = slab_thickness(tt[lit], distance)
         tr = slab_transmittance_rgb(x, d_su, medium, view_cos=None if view_cos is None else view_cos[lit])
         out[lit] = e[lit] * tr
+    if depth is not None and camera is not None:
+        # The light a walk leaves with entered the far side up to about the thickness away.
+        m = _arrays.mask_array(mask, e.shape[:2]) & ok
+        ppu = camera.pixels_per_unit(_arrays.image(depth, "depth", None))
+        sigma = spread_sigma(slab_thickness(tt, distance), d_su, medium) * ppu[..., None]
+        if object_id is None:
+            out = spread_back_light(out, m, sigma)
+        else:  # light does not cross from one object to another
+            ids = np.asarray(object_id)
+            ids = ids[..., 0] if ids.ndim == 3 else ids
+            for i in np.unique(ids[m]):
+                part = m & (ids == i)
+                out = np.where(part[..., None], spread_back_light(out, part, sigma), out)
     w = exit_weight(albedo, medium, albedo_mode)
     if w is not None:
         _arrays.same_size(e.shape[:2], albedo=w)
@@ -343,6 +453,8 @@ def combined(
             albedo=albedo if medium is not None else None,
             camera=camera,
             albedo_mode=albedo_mode,
+            depth=depth,
+            object_id=object_id,
         )
     return out
 

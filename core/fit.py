@@ -43,7 +43,7 @@ import numpy as np
 
 from . import apply as core_apply
 from . import mapping as _mapping
-from .combined import Medium, back_irradiance, exit_weight, slab_thickness, slab_transmittance_rgb, view_cosine
+from .combined import Medium, transmission
 from .errors import InputError
 from .fit_params import FIT_PARAMETERS, INFO, PARAMETERS
 from .metrics import box_downsample
@@ -214,31 +214,26 @@ def fit_material(
                 f"material {name!r}: its thickness map has no bake distance, so the light from behind cannot be"
                 " fitted (bake thickness with SSS Lab first); left unchanged"
             )
-        e_back = back_irradiance(
-            normal=core_apply._clean(passes["Normal"]),
-            position=core_apply._clean(passes["Position"]),
-            mask=mask,
-            lights=scene.lights,
-        )
         t_raw = core_apply._clean(passes[scene.thickness_aov])
-        t_map = t_raw if t_raw.ndim == 2 else t_raw[..., 0]
-        if scene.thickness_convention == "thickness":
-            t_map = 1.0 - t_map
-        x = slab_thickness(t_map, distance)
         d_tr0 = np.asarray(params0.get("transmission_d_su", params0["mfp_su"]), np.float64)
-        # The combined technique's light from behind (core/combined.py): the material's medium, the
-        # exit weight and the view cosine of the walk's entry, as ``transmission`` computes them.
+        # The combined technique's light from behind exactly as it computes it (core/combined.py:
+        # the material's medium, exit weight, entry and lateral spread), at scale 1 with every
+        # channel's length times GRID[i]: trans[i] (N, 3).
         keys = ("subsurface_method", "base_color", "subsurface_ior", "subsurface_anisotropy")
-        medium = Medium(*(params0[k] for k in keys))
-        e_back = e_back * exit_weight(albedo, medium)
-        view_cos = view_cosine(core_apply._clean(passes["Normal"]), core_apply._clean(passes["Position"]), scene.camera)
-        # trans[i] (N, 3): the light from behind at scale 1 with every channel's length times GRID[i].
-        trans = np.stack(
-            [
-                _blocks(e_back * slab_transmittance_rgb(x, tuple(d_tr0 * f), medium, view_cos=view_cos), keep, box)
-                for f in GRID
-            ]
-        )
+        inputs = {
+            "normal": core_apply._clean(passes["Normal"]),
+            "position": core_apply._clean(passes["Position"]),
+            "thickness": t_raw if t_raw.ndim == 2 else t_raw[..., 0],
+            "mask": mask,
+            "lights": scene.lights,
+            "thickness_distance_su": distance,
+            "thickness_convention": scene.thickness_convention,
+            "medium": Medium(*(params0[k] for k in keys)),
+            "albedo": albedo,
+            "camera": scene.camera,
+            "depth": core_apply._clean(passes["Depth"]),
+        }
+        trans = np.stack([_blocks(transmission(**inputs, d_su=tuple(d_tr0 * f)), keep, box) for f in GRID])
         if float(np.sum(trans[:, train] ** 2)) <= _ABSENT * float(np.sum(y[train] ** 2)):
             trans = None
             notes.append("no light from behind on its pixels: transmission left at its defaults")

@@ -180,6 +180,67 @@ def passage_table(entry) -> np.ndarray:
     return table
 
 
+@functools.lru_cache(maxsize=1)
+def spread_table() -> tuple[np.ndarray, np.ndarray]:
+    """(P[t, n], S[t, n]) for walks entering along the normal: P as ``passage_table(1.0)`` (an
+    independent estimate) and S the same walks' squared lateral distance from the entry point
+    where they first cross depth ``TAUS[t]``, summed and divided by ``WALKS`` (optical units^2).
+    E[r^2] at depth tau for albedo alpha is sum_n S alpha^n / sum_n P alpha^n (``lateral_spread``)."""
+    rng = np.random.default_rng(SEED + 1)
+    n = WALKS
+    taus = TAUS[1:]
+    z, deepest = np.zeros(n), np.zeros(n)
+    pos = np.zeros((n, 2))
+    d = np.zeros((n, 3))
+    d[:, 2] = 1.0
+    counts = np.zeros((len(TAUS), MAX_SEGMENTS))
+    spread = np.zeros((len(TAUS), MAX_SEGMENTS))
+    counts[0, 0] = n
+    for segment in range(MAX_SEGMENTS):
+        if z.size == 0:
+            break
+        step = rng.exponential(size=z.size)
+        z_new = z + d[:, 2] * step
+        lo = np.searchsorted(taus, deepest, side="right")
+        hi = np.searchsorted(taus, z_new, side="right")
+        many = np.maximum(hi - lo, 0)
+        if many.any():
+            walker = np.repeat(np.arange(z.size), many)
+            offset = np.arange(walker.size) - np.repeat(np.cumsum(many) - many, many)
+            t_idx = lo[walker] + offset
+            frac = (taus[t_idx] - z[walker]) / np.maximum(z_new[walker] - z[walker], 1e-300)
+            lateral = pos[walker] + (frac * step[walker])[:, None] * d[walker, :2]
+            np.add.at(counts[1:, segment], t_idx, 1.0)
+            np.add.at(spread[1:, segment], t_idx, np.sum(lateral * lateral, axis=1))
+        pos = pos + step[:, None] * d[:, :2]
+        deepest = np.maximum(deepest, z_new)
+        keep = (z_new > 0.0) & (deepest < taus[-1])
+        z, deepest, pos = z_new[keep], deepest[keep], pos[keep]
+        mu = rng.uniform(-1.0, 1.0, size=z.size)  # isotropic scattering
+        phi = rng.uniform(0.0, 2.0 * np.pi, size=z.size)
+        sin = np.sqrt(1.0 - mu * mu)
+        d = np.stack([sin * np.cos(phi), sin * np.sin(phi), mu], axis=1)
+    p, s = counts / n, spread / n
+    p.setflags(write=False)
+    s.setflags(write=False)
+    return p, s
+
+
+def lateral_spread(tau, alpha) -> np.ndarray:
+    """RMS lateral distance (optical units) between where a walk of single-scattering albedo
+    ``alpha`` enters along the normal and where it first crosses depth ``tau``, weighted by the
+    light it carries (``spread_table``); float64, same shape as ``tau``; 0 at tau = 0."""
+    a = max(float(alpha), MIN_ALPHA)
+    powers = a ** np.arange(MAX_SEGMENTS, dtype=np.float64)
+    p, s = spread_table()
+    light, moment = p @ powers, s @ powers
+    rms = np.sqrt(np.where(light > 1e-12, moment / np.maximum(light, 1e-300), 0.0))
+    # Beyond the last depth any walk still carries: its spread grows with depth like tau.
+    last = int(np.max(np.flatnonzero(light > 1e-9)))
+    t = np.asarray(tau, np.float64)
+    return np.interp(t, TAUS[: last + 1], rms[: last + 1], right=np.nan) if last > 0 else np.zeros_like(t)
+
+
 def slab_transmittance(tau, alpha, entry) -> np.ndarray:
     """T(tau) for one channel: the light a walk of single-scattering albedo ``alpha`` entering
     with ``entry`` carries through optical depth ``tau`` (array), with Cycles' alpha floor;

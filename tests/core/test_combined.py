@@ -167,3 +167,52 @@ def test_random_walk_material_uses_the_walk_transmittance_and_exit_weight():
     disk = combined(**kw, lights=back, subsurface_method="BURLEY", **medium) - plain
     expected_disk = [0.9 * b * 2 / math.pi * float(burley_transmittance(x, d)) for b, d in zip(base, mfp, strict=True)]
     np.testing.assert_allclose(disk[4, 4], expected_disk, rtol=1e-5)
+
+
+def test_light_from_behind_spreads_by_the_walks_lateral_distance():
+    """The back light is blurred per pixel by a Gaussian whose second moment is the light-weighted
+    lateral distance the walk covers through the slab: a uniform light stays uniform (the blur
+    is renormalized over the material), a half-lit back spreads across the edge, and the blur's
+    variance is the sigma asked for (three box filters: exact up to the box width's rounding)."""
+    from sss_lab.core.combined import _blur, spread_back_light, spread_sigma
+
+    e = np.ones((N, N, 3), np.float32)
+    m = np.ones((N, N), bool)
+    m[:, :3] = False
+    sigma = np.full((N, N, 3), 3.0, np.float32)
+    np.testing.assert_allclose(spread_back_light(e, m, sigma)[m], 1.0, rtol=1e-5)
+    half = e.copy()
+    half[:, N // 2 :] = 0.0
+    spread = spread_back_light(half, m, sigma)
+    assert 0 < spread[5, N // 2 + 1, 0] < 1 and 0 < spread[5, N // 2 - 2, 0] < 1
+    np.testing.assert_allclose(spread[m].sum(), half[m].sum(), rtol=0.05)  # light moves, little is lost
+    delta = np.zeros((65, 65), np.float32)
+    delta[32, 32] = 1.0
+    b = _blur(delta, 4.0)
+    yy, xx = np.indices(b.shape)
+    var = float((b * ((xx - 32) ** 2)).sum() / b.sum())
+    assert abs(var - 16.0) / 16.0 < 0.3  # the box half-width r = 3 gives 3 (7^2 - 1) / 12 x 3 = 12
+    # Through the combined technique: light does not cross from one object to another.
+    kw = _slab(translucency=0.9)
+    kw["albedo"] = np.full((N, N, 3), 0.8, np.float32)
+    ids = np.ones((N, N), np.float32)
+    ids[:, N // 2 :] = 2.0
+    kw["normal"][:, N // 2 :] = (0.0, 0.0, -1.0)  # the right object faces the light: none from behind
+    out = combined(
+        **kw,
+        lights=(_sun((0.0, 0.0, 1.0), energy=2.0),),
+        object_id=ids,
+        subsurface_method="RANDOM_WALK",
+        mfp_su=(0.05, 0.05, 0.05),
+        base_color=(0.8, 0.8, 0.8),
+    )
+    plain = burley(**{k: kw[k] for k in ("diffuse", "albedo", "depth", "mask", "camera", "d_su")}, object_id=ids)
+    added = out - plain
+    assert added[:, : N // 2].min() > 0 and np.abs(added[:, N // 2 :]).max() < 1e-6
+    # Burley's law: the closed form against quadrature of (r^2 - x^2) R(r) 2 pi r dr over r > x.
+    x, d = 0.01, 0.004
+    r = np.linspace(x, x + 60 * d, 200001)
+    w = np.exp(-r / d) + np.exp(-r / (3 * d))
+    expected = math.sqrt(np.trapezoid((r * r - x * x) * w, r) / np.trapezoid(w, r) / 2)
+    got = spread_sigma(np.array([x]), (d, d, d), None)[0, 0]
+    assert got == pytest.approx(expected, rel=1e-4)

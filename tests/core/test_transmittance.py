@@ -82,3 +82,17 @@ def test_bad_input_names_the_value():
     with pytest.raises(ValueError, match="entry"):
         tr.passage_table(1.5)
     assert math.isfinite(float(tr.slab_transmittance(np.array(1e9), 0.9, 1.0)))
+
+
+def test_lateral_spread_of_the_walk():
+    """The light-weighted RMS lateral distance at the crossing: 0 at depth 0; in a dark medium the
+    unscattered light dominates and it stays small, in a bright one the light that crosses has
+    wandered sideways about as far as it went down (0.7-1 times the depth at tau 1-4)."""
+    assert tr.lateral_spread(np.array(0.0), 0.9) == 0.0
+    taus = np.array([1.0, 2.0, 4.0])
+    dark = tr.lateral_spread(taus, 0.3) / taus
+    bright = tr.lateral_spread(taus, 0.99) / taus
+    assert np.all(dark < bright)
+    assert np.all((bright > 0.7) & (bright < 1.0))
+    p, _ = tr.spread_table()
+    np.testing.assert_allclose(p.sum(axis=1)[:30], tr.passage_table(1.0).sum(axis=1)[:30], atol=0.02)
