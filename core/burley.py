@@ -203,16 +203,10 @@ def burley(
     # One group without index arrays when there are no object ids (core.extent.object_extent).
     groups = group_extents(ok, scale, ids) if ids is not None else [(None, object_extent(ok, scale))]
     if backend.active() == "numba":
-        args = (light, z, ok, scale, ids, groups, int(n_samples), dmax, inv3d, reach_c, random_rotation, seed)
-        if smooth_px <= 0:
-            return _compiled(*args, post, base)
-        # The clean-up works on the scattered light before the albedo: gather with albedo 1.
-        scattered = _compiled(*args, np.ones_like(post), base.copy())
-        if groups[0][0] is None:
-            groups = [(np.flatnonzero(ok), groups[0][1])]
-        idx_all = np.concatenate([g for g, _ in groups])
-        result = _arrays.as_rows(_arrays.pixel_rows(scattered)[idx_all]).reshape(-1, 3)
-        return _smoothed(result, idx_all, groups, shape, scale, d, z, ids, int(smooth_px), post, base)
+        return _compiled(
+            light, z, ok, scale, ids, groups, int(n_samples), d, inv3d, reach_c, random_rotation, seed,
+            int(smooth_px), post, base,
+        )  # fmt: skip
     # Each pixel as one 16-byte item (r, g, b, depth key), plus a last item (0, 0, 0, inf) that
     # samples off the image or from another object read: one gather per sample fetches colour
     # and depth. Pixels that take no part have colour 0 (a NaN times a zero weight would still
@@ -323,12 +317,15 @@ def _smoothed(result, idx_all, groups, shape, scale, d, z, ids, smooth_px, post,
     return out
 
 
-def _compiled(light, z, ok, scale, ids, groups, n, dmax, inv3d, reach_c, random_rotation, seed, post, out):
-    """The gather as one compiled kernel (``core.compiled.burley_kernel``), into ``out``, with
-    the NumPy code's tables: one bounded spiral per object (``spiral_su``), the rotation."""
+def _compiled(light, z, ok, scale, ids, groups, n, d, inv3d, reach_c, random_rotation, seed, smooth_px, post, out):
+    """The gather and the clean-up as one compiled kernel (``core.compiled.burley_kernel``),
+    into ``out``, with the NumPy code's tables: one bounded spiral per object (``spiral_su``),
+    the rotation, the object ids."""
     f32 = np.float32
     c = np.ascontiguousarray
+    dmax = float(d.max())
     tables = np.empty((5, len(groups), n), f32)  # radius, radius^2, cos, sin, inverse pdf
+    extents = np.empty(len(groups), np.float64)
     group_map = np.zeros((1, 1), np.int32)
     if len(groups) > 1:
         group_map = np.zeros(ok.shape, np.int32)
@@ -336,6 +333,7 @@ def _compiled(light, z, ok, scale, ids, groups, n, dmax, inv3d, reach_c, random_
         r_su64, angles, inv_pdf = spiral_su(n, dmax, min(TRUNCATION * dmax, extent_su))
         r_su = r_su64.astype(f32)
         tables[:, k] = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
+        extents[k] = extent_su
         if len(groups) > 1:
             group_map.ravel()[group] = k
     if random_rotation:
@@ -345,10 +343,14 @@ def _compiled(light, z, ok, scale, ids, groups, n, dmax, inv3d, reach_c, random_
         phi = _rotation(idx, seed)
         rot_cos.ravel()[idx] = np.cos(phi)
         rot_sin.ravel()[idx] = np.sin(phi)
+        del idx, phi
     else:  # a rotation by 0 (cos 1, sin 0) leaves the spiral's angles exactly as they are
         rot_cos = np.ones((1, 1), f32)
         rot_sin = np.zeros((1, 1), f32)
-    id_map = np.zeros(1, np.int64) if ids is None else np.rint(ids).astype(np.int64).ravel()
+    id_map = np.zeros(1, np.int32) if ids is None else np.rint(ids).astype(np.int64).ravel()
+    if id_map.size > 1 and np.iinfo(np.int32).min <= id_map.min() and id_map.max() <= np.iinfo(np.int32).max:
+        id_map = id_map.astype(np.int32)  # the same ids, gathered 16 per 512-bit register instead of 8
+    tol = np.array([min(float(v), 3.0e38) for v in d], f32)
     backend.run_kernel(
         "burley_kernel",
         c(light, dtype=f32),
@@ -362,6 +364,11 @@ def _compiled(light, z, ok, scale, ids, groups, n, dmax, inv3d, reach_c, random_
         rot_sin,
         inv3d,
         np.asarray(reach_c, np.float64),
+        extents,
+        c(z, dtype=f32),
+        tol,
+        max(int(smooth_px), 0),
+        SMOOTH_MIN_FOOTPRINT_PX,
         c(post, dtype=f32),
         out,
     )

@@ -8,17 +8,23 @@ and hand the per-pixel work to these kernels or to their own NumPy code, the rea
 
 Each kernel does the reference's float32 operations in the reference's order, without fused
 multiply-add: tap and sample positions, indices and comparisons come out bit-identical, so a
-sample never lands on another pixel. What differs: the sums over a pixel's taps or samples may
-be reassociated (``fastmath={"reassoc"}`` on the functions that hold them, so that they
-vectorize; the reference sums with BLAS matrix products, in its own order), a tap's two samples
-share one multiplication by its weight, and e^x is ``_exp`` (within 2 units in the last place;
-NumPy's is within 4). The bound that follows is ``core.backend.tolerance``; the tests run every
-technique call of the core suite on both backends against it. Where the reference multiplies a
-sample by a weight of exactly 0 (a pixel that takes no part: colour 0, depth key +inf), a
-kernel adds 0 (selects it away), which is the same.
+sample never lands on another pixel. What differs: the sums over a pixel's taps or samples are
+in another order (SSSS sums its taps one after the other; Burley's sums over its samples are
+reassociated, ``fastmath={"reassoc"}`` on the function that holds them and on nothing that
+places a sample, so that they vectorize; the reference sums with BLAS matrix products, in its
+own order), a tap's two samples share one multiplication by its weight, and e^x is ``_exp``
+(within 2 units in the last place; NumPy's is within 4). The bound that follows is
+``core.backend.tolerance``; the tests run every technique call of the core suite on both
+backends against it. Where the reference multiplies a sample by a weight of exactly 0 (a pixel
+that takes no part: colour 0, depth key +inf), a kernel adds 0 (selects it away), which is the
+same. Burley's clean-up (``core.burley._smooth``) sums in float64 in the reference's order: the
+same result to the bit, from the same gathered values.
 
 Pixels are visited row by row (``prange`` over rows; SSSS's vertical pass over strips of
-columns), each written by one thread only, and no kernel allocates anything the size of a frame.
+columns, Burley over blocks of rows), each written by one thread only, and no kernel allocates
+anything the size of a frame. Index arithmetic in the vectorized loops is 32-bit (frames
+have fewer than 2^31 / 3 pixels), so that a 512-bit register holds 16 lanes (``core.backend``
+lets LLVM use them).
 """
 
 from __future__ import annotations
@@ -56,7 +62,7 @@ _EXP_MIN = f32(-87.3)  # e^x below this is under float32's smallest normal numbe
 _C2, _C3, _C4, _C5, _C6, _C7 = (f32(1.0 / math.factorial(i)) for i in range(2, 8))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _exp(x):
     """e^x in float32 for x <= 0, within 2 units in the last place (the C library's and NumPy's
     are within 1 and 4), as arithmetic that vectorizes: x = k ln 2 + r with |r| <= ln(2) / 2
@@ -77,14 +83,14 @@ def _exp(x):
     return v if x >= _EXP_MIN else _ZERO
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _clip(v, hi):
     """min(max(v, 0), hi) as np.clip gives it; NaN gives 0 (an index must never be NaN)."""
     v = v if v > _ZERO else _ZERO
     return v if v < hi else hi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _span(row):
     """(first, last + 1) of the True entries of a bool row; (0, 0) when there are none."""
     n = row.size
@@ -97,7 +103,7 @@ def _span(row):
     return x0, x1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _unit(x, y, z):
     """(x, y, z, |v|) normalized as core.sta._norm does it."""
     length = x * x
@@ -108,7 +114,7 @@ def _unit(x, y, z):
     return x * inv, y * inv, z * inv, length
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def sta_kernel(
     albedo,
     normal,
@@ -298,17 +304,20 @@ def sta_kernel(
                     out[y, x, c] = albedo[y, x, c] * light if okr[i] else _ZERO
 
 
-@njit(cache=True, fastmath={"reassoc"})
-def _ssss_pixel(src, src_base, key, key_base, stride, kc, s, coord, last, offsets, weights, sums):
-    """The off-centre taps of one 1-D SSSS pass (core.ssss._pass) for one pixel, summed into
-    ``sums`` (6,): per channel sum_k w_k a_k and sum_k w_k a_k g_k.
+@njit(cache=True, error_model="numpy")
+def _ssss_taps(lines, i, kc, s, coord, last, offsets, weights):
+    """The off-centre taps of one 1-D SSSS pass (core.ssss._pass) for one pixel: per channel
+    sum_k w_k a_k and sum_k w_k a_k g_k, as (aw R, G, B, ag R, G, B).
 
-    ``src`` (flat RGB) and ``key`` (flat) are read along a line: its pixel j at
-    ``src_base + j * stride`` and ``key_base + j * stride``. ``src`` holds 0 and ``key`` +inf
-    where pixels take no part (their weight is then exactly 0); ``kc`` is the pixel's key,
-    ``s`` its pixels per scene unit, ``coord`` its position along the line of ``last + 1``
-    pixels. Only the sums (and the products of a tap's two samples with its weight) may be
-    reassociated (they vectorize over the taps); the tap positions are the reference's."""
+    ``lines[i]`` (4, last + 2): the line's light R, G, B and key (the line's
+    last + 1 pixels, then (0, 0, 0, +inf), the neighbour the reference gives the line's last
+    pixel), 0 and +inf where pixels take no part (their weight is then exactly 0); ``kc`` the
+    pixel's key, ``s`` its pixels per scene unit, ``coord`` its position along the line.
+
+    One tap at a time, in scalar code: vectorized over the taps, as the reference's matrix
+    products are, the gathers and the sums across the vector cost more than the taps (measured:
+    334 vs 222 ms per pass at 1080p). The sums are in the taps' order (the reference's matrix
+    products sum in their own); the tap positions are the reference's to the bit."""
     lastf = f32(last)
     aw0 = _ZERO
     aw1 = _ZERO
@@ -322,36 +331,31 @@ def _ssss_pixel(src, src_base, key, key_base, stride, kc, s, coord, last, offset
         pos = _clip(pos, lastf)
         fl = np.floor(pos)
         f = pos - fl
-        j = int(fl)
-        j1 = j + 1 if j < last else j  # past the end only when f = 0: weight 0 either way
-        p0 = j * stride
-        p1 = j1 * stride
-        a0 = _ONE - abs(key[key_base + p0] - kc)
+        j = np.int32(fl)
+        j1 = np.int32(j + np.int32(1))  # the padding past the end only when f = 0: weight 0
+        a0 = _ONE - abs(lines[i, 3, j] - kc)
         a0 = (a0 if a0 > _ZERO else _ZERO) * (_ONE - f)
-        a1 = _ONE - abs(key[key_base + p1] - kc)
+        a1 = _ONE - abs(lines[i, 3, j1] - kc)
         a1 = (a1 if a1 > _ZERO else _ZERO) * f
-        i0 = (src_base + p0) * 3
-        i1 = (src_base + p1) * 3
-        aw0 += (a0 + a1) * weights[k, 0]
-        aw1 += (a0 + a1) * weights[k, 1]
-        aw2 += (a0 + a1) * weights[k, 2]
-        ag0 += (a0 * src[i0] + a1 * src[i1]) * weights[k, 0]
-        ag1 += (a0 * src[i0 + 1] + a1 * src[i1 + 1]) * weights[k, 1]
-        ag2 += (a0 * src[i0 + 2] + a1 * src[i1 + 2]) * weights[k, 2]
-    sums[0] = aw0
-    sums[1] = aw1
-    sums[2] = aw2
-    sums[3] = ag0
-    sums[4] = ag1
-    sums[5] = ag2
+        aw = a0 + a1
+        w0 = weights[k, 0]
+        w1 = weights[k, 1]
+        w2 = weights[k, 2]
+        aw0 += aw * w0
+        aw1 += aw * w1
+        aw2 += aw * w2
+        ag0 += (a0 * lines[i, 0, j] + a1 * lines[i, 0, j1]) * w0
+        ag1 += (a0 * lines[i, 1, j] + a1 * lines[i, 1, j1]) * w1
+        ag2 += (a0 * lines[i, 2, j] + a1 * lines[i, 2, j1]) * w2
+    return aw0, aw1, aw2, ag0, ag1, ag2
 
 
-#: Columns per work item of SSSS's vertical pass: a strip of the frame is copied into a buffer
-#: that stays in the cache (16 columns x 2160 rows x 3 channels: 415 KB).
+#: Columns per work item of SSSS's vertical pass: a strip of the frame is copied, column by
+#: column, into line buffers that stay in the cache (16 columns x 2161 rows x 4 values: 553 KB).
 STRIP = 16
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def ssss_kernel(light, key, ok, scale, offsets, weights, wsum, post, out):
     """core.ssss's two passes over the pixels ``ok`` of ``out`` (which holds the albedo times
     the light, kept where pixels take no part): along rows from ``light``, written into
@@ -359,93 +363,118 @@ def ssss_kernel(light, key, ok, scale, offsets, weights, wsum, post, out):
     that column), from a copy of the strip (0 where pixels take no part), times ``post``.
     ``key`` (H, W) is the depth times the follow-surface factor, +inf where pixels take no part;
     ``offsets`` (n,) the non-zero taps in scene units, ``weights`` (n, 3) theirs, ``wsum`` (3,)
-    the sum of all weights. Nothing the size of a frame is allocated."""
+    the sum of all weights. Each line is read from planar buffers (R, G, B, key) of the line
+    plus one padding pixel. Nothing the size of a frame is allocated."""
     h, w = ok.shape
-    key_flat = key.reshape(-1)
     for y in prange(h):
         x0, x1 = _span(ok[y])
         if x0 >= x1:
             continue
         # The row's light, 0 where pixels take no part (a NaN times a zero weight is NaN).
-        src = np.empty(3 * w, np.float32)
+        line = np.empty((1, 4, w + 1), np.float32)
         for x in range(w):
-            for c in range(3):
-                src[3 * x + c] = light[y, x, c] if ok[y, x] else _ZERO
-        sums = np.empty(6, np.float32)
+            o = ok[y, x]
+            line[0, 0, x] = light[y, x, 0] if o else _ZERO
+            line[0, 1, x] = light[y, x, 1] if o else _ZERO
+            line[0, 2, x] = light[y, x, 2] if o else _ZERO
+            line[0, 3, x] = key[y, x]
+        line[0, 0, w] = _ZERO
+        line[0, 1, w] = _ZERO
+        line[0, 2, w] = _ZERO
+        line[0, 3, w] = _INF
         for x in range(x0, x1):
             if ok[y, x]:
-                _ssss_pixel(src, 0, key_flat, y * w, 1, key[y, x], scale[y, x], f32(x), w - 1, offsets, weights, sums)
-                for c in range(3):
-                    out[y, x, c] = (wsum[c] - sums[c]) * src[3 * x + c] + sums[3 + c]
+                aw0, aw1, aw2, ag0, ag1, ag2 = _ssss_taps(
+                    line, 0, key[y, x], scale[y, x], f32(x), w - 1, offsets, weights
+                )
+                out[y, x, 0] = (wsum[0] - aw0) * line[0, 0, x] + ag0
+                out[y, x, 1] = (wsum[1] - aw1) * line[0, 1, x] + ag1
+                out[y, x, 2] = (wsum[2] - aw2) * line[0, 2, x] + ag2
     for strip in prange((w + STRIP - 1) // STRIP):
         xa = strip * STRIP
         xb = min(xa + STRIP, w)
         m = xb - xa
-        buf = np.empty(h * m * 3, np.float32)
-        kbuf = np.empty(h * m, np.float32)
+        lines = np.empty((m, 4, h + 1), np.float32)
         for y in range(h):
             for i in range(m):
                 x = xa + i
-                kbuf[y * m + i] = key[y, x]
-                for c in range(3):
-                    buf[(y * m + i) * 3 + c] = out[y, x, c] if ok[y, x] else _ZERO
-        sums = np.empty(6, np.float32)
-        for y in range(h):
+                o = ok[y, x]
+                lines[i, 0, y] = out[y, x, 0] if o else _ZERO
+                lines[i, 1, y] = out[y, x, 1] if o else _ZERO
+                lines[i, 2, y] = out[y, x, 2] if o else _ZERO
+                lines[i, 3, y] = key[y, x]
+        for i in range(m):
+            lines[i, 0, h] = _ZERO
+            lines[i, 1, h] = _ZERO
+            lines[i, 2, h] = _ZERO
+            lines[i, 3, h] = _INF
+        for y in range(h):  # row by row, so that the strip's row of the output is written at once
             for i in range(m):
                 x = xa + i
                 if ok[y, x]:
-                    _ssss_pixel(buf, i, kbuf, i, m, kbuf[y * m + i], scale[y, x], f32(y), h - 1, offsets, weights, sums)
-                    q = (y * m + i) * 3
-                    for c in range(3):
-                        out[y, x, c] = ((wsum[c] - sums[c]) * buf[q + c] + sums[3 + c]) * post[y, x, c]
+                    aw0, aw1, aw2, ag0, ag1, ag2 = _ssss_taps(
+                        lines, i, key[y, x], scale[y, x], f32(y), h - 1, offsets, weights
+                    )
+                    out[y, x, 0] = ((wsum[0] - aw0) * lines[i, 0, y] + ag0) * post[y, x, 0]
+                    out[y, x, 1] = ((wsum[1] - aw1) * lines[i, 1, y] + ag1) * post[y, x, 1]
+                    out[y, x, 2] = ((wsum[2] - aw2) * lines[i, 2, y] + ag2) * post[y, x, 2]
 
 
-@njit(cache=True, fastmath={"reassoc"})
-def _burley_pixel(light, zkey, ids, y, x, s, rc, rsn, r_su, r2, cos_a, sin_a, inv_pdf, inv3d, sums):
-    """The spiral samples of pixel (y, x) as core.burley computes them, summed into ``sums``
-    (num R, G, B, den R, G, B). ``zkey`` (H, W): the depth where pixels take part, +inf
-    elsewhere. ``rc``/``rsn``: the pixel's rotation (1, 0 for none); ``ids``
-    flat object ids, or one 0 when there are none. A sample the reference weights by exactly 0
-    (off the image, off the mask, another object) is selected away (its light may be NaN).
-    Only the sums over the samples may be reassociated (they vectorize); the sample positions
-    are the reference's to the bit (the tests compare both backends)."""
-    h, w = zkey.shape
-    wl = f32(w - 1)
-    hl = f32(h - 1)
+@njit(cache=True, error_model="numpy")
+def _burley_sample(xf, yf, s, rc, rsn, r_k, r2_k, cos_k, sin_k, ip_k, wl, hl, w, zc, zkey):
+    """Sample k of the pixel (``xf``, ``yf``) as the reference computes it, without fastmath
+    (its position must be the reference's to the bit): (flat index of the pixel read, whether
+    the reference gives it a weight, 3-D distance r', inverse pdf over r')."""
+    ca = rc * cos_k - rsn * sin_k
+    sa = rsn * cos_k + rc * sin_k
+    rad = s * r_k
+    xs = rad * ca
+    xs += xf
+    xs = np.rint(xs)
+    ys = rad * sa
+    ys += yf
+    ys = np.rint(ys)
+    xc = _clip(xs, wl)
+    yc = _clip(ys, hl)
+    # 32-bit index arithmetic (Numba widens integer products to 64 bits; the truncation lets
+    # LLVM keep 16 lanes per 512-bit register): frames have fewer than 2^31 / 3 pixels.
+    j = np.int32(np.int32(yc) * np.int32(w) + np.int32(xc))
+    zj = zkey[j]
+    valid = (xc == xs) & (yc == ys) & (zj < _INF)
+    rp = zj - zc
+    rp *= rp
+    rp += r2_k
+    rp = math.sqrt(rp)
+    ratio = ip_k / (rp if rp > _TINY else _TINY)
+    return j, valid, rp, ratio
+
+
+@njit(cache=True, error_model="numpy", fastmath={"reassoc"})
+def _burley_pixel(light, zkey, ids, q, xf, yf, s, rc, rsn, tables, g, k0, k1, k2, wl, hl, w, sums):
+    """The spiral samples of pixel ``q`` = (``yf``, ``xf``) summed into ``sums`` (num R, G, B,
+    den R, G, B). ``light`` flat RGB, ``zkey`` flat (the depth where pixels take part, +inf
+    elsewhere), ``ids`` flat object ids or one 0 for none; ``tables[:, g]`` the spiral.
+
+    The loop over the samples vectorizes (a gather per value read); only its sums are
+    reassociated (``fastmath`` "reassoc" here, none in ``_burley_sample``). A sample the
+    reference weights by exactly 0 (off the image, off the mask, another object) is selected
+    away (its light may be NaN)."""
     use_ids = ids.size > 1
-    own = ids[y * w + x] if use_ids else ids[0]
-    zc = zkey[y, x]
-    k0 = -inv3d[0]
-    k1 = -inv3d[1]
-    k2 = -inv3d[2]
+    own = ids[q] if use_ids else ids[0]
+    zc = zkey[q]
     n0 = _ZERO
     n1 = _ZERO
     n2 = _ZERO
     d0 = _ZERO
     d1 = _ZERO
     d2 = _ZERO
-    for i in range(r_su.size):
-        ca = rc * cos_a[i] - rsn * sin_a[i]
-        sa = rsn * cos_a[i] + rc * sin_a[i]
-        rad = s * r_su[i]
-        xs = rad * ca
-        xs += f32(x)
-        xs = np.rint(xs)
-        ys = rad * sa
-        ys += f32(y)
-        ys = np.rint(ys)
-        xc = _clip(xs, wl)
-        yc = _clip(ys, hl)
-        jx = int(xc)
-        jy = int(yc)
-        zj = zkey[jy, jx]
-        other = ids[jy * w + jx] if use_ids else own
-        valid = (xc == xs) & (yc == ys) & (zj < _INF) & (other == own)
-        rp = zj - zc
-        rp *= rp
-        rp += r2[i]
-        rp = math.sqrt(rp)
-        ratio = inv_pdf[i] / (rp if rp > _TINY else _TINY)
+    for k in range(tables.shape[2]):
+        j, valid, rp, ratio = _burley_sample(
+            xf, yf, s, rc, rsn, tables[0, g, k], tables[1, g, k], tables[2, g, k], tables[3, g, k], tables[4, g, k],
+            wl, hl, w, zc, zkey,
+        )  # fmt: skip
+        if use_ids:
+            valid &= ids[j] == own
         e3 = _exp(rp * k0)
         w0 = (e3 * e3 * e3 + e3) * ratio
         e3 = _exp(rp * k1)
@@ -455,9 +484,10 @@ def _burley_pixel(light, zkey, ids, y, x, s, rc, rsn, r_su, r2, cos_a, sin_a, in
         d0 += w0 if valid else _ZERO
         d1 += w1 if valid else _ZERO
         d2 += w2 if valid else _ZERO
-        n0 += w0 * light[jy, jx, 0] if valid else _ZERO
-        n1 += w1 * light[jy, jx, 1] if valid else _ZERO
-        n2 += w2 * light[jy, jx, 2] if valid else _ZERO
+        j3 = np.int32(j * np.int32(3))
+        n0 += w0 * light[j3] if valid else _ZERO
+        n1 += w1 * light[np.int32(j3 + np.int32(1))] if valid else _ZERO
+        n2 += w2 * light[np.int32(j3 + np.int32(2))] if valid else _ZERO
     sums[0] = n0
     sums[1] = n1
     sums[2] = n2
@@ -466,33 +496,37 @@ def _burley_pixel(light, zkey, ids, y, x, s, rc, rsn, r_su, r2, cos_a, sin_a, in
     sums[5] = d2
 
 
-@njit(cache=True, parallel=True)
-def burley_kernel(light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, inv3d, reach, post, out):
-    """core.burley's gather over the pixels ``ok`` into ``out`` (times ``post``).
+#: Rows per work item of Burley's gather with the clean-up: each gathers its rows plus
+#: ``radius`` rows above and below (recomputed by the neighbouring item: 2 radius / BLOCK_ROWS
+#: more work) into a buffer that the clean-up reads, instead of a whole scattered frame.
+BLOCK_ROWS = 32
 
-    ``zkey`` (H, W): the depth where ``ok``, +inf elsewhere (so that a sample's test of the
-    pixel it reads is one float comparison, not a gather of bytes); ``tables`` (5, G, n): per
-    object group the spiral's radii, radii squared, cosines, sines and inverse pdfs;
-    ``group`` (H, W) each pixel's group, or (1, 1) for one group;
-    ``reach`` (3,) float64, 16 d_c per channel (0: the channel keeps its light; so does a
-    channel whose reach times the pixel's scale is at most one pixel); ``rot_cos``/``rot_sin``
-    (H, W) the per-pixel rotation as NumPy computed it, or (1, 1) holding 1 and 0 for none;
-    ``ids`` flat int64 object ids, or one 0 for none."""
+
+@njit(cache=True, error_model="numpy")
+def _burley_rows(light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, inv3d, reach, ya, yb, buf):
+    """core.burley's gather (the scattered light, before the albedo) of the pixels ``ok`` of
+    rows ``ya``..``yb`` - 1 into ``buf`` (rows from ``ya``, W, 3)."""
     h, w = ok.shape
     rotate = rot_cos.size > 1
     grouped = group.size > 1
-    for y in prange(h):
-        sums = np.empty(6, np.float32)
-        for x in range(w):
+    wl = f32(w - 1)
+    hl = f32(h - 1)
+    k0 = -inv3d[0]
+    k1 = -inv3d[1]
+    k2 = -inv3d[2]
+    light_flat = light.reshape(-1)
+    zflat = zkey.reshape(-1)
+    sums = np.empty(6, np.float32)
+    for y in range(ya, yb):
+        x0, x1 = _span(ok[y])
+        for x in range(x0, x1):
             if not ok[y, x]:
                 continue
             s = scale[y, x]
-            rc = rot_cos[y, x] if rotate else rot_cos[0, 0]
-            rsn = rot_sin[y, x] if rotate else rot_sin[0, 0]
-            g = group[y, x] if grouped else 0
             _burley_pixel(
-                light, zkey, ids, y, x, s, rc, rsn, tables[0, g], tables[1, g], tables[2, g], tables[3, g],
-                tables[4, g], inv3d, sums,
+                light_flat, zflat, ids, y * w + x, f32(x), f32(y), s,
+                rot_cos[y, x] if rotate else rot_cos[0, 0], rot_sin[y, x] if rotate else rot_sin[0, 0],
+                tables, group[y, x] if grouped else 0, k0, k1, k2, wl, hl, w, sums,
             )  # fmt: skip
             for c in range(3):
                 den = sums[3 + c]
@@ -500,7 +534,65 @@ def burley_kernel(light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, 
                     v = light[y, x, c]
                 else:
                     v = sums[c] / den
-                out[y, x, c] = post[y, x, c] * v
+                buf[y - ya, x, c] = v
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def burley_kernel(
+    light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, inv3d, reach, extents, depth, tol, radius, min_px,
+    post, out,
+):  # fmt: skip
+    """core.burley's gather and clean-up (``_smooth``, when ``radius`` > 0) over the pixels
+    ``ok``, times ``post``, into ``out``.
+
+    ``zkey`` (H, W): the depth where ``ok``, +inf elsewhere (a sample's test of the pixel it
+    reads is one float comparison); ``tables`` (5, G, n): per object group the spiral's radii,
+    radii squared, cosines, sines and inverse pdfs; ``group`` (H, W) each pixel's group, or
+    (1, 1) for one group; ``reach`` (3,) float64, 16 d_c per channel (0: the channel keeps its
+    light; so does a channel whose reach times the pixel's scale is at most one pixel);
+    ``rot_cos``/``rot_sin`` (H, W) the per-pixel rotation as NumPy computed it, or (1, 1)
+    holding 1 and 0 for none; ``ids`` flat int64 object ids, or one 0 for none.
+
+    The clean-up, per pixel of ``ok`` and channel c whose footprint (``scale`` x min(16 d_c,
+    the group's extent ``extents[g]``), float64) spans at least ``min_px``: the float64 mean of
+    the scattered light over the (2 ``radius`` + 1)^2 box's pixels of ``ok`` with the same id
+    and |``depth`` - own depth| <= ``tol[c]``, in the reference's order (rows, then columns).
+    Work items are blocks of ``BLOCK_ROWS`` rows, gathered with their ``radius`` rows of
+    margin into a buffer of the block: nothing the size of a frame is allocated."""
+    h, w = ok.shape
+    grouped = group.size > 1
+    use_ids = ids.size > 1
+    r = max(radius, 0)
+    for block in prange((h + BLOCK_ROWS - 1) // BLOCK_ROWS):
+        y0 = block * BLOCK_ROWS
+        y1 = min(y0 + BLOCK_ROWS, h)
+        ya = max(y0 - r, 0)
+        yb = min(y1 + r, h)
+        buf = np.empty((yb - ya, w, 3), np.float32)
+        _burley_rows(light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, inv3d, reach, ya, yb, buf)
+        for y in range(y0, y1):
+            x0, x1 = _span(ok[y])
+            for x in range(x0, x1):
+                if not ok[y, x]:
+                    continue
+                px = np.float64(scale[y, x])
+                g = group[y, x] if grouped else 0
+                zc = depth[y, x]
+                own = ids[y * w + x] if use_ids else ids[0]
+                for c in range(3):
+                    v = buf[y - ya, x, c]
+                    if r > 0 and px * min(reach[c], extents[g]) >= min_px:
+                        total = 0.0
+                        count = 0.0
+                        for ny in range(max(y - r, 0), min(y + r + 1, h)):
+                            for nx in range(max(x - r, 0), min(x + r + 1, w)):
+                                if not ok[ny, nx] or (use_ids and ids[ny * w + nx] != own):
+                                    continue
+                                if abs(depth[ny, nx] - zc) <= tol[c]:
+                                    total += np.float64(buf[ny - ya, nx, c])
+                                    count += 1.0
+                        v = f32(total / max(count, 1.0))
+                    out[y, x, c] = post[y, x, c] * v
 
 
 def light_table(lights) -> np.ndarray:
