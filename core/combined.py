@@ -22,9 +22,11 @@ saturated green, not pale). Real-time engines combine the two (HDRP's diffusion 
     (``core/transmittance.py``: Cycles' extinction 1 / l_c and single-scattering albedo from Base
     Color, entry refracted from the view, 256 segments), and W = Diffuse Color / Base Color (the
     walk divides the closure weight by Base Color: the colour comes from the medium, not the albedo).
-  - Christensen-Burley: its disk probes reach the far side with the profile at the 3-D distance,
-    whose integral over that side is Burley's T_c(x) = (e^{-x/d_c} + 3 e^{-x/(3 d_c)}) / 4, and the
-    closure keeps its weight: W = Diffuse Color.
+  - Christensen-Burley: its disk probes reach the far side and weigh each hit with the radial
+    profile at the 3-D distance over the one at the disk radius; integrated over the far side
+    that gives T_c(x) = int p(sqrt(rho^2 + x^2)) d rho (``core.transmittance.disk_table``), more
+    than the profile's own integral (e^{-x/d_c} + 3 e^{-x/(3 d_c)}) / 4; the closure keeps its
+    weight: W = Diffuse Color.
   - Without a material (``subsurface_method`` None), Burley's T_c with W = 1.
   - Lateral spread (with ``depth`` and ``camera``): the light leaves the visible side up to about
     the thickness away from where it entered the far side. Each pixel gathers the transmitted
@@ -58,6 +60,8 @@ from .ssss import TECHNIQUE as SSSS
 from .ssss import ssss
 from .sta import THICKNESS_CONVENTIONS, _norm, light_at
 from .transmittance import (
+    disk_spread,
+    disk_transmittance_rgb,
     lateral_spread,
     legacy_single_scattering_albedo,
     single_scattering_albedo,
@@ -127,8 +131,7 @@ class Medium:
     """What the light from behind needs to know of a material's random walk (``core/transmittance.py``):
     its subsurface method, Base Color, the IOR its camera paths refract through and its
     anisotropy. Christensen-Burley ("BURLEY") is not a walk: its disk probes find the far side
-    with the profile at the 3-D distance, whose integral over that side is Burley's
-    transmittance (module docstring)."""
+    (``core.transmittance.disk_table``, module docstring)."""
 
     method: str = "RANDOM_WALK"
     base_color: tuple = (0.8, 0.8, 0.8)
@@ -155,11 +158,14 @@ def view_cosine(normal, position, camera: Camera) -> np.ndarray:
 
 
 def slab_transmittance_rgb(x_su, length_su, medium: Medium | None, *, view_cos=None) -> np.ndarray:
-    """T_c through thickness ``x_su`` (..., 3) float32: Burley's transmittance with d = ``length_su``
-    when ``medium`` is None or Christensen-Burley, else the random walk's (``core.transmittance``,
-    ``length_su`` its mean free path per channel; ``view_cos`` the visible normal's cosine to the view)."""
-    if medium is None or not medium.walks:
+    """T_c through thickness ``x_su`` (..., 3) float32: Burley's law with d = ``length_su`` when
+    ``medium`` is None, Cycles' disk probes' for Christensen-Burley (``core.transmittance.disk_table``),
+    else the random walk's (``core.transmittance``, ``length_su`` its mean free path per channel;
+    ``view_cos`` the visible normal's cosine to the view)."""
+    if medium is None:
         return burley_transmittance_rgb(x_su, length_su)
+    if not medium.walks:
+        return disk_transmittance_rgb(x_su, length_su)
     return transmittance_rgb(
         x_su,
         length_su,
@@ -234,6 +240,10 @@ def spread_sigma(x_su: np.ndarray, length_su, medium: Medium | None) -> np.ndarr
             if lengths[c] > 0:
                 rms = lateral_spread(x / lengths[c], alpha[c]) * lengths[c]
                 out[..., c] = np.nan_to_num(rms, nan=float(np.nanmax(rms, initial=0.0))) / math.sqrt(2.0)
+        return out
+    if medium is not None:  # Christensen-Burley: the disk probes' weight over the far side
+        for c in range(3):
+            out[..., c] = disk_spread(x, lengths[c]) / math.sqrt(2.0)
         return out
     for c in range(3):
         d = lengths[c]

@@ -14,8 +14,9 @@ computed for an infinite slab:
   scaled by alpha / 0.2, as Cycles does;
 - the walk enters through the visible surface (the camera's path refracted into the medium: its
   cosine to the normal is mu0 = sqrt(1 - (1 - mu_v^2) / eta^2) for a view cosine mu_v; the Skin
-  method enters half of its paths cosine-distributed instead), flies exponential distances,
-  scatters isotropically (anisotropy through the similarity relation, below), and ends where it
+  method enters half of its paths cosine-distributed and refracts the other half about GGX
+  normals of roughness 1, which for a view along the normal are cosine-distributed), flies
+  exponential distances, scatters isotropically (anisotropy through the similarity relation, below), and ends where it
   crosses a surface: crossing the far side of the slab, it picks up the light there with a
   diffuse (Lambert) closure, E cos / pi; at most 256 segments (``BSSRDF_MAX_BOUNCES``), after
   which the path is dropped;
@@ -53,6 +54,8 @@ TAUS = np.concatenate(([0.0], np.geomspace(0.01, 64.0, 48)))
 #: first value the table is read at it) and the key of the cosine-distributed entry.
 ENTRY_COSINES = (0.5, 0.7, 0.85, 1.0)
 COSINE_ENTRY = "cosine"
+#: Key of the rough refractive entry: (ROUGH_ENTRY, ior).
+ROUGH_ENTRY = "ggx1"
 
 
 def single_scattering_albedo(base_color, anisotropy: float = 0.0) -> np.ndarray:
@@ -138,14 +141,21 @@ def reduced_medium(mfp, alpha, anisotropy: float = 0.0) -> tuple[np.ndarray, np.
 
 @functools.lru_cache(maxsize=8)
 def passage_table(entry) -> np.ndarray:
-    """P[t, n]: probability that a walk entering with cosine ``entry`` (a number in (0, 1], or
-    ``COSINE_ENTRY``) first reaches optical depth ``TAUS[t]`` after exactly n scatterings, n <
+    """P[t, n]: probability that a walk entering with cosine ``entry`` (a number in (0, 1],
+    ``COSINE_ENTRY`` or (``ROUGH_ENTRY``, ior)) first reaches optical depth ``TAUS[t]`` after exactly n scatterings, n <
     ``MAX_SEGMENTS``, without leaving through its entry plane. float64 (len(TAUS), MAX_SEGMENTS),
     read-only; a fixed-seed estimate from ``WALKS`` walks."""
     rng = np.random.default_rng(SEED)
     n = WALKS
     if entry == COSINE_ENTRY:
         mu = np.sqrt(rng.random(n))  # cosine-weighted hemisphere
+    elif isinstance(entry, tuple) and len(entry) == 2 and entry[0] == ROUGH_ENTRY:
+        # Refraction of a view along the normal about GGX microfacet normals of roughness 1 (the
+        # Skin method's refractive half): their visible distribution is then cosine-weighted.
+        eta = 1.0 / float(entry[1])
+        cos_h = np.sqrt(rng.random(n))
+        k = eta * cos_h - np.sqrt(np.maximum(1.0 - eta * eta * (1.0 - cos_h * cos_h), 0.0))
+        mu = np.clip(eta - k * cos_h, 1e-6, 1.0)  # -(wo . n), wo = -eta wi + k h, wi = n
     else:
         mu0 = float(entry)
         if not 0.0 < mu0 <= 1.0:
@@ -272,7 +282,8 @@ def transmittance_rgb(
     the material's Base Color, ``view_cos`` (same shape as ``x_su``, or None for 1) the cosine
     between the visible normal and the view, ``ior`` the index the camera's path refracts
     through, ``cosine_share`` the share of walks that enter cosine-distributed (0.5 for the Skin
-    method). ``legacy``: Random Walk (Legacy)'s medium (Chiang et al.'s albedo fit and, for g >= 0,
+    method, whose other half refracts at roughness 1 and is read for a view along the normal).
+    ``legacy``: Random Walk (Legacy)'s medium (Chiang et al.'s albedo fit and, for g >= 0,
     extinction 1 / (l (1 - g))). A channel with length 0 passes light only where x = 0."""
     x = np.asarray(x_su, np.float64)
     ell = _arrays.rgb_lengths(mfp_su, "mfp_su").astype(np.float64)
@@ -298,12 +309,15 @@ def transmittance_rgb(
             out[..., c] = (x == 0).astype(np.float32)
             continue
         tau = x / ell[c]
-        refracted = _interp_entry(tau, mu0, alpha[c])
         if cosine_share > 0:
-            refracted = (1.0 - cosine_share) * refracted + cosine_share * slab_transmittance(
-                tau, alpha[c], COSINE_ENTRY
-            )
-        out[..., c] = refracted
+            # The Skin method: half cosine-distributed, half refracted at roughness 1 (Cycles'
+            # fixed value for it), the view taken along the normal.
+            rough = (ROUGH_ENTRY, round(float(ior), 2))
+            out[..., c] = (1.0 - cosine_share) * slab_transmittance(
+                tau, alpha[c], rough
+            ) + cosine_share * slab_transmittance(tau, alpha[c], COSINE_ENTRY)
+        else:
+            out[..., c] = _interp_entry(tau, mu0, alpha[c])
     return out
 
 
@@ -319,3 +333,61 @@ def _interp_entry(tau: np.ndarray, mu0: np.ndarray, alpha: float) -> np.ndarray:
             w = (mu0[sel] - lo) / (hi - lo)
             out[sel] = (1.0 - w) * values[i][sel] + w * values[i + 1][sel]
     return out
+
+
+#: Christensen-Burley: Cycles truncates the profile at 16 d (``BURLEY_TRUNCATE``).
+DISK_TRUNCATE = 16.0
+#: Thicknesses x / d tabulated for the disk method, and quadrature points along the probe disk.
+DISK_U = np.linspace(0.0, DISK_TRUNCATE, 641)
+_DISK_POINTS = 4001
+
+
+@functools.lru_cache(maxsize=1)
+def disk_table() -> tuple[np.ndarray, np.ndarray]:
+    """(T(u), E[rho^2](u) / d^2) of Cycles' Christensen-Burley disk probes on a slab u = x / d thick.
+
+    ``subsurface_disk.h`` samples a disk radius rho from the radial profile p(r) = (e^{-r/d} +
+    e^{-r/(3d)}) / (4 d) (the profile R times 2 pi r, truncated at 16 d), probes along the normal
+    and weighs each hit by p(r) / p(rho) with r its 3-D distance (the MIS over the three probe
+    axes gives a plane parallel to the disk its own weight). The far side of a slab, x away, is
+    hit wherever the probe reaches it, rho <= sqrt((16 d)^2 - x^2), so it receives
+    T(x) = int_0^{sqrt((16 d)^2 - x^2)} p(sqrt(rho^2 + x^2)) d rho / P(16 d): more than the profile's
+    own integral over that side, 1 - P(x), since the weight's radius is the 3-D one. E[rho^2]
+    is the second moment of the same weight over rho (the lateral spread)."""
+    cdf = 1.0 - 0.25 * math.exp(-DISK_TRUNCATE) - 0.75 * math.exp(-DISK_TRUNCATE / 3.0)
+    t = np.zeros_like(DISK_U)
+    m2 = np.zeros_like(DISK_U)
+    for i, u in enumerate(DISK_U):
+        top = math.sqrt(max(DISK_TRUNCATE**2 - u * u, 0.0))
+        if top <= 0:
+            continue
+        rho = np.linspace(0.0, top, _DISK_POINTS)
+        r = np.sqrt(rho * rho + u * u)
+        p = (np.exp(-r) + np.exp(-r / 3.0)) / 4.0
+        t[i] = np.trapezoid(p, rho) / cdf
+        m2[i] = np.trapezoid(p * rho * rho, rho) / cdf / max(t[i], 1e-300)
+    t.setflags(write=False)
+    m2.setflags(write=False)
+    return t, m2
+
+
+def disk_transmittance_rgb(x_su, d_su) -> np.ndarray:
+    """T_c (..., 3) float32 of ``disk_table`` through thickness ``x_su`` for Burley's d per channel
+    (0 beyond 16 d; a channel with d = 0 passes light only where x = 0)."""
+    x = np.asarray(x_su, np.float64)
+    d = _arrays.rgb_lengths(d_su, "transmission_d_su").astype(np.float64)
+    t, _ = disk_table()
+    out = np.empty(x.shape + (3,), np.float32)
+    for c in range(3):
+        out[..., c] = np.interp(x / d[c], DISK_U, t, right=0.0) if d[c] > 0 else (x == 0)
+    return out
+
+
+def disk_spread(x_su, d) -> np.ndarray:
+    """RMS lateral distance (scene units) of ``disk_table``'s far-side weight at thickness ``x_su``
+    for Burley's d (one channel); 0 where d = 0."""
+    x = np.asarray(x_su, np.float64)
+    if d <= 0:
+        return np.zeros_like(x)
+    _, m2 = disk_table()
+    return np.sqrt(np.interp(x / d, DISK_U, m2, right=0.0)) * d

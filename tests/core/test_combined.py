@@ -149,7 +149,7 @@ def test_random_walk_material_uses_the_walk_transmittance_and_exit_weight():
     the material's mean free path, times Diffuse Color / Base Color (the walk divides the closure's
     weight by Base Color), not times the albedo's colour; Christensen-Burley keeps Burley's law
     times Diffuse Color."""
-    from sss_lab.core.transmittance import transmittance_rgb
+    from sss_lab.core.transmittance import disk_transmittance_rgb, transmittance_rgb
 
     kw = _slab(translucency=0.75)
     base = (0.8, 0.6, 0.5)
@@ -165,7 +165,8 @@ def test_random_walk_material_uses_the_walk_transmittance_and_exit_weight():
     np.testing.assert_allclose(walk[4, 4], expected, rtol=1e-5)
     assert walk[4, 4, 0] > walk[4, 4, 1] > walk[4, 4, 2] > 0
     disk = combined(**kw, lights=back, subsurface_method="BURLEY", **medium) - plain
-    expected_disk = [0.9 * b * 2 / math.pi * float(burley_transmittance(x, d)) for b, d in zip(base, mfp, strict=True)]
+    t_disk = disk_transmittance_rgb(np.array([x]), mfp)[0]
+    expected_disk = [0.9 * b * 2 / math.pi * t for b, t in zip(base, t_disk, strict=True)]
     np.testing.assert_allclose(disk[4, 4], expected_disk, rtol=1e-5)
 
 
@@ -174,7 +175,7 @@ def test_light_from_behind_spreads_by_the_walks_lateral_distance():
     lateral distance the walk covers through the slab: a uniform light stays uniform (the blur
     is renormalized over the material), a half-lit back spreads across the edge, and the blur's
     variance is the sigma asked for (three box filters: exact up to the box width's rounding)."""
-    from sss_lab.core.combined import _blur, spread_back_light, spread_sigma
+    from sss_lab.core.combined import Medium, _blur, spread_back_light, spread_sigma
 
     e = np.ones((N, N, 3), np.float32)
     m = np.ones((N, N), bool)
@@ -216,3 +217,6 @@ def test_light_from_behind_spreads_by_the_walks_lateral_distance():
     expected = math.sqrt(np.trapezoid((r * r - x * x) * w, r) / np.trapezoid(w, r) / 2)
     got = spread_sigma(np.array([x]), (d, d, d), None)[0, 0]
     assert got == pytest.approx(expected, rel=1e-4)
+    # Christensen-Burley's disk probes: the far side's weight over rho is wider than the law's.
+    disk = spread_sigma(np.array([x]), (d, d, d), Medium("BURLEY"))[0, 0]
+    assert disk > 0

@@ -96,3 +96,24 @@ def test_lateral_spread_of_the_walk():
     assert np.all((bright > 0.7) & (bright < 1.0))
     p, _ = tr.spread_table()
     np.testing.assert_allclose(p.sum(axis=1)[:30], tr.passage_table(1.0).sum(axis=1)[:30], atol=0.02)
+
+
+def test_disk_probes_far_side():
+    """Christensen-Burley's far side: T(0) = 1; the integral of p(sqrt(rho^2 + x^2)) over rho is
+    x (K1(x/d) + K1(x/(3d))) / (4 d) without the 16 d truncation, here with K1(z) = int_0^inf
+    e^{-z cosh t} cosh t dt by an independent quadrature (the truncation moves it by < 1 % at
+    x <= 4 d); it passes more than the profile's own integral 1 - P(x)."""
+    d = 0.005
+    x = np.array([0.0, 0.25, 1.0, 2.0, 4.0]) * d
+    t = tr.disk_transmittance_rgb(x, (d, d, d))[:, 0]
+    assert t[0] == pytest.approx(1.0, abs=1e-4)
+    s = np.linspace(0.0, 12.0, 120001)
+
+    def k1(z):
+        return np.trapezoid(np.exp(-z * np.cosh(s)) * np.cosh(s), s)
+
+    for xi, ti in zip(x[1:], t[1:], strict=True):
+        bessel = xi * (k1(xi / d) + k1(xi / (3 * d))) / (4 * d)
+        assert ti == pytest.approx(bessel, rel=1e-2)
+        assert ti > 0.25 * math.exp(-xi / d) + 0.75 * math.exp(-xi / (3 * d))
+    assert tr.disk_transmittance_rgb(np.array([17 * d]), (d, d, d))[0, 0] == 0.0
