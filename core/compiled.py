@@ -114,6 +114,105 @@ def _unit(x, y, z):
     return x * inv, y * inv, z * inv, length
 
 
+@njit(cache=True, error_model="numpy")
+def _sta_light(k, lights, position, y, x0, m, distortion, nxr, nyr, nzr, vxr, vyr, vzr, vd, lens, er):
+    """Light ``k`` over the row's span: V . normalize(L + d_T N) negated into ``vd``,
+    |L + d_T N| into ``lens`` and, for other lights than suns, the irradiance into ``er``
+    (a sun's is ``lights[k, 7]``). One loop per kind of light, so that each vectorizes."""
+    kind = int(lights[k, 0])
+    if kind == SUN:
+        lx = lights[k, 1]
+        ly = lights[k, 2]
+        lz = lights[k, 3]
+        for i in range(m):
+            ux = distortion * nxr[i]
+            ux += lx
+            uy = distortion * nyr[i]
+            uy += ly
+            uz = distortion * nzr[i]
+            uz += lz
+            length = ux * ux
+            length += uy * uy
+            length += uz * uz
+            length = math.sqrt(length)
+            vdot = vxr[i] * ux
+            vdot += vyr[i] * uy
+            vdot += vzr[i] * uz
+            vd[i] = vdot * (f32(-1.0) / (length if length > _TINY else _TINY))
+            lens[i] = length
+        return
+    cx = lights[k, 1]
+    cy = lights[k, 2]
+    cz = lights[k, 3]
+    ax = lights[k, 4]
+    ay = lights[k, 5]
+    az = lights[k, 6]
+    e7 = lights[k, 7]
+    half = lights[k, 11]
+    width = lights[k, 12]
+    smooth = lights[k, 13] != _ZERO
+    for i in range(m):
+        lx, ly, lz, dist = _unit(cx - position[y, x0 + i, 0], cy - position[y, x0 + i, 1], cz - position[y, x0 + i, 2])
+        r2 = dist * dist
+        r2 = r2 if r2 > _R2_MIN else _R2_MIN
+        if kind == AREA:
+            cos_l = lx * ax
+            cos_l += ly * ay
+            cos_l += lz * az
+            cos_l = -cos_l
+            cos_l = cos_l if cos_l > _ZERO else _ZERO
+            e = e7 * cos_l / r2
+        else:
+            e = e7 / r2
+            if kind == SPOT:
+                ca = lx * ax
+                ca += ly * ay
+                ca += lz * az
+                tc = -ca - half
+                cone = _ONE if tc > _ZERO else _ZERO
+                if smooth:
+                    u = _clip((tc - _ZERO) / width, _ONE)
+                    cone = cone * (u * u * (_THREE - _TWO * u))
+                e = e * cone
+        er[i] = e
+        ux = distortion * nxr[i]
+        ux += lx
+        uy = distortion * nyr[i]
+        uy += ly
+        uz = distortion * nzr[i]
+        uz += lz
+        length = ux * ux
+        length += uy * uy
+        length += uz * uz
+        length = math.sqrt(length)
+        vdot = vxr[i] * ux
+        vdot += vyr[i] * uy
+        vdot += vzr[i] * uz
+        vd[i] = vdot * (f32(-1.0) / (length if length > _TINY else _TINY))
+        lens[i] = length
+
+
+@njit(cache=True, error_model="numpy")
+def _sta_lobe(power, m, vd, lens):
+    """max(0, vd)^power in place (power 0: 1 where vd > 0), 0 where the direction vanished;
+    the common powers without a call to pow, so that the loop vectorizes."""
+    if power == _ZERO:
+        for i in range(m):
+            vd[i] = _ONE if vd[i] > _ZERO and lens[i] > _EPS else _ZERO
+    elif power == _TWO:
+        for i in range(m):
+            v = vd[i] if vd[i] > _ZERO else _ZERO
+            vd[i] = v * v if lens[i] > _EPS else _ZERO  # x^2 rounded once, as NumPy's square gives it
+    elif power == _ONE:
+        for i in range(m):
+            v = vd[i] if vd[i] > _ZERO else _ZERO
+            vd[i] = v if lens[i] > _EPS else _ZERO
+    else:
+        for i in range(m):
+            v = vd[i] if vd[i] > _ZERO else _ZERO
+            vd[i] = v**power if lens[i] > _EPS else _ZERO
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def sta_kernel(
     albedo,
@@ -139,8 +238,9 @@ def sta_kernel(
     ``light_table``; with ``burley`` each channel is scaled by the transmittance through
     ``distance`` sqrt(1 - t) for the profile lengths ``three_d`` = 3 d_c (0: no scattering).
 
-    Per row, one loop over the masked span per light (the light's kind fixed in the loop, so
-    that it vectorizes over the pixels), with the sums kept in row buffers."""
+    Per row, loops over the masked span that each do one thing for all its pixels (the
+    pixel's vectors; per light its lobe, ``_sta_light`` and ``_sta_lobe``, then its sum), with
+    the values kept in row buffers, so that every loop vectorizes over the pixels."""
     h, w = mask.shape
     n_lights = lights.shape[0]
     has_grey = False
@@ -155,8 +255,13 @@ def sta_kernel(
         if x0 >= x1:
             continue
         m = x1 - x0
-        buf = np.empty((11, m), np.float32)
-        nxr, nyr, nzr, vxr, vyr, vzr, tr, grey, c0, c1, c2 = buf
+        # One contiguous buffer per value (views of rows of one 2-D buffer would be strided
+        # arrays to Numba: gathers and scatters instead of vector loads and stores).
+        nxr, nyr, nzr = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
+        vxr, vyr, vzr = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
+        tr, grey, c0 = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
+        c1, c2 = np.empty(m, np.float32), np.empty(m, np.float32)
+        vd, lens, er = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
         okr = np.empty(m, np.bool_)
         for i in range(m):
             x = x0 + i
@@ -193,83 +298,35 @@ def sta_kernel(
             c2[i] = _ZERO
         first_grey = True
         for k in range(n_lights):
-            kind = int(lights[k, 0])
+            sun = int(lights[k, 0]) == SUN
             is_grey = lights[k, 14] != _ZERO
+            _sta_light(k, lights, position, y, x0, m, distortion, nxr, nyr, nzr, vxr, vyr, vzr, vd, lens, er)
+            _sta_lobe(power, m, vd, lens)
+            e_sun_pi = lights[k, 7] * f32(1.0 / math.pi)
+            sun_scale = scale * e_sun_pi
+            sun_ambient = ambient * e_sun_pi
+            col0 = lights[k, 8]
+            col1 = lights[k, 9]
+            col2 = lights[k, 10]
+            tint = is_grey and col0 != _ONE
             for i in range(m):
-                x = x0 + i
-                if kind == SUN:
-                    lx = lights[k, 1]
-                    ly = lights[k, 2]
-                    lz = lights[k, 3]
-                    e = lights[k, 7]
-                else:
-                    lx, ly, lz, dist = _unit(
-                        lights[k, 1] - position[y, x, 0],
-                        lights[k, 2] - position[y, x, 1],
-                        lights[k, 3] - position[y, x, 2],
-                    )
-                    r2 = dist * dist
-                    r2 = r2 if r2 > _R2_MIN else _R2_MIN
-                    if kind == AREA:
-                        cos_l = lx * lights[k, 4]
-                        cos_l += ly * lights[k, 5]
-                        cos_l += lz * lights[k, 6]
-                        cos_l = -cos_l
-                        cos_l = cos_l if cos_l > _ZERO else _ZERO
-                        e = lights[k, 7] * cos_l / r2
-                    else:
-                        e = lights[k, 7] / r2
-                        if kind == SPOT:
-                            ca = lx * lights[k, 4]
-                            ca += ly * lights[k, 5]
-                            ca += lz * lights[k, 6]
-                            tc = -ca - lights[k, 11]
-                            cone = _ONE if tc > _ZERO else _ZERO
-                            if lights[k, 13] != _ZERO:
-                                u = _clip((tc - _ZERO) / lights[k, 12], _ONE)
-                                cone = cone * (u * u * (_THREE - _TWO * u))
-                            e = e * cone
-                ux = distortion * nxr[i]
-                ux += lx
-                uy = distortion * nyr[i]
-                uy += ly
-                uz = distortion * nzr[i]
-                uz += lz
-                length = ux * ux
-                length += uy * uy
-                length += uz * uz
-                length = math.sqrt(length)
-                vdot = vxr[i] * ux
-                vdot += vyr[i] * uy
-                vdot += vzr[i] * uz
-                vdot *= f32(-1.0) / (length if length > _TINY else _TINY)
-                if power == _ZERO:
-                    lobe = _ONE if vdot > _ZERO else _ZERO
-                else:
-                    lobe = vdot if vdot > _ZERO else _ZERO
-                    if power == _TWO:
-                        lobe = lobe * lobe  # x^2 rounded once, as powf and NumPy's square give it
-                    elif power != _ONE:
-                        lobe = lobe**power
-                if length <= _EPS:
-                    lobe = _ZERO
-                e_pi = e * f32(1.0 / math.pi)
-                if kind == SUN:
-                    lobe *= scale * e_pi
+                lobe = vd[i]
+                if sun:
+                    lobe *= sun_scale
                     if ambient != _ZERO:
-                        lobe += ambient * e_pi
+                        lobe += sun_ambient
                 else:
                     lobe *= scale
                     lobe += ambient
-                    lobe *= e_pi
+                    lobe *= er[i] * f32(1.0 / math.pi)
                 if is_grey:
-                    if lights[k, 8] != _ONE:
-                        lobe *= lights[k, 8]
+                    if tint:
+                        lobe *= col0
                     grey[i] = lobe if first_grey else grey[i] + lobe
                 else:
-                    c0[i] += lights[k, 8] * lobe
-                    c1[i] += lights[k, 9] * lobe
-                    c2[i] += lights[k, 10] * lobe
+                    c0[i] += col0 * lobe
+                    c1[i] += col1 * lobe
+                    c2[i] += col2 * lobe
             if is_grey:
                 first_grey = False
         for i in range(m):
