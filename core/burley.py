@@ -336,14 +336,12 @@ def _compiled(light, z, ok, scale, ids, groups, n, d, inv3d, reach_c, random_rot
         extents[k] = extent_su
         if len(groups) > 1:
             group_map.ravel()[group] = k
-    if random_rotation:
-        rot_cos = np.zeros(ok.shape, f32)
-        rot_sin = np.zeros(ok.shape, f32)
-        idx = np.flatnonzero(ok)
-        phi = _rotation(idx, seed)
-        rot_cos.ravel()[idx] = np.cos(phi)
-        rot_sin.ravel()[idx] = np.sin(phi)
-        del idx, phi
+    zkey = np.empty(ok.shape, f32)
+    phi = np.empty(ok.shape if random_rotation else (1, 1), f32)
+    backend.run_kernel("burley_prepare", ok, c(z, dtype=f32), int(seed) & 0xFFFFFFFF, bool(random_rotation), zkey, phi)
+    if random_rotation:  # NumPy's cosine and sine, as the reference's
+        rot_sin = np.sin(phi)
+        rot_cos = np.cos(phi, out=phi)
     else:  # a rotation by 0 (cos 1, sin 0) leaves the spiral's angles exactly as they are
         rot_cos = np.ones((1, 1), f32)
         rot_sin = np.zeros((1, 1), f32)
@@ -354,7 +352,7 @@ def _compiled(light, z, ok, scale, ids, groups, n, d, inv3d, reach_c, random_rot
     backend.run_kernel(
         "burley_kernel",
         c(light, dtype=f32),
-        np.where(ok, z, f32(np.inf)).astype(f32, copy=False),
+        zkey,
         ok,
         c(scale, dtype=f32),
         id_map,

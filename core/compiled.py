@@ -553,6 +553,29 @@ def _burley_pixel(light, zkey, ids, q, xf, yf, s, rc, rsn, tables, g, k0, k1, k2
     sums[5] = d2
 
 
+@njit(cache=True, parallel=True, error_model="numpy")
+def burley_prepare(ok, depth, seed, rotate, zkey, phi):
+    """Burley's per-pixel inputs of the gather, in one pass: ``zkey`` the depth where ``ok``,
+    +inf elsewhere; with ``rotate``, ``phi`` the spiral's rotation angle of each pixel of
+    ``ok`` (0 elsewhere) from the integer hash of its flat index and ``seed`` (its low 32
+    bits, 0 <= seed < 2^32) that ``core.burley._rotation``
+    computes (the same unsigned 64-bit operations, so the same angle to the bit; the cosine and
+    sine are then NumPy's, as the reference's)."""
+    h, w = ok.shape
+    mixed_seed = np.uint64(seed)
+    to_angle = f32(2.0 * math.pi / (1 << 24))
+    for y in prange(h):
+        for x in range(w):
+            o = ok[y, x]
+            zkey[y, x] = depth[y, x] if o else _INF
+            if rotate:
+                v = (np.uint64(y * w + x) * np.uint64(0x9E3779B97F4A7C15)) ^ mixed_seed
+                v ^= v >> np.uint64(31)
+                v *= np.uint64(0xBF58476D1CE4E5B9)
+                v ^= v >> np.uint64(29)
+                phi[y, x] = f32(v >> np.uint64(40)) * to_angle if o else _ZERO
+
+
 #: Rows per work item of Burley's gather with the clean-up: each gathers its rows plus
 #: ``radius`` rows above and below (recomputed by the neighbouring item: 2 radius / BLOCK_ROWS
 #: more work) into a buffer that the clean-up reads, instead of a whole scattered frame.
