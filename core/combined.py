@@ -336,7 +336,7 @@ def transmission(
         x = slab_thickness(tt[lit], distance)
         tr = slab_transmittance_rgb(x, d_su, medium, view_cos=None if view_cos is None else view_cos[lit])
         out[lit] = e[lit] * tr
-    if depth is not None and camera is not None:
+    if depth is not None and camera is not None and lit.any():  # no light from behind: nothing to spread
         # The light a walk leaves with entered the far side up to about the thickness away.
         m = _arrays.mask_array(mask, e.shape[:2]) & ok
         ppu = camera.pixels_per_unit(_arrays.image(depth, "depth", None))
