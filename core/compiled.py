@@ -451,21 +451,33 @@ def ssss_kernel(light, key, ok, scale, offsets, weights, wsum, post, out):
         xa = strip * STRIP
         xb = min(xa + STRIP, w)
         m = xb - xa
-        lines = np.empty((m, 4, h + 1), np.float32)
+        # Rows ya..yb - 1 hold the strip's pixels that take part; the others, and the padding,
+        # are (0, 0, 0, +inf), as the pixels that take no part are.
+        ya = h
+        yb = 0
         for y in range(h):
+            for i in range(m):
+                if ok[y, xa + i]:
+                    ya = min(ya, y)
+                    yb = y + 1
+        if ya >= yb:
+            continue
+        lines = np.empty((m, 4, h + 1), np.float32)
+        for i in range(m):
+            for c in range(3):
+                lines[i, c, :ya] = _ZERO
+                lines[i, c, yb:] = _ZERO
+            lines[i, 3, :ya] = _INF
+            lines[i, 3, yb:] = _INF
+        for y in range(ya, yb):
             for i in range(m):
                 x = xa + i
                 o = ok[y, x]
                 lines[i, 0, y] = out[y, x, 0] if o else _ZERO
                 lines[i, 1, y] = out[y, x, 1] if o else _ZERO
                 lines[i, 2, y] = out[y, x, 2] if o else _ZERO
-                lines[i, 3, y] = key[y, x]
-        for i in range(m):
-            lines[i, 0, h] = _ZERO
-            lines[i, 1, h] = _ZERO
-            lines[i, 2, h] = _ZERO
-            lines[i, 3, h] = _INF
-        for y in range(h):  # row by row, so that the strip's row of the output is written at once
+                lines[i, 3, y] = key[y, x] if o else _INF
+        for y in range(ya, yb):  # row by row, so that the strip's row of the output is written at once
             for i in range(m):
                 x = xa + i
                 if ok[y, x]:
