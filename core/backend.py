@@ -174,7 +174,7 @@ def run_kernel(name: str, *args) -> None:
     module = compiled()
     kernel = getattr(module, name)
     start = time.perf_counter()
-    with numba.parallel_chunksize(module.ROWS_PER_CHUNK):
+    with numba.parallel_chunksize(module.CHUNKS.get(name, module.ROWS_PER_CHUNK)):
         kernel(*args)
     _compile_s.setdefault(name, time.perf_counter() - start)
 

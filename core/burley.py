@@ -336,41 +336,42 @@ def _compiled(light, z, ok, scale, ids, groups, n, d, inv3d, reach_c, random_rot
         extents[k] = extent_su
         if len(groups) > 1:
             group_map.ravel()[group] = k
-    zkey = np.empty(ok.shape, f32)
-    phi = np.empty(ok.shape if random_rotation else (1, 1), f32)
-    backend.run_kernel("burley_prepare", ok, c(z, dtype=f32), int(seed) & 0xFFFFFFFF, bool(random_rotation), zkey, phi)
-    if random_rotation:  # NumPy's cosine and sine, as the reference's
-        rot_sin = np.sin(phi)
-        rot_cos = np.cos(phi, out=phi)
-    else:  # a rotation by 0 (cos 1, sin 0) leaves the spiral's angles exactly as they are
-        rot_cos = np.ones((1, 1), f32)
-        rot_sin = np.zeros((1, 1), f32)
     id_map = np.zeros(1, np.int32) if ids is None else np.rint(ids).astype(np.int64).ravel()
     if id_map.size > 1 and np.iinfo(np.int32).min <= id_map.min() and id_map.max() <= np.iinfo(np.int32).max:
         id_map = id_map.astype(np.int32)  # the same ids, gathered 16 per 512-bit register instead of 8
+    zkey = np.empty(ok.shape, f32)
+    z = c(z, dtype=f32)
+    backend.run_kernel("burley_zkey", ok, z, zkey)
+    light = c(light, dtype=f32)
+    scale = c(scale, dtype=f32)
+    post = c(post, dtype=f32)
+    reach = np.asarray(reach_c, np.float64)
     tol = np.array([min(float(v), 3.0e38) for v in d], f32)
-    backend.run_kernel(
-        "burley_kernel",
-        c(light, dtype=f32),
-        zkey,
-        ok,
-        c(scale, dtype=f32),
-        id_map,
-        group_map,
-        tables,
-        rot_cos,
-        rot_sin,
-        inv3d,
-        np.asarray(reach_c, np.float64),
-        extents,
-        c(z, dtype=f32),
-        tol,
-        max(int(smooth_px), 0),
-        SMOOTH_MIN_FOOTPRINT_PX,
-        c(post, dtype=f32),
-        out,
-    )
+    radius = max(int(smooth_px), 0)
+    h = ok.shape[0]
+    # Bands of rows, each with the rotation of its rows (and of the clean-up's margin) only:
+    # two frames of cosines and sines would take more memory than the output.
+    band = h if not random_rotation else _BAND_ROWS
+    rot_cos = np.ones((1, 1), f32)  # a rotation by 0 (cos 1, sin 0) leaves the spiral as it is
+    rot_sin = np.zeros((1, 1), f32)
+    for y_lo in range(0, h, band):
+        y_hi = min(y_lo + band, h)
+        rot_y0 = 0
+        if random_rotation:
+            rot_y0 = max(y_lo - radius, 0)
+            phi = np.empty((min(y_hi + radius, h) - rot_y0, ok.shape[1]), f32)
+            backend.run_kernel("burley_angles", ok, int(seed) & 0xFFFFFFFF, rot_y0, phi)
+            rot_sin = np.sin(phi)  # NumPy's cosine and sine, as the reference's
+            rot_cos = np.cos(phi, out=phi)
+        backend.run_kernel(
+            "burley_kernel", light, zkey, ok, scale, id_map, group_map, tables, rot_cos, rot_sin, rot_y0, inv3d,
+            reach, extents, z, tol, radius, SMOOTH_MIN_FOOTPRINT_PX, post, y_lo, y_hi, out,
+        )  # fmt: skip
     return out
+
+
+#: Rows per band of the compiled gather (``_compiled``).
+_BAND_ROWS = 256
 
 
 #: Burley's spec (``core/spec.py``): 32 samples, the signature's default (EEVEE Next uses 16 per

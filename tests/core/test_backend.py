@@ -187,3 +187,19 @@ def test_burley_rotation_of_any_seed_matches_the_reference(seed):
         diffuse=passes["Diffuse Direct"] + passes["Diffuse Indirect"], albedo=albedo, depth=passes["Depth"],
         mask=passes["Material Index"] > 0, camera=scene.camera, d_su=(0.04, 0.016, 0.008), seed=seed,
     )  # fmt: skip
+
+
+def test_burley_tiles_and_bands_match_the_reference(monkeypatch):
+    # The compiled gather works on tiles of 32 rows x 256 columns within bands of rows (each
+    # band with its own rotation): a frame wider than a tile, cut into bands of 16 rows here,
+    # against the reference, with object ids and the clean-up's margins across tiles and bands.
+    from sss_lab.core import burley as burley_module
+
+    monkeypatch.setattr(burley_module, "_BAND_ROWS", 16)
+    passes, scene, albedo, _ = _scene(300, 40)
+    out = burley(
+        diffuse=passes["Diffuse Direct"] + passes["Diffuse Indirect"], albedo=albedo, depth=passes["Depth"],
+        mask=passes["Material Index"] > 0, camera=scene.camera, d_su=(0.2, 0.08, 0.04),
+        object_id=passes["Object Index"], seed=11,
+    )  # fmt: skip
+    assert np.isfinite(out).all()
