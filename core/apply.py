@@ -71,7 +71,9 @@ def _inputs(spec: Technique, passes: Passes, scene: SceneDescription, albedo_mod
         "lights": scene.lights,
         "thickness_convention": scene.thickness_convention,
     }
-    for name in spec.passes:
+    names = [n for n in spec.passes]
+    names += [n for n in spec.optional_passes if (scene.thickness_aov if n == THICKNESS else n) in passes.names]
+    for name in names:
         keyword = _PASS_KEYWORDS.get(name)
         if keyword is None:
             continue

@@ -26,7 +26,9 @@ import math
 import numpy as np
 
 from . import _arrays, backend
+from .energy import ENERGY_PARAM, apply_energy, energy_inputs
 from .extent import group_extents, object_extent
+from .passes import THICKNESS
 from .profiles import TRUNCATION, burley_icdf
 from .scene import Camera
 from .spec import CALIBRATE_MAPPING, Param, Technique, profile_footprint
@@ -152,6 +154,16 @@ def burley(
     seed: int = 0,
     smooth_px: int = 1,
     albedo_mode: str = "post",
+    energy: str = "view",
+    subsurface_method: str | None = None,
+    normal=None,
+    position=None,
+    thickness=None,
+    lights=(),
+    mfp_su=None,
+    thickness_distance_su: float = 0.0,
+    thickness_convention: str = "translucency",
+    lamps_behind: bool = True,
 ) -> np.ndarray:
     """Burley normalized diffusion of the diffuse light, with the albedo applied.
 
@@ -159,8 +171,47 @@ def burley(
     ``depth`` (H, W) planar view depth (1e10 background); ``mask`` (H, W) bool; ``d_su`` the
     profile's d per channel (R, G, B) in scene units (``core.mapping.burley_d``); ``object_id``
     (H, W) optional: samples from another id are rejected. ``n_samples`` 1..4096.
+    ``energy``: how the light on the mask follows Cycles' ``subsurface_method``
+    (``core.energy.apply_energy``; None: no method, no change): "view" (default) its dependence
+    on the view angle with each channel's total kept, "cycles" the modelled energy too (with
+    ``thickness``, ``normal``, ``position``, ``lights``, ``mfp_su`` and ``thickness_distance_su``
+    the light a finite object loses through its far side and receives there), "lambert" the
+    passes' light as it is.
     Returns float32 (H, W, 3): albedo x scattered light on the mask, albedo x diffuse elsewhere.
     """
+    out = _gather(
+        diffuse=diffuse,
+        albedo=albedo,
+        depth=depth,
+        mask=mask,
+        camera=camera,
+        d_su=d_su,
+        object_id=object_id,
+        n_samples=n_samples,
+        random_rotation=random_rotation,
+        seed=seed,
+        smooth_px=smooth_px,
+        albedo_mode=albedo_mode,
+    )
+    return apply_energy(out, **energy_inputs(locals()))
+
+
+def _gather(
+    *,
+    diffuse,
+    albedo,
+    depth,
+    mask,
+    camera: Camera,
+    d_su,
+    object_id,
+    n_samples: int,
+    random_rotation: bool,
+    seed: int,
+    smooth_px: int,
+    albedo_mode: str,
+) -> np.ndarray:
+    """``burley`` without the entry energy."""
     if not isinstance(camera, Camera):
         raise ValueError(f"camera: expected a core.scene.Camera, got {type(camera).__name__}")
     _arrays.check_albedo_mode(albedo_mode)
@@ -385,6 +436,8 @@ TECHNIQUE = Technique(
     function=burley,
     scatters=True,
     adds_light=False,
+    # The finite-object part of the energy (core/energy.py) when the passes hold them.
+    optional_passes=("Normal", "Position", THICKNESS),
     passes=(
         "Combined",
         "Diffuse Direct",
@@ -405,6 +458,7 @@ TECHNIQUE = Technique(
             soft_max=128,
         ),
         Param("random_rotation", "Random Rotation", "Rotate the spiral per pixel: noise instead of banding", type=bool),
+        ENERGY_PARAM,
     ),
     qualities=({"n_samples": 8}, {"n_samples": 16}, {"n_samples": 32}, {"n_samples": 64}),
     default_quality=2,

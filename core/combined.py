@@ -388,6 +388,7 @@ def combined(
     base_color=(0.8, 0.8, 0.8),
     subsurface_ior: float = 1.4,
     subsurface_anisotropy: float = 0.0,
+    energy: str = "view",
 ) -> np.ndarray:
     """Diffusion of the visible light plus transmission of the light from behind, float32 (H, W, 3).
 
@@ -403,7 +404,8 @@ def combined(
     ``core/fit_params.py``), not the transmitted light, whose level is ``transmission_scale``.
     Returns, like Burley and SSSS, the albedo-applied scattered light on the mask (plus the
     transmitted light) and albedo x diffuse elsewhere. Formula, sources and why nothing is
-    counted twice: the module docstring.
+    counted twice: the module docstring. ``energy``: the diffusion's entry energy, as
+    Burley's (``core.energy``).
     """
     if diffusion not in DIFFUSIONS:
         raise ValueError(f"diffusion: {diffusion!r} is not one of {', '.join(DIFFUSIONS)}")
@@ -417,6 +419,20 @@ def combined(
         d_tr = _arrays.rgb_lengths(mfp_su, "mfp_su")
     else:
         d_tr = d
+    # The diffusion's energy (core/energy.py); the transmission below carries the lamps' light
+    # from behind, so the diffusion's unseen-side light leaves them out.
+    energy_kw = {
+        "energy": energy,
+        "subsurface_method": subsurface_method,
+        "normal": normal,
+        "position": position,
+        "thickness": thickness,
+        "lights": lights,
+        "mfp_su": mfp_su,
+        "thickness_distance_su": thickness_distance_su,
+        "thickness_convention": thickness_convention,
+        "lamps_behind": False,
+    }
     if diffusion == "burley":
         out = burley(
             diffuse=diffuse,
@@ -431,6 +447,7 @@ def combined(
             seed=seed,
             smooth_px=smooth_px,
             albedo_mode=albedo_mode,
+            **energy_kw,
         )
     else:
         out = ssss(
@@ -442,6 +459,7 @@ def combined(
             n_taps=n_taps,
             d_su=tuple(d),
             albedo_mode=albedo_mode,
+            **energy_kw,
         )
     g = _arrays.rgb_lengths(gain, "gain").astype(np.float32)
     m = _arrays.mask_array(mask, out.shape[:2])
@@ -521,6 +539,7 @@ TECHNIQUE = Technique(
         _own(BURLEY.param("n_samples")),
         _own(SSSS.param("n_taps")),
         _own(BURLEY.param("random_rotation")),
+        _own(BURLEY.param("energy")),
         Param(
             "transmission_scale",
             "Light from Behind",

@@ -130,6 +130,10 @@ def measure(technique: str, material: MaterialSSS, *, mapping=None, options=None
         params = {**_mapping.technique_params(material, spec, mapping=mapping), **(options or {})}
         # A technique that also adds light is measured on its diffusion alone: no light from behind.
         params |= spec.diffusion_only
+        # The table measures how the technique moves the passes' light: without the Cycles method's
+        # energy (core/energy.py), a per-pixel gain measured and reported apart.
+        if "energy" in spec.keywords:
+            params["energy"] = "lambert"
         out = np.asarray(
             func(diffuse=diffuse, albedo=albedo, depth=depth, mask=mask, camera=camera, **params), dtype=np.float64
         )

@@ -139,7 +139,9 @@ def technique_params(material: MaterialSSS, technique, *, mapping=None, use_fit:
     ``d_su`` is the profile's d per channel in scene units: Burley gathers over it, SSSS builds
     its kernel from it (``core.kernels``), both reaching 16 d (the truncation shared with
     Cycles), STA's "burley" falloff and the combined technique's transmittance read it.
-    ``thickness_distance_su`` is the bake distance the thickness map stands for. When the
+    ``thickness_distance_su`` is the bake distance the thickness map stands for;
+    ``subsurface_method`` the Cycles method whose entry energy the diffusions keep
+    (``core.energy``). When the
     material carries a fit for ``technique`` (``MaterialSSS.fit``, made by ``core/fit.py``) and
     ``use_fit`` is true, its values replace the defaults: d times ``d_scale``, the
     transmission's scale and d, STA's scale, and ``gain`` (applied by ``core.apply`` to the

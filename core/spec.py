@@ -180,6 +180,10 @@ class Technique:
     passes: tuple[str, ...]
     #: The parameters a user may set (panel, command line, compare); defaults from the signature.
     params: tuple[Param, ...] = ()
+    #: Passes it reads when the passes hold them (its keyword is then given, else left at its
+    #: default); neither ``apply`` nor ``render`` requires them (another technique's passes bring
+    #: them: the combined technique's Normal, Position and thickness AOV).
+    optional_passes: tuple[str, ...] = ()
     #: ``compare``'s quality ladder, cheapest first: keyword arguments per run.
     qualities: tuple[Mapping[str, Any], ...] = ({},)
     #: Index into ``qualities`` of the run equal to the defaults (the summary picture shows it).
@@ -202,6 +206,9 @@ class Technique:
         unknown = [p for p in self.passes if p != THICKNESS and p not in PASSES]
         if unknown:
             raise TypeError(f"{where}: passes {unknown} are not in the pass table (core/passes.py)")
+        unknown = [p for p in self.optional_passes if p != THICKNESS and p not in PASSES]
+        if unknown:
+            raise TypeError(f"{where}: optional passes {unknown} are not in the pass table (core/passes.py)")
         for needed in ("Combined", "Material Index"):
             if needed not in self.passes:
                 raise TypeError(f"{where}: every technique reads {needed!r}; add it to its passes")

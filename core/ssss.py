@@ -23,8 +23,10 @@ from __future__ import annotations
 import numpy as np
 
 from . import _arrays, backend
+from .energy import ENERGY_PARAM, apply_energy, energy_inputs
 from .extent import object_extent
 from .kernels import SeparableKernel, bounded, check_taps, make_kernel
+from .passes import THICKNESS
 from .scene import Camera
 from .spec import CALIBRATE_MAPPING, Param, Technique, profile_footprint
 
@@ -189,6 +191,16 @@ def ssss(
     strength=None,
     follow_surface: bool = True,
     albedo_mode: str = "post",
+    energy: str = "view",
+    subsurface_method: str | None = None,
+    normal=None,
+    position=None,
+    thickness=None,
+    lights=(),
+    mfp_su=None,
+    thickness_distance_su: float = 0.0,
+    thickness_convention: str = "translucency",
+    lamps_behind: bool = True,
 ) -> np.ndarray:
     """Separable SSS of the diffuse light, with the albedo applied.
 
@@ -198,11 +210,50 @@ def ssss(
     footprint in pixels. The kernel is ``kernel`` or built by ``core.kernels.make_kernel`` from
     ``kernel_type``, ``n_taps`` (odd: 11, 17, 25), ``d_su`` (the Burley d per channel, scene
     units) and the artist parameters. ``albedo_mode`` "post": A x filter(E); "pre-post":
-    sqrt(A) x filter(sqrt(A) E).
+    sqrt(A) x filter(sqrt(A) E). ``energy``, ``subsurface_method`` and the inputs of
+    the modelled energy (``normal``, ``position``, ``thickness``, ``lights``, ``mfp_su``,
+    ``thickness_distance_su``): as ``core.burley.burley``'s (``core.energy.apply_energy``).
 
     Returns float32 (H, W, 3): on the mask, the filtered light times the albedo; elsewhere,
     albedo x diffuse unchanged (NaN/Inf pixels keep their value and give no light).
     """
+    out = _filter(
+        diffuse=diffuse,
+        albedo=albedo,
+        depth=depth,
+        mask=mask,
+        camera=camera,
+        kernel=kernel,
+        kernel_type=kernel_type,
+        n_taps=n_taps,
+        d_su=d_su,
+        unit_su=unit_su,
+        falloff=falloff,
+        strength=strength,
+        follow_surface=follow_surface,
+        albedo_mode=albedo_mode,
+    )
+    return apply_energy(out, **energy_inputs(locals()))
+
+
+def _filter(
+    *,
+    diffuse,
+    albedo,
+    depth,
+    mask,
+    camera: Camera,
+    kernel: SeparableKernel | None,
+    kernel_type: str,
+    n_taps: int,
+    d_su,
+    unit_su: float | None,
+    falloff,
+    strength,
+    follow_surface: bool,
+    albedo_mode: str,
+) -> np.ndarray:
+    """``ssss`` without the entry energy."""
     if not isinstance(camera, Camera):
         raise ValueError(f"camera: expected a core.scene.Camera, got {type(camera).__name__}")
     _arrays.check_albedo_mode(albedo_mode)
@@ -315,6 +366,8 @@ TECHNIQUE = Technique(
     function=ssss,
     scatters=True,
     adds_light=False,
+    # The finite-object part of the energy (core/energy.py) when the passes hold them.
+    optional_passes=("Normal", "Position", THICKNESS),
     passes=("Combined", "Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Depth", "Material Index"),
     params=(
         Param(
@@ -334,6 +387,7 @@ TECHNIQUE = Technique(
                 ("artist", "Artist", "Jimenez et al.'s artist-friendly kernel (strength and falloff per channel)"),
             ),
         ),
+        ENERGY_PARAM,
     ),
     qualities=({"n_taps": 11}, {"n_taps": 17}, {"n_taps": 25}),
     default_quality=1,

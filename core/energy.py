@@ -1,0 +1,438 @@
+"""The light Cycles' subsurface methods return, against a Lambert surface of the same Base Color.
+
+The techniques read passes rendered with Subsurface Weight 0: plain diffuse (Lambert) light.
+They redistribute it and keep its energy. Cycles' methods return another amount of light, for
+two reasons this module models (docs/references.md §15), each from canonical Cycles renders
+(``benchmarks/energy.py``; tables below, in ``benchmarks/results/energy.json``):
+
+1. **The entry** (a convention of the method, the same for every object). In Random Walk,
+   Random Walk (Legacy) and Random Walk (Skin) the camera path enters the medium refracted through
+   the rough surface (Cycles 5.2 ``kernel/integrator/subsurface.h``, ``subsurface_entry_bounce``)
+   and walks until it leaves; where it leaves, a Lambert BSDF of weight 1 gathers the light
+   (``subsurface_shader_data_setup``). The single-scattering albedo is inverted from Base Color
+   so that a half-space under *diffuse* incidence returns about Base Color; a walk that starts
+   along the normal goes deeper and is absorbed more often. So a semi-infinite medium returns
+   ``SEMI_INFINITE`` times the Lambert light: a function of the albedo and of the view angle at
+   the pixel (through the refraction), not of where the light comes from (the exit is
+   Lambertian, as for the passes). Christensen-Burley returns exactly the Lambert light.
+   ``entry_gain`` interpolates it per pixel and channel (bilinear in the albedo and the view
+   cosine, which ``view_cosine`` reconstructs from the Depth pass).
+2. **A finite object** (``slab_factors``). The visible surface of an object of thickness x (the
+   baked thickness map read as a slab, ``core/thickness.py``) returns ``SLAB_ABOVE`` of the thick
+   object's light: the rest leaves through the far side. And light that enters the far side comes
+   through: ``SLAB_BELOW`` of the irradiance there, both per albedo and thickness in mean free
+   paths, measured on slabs. The irradiance of the surfaces the camera does not see
+   (``unseen_irradiance``) is estimated once per material: each lamp's irradiance on the visible
+   normals mirrored through the view plane (the back of a convex object), unshadowed, plus the
+   visible light that the lamps do not explain (a world or bounce light, taken to reach the
+   unseen side alike).
+
+The diffusion techniques' ``energy`` parameter chooses: "view" (their default) applies the
+entry's dependence on the view angle and keeps each material's light per channel as the passes
+give it (on the suite and on scenes outside it, the level of the modelled light is less reliable
+than its shape: docs/references.md §15); "cycles" returns entry x (their light x f_above + albedo
+x f_below x E_unseen), with only the entry when there is no thickness map or no Normal and
+Position passes (rendered with the combined technique's passes); "lambert" keeps the passes'
+light as it is. The constants are the tables; nothing is fitted to a scene.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _arrays
+from .scene import Camera
+from .spec import Param
+
+#: Choices of the techniques' ``energy`` parameter (``apply_energy``).
+ENERGY_MODES = ("view", "cycles", "lambert")
+
+#: The diffusion techniques' ``energy`` parameter (Burley, SSSS, the combined technique).
+ENERGY_PARAM = Param(
+    "energy",
+    "Energy",
+    "Whose energy the scattered light keeps",
+    type=str,
+    choices=(
+        (
+            "view",
+            "View Angle",
+            "The passes' light of each material, spread over the view angles as the Cycles method returns it",
+        ),
+        (
+            "cycles",
+            "Cycles Model",
+            "The Cycles method's light: its entry per view angle and albedo, and a finite object's far side",
+        ),
+        ("lambert", "Lambert", "The passes' plain diffuse light"),
+    ),
+)
+
+#: View angles (degrees from the surface normal) and albedos of ``SEMI_INFINITE``.
+VIEW_DEG = (0.0, 20.0, 40.0, 55.0, 65.0, 75.0, 85.0)
+ALBEDO = (0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95)
+
+#: Slab thicknesses (mean free paths, ``core.mapping.mean_free_path``) and albedos of ``SLAB_ABOVE``
+#: and ``SLAB_BELOW``.
+SLAB_MFPS = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 128.0)
+SLAB_ALBEDO = (0.2, 0.35, 0.5, 0.65, 0.8, 0.92)
+
+#: Method -> rows per albedo of ``SLAB_ALBEDO``, columns per thickness of ``SLAB_MFPS``: a slab's
+#: top face seen straight on, lit straight from above (``SLAB_ABOVE``) or from below
+#: (``SLAB_BELOW``), over a Lambert top face lit from above; 64 samples. ``SEMI_INFINITE``: method ->
+#: rows per view angle of ``VIEW_DEG``, columns per albedo of ``ALBEDO``: the light of the method
+#: over Lambert's, semi-infinite medium, IOR 1.45, Roughness 0.35, 128 samples.
+#: ``python -m benchmarks.energy --write-table`` rewrites this block from the measurements.
+# BEGIN TABLE
+SEMI_INFINITE: dict[str, tuple[tuple[float, ...], ...]] = {
+    "RANDOM_WALK": (
+        (0.781, 0.793, 0.799, 0.806, 0.831, 0.855, 0.876, 0.901, 0.926, 0.948, 0.952, 0.935),  # 0 deg
+        (0.791, 0.808, 0.807, 0.824, 0.842, 0.868, 0.880, 0.908, 0.932, 0.952, 0.954, 0.936),  # 20 deg
+        (0.831, 0.845, 0.849, 0.862, 0.876, 0.898, 0.909, 0.931, 0.948, 0.964, 0.962, 0.943),  # 40 deg
+        (0.875, 0.888, 0.886, 0.896, 0.908, 0.923, 0.935, 0.949, 0.964, 0.975, 0.969, 0.948),  # 55 deg
+        (0.913, 0.927, 0.923, 0.926, 0.936, 0.949, 0.957, 0.965, 0.976, 0.983, 0.974, 0.951),  # 65 deg
+        (0.957, 0.972, 0.961, 0.969, 0.970, 0.980, 0.978, 0.986, 0.990, 0.994, 0.980, 0.955),  # 75 deg
+        (1.055, 1.047, 1.046, 1.036, 1.032, 1.027, 1.024, 1.017, 1.014, 1.008, 0.988, 0.963),  # 85 deg
+    ),
+    "RANDOM_WALK_SKIN": (
+        (0.904, 0.914, 0.912, 0.920, 0.934, 0.947, 0.955, 0.968, 0.978, 0.992, 0.996, 0.961),  # 0 deg
+        (0.915, 0.929, 0.924, 0.929, 0.944, 0.959, 0.961, 0.973, 0.983, 0.995, 0.997, 0.960),  # 20 deg
+        (0.956, 0.967, 0.964, 0.970, 0.975, 0.987, 0.986, 0.994, 0.998, 1.005, 1.003, 0.966),  # 40 deg
+        (1.007, 1.013, 1.011, 1.014, 1.014, 1.015, 1.014, 1.014, 1.014, 1.015, 1.007, 0.970),  # 55 deg
+        (1.060, 1.068, 1.060, 1.056, 1.050, 1.047, 1.039, 1.033, 1.028, 1.024, 1.010, 0.973),  # 65 deg
+        (1.130, 1.139, 1.117, 1.114, 1.097, 1.089, 1.069, 1.056, 1.045, 1.036, 1.017, 0.975),  # 75 deg
+        (1.251, 1.236, 1.219, 1.195, 1.164, 1.139, 1.113, 1.084, 1.064, 1.047, 1.023, 0.982),  # 85 deg
+    ),
+    "RANDOM_WALK_LEGACY": (
+        (0.771, 0.786, 0.796, 0.805, 0.836, 0.861, 0.884, 0.910, 0.936, 0.964, 0.981, 0.946),  # 0 deg
+        (0.781, 0.802, 0.804, 0.823, 0.846, 0.874, 0.889, 0.917, 0.942, 0.968, 0.983, 0.947),  # 20 deg
+        (0.821, 0.839, 0.846, 0.862, 0.880, 0.905, 0.918, 0.939, 0.959, 0.979, 0.989, 0.953),  # 40 deg
+        (0.863, 0.882, 0.883, 0.896, 0.913, 0.930, 0.942, 0.958, 0.974, 0.989, 0.994, 0.958),  # 55 deg
+        (0.901, 0.920, 0.920, 0.926, 0.940, 0.956, 0.965, 0.974, 0.986, 0.998, 0.998, 0.961),  # 65 deg
+        (0.944, 0.965, 0.959, 0.969, 0.974, 0.988, 0.986, 0.995, 1.000, 1.008, 1.003, 0.963),  # 75 deg
+        (1.041, 1.040, 1.043, 1.036, 1.037, 1.034, 1.032, 1.025, 1.023, 1.022, 1.011, 0.971),  # 85 deg
+    ),
+}
+SLAB_ABOVE: dict[str, tuple[tuple[float, ...], ...]] = {
+    "RANDOM_WALK": (
+        (0.484, 0.666, 0.782, 0.809, 0.812, 0.802, 0.811, 0.810),  # albedo 0.2
+        (0.413, 0.613, 0.781, 0.839, 0.840, 0.838, 0.840, 0.845),  # albedo 0.35
+        (0.352, 0.547, 0.753, 0.860, 0.873, 0.873, 0.877, 0.877),  # albedo 0.5
+        (0.297, 0.480, 0.698, 0.856, 0.903, 0.910, 0.913, 0.916),  # albedo 0.65
+        (0.254, 0.414, 0.625, 0.811, 0.915, 0.946, 0.948, 0.948),  # albedo 0.8
+        (0.223, 0.369, 0.561, 0.746, 0.875, 0.942, 0.947, 0.948),  # albedo 0.92
+    ),
+    "RANDOM_WALK_SKIN": (
+        (0.607, 0.793, 0.906, 0.920, 0.926, 0.915, 0.930, 0.920),  # albedo 0.2
+        (0.520, 0.728, 0.892, 0.939, 0.941, 0.935, 0.943, 0.941),  # albedo 0.35
+        (0.440, 0.645, 0.851, 0.941, 0.957, 0.952, 0.960, 0.956),  # albedo 0.5
+        (0.374, 0.566, 0.782, 0.924, 0.968, 0.969, 0.974, 0.975),  # albedo 0.65
+        (0.309, 0.476, 0.687, 0.855, 0.959, 0.989, 0.993, 0.992),  # albedo 0.8
+        (0.263, 0.412, 0.602, 0.774, 0.905, 0.980, 0.988, 0.990),  # albedo 0.92
+    ),
+    "RANDOM_WALK_LEGACY": (
+        (0.484, 0.666, 0.782, 0.809, 0.812, 0.802, 0.811, 0.810),  # albedo 0.2
+        (0.414, 0.616, 0.784, 0.844, 0.846, 0.844, 0.844, 0.852),  # albedo 0.35
+        (0.354, 0.550, 0.759, 0.867, 0.881, 0.881, 0.886, 0.886),  # albedo 0.5
+        (0.298, 0.481, 0.702, 0.863, 0.913, 0.921, 0.921, 0.927),  # albedo 0.65
+        (0.255, 0.415, 0.628, 0.817, 0.927, 0.962, 0.964, 0.963),  # albedo 0.8
+        (0.224, 0.370, 0.564, 0.753, 0.891, 0.968, 0.977, 0.977),  # albedo 0.92
+    ),
+    "BURLEY": (
+        (1.004, 0.990, 0.990, 0.998, 0.998, 0.999, 0.999, 1.001),  # albedo 0.2
+        (1.004, 0.991, 0.991, 0.998, 0.998, 1.000, 1.000, 1.001),  # albedo 0.35
+        (1.004, 0.990, 0.990, 0.998, 0.998, 0.999, 0.999, 1.001),  # albedo 0.5
+        (1.004, 0.991, 0.991, 0.998, 0.998, 1.000, 1.000, 1.001),  # albedo 0.65
+        (1.004, 0.990, 0.990, 0.998, 0.998, 0.999, 0.999, 1.001),  # albedo 0.8
+        (1.004, 0.991, 0.991, 0.998, 0.998, 1.000, 1.000, 1.001),  # albedo 0.92
+    ),
+}
+SLAB_BELOW: dict[str, tuple[tuple[float, ...], ...]] = {
+    "RANDOM_WALK": (
+        (3.463, 2.380, 1.068, 0.202, 0.007, 0.000, 0.000, 0.000),  # albedo 0.2
+        (2.106, 1.560, 0.827, 0.222, 0.015, 0.000, 0.000, 0.000),  # albedo 0.35
+        (1.530, 1.200, 0.731, 0.278, 0.039, 0.001, 0.000, 0.000),  # albedo 0.5
+        (1.204, 0.975, 0.657, 0.327, 0.091, 0.007, 0.000, 0.000),  # albedo 0.65
+        (0.988, 0.817, 0.581, 0.346, 0.156, 0.036, 0.005, 0.000),  # albedo 0.8
+        (0.863, 0.716, 0.520, 0.329, 0.186, 0.077, 0.006, 0.000),  # albedo 0.92
+    ),
+    "RANDOM_WALK_SKIN": (
+        (3.108, 2.002, 0.818, 0.139, 0.004, 0.000, 0.000, 0.000),  # albedo 0.2
+        (1.928, 1.365, 0.680, 0.173, 0.011, 0.000, 0.000, 0.000),  # albedo 0.35
+        (1.419, 1.076, 0.627, 0.234, 0.032, 0.001, 0.000, 0.000),  # albedo 0.5
+        (1.121, 0.882, 0.574, 0.283, 0.079, 0.007, 0.000, 0.000),  # albedo 0.65
+        (0.932, 0.756, 0.525, 0.318, 0.146, 0.040, 0.007, 0.000),  # albedo 0.8
+        (0.823, 0.675, 0.485, 0.311, 0.181, 0.091, 0.012, 0.000),  # albedo 0.92
+    ),
+    "RANDOM_WALK_LEGACY": (
+        (3.463, 2.379, 1.068, 0.202, 0.007, 0.000, 0.000, 0.000),  # albedo 0.2
+        (2.107, 1.563, 0.830, 0.224, 0.015, 0.000, 0.000, 0.000),  # albedo 0.35
+        (1.531, 1.203, 0.734, 0.282, 0.040, 0.001, 0.000, 0.000),  # albedo 0.5
+        (1.205, 0.977, 0.660, 0.332, 0.094, 0.008, 0.000, 0.000),  # albedo 0.65
+        (0.988, 0.818, 0.583, 0.351, 0.163, 0.042, 0.007, 0.000),  # albedo 0.8
+        (0.863, 0.717, 0.523, 0.334, 0.195, 0.092, 0.009, 0.000),  # albedo 0.92
+    ),
+    "BURLEY": (
+        (0.927, 0.836, 0.640, 0.367, 0.118, 0.000, 0.000, 0.000),  # albedo 0.2
+        (0.927, 0.836, 0.640, 0.368, 0.118, 0.000, 0.000, 0.000),  # albedo 0.35
+        (0.927, 0.836, 0.640, 0.367, 0.118, 0.000, 0.000, 0.000),  # albedo 0.5
+        (0.927, 0.836, 0.640, 0.368, 0.118, 0.000, 0.000, 0.000),  # albedo 0.65
+        (0.927, 0.836, 0.640, 0.367, 0.118, 0.000, 0.000, 0.000),  # albedo 0.8
+        (0.927, 0.836, 0.640, 0.368, 0.118, 0.000, 0.000, 0.000),  # albedo 0.92
+    ),
+}
+# END TABLE
+
+
+def _nodes(values) -> np.ndarray:
+    return np.asarray(values, dtype=np.float64)
+
+
+def entry_gain(method: str, albedo, cos_view) -> np.ndarray:
+    """The method's light over Lambert's per channel, float32 (..., 3), for Base Color ``albedo``
+    (..., 3) and view cosine ``cos_view`` (...): bilinear in the albedo (clamped to the table's
+    0.05..0.95) and in the view cosine (clamped to the table's 0..85 degrees). 1 for a method
+    without a table (Christensen-Burley, measured equal to Lambert)."""
+    a = np.asarray(albedo, dtype=np.float64)
+    mu = np.asarray(cos_view, dtype=np.float64)
+    if a.shape[-1:] != (3,) or a.shape[:-1] != mu.shape:
+        raise ValueError(f"albedo {a.shape} and cos_view {mu.shape}: expected (..., 3) and (...)")
+    table = SEMI_INFINITE.get(method)
+    if table is None:
+        return np.ones(a.shape, np.float32)
+    t = _nodes(table)  # (views, albedos)
+    mus = np.cos(np.radians(_nodes(VIEW_DEG)))[::-1]  # ascending
+    t = t[::-1]
+    albedos = _nodes(ALBEDO)
+    m = np.clip(np.nan_to_num(mu, nan=1.0), mus[0], mus[-1])
+    i = np.clip(np.searchsorted(mus, m, side="right") - 1, 0, len(mus) - 2)
+    fm = (m - mus[i]) / (mus[i + 1] - mus[i])
+    out = np.empty(a.shape, np.float64)
+    for c in range(3):
+        ac = np.clip(np.nan_to_num(a[..., c], nan=albedos[0]), albedos[0], albedos[-1])
+        j = np.clip(np.searchsorted(albedos, ac, side="right") - 1, 0, len(albedos) - 2)
+        fa = (ac - albedos[j]) / (albedos[j + 1] - albedos[j])
+        lo = t[i, j] * (1 - fa) + t[i, j + 1] * fa
+        hi = t[i + 1, j] * (1 - fa) + t[i + 1, j + 1] * fa
+        out[..., c] = lo * (1 - fm) + hi * fm
+    return out.astype(np.float32)
+
+
+def slab_factors(method: str, albedo, thickness_mfp) -> tuple[np.ndarray, np.ndarray]:
+    """(f_above, f_below), float32 (..., 3): ``SLAB_ABOVE`` and ``SLAB_BELOW`` for ``method`` at
+    Base Color ``albedo`` (..., 3) and thickness ``thickness_mfp`` (..., 3, mean free paths), both
+    over the thickest slab's ``SLAB_ABOVE`` (the semi-infinite medium, whose entry ``entry_gain``
+    gives). Linear in the albedo, linear in log2 of the thickness; clamped to the tables (a
+    thickness above 128 mean free paths reads as 128: 1 and 0). A method without tables: (1, 0)."""
+    a = np.asarray(albedo, dtype=np.float64)
+    t = np.asarray(thickness_mfp, dtype=np.float64)
+    if a.shape != t.shape or a.shape[-1:] != (3,):
+        raise ValueError(f"albedo {a.shape} and thickness_mfp {t.shape}: expected the same (..., 3)")
+    if method not in SLAB_ABOVE:
+        return np.ones(a.shape, np.float32), np.zeros(a.shape, np.float32)
+    albedos = _nodes(SLAB_ALBEDO)
+    above = _nodes(SLAB_ABOVE[method])
+    below = _nodes(SLAB_BELOW[method])
+    thick = above[:, -1:]
+    above, below = above / thick, below / thick
+    logs = np.log2(_nodes(SLAB_MFPS))
+    lt = np.log2(np.clip(np.nan_to_num(t, nan=SLAB_MFPS[-1]), SLAB_MFPS[0], SLAB_MFPS[-1]))
+    i = np.clip(np.searchsorted(logs, lt, side="right") - 1, 0, len(logs) - 2)
+    ft = (lt - logs[i]) / (logs[i + 1] - logs[i])
+    ac = np.clip(np.nan_to_num(a, nan=albedos[0]), albedos[0], albedos[-1])
+    j = np.clip(np.searchsorted(albedos, ac, side="right") - 1, 0, len(albedos) - 2)
+    fa = (ac - albedos[j]) / (albedos[j + 1] - albedos[j])
+    out = []
+    for table in (above, below):
+        lo = table[j, i] * (1 - ft) + table[j, i + 1] * ft
+        hi = table[j + 1, i] * (1 - ft) + table[j + 1, i + 1] * ft
+        out.append((lo * (1 - fa) + hi * fa).astype(np.float32))
+    return out[0], out[1]
+
+
+def lamp_irradiance(lights, normal, position) -> np.ndarray:
+    """Sum over ``lights`` of colour x E_L max(0, N . L) / pi (the Diffuse Direct pass's units),
+    unshadowed, float64 (N, 3), for unit normals and positions (N, 3)."""
+    from .sta import light_at
+
+    n = np.asarray(normal, np.float64)
+    p = np.asarray(position, np.float32)
+    out = np.zeros(n.shape, np.float64)
+    for light in lights:
+        if light.energy <= 0:
+            continue
+        lx, ly, lz, e = light_at(light, p[:, 0], p[:, 1], p[:, 2])
+        c = np.maximum(n[:, 0] * lx + n[:, 1] * ly + n[:, 2] * lz, 0.0) * np.asarray(e, np.float64) / np.pi
+        out += c[:, None] * np.asarray(light.color, np.float64)[None, :]
+    return out
+
+
+def unseen_irradiance(*, irradiance, normal, position, camera: Camera, lights, lamps: bool = True) -> np.ndarray:
+    """The mean irradiance (3,) of the surfaces of an object the camera does not see, from its
+    visible pixels' measured ``irradiance`` (N, 3, Diffuse Direct + Indirect), world-space
+    ``normal`` and ``position`` (N, 3): each lamp's unshadowed irradiance on the visible normals
+    mirrored through the plane across the view direction (n - 2 (n . v) v: the back of a convex
+    object, the far side of a slab), averaged, plus the visible light the lamps do not explain
+    (the mean measured irradiance less the mean unshadowed lamp irradiance, at least 0: a world
+    or bounce light, taken to reach the unseen side as much). ``lamps`` False leaves the lamps
+    out (the combined technique adds their light from behind itself)."""
+    n = np.asarray(normal, np.float64)
+    n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    pos = np.asarray(position, np.float64)
+    v = camera.view_vectors(pos[None, :, :].astype(np.float32))[0].astype(np.float64)
+    visible = lamp_irradiance(lights, n, pos).mean(axis=0)
+    other = np.maximum(np.asarray(irradiance, np.float64).mean(axis=0) - visible, 0.0)
+    if not lamps:
+        return other
+    mirrored = n - 2.0 * (n * v).sum(axis=1, keepdims=True) * v
+    return lamp_irradiance(lights, mirrored, pos).mean(axis=0) + other
+
+
+def view_cosine(depth, mask, camera: Camera) -> np.ndarray:
+    """|cos| of the angle between the surface normal and the direction to the camera, float32
+    (H, W), from the planar Depth pass: each pixel is unprojected to camera space, the normal is
+    the cross product of its horizontal and vertical differences (on each axis the smaller of the
+    two one-sided differences to a neighbour of ``mask``, so that a silhouette does not bend it).
+    1 (facing the camera) where no neighbour is on the mask."""
+    z = np.asarray(depth, dtype=np.float64)
+    m = np.asarray(mask, dtype=bool) & np.isfinite(z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)
+    h, w = z.shape
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    if camera.type == "ORTHO":
+        s = 1.0 / camera.ortho_px_per_unit
+        p = np.stack([(xs + 0.5 - w / 2) * s, (h / 2 - ys - 0.5) * s, -z], axis=-1)
+    else:
+        f = camera.focal_px
+        cx = w / 2 - camera.shift_x * max(w, h)
+        cy = h / 2 + camera.shift_y * max(w, h)
+        p = np.stack([(xs + 0.5 - cx) / f * z, (cy - ys - 0.5) / f * z, -z], axis=-1)
+
+    def diff(axis):
+        nxt = np.roll(p, -1, axis=axis) - p
+        prv = p - np.roll(p, 1, axis=axis)
+        ok_n = np.roll(m, -1, axis=axis)
+        ok_p = np.roll(m, 1, axis=axis)
+        if axis == 0:
+            ok_n[-1, :] = False
+            ok_p[0, :] = False
+        else:
+            ok_n[:, -1] = False
+            ok_p[:, 0] = False
+        ln = np.where(ok_n, np.abs(nxt[..., 2]), np.inf)
+        lp = np.where(ok_p, np.abs(prv[..., 2]), np.inf)
+        return np.where((ln <= lp)[..., None], nxt, prv), ok_n | ok_p
+
+    dx, okx = diff(1)
+    dy, oky = diff(0)
+    n = np.cross(dx, dy)
+    v = -p if camera.type != "ORTHO" else np.broadcast_to(np.array([0.0, 0.0, 1.0]), p.shape)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos = np.abs((n * v).sum(-1)) / (np.linalg.norm(n, axis=-1) * np.linalg.norm(v, axis=-1))
+    ok = m & okx & oky & np.isfinite(cos)
+    return np.where(ok, np.clip(cos, 0.0, 1.0), 1.0).astype(np.float32)
+
+
+#: The keywords of ``apply_energy`` besides ``out``: a diffusion passes its own arguments of these
+#: names (``energy_inputs``).
+ENERGY_INPUTS = (
+    "diffuse",
+    "albedo",
+    "depth",
+    "mask",
+    "camera",
+    "subsurface_method",
+    "energy",
+    "albedo_mode",
+    "normal",
+    "position",
+    "thickness",
+    "lights",
+    "mfp_su",
+    "thickness_distance_su",
+    "thickness_convention",
+    "lamps_behind",
+)
+
+
+def energy_inputs(arguments: dict) -> dict:
+    """The entries of ``arguments`` (a diffusion's keyword arguments) that ``apply_energy`` takes."""
+    return {k: arguments[k] for k in ENERGY_INPUTS if k in arguments}
+
+
+def apply_energy(
+    out,
+    *,
+    diffuse,
+    albedo,
+    depth,
+    mask,
+    camera: Camera,
+    subsurface_method: str | None,
+    energy: str,
+    albedo_mode: str,
+    normal=None,
+    position=None,
+    thickness=None,
+    lights=(),
+    mfp_su=None,
+    thickness_distance_su: float = 0.0,
+    thickness_convention: str = "translucency",
+    lamps_behind: bool = True,
+):
+    """``out`` (H, W, 3, a diffusion's result: albedo x its light) with its pixels on ``mask``
+    given the energy of Cycles' ``subsurface_method`` (module docstring). "cycles": entry x (out x f_above +
+    albedo x f_below x E_unseen). "view": entry x out scaled per channel so that the mask's light
+    is what it was (the method's dependence on the view angle, the passes' energy: the level of
+    the light is where the model is least sure, docs/references.md §15). ``diffuse`` and ``albedo`` are the
+    diffusion's inputs (in the "pre-post" mode sqrt(A) x E and sqrt(A)). The finite-object part
+    needs ``thickness`` (H, W, the baked map), ``thickness_distance_su`` > 0, ``mfp_su`` (the
+    method's length per channel), ``normal`` and ``position`` (H, W, 3); without them only the
+    entry applies. ``subsurface_method`` None (unknown) or "lambert": ``out`` unchanged."""
+    if energy not in ENERGY_MODES:
+        raise ValueError(f"energy: {energy!r} is not one of {', '.join(ENERGY_MODES)}")
+    method = subsurface_method
+    if energy == "lambert" or method is None:
+        return out
+    m = np.asarray(mask, dtype=bool)
+    if not m.any():
+        return out
+    a = np.asarray(albedo, dtype=np.float32)[m]
+    e = np.asarray(diffuse, dtype=np.float32)[m]
+    if albedo_mode == "pre-post":
+        e = e / np.maximum(a, np.float32(1e-6))
+        a = a * a
+    gain = entry_gain(method, a, view_cosine(depth, m, camera)[m])
+    light = out[m]
+    if energy == "view":
+        before = light.astype(np.float64).sum(axis=0)
+        light = light * gain
+        after = light.astype(np.float64).sum(axis=0)
+        scale = np.where(after > 0, before / np.where(after > 0, after, 1.0), 1.0)
+        out[m] = light * scale.astype(np.float32)[None, :]
+        return out
+    finite = (
+        energy == "cycles"
+        and thickness is not None
+        and normal is not None
+        and position is not None
+        and mfp_su is not None
+        and thickness_distance_su > 0
+        and method in SLAB_ABOVE
+    )
+    if finite:
+        tau = np.clip(np.nan_to_num(np.asarray(thickness, np.float64)[m]), 0.0, 1.0)
+        if thickness_convention == "thickness":
+            tau = 1.0 - tau
+        x = thickness_distance_su * np.sqrt(1.0 - tau)  # the slab law of core/thickness.py
+        ell = np.maximum(np.asarray(mfp_su, np.float64), 1e-30)
+        f_above, f_below = slab_factors(method, a, x[:, None] / ell[None, :])
+        nrm = np.asarray(normal, np.float64)[m]
+        pos = np.asarray(position, np.float64)[m]
+        ok = np.isfinite(nrm).all(axis=1) & np.isfinite(pos).all(axis=1) & (np.linalg.norm(nrm, axis=1) > 0)
+        if ok.any():
+            unseen = unseen_irradiance(
+                irradiance=e[ok], normal=nrm[ok], position=pos[ok], camera=camera, lights=lights, lamps=lamps_behind
+            )
+            light = light * f_above + a * f_below * unseen.astype(np.float32)[None, :]
+    out[m] = light * gain
+    return out

@@ -1,0 +1,265 @@
+"""The entry energy of Cycles' subsurface methods (core/energy.py): the table's lookup, the view
+angle from the Depth pass, and the techniques that apply it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sss_lab.core import energy
+from sss_lab.core.burley import burley
+from sss_lab.core.scene import Camera
+from sss_lab.core.ssss import ssss
+
+
+def _mu(view_deg):
+    return math.cos(math.radians(view_deg))
+
+
+@pytest.mark.parametrize("method", sorted(energy.SEMI_INFINITE))
+def test_the_table_is_returned_at_its_nodes(method):
+    table = energy.SEMI_INFINITE[method]
+    assert len(table) == len(energy.VIEW_DEG)
+    for view, row in zip(energy.VIEW_DEG, table, strict=True):
+        assert len(row) == len(energy.ALBEDO)
+        for k in range(0, len(energy.ALBEDO) - 2, 3):
+            a = np.array([[energy.ALBEDO[k], energy.ALBEDO[k + 1], energy.ALBEDO[k + 2]]])
+            got = energy.entry_gain(method, a, np.array([_mu(view)]))
+            np.testing.assert_allclose(got[0], row[k : k + 3], rtol=1e-5)
+
+
+def test_between_nodes_it_interpolates_and_outside_it_clamps():
+    method = "RANDOM_WALK"
+    t = np.array(energy.SEMI_INFINITE[method])
+    # Halfway between the first two albedos, at normal view: the mean of the two entries.
+    a = np.array([[0.5 * (energy.ALBEDO[0] + energy.ALBEDO[1])] * 3])
+    got = energy.entry_gain(method, a, np.array([1.0]))
+    np.testing.assert_allclose(got[0], 0.5 * (t[0, 0] + t[0, 1]), rtol=1e-5)
+    # Beyond the table: albedo 0 and 1 read its ends, a view past 85 degrees its last row.
+    got = energy.entry_gain(method, np.array([[0.0, 1.0, 0.5]]), np.array([0.0]))
+    np.testing.assert_allclose(got[0, :2], [t[-1, 0], t[-1, -1]], rtol=1e-5)
+
+
+def test_christensen_burley_and_unknown_methods_keep_the_lambert_energy():
+    a = np.full((4, 3), 0.5, np.float32)
+    mu = np.linspace(0.1, 1.0, 4)
+    assert np.array_equal(energy.entry_gain("BURLEY", a, mu), np.ones((4, 3), np.float32))
+
+
+def _plane_depth(camera: Camera, tilt_deg: float, h: int, w: int, z0: float = 2.0) -> np.ndarray:
+    """Planar depth of a plane through (0, 0, -z0) in camera space, tilted about the camera's x
+    axis by ``tilt_deg`` (normal (0, sin, cos))."""
+    t = math.radians(tilt_deg)
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    if camera.type == "ORTHO":
+        s = 1.0 / camera.ortho_px_per_unit
+        y = (h / 2 - ys - 0.5) * s
+        # n . (p - p0) = 0 with p = (x, y, -z): sin(t) y - cos(t) (z - z0) = 0
+        return (z0 + math.tan(t) * y).astype(np.float32)
+    f = camera.focal_px
+    v = (h / 2 - ys - 0.5) / f
+    # y = v z: sin(t) v z - cos(t) z + cos(t) z0 = 0
+    return (math.cos(t) * z0 / (math.cos(t) - math.sin(t) * v)).astype(np.float32)
+
+
+@pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
+@pytest.mark.parametrize("tilt", [0.0, 30.0, 60.0])
+def test_view_cosine_of_a_tilted_plane(kind, tilt):
+    h = w = 48
+    camera = Camera(type=kind, width_px=w, height_px=h, lens_mm=50.0, ortho_scale=1.0)
+    z = _plane_depth(camera, tilt, h, w)
+    mask = np.ones((h, w), bool)
+    mu = energy.view_cosine(z, mask, camera)
+    n = np.array([0.0, math.sin(math.radians(tilt)), math.cos(math.radians(tilt))])
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    if kind == "ORTHO":
+        expected = np.full((h, w), n[2])
+    else:
+        f = camera.focal_px
+        p = np.stack([(xs + 0.5 - w / 2) / f * z, (h / 2 - ys - 0.5) / f * z, -z], -1)
+        v = -p / np.linalg.norm(p, axis=-1, keepdims=True)
+        expected = np.abs(v @ n)
+    # A plane's differences span it exactly: only float32 depth rounding is left.
+    np.testing.assert_allclose(mu, expected, atol=2e-3)
+
+
+def test_view_cosine_at_a_silhouette_uses_the_surface_side():
+    h = w = 32
+    camera = Camera(type="ORTHO", width_px=w, height_px=h, ortho_scale=1.0)
+    z = _plane_depth(camera, 45.0, h, w)
+    mask = np.zeros((h, w), bool)
+    mask[:, :16] = True
+    z[:, 16:] = 1e10  # background beside the plane
+    mu = energy.view_cosine(z, mask, camera)
+    np.testing.assert_allclose(mu[:, :16], math.cos(math.radians(45.0)), atol=2e-3)
+    assert np.all(mu[:, 16:] == 1.0)
+
+
+def _passes(h=40, w=40):
+    rng = np.random.default_rng(3)
+    diffuse = rng.uniform(0.2, 1.0, (h, w, 3)).astype(np.float32)
+    albedo = np.broadcast_to(np.array([0.8, 0.5, 0.2], np.float32), (h, w, 3)).copy()
+    camera = Camera(width_px=w, height_px=h)
+    depth = _plane_depth(camera, 40.0, h, w)
+    mask = np.zeros((h, w), bool)
+    mask[5:35, 5:35] = True
+    return {"diffuse": diffuse, "albedo": albedo, "depth": depth, "mask": mask, "camera": camera}
+
+
+@pytest.mark.parametrize("technique", [burley, ssss])
+def test_techniques_multiply_their_light_on_the_mask_by_the_gain(technique):
+    p = _passes()
+    d = (0.02, 0.01, 0.005)
+    lam = technique(**p, d_su=d, energy="lambert", subsurface_method="RANDOM_WALK")
+    cyc = technique(**p, d_su=d, energy="cycles", subsurface_method="RANDOM_WALK")
+    view = technique(**p, d_su=d, subsurface_method="RANDOM_WALK")  # the default, "view"
+    m = p["mask"]
+    mu = energy.view_cosine(p["depth"], m, p["camera"])
+    gain = energy.entry_gain("RANDOM_WALK", p["albedo"][m], mu[m])
+    # Without a thickness map, "cycles" is the entry alone.
+    np.testing.assert_allclose(cyc[m], lam[m] * gain, rtol=1e-5)
+    # "view": the same shape, each channel's total over the mask kept.
+    scale = lam[m].astype(np.float64).sum(0) / (lam[m] * gain).astype(np.float64).sum(0)
+    np.testing.assert_allclose(view[m], lam[m] * gain * scale.astype(np.float32), rtol=1e-5)
+    np.testing.assert_allclose(view[m].astype(np.float64).sum(0), lam[m].astype(np.float64).sum(0), rtol=1e-5)
+    assert np.array_equal(cyc[~m], lam[~m]) and np.array_equal(view[~m], lam[~m])
+    # Without a method (a direct call), nothing changes.
+    assert np.array_equal(technique(**p, d_su=d), lam)
+    assert gain.min() < 0.95  # the walk returns visibly less than Lambert at these albedos
+    assert gain.max() / gain.min() > 1.02  # and the plane is seen at several angles
+
+
+def test_pre_post_albedo_mode_reads_the_full_albedo():
+    p = _passes()
+    m = p["mask"]
+    out = np.ones((40, 40, 3), np.float32)
+    sqrt_albedo = np.sqrt(p["albedo"])
+    got = energy.apply_energy(
+        out.copy(),
+        diffuse=np.ones_like(out),
+        albedo=sqrt_albedo,
+        depth=p["depth"],
+        mask=m,
+        camera=p["camera"],
+        subsurface_method="RANDOM_WALK",
+        energy="cycles",
+        albedo_mode="pre-post",
+    )
+    mu = energy.view_cosine(p["depth"], m, p["camera"])[m]
+    np.testing.assert_allclose(got[m], energy.entry_gain("RANDOM_WALK", p["albedo"][m], mu), rtol=1e-5)
+
+
+def test_an_unknown_energy_mode_is_refused_by_name():
+    p = _passes()
+    with pytest.raises(ValueError, match="energy: 'physical' is not one of view, cycles, lambert"):
+        burley(**p, d_su=(0.01, 0.01, 0.01), energy="physical", subsurface_method="RANDOM_WALK")
+
+
+def test_slab_factors_at_the_nodes_and_beyond():
+    for method in sorted(energy.SLAB_ABOVE):
+        above = np.array(energy.SLAB_ABOVE[method])
+        below = np.array(energy.SLAB_BELOW[method])
+        assert above.shape == below.shape == (len(energy.SLAB_ALBEDO), len(energy.SLAB_MFPS))
+        j = 2
+        a = np.full((len(energy.SLAB_MFPS), 3), energy.SLAB_ALBEDO[j])
+        t = np.repeat(np.array(energy.SLAB_MFPS)[:, None], 3, axis=1)
+        f_above, f_below = energy.slab_factors(method, a, t)
+        np.testing.assert_allclose(f_above[:, 0], above[j] / above[j, -1], rtol=1e-5)
+        np.testing.assert_allclose(f_below[:, 0], below[j] / above[j, -1], rtol=1e-5, atol=1e-7)
+        # The thickest slab is the semi-infinite medium: nothing lost, nothing through.
+        assert f_above[-1, 0] == pytest.approx(1.0) and f_below[-1, 0] == pytest.approx(0.0, abs=1e-3)
+        # Thicker than the table reads as its thickest; thinner as its thinnest.
+        big, _ = energy.slab_factors(method, a[:1], np.full((1, 3), 1e6))
+        small, _ = energy.slab_factors(method, a[:1], np.zeros((1, 3)))
+        np.testing.assert_allclose(big, f_above[-1:], rtol=1e-6)
+        np.testing.assert_allclose(small, f_above[:1], rtol=1e-6)
+    # A random walk loses light through the far side of a thin slab; Christensen-Burley does not
+    # (its disk probes find the front surface wherever the slab ends), measured.
+    thin = np.full((1, 3), 1.0)
+    walk, _ = energy.slab_factors("RANDOM_WALK", np.full((1, 3), 0.8), thin)
+    disk, _ = energy.slab_factors("BURLEY", np.full((1, 3), 0.8), thin)
+    assert walk.max() < 0.6 and disk.min() > 0.95
+    f_above, f_below = energy.slab_factors("UNKNOWN", np.full((1, 3), 0.5), thin)
+    assert np.all(f_above == 1) and np.all(f_below == 0)
+
+
+def _sun(direction, strength=3.0):
+    from sss_lab.core.scene import Light
+
+    d = np.asarray(direction, np.float64)
+    d = d / np.linalg.norm(d)
+    # A sun shines along its local -Z: a rotation taking -Z to d.
+    z = -d
+    x = np.cross([0.0, 1.0, 0.0] if abs(z[1]) < 0.9 else [1.0, 0.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = x, y, z
+    return Light(type="SUN", energy=strength, matrix_world=tuple(m.ravel()))
+
+
+def test_unseen_irradiance_of_a_slab_facing_the_camera():
+    # An orthographic camera looking down -Z at a face whose normal is +Z: the unseen far side
+    # faces -Z. A sun from below lights only the far side; one from above only the visible side.
+    camera = Camera(type="ORTHO", width_px=8, height_px=8, ortho_scale=1.0)
+    n = np.tile([0.0, 0.0, 1.0], (16, 1))
+    pos = np.zeros((16, 3))
+    below = _sun((0.0, 0.0, 1.0))  # shining upwards
+    above = _sun((0.0, 0.0, -1.0))
+    lamp = 3.0 / math.pi
+    e = energy.unseen_irradiance(irradiance=np.zeros((16, 3)), normal=n, position=pos, camera=camera, lights=[below])
+    np.testing.assert_allclose(e, lamp, rtol=1e-5)
+    # Lit from above, the visible side's measured light is what the lamp explains: nothing unseen.
+    e = energy.unseen_irradiance(
+        irradiance=np.full((16, 3), lamp), normal=n, position=pos, camera=camera, lights=[above]
+    )
+    np.testing.assert_allclose(e, 0.0, atol=1e-6)
+    # Light the lamps do not explain (a world) reaches the unseen side alike; without lamps_behind
+    # the lamps are left out.
+    e = energy.unseen_irradiance(
+        irradiance=np.full((16, 3), lamp + 0.2), normal=n, position=pos, camera=camera, lights=[above, below]
+    )
+    np.testing.assert_allclose(e, lamp + 0.2, rtol=1e-5)
+    e = energy.unseen_irradiance(
+        irradiance=np.full((16, 3), lamp + 0.2),
+        normal=n,
+        position=pos,
+        camera=camera,
+        lights=[above, below],
+        lamps=False,
+    )
+    np.testing.assert_allclose(e, 0.2, rtol=1e-4)
+
+
+def test_a_thin_slab_lit_from_behind_gets_the_light_through_and_loses_its_own():
+    p = _passes()
+    h, w = p["mask"].shape
+    m = p["mask"]
+    d = (0.02, 0.01, 0.005)
+    normal = np.zeros((h, w, 3), np.float32)
+    normal[..., 2] = 1.0
+    position = np.zeros((h, w, 3), np.float32)
+    camera = Camera(type="ORTHO", width_px=w, height_px=h, ortho_scale=1.0)
+    p = dict(p, camera=camera, depth=np.full((h, w), 2.0, np.float32))
+    below = _sun((0.0, 0.0, 1.0))
+    ell = (0.004, 0.004, 0.004)
+    common = dict(d_su=d, subsurface_method="RANDOM_WALK", normal=normal, position=position, lights=[below])
+    common.update(mfp_su=ell, thickness_distance_su=0.04)
+    thin = np.full((h, w), 1.0 - (0.004 / 0.04) ** 2, np.float32)  # 4 mm: one mean free path
+    thick = np.zeros((h, w), np.float32)  # at least the bake distance: 10 mean free paths
+    lam = burley(**p, d_su=d, energy="lambert")
+    out_thin = burley(**p, **common, thickness=thin, energy="cycles")
+    out_thick = burley(**p, **common, thickness=thick, energy="cycles")
+    gain = energy.entry_gain("RANDOM_WALK", p["albedo"][m], np.ones(m.sum()))
+    f_above, f_below = energy.slab_factors("RANDOM_WALK", p["albedo"][m], np.full((m.sum(), 3), 1.0))
+    # The sun from below lights only the unseen side; the visible light (random) is more than the
+    # lamps explain there, so it counts for the unseen side too.
+    unseen = 3.0 / math.pi + p["diffuse"][m].astype(np.float64).mean(axis=0)
+    expected = gain * (lam[m] * f_above + p["albedo"][m] * f_below * unseen)
+    np.testing.assert_allclose(out_thin[m], expected, rtol=1e-4)
+    # Ten mean free paths: almost the semi-infinite medium, almost no light through.
+    f10, b10 = energy.slab_factors("RANDOM_WALK", p["albedo"][m], np.full((m.sum(), 3), 10.0))
+    np.testing.assert_allclose(out_thick[m], gain * (lam[m] * f10 + p["albedo"][m] * b10 * unseen), rtol=1e-4)
+    assert np.array_equal(out_thin[~m], lam[~m])
