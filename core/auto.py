@@ -20,11 +20,17 @@ any technique, how much the two things SSS adds to a plain diffuse render matter
   adds or removes. A technique fitted for the material corrects it; the others (and no SSS) keep
   it as error.
 
+- **wide diffusion** W = D x min(1, widest footprint d in pixels / ``WIDE_PX``): the part of the
+  diffusion spread over many pixels, where the separable filter's few taps and Burley's spiral
+  differ most (on the fidelity suite neither is consistently better up to footprints of about
+  13 px; at 84 px Burley's error is 18 % lower).
+
 A model (``Model``) predicts each technique's error from those numbers, error^2 = alpha D^2 +
-beta B^2 + gamma (+ G^2 for a technique without a fit), with non-negative coefficients learnt per
-technique by least squares on measured errors (``train``; ``benchmarks/auto.py`` learns them on
-the fidelity suite and validates the choice leave-one-scene-out; the shipped coefficients are in
-``auto_model.json`` beside this module, with the command that made them). ``choose`` then takes,
+beta B^2 + gamma + delta W^2 (+ G^2 for a technique without a fit), with non-negative
+coefficients learnt per technique by least squares on measured errors (``train``;
+``benchmarks/auto.py`` learns them on the fidelity suite and validates the choice
+leave-one-scene-out; the shipped coefficients are in ``auto_model.json`` beside this module, with
+the command that made them). ``choose`` then takes,
 per material, the cheapest candidate (no SSS included) whose predicted error is within
 ``max_error`` (relative) of the best predicted error. The cost of a technique is its work
 estimate, pixels x (samples per pixel of its kernel, from its spec's ``footprint``, + one per
@@ -73,6 +79,9 @@ MEAN_DISTANCE = 2.5
 #: Widest box (pixels, half-width) the diffusion feature averages over; wider footprints change
 #: little more and would cost more than the feature is worth.
 MAX_BOX = 64
+#: Footprint (the widest channel's d, pixels) from which the diffusion counts wholly as wide (W = D):
+#: the width from which Burley's default also cleans its scattered light (``core/burley.py``).
+WIDE_PX = 32.0
 #: Blocks of the error measure (as ``compare`` and the fidelity suite: 2 x 2).
 BOX = 2
 #: Most blocks across a material's window the features are measured on (larger blocks beyond).
@@ -90,6 +99,7 @@ class Features:
     #: The profile's d per channel (R, G, B) in pixels at the material's median depth.
     footprint_px: tuple[float, float, float] = (0.0, 0.0, 0.0)
     diffusion: float = 0.0
+    wide: float = 0.0
     back: float = 0.0
     #: Light from behind over the visible diffuse light, summed over the material (a share).
     back_share: float = 0.0
@@ -107,7 +117,8 @@ class Features:
 
 @dataclass(frozen=True)
 class Model:
-    """Per candidate: (alpha, beta, gamma) of error^2 = alpha D^2 + beta B^2 + gamma."""
+    """Per candidate: (alpha, beta, gamma[, delta]) of error^2 = alpha D^2 + beta B^2 + gamma + delta W^2
+    (delta 0 when not given)."""
 
     coefficients: dict
     #: What it was learnt on (scene names) and by which command.
@@ -129,8 +140,8 @@ class Model:
         return rate * work
 
     def predict(self, candidate: str, f: Features) -> float:
-        alpha, beta, gamma = self.coefficients[candidate]
-        e2 = alpha * f.diffusion**2 + beta * f.back**2 + gamma
+        alpha, beta, gamma, *rest = self.coefficients[candidate]
+        e2 = alpha * f.diffusion**2 + beta * f.back**2 + gamma + (rest[0] * f.wide**2 if rest else 0.0)
         if candidate not in f.fitted:
             e2 += f.energy**2
         return math.sqrt(max(e2, 0.0))
@@ -141,8 +152,8 @@ class Model:
             "trained_on": list(self.trained_on),
             "command": self.command,
             "seconds_per_work": dict(self.seconds_per_work),
-            "definition": "relative error^2 = alpha D^2 + beta B^2 + gamma per candidate; seconds = rate x pixels x"
-            " samples (core/auto.py)",
+            "definition": "relative error^2 = alpha D^2 + beta B^2 + gamma + delta W^2 per candidate; seconds = rate"
+            " x pixels x samples (core/auto.py)",
         }
 
     @classmethod
@@ -152,8 +163,8 @@ class Model:
         except (KeyError, TypeError, ValueError):
             raise InputError(f"{where}: expected {{'coefficients': {{candidate: [alpha, beta, gamma]}}}}") from None
         for k, v in coefficients.items():
-            if len(v) != 3 or not all(math.isfinite(x) and x >= 0 for x in v):
-                raise InputError(f"{where}: coefficients of {k!r} must be three finite numbers >= 0, got {v}")
+            if len(v) not in (3, 4) or not all(math.isfinite(x) and x >= 0 for x in v):
+                raise InputError(f"{where}: coefficients of {k!r} must be three or four finite numbers >= 0, got {v}")
         if NONE not in coefficients:
             raise InputError(f"{where}: no coefficients for {NONE!r} (no SSS), which every choice compares against")
         try:
@@ -326,6 +337,7 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
                 continue  # the light stays within its block
             change[..., c] = _blurred(e[..., c], keep, half) - e[..., c]
         f.diffusion = _rms(albedo * change, keep, base)
+        f.wide = f.diffusion * min(1.0, max(f.footprint_px) / WIDE_PX)
     if light is not None:
         f.back = _rms(light, keep, base)
         total = float(np.sum(visible[keep]))
@@ -415,7 +427,8 @@ class AutoPlan:
             fp = " / ".join(f"{v:.3g}" for v in f.footprint_px)
             lines.append(f"    footprint d R/G/B {fp} px at the median depth")
             lines.append(
-                f"    diffusion D {f.diffusion:.4f} (how much spreading the visible light over 2.5 d changes it)"
+                f"    diffusion D {f.diffusion:.4f} (how much spreading the visible light over 2.5 d changes it),"
+                f" wide W {f.wide:.4f} (the part with a footprint of {WIDE_PX:g} px or more)"
             )
             thick = "" if f.thickness_over_d is None else f", median thickness {f.thickness_over_d:.3g} d"
             lines.append(
@@ -579,8 +592,8 @@ def apply_auto(passes: Passes, scene: SceneDescription, *, prepared: AutoPlan | 
 # --- learning the model -----------------------------------------------------------------------
 
 
-def _nnls3(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Non-negative weighted least squares with three unknowns: every subset of active
+def _nnls(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Non-negative weighted least squares with a few unknowns: every subset of active
     coefficients solved exactly, the feasible one with the smallest residual kept."""
     sw = np.sqrt(w)
     xw, yw = x * sw[:, None], y * sw
@@ -603,7 +616,7 @@ def train(samples, *, timings=(), trained_on=(), command: str = "") -> Model:
     """Learn the coefficients from measured errors.
 
     ``samples``: (Features, {candidate: relative error}) pairs, one per material of a scene,
-    the candidates including ``NONE``. Each technique's error^2 is fitted to (D^2, B^2, 1) by
+    the candidates including ``NONE``. Each technique's error^2 is fitted to (D^2, B^2, 1, W^2) by
     non-negative least squares, each material weighted by 1 / its no-SSS error^2 so that every
     material counts alike whatever its scene's error level. The energy term is not learnt (no SSS
     always keeps it, a fitted technique removes it): it is subtracted from the measured error^2
@@ -618,14 +631,14 @@ def train(samples, *, timings=(), trained_on=(), command: str = "") -> Model:
             if err is None or not math.isfinite(err):
                 continue
             e2 = err**2 - (0.0 if t in f.fitted else f.energy**2)
-            by_candidate.setdefault(t, []).append((f.diffusion**2, f.back**2, max(e2, 0.0), 1.0 / none**2))
+            by_candidate.setdefault(t, []).append((f.diffusion**2, f.back**2, f.wide**2, max(e2, 0.0), 1.0 / none**2))
     if NONE not in by_candidate:
         raise InputError("train: no sample with a finite no-SSS error: nothing to learn from")
     coefficients = {}
     for t, rows in by_candidate.items():
         a = np.asarray(rows, np.float64)
-        x = np.column_stack([a[:, 0], a[:, 1], np.ones(len(a))])
-        coefficients[t] = tuple(float(v) for v in _nnls3(x, a[:, 2], a[:, 3]))
+        x = np.column_stack([a[:, 0], a[:, 1], np.ones(len(a)), a[:, 2]])
+        coefficients[t] = tuple(float(v) for v in _nnls(x, a[:, 3], a[:, 4]))
     rates: dict[str, list] = {}
     for t, work, seconds in timings:
         if work > 0 and seconds > 0 and math.isfinite(seconds):

@@ -115,6 +115,23 @@ def test_diffusion_grows_with_the_footprint_at_a_shadow_edge():
     assert values[1] == pytest.approx(expected, rel=1e-6)
 
 
+def test_wide_diffusion_is_the_diffusion_weighted_by_the_footprint_against_wide_px():
+    edge = np.ones((64, 64, 3), np.float32)
+    edge[:, 32:] = 0.0
+    for d, ppu in ((0.04, 100.0), (0.04, 2000.0)):
+        passes, scene = _flat(n=64, light=edge, d_su=d, ppu=ppu)
+        f = auto.features(passes, scene, scene.materials[0])
+        widest = max(burley_d(scene.materials[0])) * ppu
+        assert f.diffusion > 0
+        assert f.wide == pytest.approx(f.diffusion * min(1.0, widest / auto.WIDE_PX), rel=1e-6)
+    assert f.wide == f.diffusion  # d of 80 px or more: all of it is wide
+    # The model reads it with the fourth coefficient.
+    model = auto.Model({"none": (1.0, 1.0, 0.0), "ssss": (0.2, 1.0, 0.0, 0.3)})
+    g = auto.Features(name="m", index=1, pixels=1, diffusion=0.2, wide=0.1)
+    assert model.predict("ssss", g) == pytest.approx(math.sqrt(0.2 * 0.04 + 0.3 * 0.01))
+    assert model.predict("none", g) == pytest.approx(0.2)
+
+
 def test_light_from_behind_is_the_combined_techniques_transmission():
     arrays, scene = _scene()
     passes = Passes(arrays)
@@ -228,11 +245,16 @@ def test_the_composite_is_each_materials_chosen_technique():
 
 def test_train_recovers_the_coefficients_it_was_made_from():
     rng = np.random.default_rng(5)
-    truth = {"none": (1.0, 1.0, 0.001), "ssss": (0.3, 1.0, 0.002), "combined": (0.25, 0.0, 0.004)}
+    truth = {"none": (1.0, 1.0, 0.001, 0.0), "ssss": (0.3, 1.0, 0.002, 0.2), "combined": (0.25, 0.0, 0.004, 0.05)}
     samples = []
     for i in range(12):
-        f = auto.Features(name=f"m{i}", index=1, pixels=100, diffusion=float(rng.random()), back=float(rng.random()))
-        errors = {t: math.sqrt(a * f.diffusion**2 + b * f.back**2 + c) for t, (a, b, c) in truth.items()}
+        d = float(rng.random())
+        f = auto.Features(
+            name=f"m{i}", index=1, pixels=100, diffusion=d, back=float(rng.random()), wide=d * float(rng.random())
+        )
+        errors = {
+            t: math.sqrt(a * f.diffusion**2 + b * f.back**2 + c + w * f.wide**2) for t, (a, b, c, w) in truth.items()
+        }
         samples.append((f, errors))
     model = auto.train(samples)
     for t, coef in truth.items():
