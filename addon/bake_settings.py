@@ -28,6 +28,20 @@ class SSSLabBakeSettings(bpy.types.PropertyGroup):
         ],
         default=_DEFAULTS.convention,
     )
+    source: bpy.props.EnumProperty(
+        name="Source",
+        description="What the map is measured from",
+        items=[
+            ("ao", "Ambient Occlusion", "Cycles' inside ambient occlusion: STA's local thickness"),
+            (
+                "ray",
+                "Ray Thickness",
+                "The distance to the far side along the inward normals, as a slab of that thickness bakes "
+                "(vertices only; better for tubes and balls)",
+            ),
+        ],
+        default=_DEFAULTS.source,
+    )
     samples: bpy.props.IntProperty(
         name="Samples",
         description="Ambient occlusion rays per vertex or texel",
@@ -98,6 +112,7 @@ class SSSLabBakeSettings(bpy.types.PropertyGroup):
         return BakeSettings(
             target=self.target,
             convention=self.convention,
+            source=self.source,
             samples=self.samples,
             distance_su=float(self.distance),
             only_local=self.only_local,

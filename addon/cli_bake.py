@@ -15,7 +15,7 @@ import errno
 import os
 import time
 
-from ..core.thickness import CONVENTIONS, TARGETS, BakeSettings
+from ..core.thickness import CONVENTIONS, SOURCES, TARGETS, BakeSettings
 
 _FORMATS = {"exr": "OPEN_EXR", "png": "PNG"}
 
@@ -38,6 +38,13 @@ def add_parser(subparsers):
     )
     p.add_argument("--target", choices=TARGETS, default="attribute", help="default: %(default)s")
     p.add_argument("--convention", choices=tuple(CONVENTIONS), default="translucency", help="default: %(default)s")
+    p.add_argument(
+        "--source",
+        choices=tuple(SOURCES),
+        default="ao",
+        help="ao: inside ambient occlusion (default); ray: the distance to the far side along the inward"
+        " normals, as a slab of that thickness bakes (attribute target; better for tubes and balls)",
+    )
     add_samples(p, default=32, help="AO rays per vertex or texel (default: %(default)s)")
     p.add_argument(
         "--distance",
@@ -81,6 +88,7 @@ def run(args) -> int:
     settings = BakeSettings(
         target=args.target,
         convention=args.convention,
+        source=args.source,
         samples=args.samples,
         distance_su=args.distance,
         only_local=args.only_local,

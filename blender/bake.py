@@ -10,6 +10,10 @@ values) — replaces the object's materials while Cycles bakes the Emit pass; th
 put back (``SceneState``): render engine, samples, film exposure, bake settings, materials,
 visibility, selection and active object, also when a bake fails or the batch is cancelled.
 
+With ``BakeSettings.source`` "ray" (attribute target) there is no Cycles bake: ``ray_thickness``
+casts rays inwards along the normals around each vertex and the map holds the AO a slab of the
+shortest distance found would bake (``core/thickness.py`` ``SOURCES``).
+
 What is baked is the mesh as Cycles renders it: modifiers applied with their render settings.
 Targets:
 
@@ -51,7 +55,15 @@ import bpy
 import numpy as np
 
 from ..core import _files
-from ..core.thickness import IMAGE_FORMATS, BakeSettings, auto_distance_su, split_samples
+from ..core.thickness import (
+    IMAGE_FORMATS,
+    SOURCES,
+    BakeSettings,
+    auto_distance_su,
+    slab_unoccluded_fraction,
+    split_samples,
+    to_convention,
+)
 from . import compat
 from .bake_nodes import _add_map_nodes, _bake_material, _result_image, _use_material
 from .describe import world_corners
@@ -282,7 +294,7 @@ class ThicknessBake:
             else:
                 distance, auto = auto_distance_su(world_corners(obj_eval)), True
             by_mesh[key] = _Item(obj, mesh, distance, auto, len(mesh_eval.vertices), uv_map)
-            if s.target == "attribute":
+            if s.target == "attribute" and s.source == "ao":
                 by_mesh[key].coarse = coarse_warning(obj_eval, mesh.name, distance)
             self._queue.append(by_mesh[key])
         if s.target == "image" and self._queue:
@@ -427,6 +439,15 @@ class ThicknessBake:
         s = self.settings
         obj, mesh, vl = item.obj, item.mesh, self.view_layer
         image = created = None
+        if s.source == "ray":
+            self._ray_attribute(item)
+            stored = thickness_metadata(mesh) or {}
+            stored[s.attribute_name] = self._meta(item)
+            mesh[META_KEY] = stored
+            result.data = s.attribute_name
+            if s.link_materials:
+                result.warnings.extend(self._link_materials(item, None))
+            return
         try:
             with SceneState() as st:
                 if obj.hide_get(view_layer=vl):
@@ -501,13 +522,37 @@ class ThicknessBake:
             mesh.attributes.remove(mesh.attributes[name])
         mesh.attributes[_TMP_ATTRIBUTE].name = name
 
+    def _ray_attribute(self, item: _Item) -> None:
+        """The "ray" source: ``ray_thickness`` per vertex, as the AO a slab of that thickness
+        bakes, written like the Cycles bake's result (a point-domain float colour attribute that
+        replaces the previous one only once computed)."""
+        s = self.settings
+        mesh = item.mesh
+        depsgraph = self.context.evaluated_depsgraph_get()
+        x = ray_thickness(item.obj, depsgraph, item.distance_su)
+        value = to_convention(slab_unoccluded_fraction(x, item.distance_su), s.convention)
+        rgba = np.ones((len(mesh.vertices), 4), np.float32)
+        rgba[:, :3] = value[:, None]
+        if _TMP_ATTRIBUTE in mesh.attributes:
+            mesh.attributes.remove(mesh.attributes[_TMP_ATTRIBUTE])
+        attr = mesh.color_attributes.new(_TMP_ATTRIBUTE, "FLOAT_COLOR", "POINT")
+        attr.data.foreach_set("color", rgba.ravel())
+        if s.attribute_name in mesh.attributes:
+            mesh.attributes.remove(mesh.attributes[s.attribute_name])
+        mesh.attributes[_TMP_ATTRIBUTE].name = s.attribute_name
+        mesh.update()
+
     def _meta(self, item: _Item) -> dict:
         s = self.settings
         render_samples, node_samples = split_samples(s.samples)
         meta = {
             "convention": s.convention,
             "meaning": s.meaning,
-            "source": "Cycles Ambient Occlusion node, Inside" + (", Only Local" if s.only_local else ""),
+            "source": (
+                "Cycles Ambient Occlusion node, Inside" + (", Only Local" if s.only_local else "")
+                if s.source == "ao"
+                else SOURCES["ray"]
+            ),
             "samples": s.samples,
             "render_samples": render_samples,
             "node_samples": node_samples,
@@ -584,8 +629,11 @@ class ThicknessBake:
         else:
             size = f"{s.resolution_px}x{s.resolution_px}"
             what = f"image {result.data!r} {size} over UV map {item.uv_map!r} -> {result.filepath}"
+        rays = f"{s.samples} rays" if s.source == "ao" else "rays along the inward normals"
+        if s.source == "ray":
+            occluders = "the object itself"
         return (
-            f"baked {s.convention} {what}; {s.samples} rays, distance {item.distance_su:.4g} ({how}), {occluders}; "
+            f"baked {s.convention} {what}; {rays}, distance {item.distance_su:.4g} ({how}), {occluders}; "
             f"{result.seconds:.2f} s"
         )
 
@@ -640,6 +688,46 @@ def subsurface_meshes(scene, view_layer=None) -> list:
         and o in layer
         and carries_subsurface(o)
     ]
+
+
+def ray_thickness(obj, depsgraph, distance_su: float) -> np.ndarray:
+    """Per vertex of ``obj``'s own mesh: the distance (scene units, at most ``distance_su``) from
+    the surface as rendered (modifiers applied) to its far side, along the inward normal.
+
+    World space: the evaluated mesh in a BVH tree. Each vertex is placed at the nearest point of
+    that surface; a ray goes inwards along the normal of each face around the vertex and along the
+    nearest face's normal, and the shortest hit counts (at a box's corner, its thinnest
+    dimension; on a smooth surface the normals agree). No hit within the distance: the distance."""
+    from mathutils import Matrix, Vector
+    from mathutils.bvhtree import BVHTree
+
+    ev = obj.evaluated_get(depsgraph)
+    me_ev = ev.data
+    m = Matrix(obj.matrix_world)
+    normal_m = m.to_3x3().inverted_safe().transposed()
+    verts = [m @ v.co for v in me_ev.vertices]
+    tree = BVHTree.FromPolygons(verts, [tuple(p.vertices) for p in me_ev.polygons])
+    mesh = obj.data
+    around: list[list] = [[] for _ in mesh.vertices]
+    for poly in mesh.polygons:
+        n = (normal_m @ poly.normal).normalized()
+        for i in poly.vertices:
+            around[i].append(n)
+    out = np.full(len(mesh.vertices), float(distance_su), np.float64)
+    eps = 1e-6 * max(float(distance_su), 1e-9)
+    for i, v in enumerate(mesh.vertices):
+        location, normal, _index, _dist = tree.find_nearest(m @ v.co)
+        if location is None:
+            continue
+        best = float(distance_su)
+        for n in [*around[i], Vector(normal)]:
+            if n.length == 0:
+                continue
+            hit, _n, _j, t = tree.ray_cast(location - n * eps, -n, best)
+            if hit is not None and t is not None:
+                best = min(best, float(t) + eps)
+        out[i] = best
+    return out
 
 
 def coarse_warning(obj_eval, mesh_name: str, distance_su: float) -> str:

@@ -220,7 +220,7 @@ def fit_material(
         # the material's medium, exit weight, entry and lateral spread), at scale 1 with every
         # channel's length times GRID[i]: trans[i] (N, 3).
         keys = ("subsurface_method", "base_color", "subsurface_ior", "subsurface_anisotropy")
-        inputs = {
+        inputs: dict[str, Any] = {
             "normal": core_apply._clean(passes["Normal"]),
             "position": core_apply._clean(passes["Position"]),
             "thickness": t_raw if t_raw.ndim == 2 else t_raw[..., 0],

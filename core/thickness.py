@@ -29,6 +29,15 @@ CONVENTIONS = {
     "thickness": "1 = thick (inside AO)",
 }
 TARGETS = ("attribute", "image")
+#: What the map is measured from. "ao": Cycles' inside ambient occlusion (STA's local thickness).
+#: "ray": the distance to the far side along the inward normals, ray cast per vertex, written as
+#: the AO a slab of that thickness gives, 1 - (min(x, D) / D)^2 in the translucency convention
+#: (``slab_unoccluded_fraction``): the same values on a slab, but a tube or a ball reads its
+#: through-thickness instead of the short chords that occlude its AO (docs/references.md §14).
+SOURCES = {
+    "ao": "Cycles Ambient Occlusion node, Inside (STA's local thickness)",
+    "ray": "distance to the far side along the inward normals, as a slab of that thickness bakes",
+}
 #: Image formats and their bit depth: float32 OpenEXR, or 16-bit PNG (linear, Non-Color).
 IMAGE_FORMATS = {"OPEN_EXR": ".exr", "PNG": ".png"}
 #: Largest ray count of one AO node evaluation used per render sample (the node allows 128);
@@ -55,7 +64,9 @@ class BakeSettings:
     over the active UV map, ``resolution_px`` square, ``margin_px`` bleed, written into
     ``image_folder`` (a path Blender understands, ``//`` = beside the .blend file) as
     ``image_format``. ``link_materials``: add the result to the object's materials, feeding a
-    Shader AOV output named ``aov_name`` (the render passes' thickness AOV).
+    Shader AOV output named ``aov_name`` (the render passes' thickness AOV). ``source``: what the
+    map is measured from (``SOURCES``; "ray" needs the attribute target and ignores ``samples``
+    and ``only_local``).
     """
 
     target: str = "attribute"
@@ -70,10 +81,18 @@ class BakeSettings:
     image_folder: str = "//thickness"
     link_materials: bool = True
     aov_name: str = "Thickness"
+    source: str = "ao"
 
     def __post_init__(self):
         if self.target not in TARGETS:
             raise ValueError(f"bake target: {self.target!r} is not one of {', '.join(TARGETS)}")
+        if self.source not in SOURCES:
+            raise ValueError(f"bake source: {self.source!r} is not one of {', '.join(SOURCES)}")
+        if self.source == "ray" and self.target != "attribute":
+            raise ValueError(
+                "bake source 'ray' measures the thickness at the mesh's vertices: use the attribute target"
+                " (or the 'ao' source for an image)"
+            )
         check_convention(self.convention)
         _integer(self.samples, "samples", 1, MAX_SAMPLES)
         if not (isinstance(self.distance_su, (int, float)) and math.isfinite(self.distance_su)):

@@ -187,7 +187,15 @@ class SceneData:
         return out
 
 
-def load_scene(name: str, *, scenes=None, cache: str | None = CACHE, store: str = references.STORE, log=print):
+def load_scene(
+    name: str,
+    *,
+    scenes=None,
+    cache: str | None = CACHE,
+    store: str = references.STORE,
+    log=print,
+    thickness_source: str = "ao",
+):
     """Build scene ``name`` (of the module ``scenes``, default the suite), check and load its
     reference, bake, render (or reuse) the passes: a ``SceneData``."""
     from . import scenes as suite
@@ -199,7 +207,7 @@ def load_scene(name: str, *, scenes=None, cache: str | None = CACHE, store: str 
     suite.prepare(scene)
     fp = references.fingerprint(scene)
     seed0, seed1, _entry = references.load(name, fp, store=store)
-    suite.bake(scene)
+    suite.bake(scene, source=thickness_source)
     key = hashlib.sha256(f"{fp}:{_thickness_digest(scene)}:{PASS_SEED}".encode()).hexdigest()[:20]
     timings = {"build_and_bake_s": time.perf_counter() - start}
     passes, desc, timings["passes_s"], _ = _passes(scene, key, PASS_SAMPLES, cache, log)
@@ -548,7 +556,16 @@ def markdown(data: dict) -> str:
     return "\n".join(lines)
 
 
-def run(names=None, *, scenes=None, qualities=None, cache: str | None = CACHE, store=references.STORE, log=print):
+def run(
+    names=None,
+    *,
+    scenes=None,
+    qualities=None,
+    cache: str | None = CACHE,
+    store=references.STORE,
+    log=print,
+    thickness_source: str = "ao",
+):
     """Score ``names`` (default: every scene of ``scenes``, default the suite); returns
     {"scenes": [per-scene results], "summary": ...}. Per-scene results hold ``rows`` (one per
     technique and quality) and ``_images`` (the default-quality images, not JSON)."""
@@ -559,7 +576,7 @@ def run(names=None, *, scenes=None, qualities=None, cache: str | None = CACHE, s
     results = []
     for name in names:
         log(f"{name}:")
-        data = load_scene(name, scenes=module, cache=cache, store=store, log=log)
+        data = load_scene(name, scenes=module, cache=cache, store=store, log=log, thickness_source=thickness_source)
         result = score_scene(data, qualities=qualities, log=log)
         result["_images"]["reference"] = data.reference
         results.append(result)
@@ -572,6 +589,12 @@ def main(argv=None) -> int:
     parser.add_argument("--scenes-module", help="a module with SCENES built the suite's way (default: the suite)")
     parser.add_argument("--store", default=references.STORE, help="folder of the stored references")
     parser.add_argument("--no-cache", action="store_true", help="render the passes again instead of reusing them")
+    parser.add_argument(
+        "--thickness-source",
+        choices=("ao", "ray"),
+        default="ao",
+        help="the thickness bake's source (default %(default)s, the bake's default; core/thickness.py)",
+    )
     parser.add_argument("--out", default=RESULTS, help=f"JSON results (default {RESULTS})")
     parser.add_argument("--table", default=TABLE, help=f"Markdown table (default {TABLE})")
     parser.add_argument("--grid", default=GRID, help=f"picture grid (default {GRID})")
@@ -582,11 +605,17 @@ def main(argv=None) -> int:
 
     module = _load_scenes_module(args.scenes_module)
     start = time.perf_counter()
-    out = run(args.names, scenes=module, cache=None if args.no_cache else CACHE, store=args.store)
+    out = run(
+        args.names,
+        scenes=module,
+        cache=None if args.no_cache else CACHE,
+        store=args.store,
+        thickness_source=args.thickness_source,
+    )
     total = time.perf_counter() - start
     data = {
         "command": "make fidelity"
-        if not (args.names or args.scenes_module)
+        if not (args.names or args.scenes_module or args.thickness_source != "ao")
         else " ".join(["python -m benchmarks.fidelity.run", *sys.argv[1:]]),
         "generated_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "blender": bpy.app.version_string,

@@ -564,12 +564,12 @@ def prepare(scene) -> None:
         aov.name, aov.type = THICKNESS_AOV, "VALUE"
 
 
-def bake(scene) -> list:
+def bake(scene, source: str = "ao") -> list:
     """The thickness bake of the subsurface meshes with the bake's defaults (attribute target,
-    ``THICKNESS_SAMPLES`` rays); returns the bake results. Done after the fingerprint: the map
-    changes what STA reads, not what Cycles renders."""
+    ``THICKNESS_SAMPLES`` rays; ``source`` the bake's, "ao" by default); returns the bake results.
+    Done after the fingerprint: the map changes what STA reads, not what Cycles renders."""
     from sss_lab.blender.bake import bake_thickness
     from sss_lab.core.thickness import BakeSettings
 
-    settings = BakeSettings(target="attribute", samples=THICKNESS_SAMPLES, attribute_name=THICKNESS_AOV)
+    settings = BakeSettings(target="attribute", samples=THICKNESS_SAMPLES, attribute_name=THICKNESS_AOV, source=source)
     return bake_thickness(scene, subsurface_objects(scene), settings, log=None)

@@ -738,3 +738,37 @@ def test_subsurface_meshes_are_the_command_lines_default():
     bpy.context.view_layer.update()
     assert [o.name for o in bake_mod.subsurface_meshes(bpy.context.scene)] == ["Head"]
     assert bake_mod.carries_subsurface(head) and not bake_mod.carries_subsurface(floor)
+
+
+def test_ray_source_reads_the_slab_law_on_low_poly_fins_and_the_diameter_of_a_tube():
+    """The "ray" source: the distance to the far side along the inward normals, written as the AO
+    a slab of that thickness gives. Every corner of an 8-vertex fin reads the fin's own slab law
+    exactly (its shortest ray crosses the fin; float32 rounding), where the AO source's corners
+    see open space; a cylinder's side vertices read its diameter, where the AO source reads a
+    fraction of it (docs/references.md §14). No warning about coarse meshes."""
+    thicknesses = (0.002, 0.005, 0.01, 0.024)
+    fins = [
+        _link(f"Fin {t}", _box(f"Fin {t}", size=(0.05, t, 0.09), location=(0.1 * i, 0, 0), uv=False))
+        for i, t in enumerate(thicknesses)
+    ]
+    results = bake_thickness(bpy.context, fins, _settings(source="ray", distance_su=0.03), log=_quiet)
+    for fin, t, r in zip(fins, thicknesses, results, strict=True):
+        assert r.status == "baked" and not [w for w in r.warnings if "too coarse" in w], r
+        expected = 1.0 - float(slab_unoccluded_fraction(t, 0.03))
+        np.testing.assert_allclose(_values(fin.data, "Thickness"), expected, atol=1e-4)
+        assert thickness_metadata(fin.data)["Thickness"]["source"].startswith("distance to the far side")
+    bm = bmesh.new()
+    bmesh.ops.create_cone(bm, cap_ends=True, segments=32, radius1=0.01, radius2=0.01, depth=0.1)
+    mesh = bpy.data.meshes.new("Tube")
+    bm.to_mesh(mesh)
+    bm.free()
+    tube = _link("Tube", mesh)
+    (r,) = bake_thickness(bpy.context, [tube], _settings(source="ray", distance_su=0.05), log=_quiet)
+    assert r.status == "baked"
+    co = _coords(tube.data)
+    side = np.abs(co[:, 2]) < 0.05 - 1e-6
+    x = 0.05 * np.sqrt(1.0 - _values(tube.data, "Thickness")[side])  # back to a length: the slab law
+    # The diameter within the polygon's flattening (cos(pi / 32) of the circle: 0.5 %).
+    np.testing.assert_allclose(x, 0.02, rtol=0.01)
+    with pytest.raises(ValueError, match="bake source 'ray' measures the thickness at the mesh's vertices"):
+        _settings(source="ray", target="image")

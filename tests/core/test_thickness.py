@@ -122,3 +122,11 @@ def test_default_settings():
     assert s.meaning.startswith("1 = thin")
     with pytest.raises(ValueError, match="image_folder"):
         BakeSettings(target="image", image_folder="")
+
+
+def test_bake_source_is_checked():
+    assert BakeSettings().source == "ao" and BakeSettings(source="ray").source == "ray"
+    with pytest.raises(ValueError, match="bake source: 'rays' is not one of ao, ray"):
+        BakeSettings(source="rays")
+    with pytest.raises(ValueError, match="use the attribute target"):
+        BakeSettings(source="ray", target="image")
