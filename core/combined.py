@@ -284,6 +284,29 @@ def spread_back_light(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> 
     return np.where(mask[..., None], out, e).astype(np.float32)
 
 
+def _spread_part(out: np.ndarray, part: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """``spread_back_light`` of ``out`` over the pixels ``part`` (sigma (k, 3) px, one row per
+    pixel of ``part``), computed on ``part``'s bounding box widened by the widest blur's reach
+    (the same values as on the whole frame: nothing outside the box takes part)."""
+    ys, xs = np.nonzero(part)
+    if ys.size == 0:
+        return out
+    # The level used is at most twice the widest sigma; three boxes of half-width ~sigma reach 3 sigma.
+    pad = int(math.ceil(6.0 * float(sigma.max(initial=0.0)))) + 3
+    h, w = part.shape
+    box = (
+        slice(max(ys.min() - pad, 0), min(ys.max() + pad + 1, h)),
+        slice(max(xs.min() - pad, 0), min(xs.max() + pad + 1, w)),
+    )
+    sub = part[box]
+    sig = np.zeros(sub.shape + (3,), np.float32)
+    sig[sub] = sigma
+    spread = spread_back_light(out[box], sub, sig)
+    out = out.copy()
+    out[box] = np.where(sub[..., None], spread, out[box])
+    return out
+
+
 def transmission(
     *,
     normal,
@@ -340,15 +363,15 @@ def transmission(
         # The light a walk leaves with entered the far side up to about the thickness away.
         m = _arrays.mask_array(mask, e.shape[:2]) & ok
         ppu = camera.pixels_per_unit(_arrays.image(depth, "depth", None))
-        sigma = spread_sigma(slab_thickness(tt, distance), d_su, medium) * ppu[..., None]
+        x_all = slab_thickness(tt, distance)
         if object_id is None:
-            out = spread_back_light(out, m, sigma)
+            parts = [m]
         else:  # light does not cross from one object to another
             ids = np.asarray(object_id)
             ids = ids[..., 0] if ids.ndim == 3 else ids
-            for i in np.unique(ids[m]):
-                part = m & (ids == i)
-                out = np.where(part[..., None], spread_back_light(out, part, sigma), out)
+            parts = [m & (ids == i) for i in np.unique(ids[m])]
+        for part in parts:
+            out = _spread_part(out, part, spread_sigma(x_all[part], d_su, medium) * ppu[part][:, None])
     w = exit_weight(albedo, medium, albedo_mode)
     if w is not None:
         _arrays.same_size(e.shape[:2], albedo=w)
