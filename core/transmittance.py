@@ -67,13 +67,10 @@ def single_scattering_albedo(base_color, anisotropy: float = 0.0) -> np.ndarray:
     return np.clip((1.0 - s2) / np.maximum(1.0 - g * s2, 1e-12), 0.0, 0.999999)
 
 
-def legacy_single_scattering_albedo(base_color, anisotropy: float = 0.0) -> np.ndarray:
-    """Random Walk (Legacy)'s single-scattering albedo (Cycles ``subsurface_random_walk_remap``
-    for g >= 0: Chiang et al. 2016's fit, its coefficients polynomials in g); float64 (3,)."""
-    a = np.clip(np.asarray(base_color, np.float64), 0.0, 1.0)
-    g = float(anisotropy)
-    gp = g ** np.arange(8)
-    big_a = gp @ (
+#: Chiang et al.'s fit as Cycles codes it (``subsurface_random_walk_remap``): each coefficient a
+#: polynomial in g (powers 0..7); B and E are a constant plus a factor times e^(polynomial, powers 1..7).
+_CHIANG_POLY = {
+    "A": (
         1.8260523782,
         -1.28451056436,
         -1.79904629312,
@@ -82,12 +79,8 @@ def legacy_single_scattering_albedo(base_color, anisotropy: float = 0.0) -> np.n
         32.0234874259,
         -23.6264803333,
         7.21067002658,
-    )
-    big_b = 4.98511194385 + 0.127355959438 * math.exp(
-        gp[1:]
-        @ (31.1491581433, -201.847017512, 841.576016723, -2018.09288505, 2731.71560286, -1935.41424244, 559.009054474)
-    )
-    big_c = gp @ (
+    ),
+    "C": (
         1.09686102424,
         -0.394704063468,
         1.05258115941,
@@ -96,8 +89,8 @@ def legacy_single_scattering_albedo(base_color, anisotropy: float = 0.0) -> np.n
         -46.8802913581,
         38.5402837518,
         -12.7181042538,
-    )
-    big_d = gp @ (
+    ),
+    "D": (
         0.496310210422,
         0.360146581622,
         -2.15139309747,
@@ -106,12 +99,8 @@ def legacy_single_scattering_albedo(base_color, anisotropy: float = 0.0) -> np.n
         82.065982243,
         -58.5106008578,
         15.8478295021,
-    )
-    big_e = 4.23190299701 + 0.00310603949088 * math.exp(
-        gp[1:]
-        @ (76.7316253952, -594.356773233, 2448.8834203, -5576.68528998, 7116.60171912, -4763.54467887, 1303.5318055)
-    )
-    big_f = gp @ (
+    ),
+    "F": (
         2.40602999408,
         -2.51814844609,
         9.18494908356,
@@ -120,9 +109,32 @@ def legacy_single_scattering_albedo(base_color, anisotropy: float = 0.0) -> np.n
         -403.613804597,
         302.85712436,
         -87.4370473567,
-    )
+    ),
+}
+_CHIANG_EXP = {
+    "B": (
+        4.98511194385,
+        0.127355959438,
+        (31.1491581433, -201.847017512, 841.576016723, -2018.09288505, 2731.71560286, -1935.41424244, 559.009054474),
+    ),
+    "E": (
+        4.23190299701,
+        0.00310603949088,
+        (76.7316253952, -594.356773233, 2448.8834203, -5576.68528998, 7116.60171912, -4763.54467887, 1303.5318055),
+    ),
+}
+
+
+def legacy_single_scattering_albedo(base_color, anisotropy: float = 0.0) -> np.ndarray:
+    """Random Walk (Legacy)'s single-scattering albedo (Cycles ``subsurface_random_walk_remap``
+    for g >= 0: Chiang et al. 2016's fit, its coefficients polynomials in g); float64 (3,)."""
+    a = np.clip(np.asarray(base_color, np.float64), 0.0, 1.0)
+    gp = float(anisotropy) ** np.arange(8)
+    k = {name: float(gp @ np.array(c)) for name, c in _CHIANG_POLY.items()}
+    for name, (const, factor, poly) in _CHIANG_EXP.items():
+        k[name] = const + factor * math.exp(float(gp[1:] @ np.array(poly)))
     blend = a**0.25
-    alpha = (1.0 - blend) * big_a * np.arctan(big_b * a) ** big_c + blend * big_d * np.arctan(big_e * a) ** big_f
+    alpha = (1.0 - blend) * k["A"] * np.arctan(k["B"] * a) ** k["C"] + blend * k["D"] * np.arctan(k["E"] * a) ** k["F"]
     return np.clip(alpha, 0.0, 0.999999)
 
 
