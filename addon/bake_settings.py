@@ -112,7 +112,8 @@ class SSSLabBakeSettings(bpy.types.PropertyGroup):
         return BakeSettings(
             target=self.target,
             convention=self.convention,
-            source=self.source,
+            # The ray source measures at the vertices: an image is always baked from the AO.
+            source=self.source if self.target == "attribute" else "ao",
             samples=self.samples,
             distance_su=float(self.distance),
             only_local=self.only_local,

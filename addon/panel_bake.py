@@ -20,7 +20,8 @@ class SSS_LAB_PT_bake(bpy.types.Panel):
         layout = split(self.layout)
         s = context.scene.sss_lab.bake
         layout.prop(s, "target")
-        layout.prop(s, "source")
+        if s.target == "attribute":  # the ray source measures at the vertices
+            layout.prop(s, "source")
         layout.prop(s, "convention")
         col = layout.column(align=True)
         col.prop(s, "samples")

@@ -643,8 +643,11 @@ def test_panel_draws_the_settings_and_the_button(addon, draw_panels, target):
     if target == "image":
         assert {"resolution", "margin", "image_format", "image_folder"} <= set(drawn)
         assert "Undo cannot delete image files already saved." in drawn
+        assert "source" not in drawn  # the ray source measures at the vertices
+        bpy.context.scene.sss_lab.bake.source = "ray"
+        assert bake_mod.settings_from_scene(bpy.context.scene).source == "ao"
     else:
-        assert "attribute_name" in drawn
+        assert {"attribute_name", "source"} <= set(drawn)
 
 
 def _run_cli(*args):
