@@ -54,7 +54,7 @@ from . import _arrays
 from .burley import TECHNIQUE as BURLEY
 from .burley import burley
 from .passes import THICKNESS
-from .scene import Camera, Light
+from .scene import SUBSURFACE_METHODS, Camera, Light
 from .spec import Footprint, Param, Technique, profile_footprint
 from .ssss import TECHNIQUE as SSSS
 from .ssss import ssss
@@ -137,6 +137,13 @@ class Medium:
     base_color: tuple = (0.8, 0.8, 0.8)
     ior: float = 1.4
     anisotropy: float = 0.0
+
+    def __post_init__(self):
+        if self.method not in SUBSURFACE_METHODS:
+            raise ValueError(f"subsurface_method: {self.method!r} is not one of {', '.join(SUBSURFACE_METHODS)}")
+        color = np.asarray(self.base_color, np.float64)
+        if color.shape != (3,) or not np.all(np.isfinite(color)):
+            raise ValueError(f"base_color: expected three finite numbers (R, G, B), got {self.base_color!r}")
 
     @property
     def walks(self) -> bool:

@@ -123,6 +123,12 @@ def test_bad_input_names_the_value():
     combined(**kw, lights=(), transmission_scale=0.0)
     with pytest.raises(ValueError, match="transmission_d_su"):
         combined(**{**_slab(), "transmission_d_su": (1.0, -1.0, 0.0)}, lights=())
+    with pytest.raises(ValueError, match="subsurface_method: 'WALK' is not one of BURLEY, RANDOM_WALK"):
+        combined(**_slab(), lights=(), subsurface_method="WALK")
+    with pytest.raises(ValueError, match="base_color: expected three finite numbers"):
+        combined(**_slab(), lights=(), subsurface_method="RANDOM_WALK", base_color=(0.5, 0.5))
+    with pytest.raises(ValueError, match="mfp_su"):
+        combined(**_slab(), lights=(), subsurface_method="RANDOM_WALK", mfp_su=(0.01, -0.01, 0.01))
 
 
 def test_ssss_diffusion_and_inputs_untouched():
