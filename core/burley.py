@@ -154,7 +154,7 @@ def burley(
     seed: int = 0,
     smooth_px: int = 1,
     albedo_mode: str = "post",
-    energy: str = "view",
+    energy: str = "object",
     subsurface_method: str | None = None,
     normal=None,
     position=None,
@@ -172,11 +172,11 @@ def burley(
     profile's d per channel (R, G, B) in scene units (``core.mapping.burley_d``); ``object_id``
     (H, W) optional: samples from another id are rejected. ``n_samples`` 1..4096.
     ``energy``: how the light on the mask follows Cycles' ``subsurface_method``
-    (``core.energy.apply_energy``; None: no method, no change): "view" (default) its dependence
-    on the view angle with each channel's total kept, "cycles" the modelled energy too (with
-    ``thickness``, ``normal``, ``position``, ``lights``, ``mfp_su`` and ``thickness_distance_su``
-    the light a finite object loses through its far side and receives there), "lambert" the
-    passes' light as it is.
+    (``core.energy.apply_energy``; None: no method, no change): "object" (default) spread over
+    the view angles with each channel's total kept, times a finite object's light (with
+    ``thickness``, ``normal``, ``position``, ``lights``, ``mfp_su`` and ``thickness_distance_su``:
+    what leaves through its far side and what comes through it), "view" the spread alone,
+    "lambert" the passes' light as it is.
     Returns float32 (H, W, 3): albedo x scattered light on the mask, albedo x diffuse elsewhere.
     """
     out = _gather(

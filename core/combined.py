@@ -418,7 +418,7 @@ def combined(
     base_color=(0.8, 0.8, 0.8),
     subsurface_ior: float = 1.4,
     subsurface_anisotropy: float = 0.0,
-    energy: str = "view",
+    energy: str = "object",
 ) -> np.ndarray:
     """Diffusion of the visible light plus transmission of the light from behind, float32 (H, W, 3).
 

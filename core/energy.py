@@ -27,12 +27,12 @@ two reasons this module models (docs/references.md §15), each from canonical Cy
    visible light that the lamps do not explain (a world or bounce light, taken to reach the
    unseen side alike).
 
-The diffusion techniques' ``energy`` parameter chooses: "view" (their default) applies the
-entry's dependence on the view angle and keeps each material's light per channel as the passes
-give it (on the suite and on scenes outside it, the level of the modelled light is less reliable
-than its shape: docs/references.md §15); "cycles" returns entry x (their light x f_above + albedo
-x f_below x E_unseen), with only the entry when there is no thickness map or no Normal and
-Position passes (rendered with the combined technique's passes); "lambert" keeps the passes'
+The diffusion techniques' ``energy`` parameter chooses. "object" (their default): the entry's
+gain, scaled per material and channel so that it keeps the passes' total (on objects the level
+of the semi-infinite entry is off by -5 to +29 % while its dependence on the view angle holds,
+docs/references.md §15), times (their light x f_above + albedo x f_below x E_unseen); without a
+thickness map or the Normal and Position passes (rendered with the combined technique's passes)
+the finite-object factor is left out. "view": the scaled entry alone. "lambert": the passes'
 light as it is. The constants are the tables; nothing is fitted to a scene.
 """
 
@@ -45,24 +45,25 @@ from .scene import Camera
 from .spec import Param
 
 #: Choices of the techniques' ``energy`` parameter (``apply_energy``).
-ENERGY_MODES = ("view", "cycles", "lambert")
+ENERGY_MODES = ("object", "view", "lambert")
 
 #: The diffusion techniques' ``energy`` parameter (Burley, SSSS, the combined technique).
 ENERGY_PARAM = Param(
     "energy",
     "Energy",
-    "Whose energy the scattered light keeps",
+    "How much light the scattered light returns, and at which view angles",
     type=str,
     choices=(
+        (
+            "object",
+            "Object",
+            "As Cycles' method returns it: spread over the view angles, less what leaves through a thin "
+            "object's far side, plus what comes through it",
+        ),
         (
             "view",
             "View Angle",
             "The passes' light of each material, spread over the view angles as the Cycles method returns it",
-        ),
-        (
-            "cycles",
-            "Cycles Model",
-            "The Cycles method's light: its entry per view angle and albedo, and a finite object's far side",
         ),
         ("lambert", "Lambert", "The passes' plain diffuse light"),
     ),
@@ -380,14 +381,14 @@ def apply_energy(
     lamps_behind: bool = True,
 ):
     """``out`` (H, W, 3, a diffusion's result: albedo x its light) with its pixels on ``mask``
-    given the energy of Cycles' ``subsurface_method`` (module docstring). "cycles": entry x (out x f_above +
-    albedo x f_below x E_unseen). "view": entry x out scaled per channel so that the mask's light
-    is what it was (the method's dependence on the view angle, the passes' energy: the level of
-    the light is where the model is least sure, docs/references.md §15). ``diffuse`` and ``albedo`` are the
+    given the light of Cycles' ``subsurface_method`` (module docstring): "view" multiplies them by
+    the entry's gain g, scaled per channel so that the mask's total is what it was (the view
+    dependence, the passes' energy); "object" returns that times (out x f_above + albedo x
+    f_below x E_unseen), the finite object's light. ``diffuse`` and ``albedo`` are the
     diffusion's inputs (in the "pre-post" mode sqrt(A) x E and sqrt(A)). The finite-object part
     needs ``thickness`` (H, W, the baked map), ``thickness_distance_su`` > 0, ``mfp_su`` (the
-    method's length per channel), ``normal`` and ``position`` (H, W, 3); without them only the
-    entry applies. ``subsurface_method`` None (unknown) or "lambert": ``out`` unchanged."""
+    method's length per channel), ``normal`` and ``position`` (H, W, 3); without them "object" is
+    "view". ``subsurface_method`` None (unknown) or "lambert": ``out`` unchanged."""
     if energy not in ENERGY_MODES:
         raise ValueError(f"energy: {energy!r} is not one of {', '.join(ENERGY_MODES)}")
     method = subsurface_method
@@ -401,17 +402,14 @@ def apply_energy(
     if albedo_mode == "pre-post":
         e = e / np.maximum(a, np.float32(1e-6))
         a = a * a
-    gain = entry_gain(method, a, view_cosine(depth, m, camera)[m])
+    # The entry's dependence on the view angle, each channel's total over the mask kept.
     light = out[m]
-    if energy == "view":
-        before = light.astype(np.float64).sum(axis=0)
-        light = light * gain
-        after = light.astype(np.float64).sum(axis=0)
-        scale = np.where(after > 0, before / np.where(after > 0, after, 1.0), 1.0)
-        out[m] = light * scale.astype(np.float32)[None, :]
-        return out
+    gain = entry_gain(method, a, view_cosine(depth, m, camera)[m])
+    before = light.astype(np.float64).sum(axis=0)
+    after = (light * gain).astype(np.float64).sum(axis=0)
+    gain = gain * np.where(after > 0, before / np.where(after > 0, after, 1.0), 1.0).astype(np.float32)[None, :]
     finite = (
-        energy == "cycles"
+        energy == "object"
         and thickness is not None
         and normal is not None
         and position is not None

@@ -191,7 +191,7 @@ def ssss(
     strength=None,
     follow_surface: bool = True,
     albedo_mode: str = "post",
-    energy: str = "view",
+    energy: str = "object",
     subsurface_method: str | None = None,
     normal=None,
     position=None,
