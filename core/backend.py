@@ -183,10 +183,11 @@ def tolerance(terms: int, magnitude: np.ndarray) -> np.ndarray:
     """Per-pixel bound on |compiled - reference| (float64, the shape of ``magnitude``).
 
     Both compute the same float32 operations on the same values; they differ in the order of
-    the sums and in the exponential and power functions. A float32 sum of k terms in any order
-    is within (k - 1) u of the exact sum relative to the sum of the terms' magnitudes (u = 2^-24;
-    Higham, "Accuracy and Stability of Numerical Algorithms", 2nd ed., §4.2), and so is each of
-    the two compared results: hence 2 ``terms`` u relative to the ``magnitude`` of the values
+    the sums, in the exponential and power functions, and where the compiled kernels fuse a
+    product into a sum (one rounding instead of two: within the same bound). A float32 sum of
+    k terms in any order is within (k - 1) u of the exact sum relative to the sum of the terms'
+    magnitudes (u = 2^-24; Higham, "Accuracy and Stability of Numerical Algorithms", 2nd ed.,
+    §4.2), and so is each of the two compared results: hence 2 ``terms`` u relative to the ``magnitude`` of the values
     summed (per pixel and channel). Plus 32 u for the functions and the products around the
     sums: the two e^x are within 5 u of each other (2 u and 4 u of the exact value), which a
     cube in the Burley weight makes 15 u, on the weighted sum and on the sum of the weights.

@@ -6,19 +6,20 @@ compute what every backend shares (the pixels that take part, the footprint, the
 and hand the per-pixel work to these kernels or to their own NumPy code, the readable reference
 (docs/references.md §11).
 
-Each kernel does the reference's float32 operations in the reference's order, without fused
-multiply-add: tap and sample positions, indices and comparisons come out bit-identical, so a
-sample never lands on another pixel. What differs: the sums over a pixel's taps or samples are
-in another order (SSSS sums its taps one after the other; Burley's sums over its samples are
-reassociated, ``fastmath={"reassoc"}`` on the function that holds them and on nothing that
-places a sample, so that they vectorize; the reference sums with BLAS matrix products, in its
-own order), a tap's two samples share one multiplication by its weight, and e^x is ``_exp``
-(within 1 unit in the last place; NumPy's is within 4). The bound that follows is
-``core.backend.tolerance``; the tests run every technique call of the core suite on both
-backends against it. Where the reference multiplies a sample by a weight of exactly 0 (a pixel
-that takes no part: colour 0, depth key +inf), a kernel adds 0 (selects it away), which is the
-same. Burley's clean-up (``core.burley._smooth``) sums in float64 in the reference's order: the
-same result to the bit, from the same gathered values.
+Each kernel places its taps and samples with the reference's float32 operations in the
+reference's order, without fused multiply-add: tap and sample positions, indices and
+comparisons come out bit-identical, so a sample never lands on another pixel. What differs: the
+sums over a pixel's taps or samples are in another order (SSSS sums its taps one after the
+other; Burley's sums over its samples are reassociated, ``fastmath={"reassoc"}`` on the
+function that holds them and on nothing that places a sample, so that they vectorize; the
+reference sums with BLAS matrix products, in its own order), a tap's two samples share one
+multiplication by its weight, SSSS's sums of products are fused multiply-adds (one rounding
+where the reference has two), and e^x is ``_exp`` (within 1 unit in the last place; NumPy's is
+within 4). The bound that follows is ``core.backend.tolerance``; the tests run every technique
+call of the core suite on both backends against it. Where the reference multiplies a sample by
+a weight of exactly 0 (a pixel that takes no part: colour 0, depth key +inf), a kernel adds 0
+(selects it away), which is the same. Burley's clean-up (``core.burley._smooth``) sums in
+float64 in the reference's order: the same result to the bit, from the same gathered values.
 
 Pixels are visited row by row (``prange`` over rows; SSSS's vertical pass over strips of
 columns, Burley over blocks of rows), each written by one thread only, and no kernel allocates
@@ -369,19 +370,32 @@ def sta_kernel(
 
 
 @njit(cache=True, error_model="numpy")
+def _ssss_tap(s, offset, coord, lastf):
+    """Where a tap reads, as the reference computes it, without fastmath (the pixels read must
+    be the reference's): (first pixel j, interpolation weight f of pixel j + 1)."""
+    pos = s * offset
+    pos += coord
+    pos = _clip(pos, lastf)
+    fl = np.floor(pos)
+    return np.int32(fl), pos - fl
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _ssss_taps(lines, i, kc, s, coord, last, offsets, weights):
     """The off-centre taps of one 1-D SSSS pass (core.ssss._pass) for one pixel: per channel
     sum_k w_k a_k and sum_k w_k a_k g_k, as (aw R, G, B, ag R, G, B).
 
-    ``lines[i]`` (4, last + 2): the line's light R, G, B and key (the line's
-    last + 1 pixels, then (0, 0, 0, +inf), the neighbour the reference gives the line's last
-    pixel), 0 and +inf where pixels take no part (their weight is then exactly 0); ``kc`` the
-    pixel's key, ``s`` its pixels per scene unit, ``coord`` its position along the line.
+    ``lines[i]`` (4, last + 2): the line's light R, G, B and key (the line's last + 1 pixels,
+    then (0, 0, 0, +inf), the neighbour the reference gives the line's last pixel), 0 and +inf
+    where pixels take no part (their weight is then exactly 0); ``kc`` the pixel's key, ``s``
+    its pixels per scene unit, ``coord`` its position along the line.
 
     One tap at a time, in scalar code: vectorized over the taps, as the reference's matrix
     products are, the gathers and the sums across the vector cost more than the taps (measured:
-    334 vs 222 ms per pass at 1080p). The sums are in the taps' order (the reference's matrix
-    products sum in their own); the tap positions are the reference's to the bit."""
+    334 vs 222 ms per pass at 1080p). The tap positions are the reference's to the bit
+    (``_ssss_tap``); the sums are in the taps' order (the reference's matrix products sum in
+    their own) and their products and sums fused (``fastmath`` "contract": one rounding
+    instead of two, never more error than the reference's separate operations)."""
     lastf = f32(last)
     aw0 = _ZERO
     aw1 = _ZERO
@@ -390,12 +404,7 @@ def _ssss_taps(lines, i, kc, s, coord, last, offsets, weights):
     ag1 = _ZERO
     ag2 = _ZERO
     for k in range(offsets.size):
-        pos = s * offsets[k]
-        pos += coord
-        pos = _clip(pos, lastf)
-        fl = np.floor(pos)
-        f = pos - fl
-        j = np.int32(fl)
+        j, f = _ssss_tap(s, offsets[k], coord, lastf)
         j1 = np.int32(j + np.int32(1))  # the padding past the end only when f = 0: weight 0
         a0 = _ONE - abs(lines[i, 3, j] - kc)
         a0 = (a0 if a0 > _ZERO else _ZERO) * (_ONE - f)
