@@ -399,24 +399,27 @@ def _compiled(light, z, ok, scale, ids, groups, n, d, inv3d, reach_c, random_rot
     reach = np.asarray(reach_c, np.float64)
     tol = np.array([min(float(v), 3.0e38) for v in d], f32)
     radius = max(int(smooth_px), 0)
-    h = ok.shape[0]
-    # Bands of rows, each with the rotation of its rows (and of the clean-up's margin) only:
+    # The rows and columns that hold pixels to gather (the 25 % mask case: a quarter of the work).
+    rows = np.flatnonzero(ok.any(axis=1))
+    cols = np.flatnonzero(ok.any(axis=0))
+    r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+    # Bands of rows, each with the rotation of its pixels (and of the clean-up's margin) only:
     # two frames of cosines and sines would take more memory than the output.
-    band = h if not random_rotation else _BAND_ROWS
+    band = r1 - r0 if not random_rotation else _BAND_ROWS
     rot_cos = np.ones((1, 1), f32)  # a rotation by 0 (cos 1, sin 0) leaves the spiral as it is
     rot_sin = np.zeros((1, 1), f32)
-    for y_lo in range(0, h, band):
-        y_hi = min(y_lo + band, h)
-        rot_y0 = 0
+    for y_lo in range(r0, r1, band):
+        y_hi = min(y_lo + band, r1)
+        rot_y0 = rot_x0 = 0
         if random_rotation:
-            rot_y0 = max(y_lo - radius, 0)
-            phi = np.empty((min(y_hi + radius, h) - rot_y0, ok.shape[1]), f32)
-            backend.run_kernel("burley_angles", ok, int(seed) & 0xFFFFFFFF, rot_y0, phi)
+            rot_y0, rot_x0 = max(y_lo - radius, r0), c0
+            phi = np.empty((min(y_hi + radius, r1) - rot_y0, c1 - c0), f32)
+            backend.run_kernel("burley_angles", ok, int(seed) & 0xFFFFFFFF, rot_y0, rot_x0, phi)
             rot_sin = np.sin(phi)  # NumPy's cosine and sine, as the reference's
             rot_cos = np.cos(phi, out=phi)
         backend.run_kernel(
-            "burley_kernel", light, zkey, ok, scale, id_map, group_map, tables, rot_cos, rot_sin, rot_y0, inv3d,
-            reach, extents, z, tol, radius, SMOOTH_MIN_FOOTPRINT_PX, post, y_lo, y_hi, out,
+            "burley_kernel", light, zkey, ok, scale, id_map, group_map, tables, rot_cos, rot_sin, rot_y0, rot_x0,
+            inv3d, reach, extents, z, tol, radius, SMOOTH_MIN_FOOTPRINT_PX, post, y_lo, y_hi, out,
         )  # fmt: skip
     return out
 

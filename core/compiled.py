@@ -370,41 +370,45 @@ def sta_kernel(
 
 
 @njit(cache=True, error_model="numpy")
-def _ssss_tap(s, offset, coord, lastf):
-    """Where a tap reads, as the reference computes it, without fastmath (the pixels read must
-    be the reference's): (first pixel j, interpolation weight f of pixel j + 1)."""
-    pos = s * offset
-    pos += coord
-    pos = _clip(pos, lastf)
-    fl = np.floor(pos)
-    return np.int32(fl), pos - fl
+def _ssss_positions(s, offsets, coord, last, js, fs):
+    """Where a pixel's taps read, as the reference computes it: tap k reads pixels js[k] and
+    js[k] + 1 with the weight fs[k] on the second. Compiled without fastmath and called from
+    the kernels, never from a function with fastmath (Numba compiles a function's callees with
+    its flags): the pixels read are the reference's to the bit."""
+    lastf = f32(last)
+    for k in range(offsets.size):
+        pos = s * offsets[k]
+        pos += coord
+        pos = _clip(pos, lastf)
+        fl = np.floor(pos)
+        js[k] = np.int32(fl)
+        fs[k] = pos - fl
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _ssss_taps(lines, i, kc, s, coord, last, offsets, weights):
-    """The off-centre taps of one 1-D SSSS pass (core.ssss._pass) for one pixel: per channel
-    sum_k w_k a_k and sum_k w_k a_k g_k, as (aw R, G, B, ag R, G, B).
+def _ssss_taps(lines, i, kc, js, fs, weights):
+    """The off-centre taps of one 1-D SSSS pass (core.ssss._pass) for one pixel, read where
+    ``_ssss_positions`` put them: per channel sum_k w_k a_k and sum_k w_k a_k g_k, as
+    (aw R, G, B, ag R, G, B).
 
     ``lines[i]`` (4, last + 2): the line's light R, G, B and key (the line's last + 1 pixels,
     then (0, 0, 0, +inf), the neighbour the reference gives the line's last pixel), 0 and +inf
-    where pixels take no part (their weight is then exactly 0); ``kc`` the pixel's key, ``s``
-    its pixels per scene unit, ``coord`` its position along the line.
+    where pixels take no part (their weight is then exactly 0); ``kc`` the pixel's key.
 
     One tap at a time, in scalar code: vectorized over the taps, as the reference's matrix
     products are, the gathers and the sums across the vector cost more than the taps (measured:
-    334 vs 222 ms per pass at 1080p). The tap positions are the reference's to the bit
-    (``_ssss_tap``); the sums are in the taps' order (the reference's matrix products sum in
-    their own) and their products and sums fused (``fastmath`` "contract": one rounding
-    instead of two, never more error than the reference's separate operations)."""
-    lastf = f32(last)
+    334 vs 222 ms per pass at 1080p). The sums are in the taps' order (the reference's matrix
+    products sum in their own), with their products fused into them (``fastmath`` "contract":
+    one rounding instead of two)."""
     aw0 = _ZERO
     aw1 = _ZERO
     aw2 = _ZERO
     ag0 = _ZERO
     ag1 = _ZERO
     ag2 = _ZERO
-    for k in range(offsets.size):
-        j, f = _ssss_tap(s, offsets[k], coord, lastf)
+    for k in range(js.size):
+        j = js[k]
+        f = fs[k]
         j1 = np.int32(j + np.int32(1))  # the padding past the end only when f = 0: weight 0
         a0 = _ONE - abs(lines[i, 3, j] - kc)
         a0 = (a0 if a0 > _ZERO else _ZERO) * (_ONE - f)
@@ -455,11 +459,12 @@ def ssss_kernel(light, key, ok, scale, offsets, weights, wsum, post, out):
         line[0, 1, w] = _ZERO
         line[0, 2, w] = _ZERO
         line[0, 3, w] = _INF
+        js = np.empty(offsets.size, np.int32)
+        fs = np.empty(offsets.size, np.float32)
         for x in range(x0, x1):
             if ok[y, x]:
-                aw0, aw1, aw2, ag0, ag1, ag2 = _ssss_taps(
-                    line, 0, key[y, x], scale[y, x], f32(x), w - 1, offsets, weights
-                )
+                _ssss_positions(scale[y, x], offsets, f32(x), w - 1, js, fs)
+                aw0, aw1, aw2, ag0, ag1, ag2 = _ssss_taps(line, 0, key[y, x], js, fs, weights)
                 out[y, x, 0] = (wsum[0] - aw0) * line[0, 0, x] + ag0
                 out[y, x, 1] = (wsum[1] - aw1) * line[0, 1, x] + ag1
                 out[y, x, 2] = (wsum[2] - aw2) * line[0, 2, x] + ag2
@@ -479,6 +484,8 @@ def ssss_kernel(light, key, ok, scale, offsets, weights, wsum, post, out):
         if ya >= yb:
             continue
         lines = np.empty((m, 4, h + 1), np.float32)
+        js = np.empty(offsets.size, np.int32)
+        fs = np.empty(offsets.size, np.float32)
         for i in range(m):
             for c in range(3):
                 lines[i, c, :ya] = _ZERO
@@ -497,53 +504,50 @@ def ssss_kernel(light, key, ok, scale, offsets, weights, wsum, post, out):
             for i in range(m):
                 x = xa + i
                 if ok[y, x]:
-                    aw0, aw1, aw2, ag0, ag1, ag2 = _ssss_taps(
-                        lines, i, key[y, x], scale[y, x], f32(y), h - 1, offsets, weights
-                    )
+                    _ssss_positions(scale[y, x], offsets, f32(y), h - 1, js, fs)
+                    aw0, aw1, aw2, ag0, ag1, ag2 = _ssss_taps(lines, i, key[y, x], js, fs, weights)
                     out[y, x, 0] = ((wsum[0] - aw0) * lines[i, 0, y] + ag0) * post[y, x, 0]
                     out[y, x, 1] = ((wsum[1] - aw1) * lines[i, 1, y] + ag1) * post[y, x, 1]
                     out[y, x, 2] = ((wsum[2] - aw2) * lines[i, 2, y] + ag2) * post[y, x, 2]
 
 
 @njit(cache=True, error_model="numpy")
-def _burley_sample(xf, yf, s, rc, rsn, r_k, r2_k, cos_k, sin_k, ip_k, wl, hl, w, zc, zkey):
-    """Sample k of the pixel (``xf``, ``yf``) as the reference computes it, without fastmath
-    (its position must be the reference's to the bit): (flat index of the pixel read, whether
-    the reference gives it a weight, 3-D distance r', inverse pdf over r')."""
-    ca = rc * cos_k - rsn * sin_k
-    sa = rsn * cos_k + rc * sin_k
-    rad = s * r_k
-    xs = rad * ca
-    xs += xf
-    xs = np.rint(xs)
-    ys = rad * sa
-    ys += yf
-    ys = np.rint(ys)
-    xc = _clip(xs, wl)
-    yc = _clip(ys, hl)
-    # 32-bit index arithmetic (Numba widens integer products to 64 bits; the truncation lets
-    # LLVM keep 16 lanes per 512-bit register): frames have fewer than 2^31 / 3 pixels.
-    j = np.int32(np.int32(yc) * np.int32(w) + np.int32(xc))
-    zj = zkey[j]
-    valid = (xc == xs) & (yc == ys) & (zj < _INF)
-    rp = zj - zc
-    rp *= rp
-    rp += r2_k
-    rp = math.sqrt(rp)
-    ratio = ip_k / (rp if rp > _TINY else _TINY)
-    return j, valid, rp, ratio
+def _burley_positions(xf, yf, s, rc, rsn, tables, g, wl, hl, w, js, inside):
+    """Where the spiral samples of the pixel (``xf``, ``yf``) land, as the reference computes
+    it: sample k reads the flat pixel js[k], which the reference keeps only if ``inside[k]``
+    (the rounded position is on the image). Compiled without fastmath and called from the
+    kernels, never from a function with fastmath (Numba compiles a function's callees with its
+    flags): the pixels read are the reference's to the bit. The loop vectorizes (no gathers)."""
+    for k in range(tables.shape[2]):
+        ca = rc * tables[2, g, k] - rsn * tables[3, g, k]
+        sa = rsn * tables[2, g, k] + rc * tables[3, g, k]
+        rad = s * tables[0, g, k]
+        xs = rad * ca
+        xs += xf
+        xs = np.rint(xs)
+        ys = rad * sa
+        ys += yf
+        ys = np.rint(ys)
+        xc = _clip(xs, wl)
+        yc = _clip(ys, hl)
+        # 32-bit index arithmetic (Numba widens integer products to 64 bits; the truncation
+        # lets LLVM keep 16 lanes per 512-bit register): frames have fewer than 2^31 / 3 pixels.
+        js[k] = np.int32(np.int32(yc) * np.int32(w) + np.int32(xc))
+        inside[k] = (xc == xs) & (yc == ys)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"reassoc"})
-def _burley_pixel(light, zkey, ids, q, xf, yf, s, rc, rsn, tables, g, k0, k1, k2, wl, hl, w, sums):
-    """The spiral samples of pixel ``q`` = (``yf``, ``xf``) summed into ``sums`` (num R, G, B,
-    den R, G, B). ``light`` flat RGB, ``zkey`` flat (the depth where pixels take part, +inf
-    elsewhere), ``ids`` flat object ids or one 0 for none; ``tables[:, g]`` the spiral.
+@njit(cache=True, error_model="numpy", fastmath={"reassoc", "contract"})
+def _burley_pixel(light, zkey, ids, q, tables, g, js, inside, k0, k1, k2, sums):
+    """The spiral samples of pixel ``q``, read where ``_burley_positions`` put them, summed
+    into ``sums`` (num R, G, B, den R, G, B). ``light`` flat RGB, ``zkey`` flat (the depth
+    where pixels take part, +inf elsewhere), ``ids`` flat object ids or one 0 for none;
+    ``tables[:, g]`` the spiral.
 
-    The loop over the samples vectorizes (a gather per value read); only its sums are
-    reassociated (``fastmath`` "reassoc" here, none in ``_burley_sample``). A sample the
-    reference weights by exactly 0 (off the image, off the mask, another object) is selected
-    away (its light may be NaN)."""
+    The loop over the samples vectorizes (a gather per value read), with the weights and sums
+    reassociated and fused (``fastmath`` "reassoc" and "contract": the sums in another order,
+    one rounding instead of two, within ``core.backend.tolerance``). A sample the reference
+    weights by exactly 0 (off the image, off the mask, another object) is selected away (its
+    light may be NaN)."""
     use_ids = ids.size > 1
     own = ids[q] if use_ids else ids[0]
     zc = zkey[q]
@@ -553,13 +557,17 @@ def _burley_pixel(light, zkey, ids, q, xf, yf, s, rc, rsn, tables, g, k0, k1, k2
     d0 = _ZERO
     d1 = _ZERO
     d2 = _ZERO
-    for k in range(tables.shape[2]):
-        j, valid, rp, ratio = _burley_sample(
-            xf, yf, s, rc, rsn, tables[0, g, k], tables[1, g, k], tables[2, g, k], tables[3, g, k], tables[4, g, k],
-            wl, hl, w, zc, zkey,
-        )  # fmt: skip
+    for k in range(js.size):
+        j = js[k]
+        zj = zkey[j]
+        valid = inside[k] & (zj < _INF)
         if use_ids:
             valid &= ids[j] == own
+        rp = zj - zc
+        rp *= rp
+        rp += tables[1, g, k]
+        rp = math.sqrt(rp)
+        ratio = tables[4, g, k] / (rp if rp > _TINY else _TINY)
         e3 = _exp(rp * k0)
         w0 = (e3 * e3 * e3 + e3) * ratio
         e3 = _exp(rp * k1)
@@ -592,8 +600,8 @@ def burley_zkey(ok, depth, zkey):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def burley_angles(ok, seed, y0, phi):
-    """``phi`` (rows y0.., W): the spiral's rotation angle of each pixel of ``ok`` (0
+def burley_angles(ok, seed, y0, x0, phi):
+    """``phi`` (rows y0.., columns x0..): the spiral's rotation angle of each pixel of ``ok`` (0
     elsewhere), from the integer hash of its flat index and ``seed`` (its low 32 bits,
     0 <= seed < 2^32) that ``core.burley._rotation`` computes: the same unsigned 64-bit
     operations, so the same angle to the bit (the cosine and sine are then NumPy's, as the
@@ -603,12 +611,13 @@ def burley_angles(ok, seed, y0, phi):
     to_angle = f32(2.0 * math.pi / (1 << 24))
     for i in prange(phi.shape[0]):
         y = y0 + i
-        for x in range(w):
+        for j in range(phi.shape[1]):
+            x = x0 + j
             v = (np.uint64(y * w + x) * np.uint64(0x9E3779B97F4A7C15)) ^ mixed_seed
             v ^= v >> np.uint64(31)
             v *= np.uint64(0xBF58476D1CE4E5B9)
             v ^= v >> np.uint64(29)
-            phi[i, x] = f32(v >> np.uint64(40)) * to_angle if ok[y, x] else _ZERO
+            phi[i, j] = f32(v >> np.uint64(40)) * to_angle if ok[y, x] else _ZERO
 
 
 #: Burley's work items are tiles of BLOCK_ROWS rows x TILE_COLS columns: the samples of a
@@ -623,11 +632,11 @@ TILE_COLS = 256
 
 @njit(cache=True, error_model="numpy")
 def _burley_tile(
-    light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, inv3d, reach, ya, yb, xa, xb, buf
+    light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, ya, yb, xa, xb, buf
 ):
     """core.burley's gather (the scattered light, before the albedo) of the pixels ``ok`` of
     rows ``ya``..``yb`` - 1 and columns ``xa``..``xb`` - 1 into ``buf`` (from (ya, xa), 3);
-    ``rot_cos``/``rot_sin`` hold rows from ``rot_y0``."""
+    ``rot_cos``/``rot_sin`` hold rows from ``rot_y0`` and columns from ``rot_x0``."""
     h, w = ok.shape
     rotate = rot_cos.size > 1
     grouped = group.size > 1
@@ -639,17 +648,18 @@ def _burley_tile(
     light_flat = light.reshape(-1)
     zflat = zkey.reshape(-1)
     sums = np.empty(6, np.float32)
+    js = np.empty(tables.shape[2], np.int32)
+    inside = np.empty(tables.shape[2], np.bool_)
     for y in range(ya, yb):
         for x in range(xa, xb):
             if not ok[y, x]:
                 continue
             s = scale[y, x]
-            rc = rot_cos[y - rot_y0, x] if rotate else rot_cos[0, 0]
-            rsn = rot_sin[y - rot_y0, x] if rotate else rot_sin[0, 0]
+            rc = rot_cos[y - rot_y0, x - rot_x0] if rotate else rot_cos[0, 0]
+            rsn = rot_sin[y - rot_y0, x - rot_x0] if rotate else rot_sin[0, 0]
             g = group[y, x] if grouped else 0
-            _burley_pixel(
-                light_flat, zflat, ids, y * w + x, f32(x), f32(y), s, rc, rsn, tables, g, k0, k1, k2, wl, hl, w, sums
-            )
+            _burley_positions(f32(x), f32(y), s, rc, rsn, tables, g, wl, hl, w, js, inside)
+            _burley_pixel(light_flat, zflat, ids, y * w + x, tables, g, js, inside, k0, k1, k2, sums)
             for c in range(3):
                 den = sums[3 + c]
                 if reach[c] <= 0.0 or reach[c] * np.float64(s) <= 1.0 or den <= _TINY:
@@ -661,8 +671,8 @@ def _burley_tile(
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def burley_kernel(
-    light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, inv3d, reach, extents, depth, tol, radius,
-    min_px, post, y_lo, y_hi, out,
+    light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, extents, depth, tol,
+    radius, min_px, post, y_lo, y_hi, out,
 ):  # fmt: skip
     """core.burley's gather and clean-up (``_smooth``, when ``radius`` > 0) over the pixels
     ``ok`` of rows ``y_lo``..``y_hi`` - 1, times ``post``, into ``out``.
@@ -672,7 +682,8 @@ def burley_kernel(
     pdfs; ``group`` (H, W) each pixel's group, or (1, 1) for one group; ``reach`` (3,) float64,
     16 d_c per channel (0: the channel keeps its light; so does a channel whose reach times the
     pixel's scale is at most one pixel); ``rot_cos``/``rot_sin`` the per-pixel rotation as
-    NumPy computed it for rows ``rot_y0``.. (at least y_lo - radius .. y_hi + radius), or
+    NumPy computed it for rows ``rot_y0``.. and columns ``rot_x0``.. (every pixel of ``ok`` in
+    rows y_lo - radius .. y_hi + radius), or
     (1, 1) holding 1 and 0 for none; ``ids`` flat object ids (int32 or int64), or one 0 for
     none.
 
@@ -705,8 +716,9 @@ def burley_kernel(
             continue
         buf = np.empty((yb - ya, xb - xa, 3), np.float32)
         _burley_tile(
-            light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, inv3d, reach, ya, yb, xa, xb, buf
-        )
+            light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, ya, yb, xa, xb,
+            buf,
+        )  # fmt: skip
         for y in range(y0, y1):
             for x in range(x0, x1):
                 if not ok[y, x]:
