@@ -28,7 +28,13 @@ def add_parser(subparsers):
     add_blend_to_blend(p, out_help="the .blend file to write, with the fitted values")
     add_scene(p)
     add_samples(p, default=32, help="Cycles random-walk samples to fit to (default: 32)")
-    add_samples(p, "--pass-samples", default=64, help="Cycles samples of the passes (default: 64)")
+    add_samples(
+        p,
+        "--pass-samples",
+        default=16,
+        help="Cycles samples of the passes (default: 16; the fit averages 4x4 blocks, and on the fidelity suite"
+        " 16 and 64 samples give the same share removed on frame A within 1 point)",
+    )
     p.add_argument(
         "--methods",
         default="burley,combined",

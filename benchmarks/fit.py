@@ -1,245 +1,321 @@
-"""Fit to Cycles, measured: ``.venv/bin/python -m benchmarks.fit [SCENE.blend ...]``.
+"""Fit to Cycles, measured on the fidelity suite: ``.venv/bin/python -m benchmarks.fit [SCENE ...]``.
 
-For each scene (default: the four sample scenes, built into a temporary folder):
+For every scene of the fidelity suite (``benchmarks/fidelity``: its builders, stored references
+and metric, nothing duplicated here):
 
-1. frame A (the scene as saved): the converged reference (Cycles random walk, ``--reference-samples``,
-   seed 0, adaptive sampling off), the passes (``--pass-samples``), and the image the fit is
-   made on: random walk at ``--fit-samples`` with another seed (1);
-2. the fit (``core.fit.fit_scene``) of every technique of ``--methods`` on that noisy image;
-3. each technique at its default quality, unfitted and fitted, scored against the converged
-   reference: relative RMSE over the subsurface pixels after 2 x 2 box downsampling (the
-   measure ``compare`` uses, docs/references.md §8), and the share of the no-SSS error removed;
-4. frame B: camera and lights turned by ``--turn`` degrees about the vertical axis through the
-   subsurface objects' centre; new passes and reference; the fit of frame A applied unchanged.
+1. **frame A**, the scene as the suite builds it (``fidelity.run.load_scene``: the converged
+   reference, the mean of two 1024-sample seeds, and the passes at 64 samples, seed 7);
+2. **the fit, as** ``calibrate`` **makes it**: Cycles random walk of the same view at
+   ``--fit-samples`` (16-64) with a seed of its own (2, neither the reference's 0 and 1 nor the
+   passes' 7, whose noise it would share) through the same render function ``calibrate`` uses, its
+   own passes at ``--fit-pass-samples`` (seed 2), and ``core.fit.fit_scene`` with ``calibrate``'s
+   options, for each technique of ``--methods``;
+3. each technique at its default quality, unfitted and with the fit, on the suite's passes,
+   scored against the converged reference with the suite's metric (relative RMSE over the
+   subsurface pixels after 2 x 2 box downsampling; *removed* = 1 - error / no-SSS error): does
+   a fit made on a noisy image hold against the converged one;
+4. **frame B** of the same asset (``scenes.frame_b``: camera turned 20 degrees about the
+   subsurface objects and 10 % closer, lights turned -15 degrees), with its own stored reference
+   (``references.STORE_B``, 2 x ``references.SAMPLES_B`` samples): the fit of frame A carried unchanged by material
+   name, scored the same way.
 
-The cost of the fit: the random-walk render it needs plus the fit itself, against the converged
-reference render it stands in for (the passes are needed by every technique anyway; their time is
-listed apart). Also per material: which technique is best and how fast each one is, for
-``apply --method auto``. Writes ``benchmarks/results/fit.json`` and prints a table.
+The fit's cost: the CPU time (process time, all of Cycles' threads; steadier than the wall clock
+on this shared machine) of the fit's random-walk render plus the fit itself (every technique of
+``--methods``, after an untimed first run of each, which compiles or loads its Numba kernels once
+per installation), with and without the fit's own passes render, as a share of **the reference
+render it stands in for: Cycles random walk of the same view at 1024 samples**
+(``--timing-samples``; the suite's reference is two such renders), rendered and timed here the
+same way (seed 3); also for what ``calibrate`` fits by default (Burley and combined), its passes
+included.
+
+Per kind (diffusion / back-lit), the median over the scenes of the share removed by the best
+technique (per scene, the technique with the lowest error, unfitted or fitted: the suite's
+"best"), and by each technique alone. Renders are cached in ``out/fidelity_cache`` (with the
+CPU seconds they took). Writes ``benchmarks/results/fit.json`` and prints a table.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
+import hashlib
+import json
 import os
 import platform
-import tempfile
+import statistics
 import time
 
-SAMPLE_SCENES = ("head_frontlit", "backlit_thin", "wax_marble", "depth_leak")
-#: Scenes whose light comes mainly from behind (the issue's "back-lit" class); the rest are diffusion scenes.
-BACKLIT = ("backlit_thin",)
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+RESULTS = os.path.join(ROOT, "benchmarks", "results", "fit.json")
+#: Seeds of the fit's render and passes, and of the render timed for the cost: none of the
+#: references' (0, 1) nor the scored passes' (7).
+FIT_SEED = 2
+TIMING_SEED = 3
 
 
-def _turn(bpy, scene, degrees: float) -> None:
-    """Turn the camera and the lights about the vertical axis through the subsurface objects' centre."""
-    from mathutils import Matrix, Vector
-
-    from sss_lab.blender.describe import principled_node
-
-    centres = []
-    for obj in scene.objects:
-        if obj.type != "MESH" or obj.hide_render:
-            continue
-        for slot in obj.material_slots:
-            node = principled_node(slot.material)
-            if node is not None and node.inputs["Subsurface Weight"].default_value > 0:
-                centres.append(obj.matrix_world @ (sum((Vector(c) for c in obj.bound_box), Vector()) / 8.0))
-                break
-    centre = sum(centres, Vector()) / max(len(centres), 1)
-    rot = Matrix.Translation(centre) @ Matrix.Rotation(math.radians(degrees), 4, "Z") @ Matrix.Translation(-centre)
-    for obj in scene.objects:
-        if obj.type in ("CAMERA", "LIGHT"):
-            obj.matrix_world = rot @ obj.matrix_world
-    bpy.context.view_layer.update()
+def _median(values):
+    v = [x for x in values if x is not None and x == x]
+    return statistics.median(v) if v else None
 
 
-def _frame(bpy, scene, work: str, label: str, args, log) -> dict:
-    from sss_lab.blender.reference_cache import cached_reference, scene_fingerprint
-    from sss_lab.blender.render_passes import render_passes
-    from sss_lab.core import exr, sequence
+def _render(scene, cache: str, *, samples: int, seed: int, fingerprint: str, log):
+    """Cycles random walk of the scene's view (``calibrate``'s render function, through the
+    reference cache): (RGBA image, CPU seconds of the render as measured when it was made)."""
+    from benchmarks.fidelity import scenes as suite
+    from sss_lab.blender.reference_cache import cached_reference
 
-    fingerprint = scene_fingerprint(scene)
-    cache = os.path.join(args.cache, label)
-    ref, ref_s, _ = cached_reference(
+    key = hashlib.sha256(f"{fingerprint}:{samples}:{seed}".encode()).hexdigest()[:20]
+    meta = os.path.join(cache, f"cpu_{key}.json")
+    start = time.process_time()
+    image, _wall, cached = cached_reference(
         scene,
         cache,
-        samples=args.reference_samples,
-        seed=0,
-        resolution=None,
+        samples=samples,
+        seed=seed,
+        resolution=suite.RESOLUTION,
         method=None,
         log=log,
         fingerprint=fingerprint,
     )
-    noisy, noisy_s, _ = cached_reference(
-        scene, cache, samples=args.fit_samples, seed=1, resolution=None, method=None, log=log, fingerprint=fingerprint
-    )
-    start = time.perf_counter()
-    written = render_passes(
-        scene, os.path.join(work, label), samples=args.pass_samples, seed=0, overwrite=True, log=None
-    )
-    passes_s = time.perf_counter() - start
-    path = next(p for p in written if p.endswith(".exr"))
-    return {
-        "passes": exr.read_passes(path),
-        "scene": sequence.load_scene(path),
-        "reference": ref,
-        "noisy": noisy,
-        "seconds": {"reference": ref_s, "fit_render": noisy_s, "passes": passes_s},
-    }
+    return image, _cpu_seconds(meta, time.process_time() - start, cached)
 
 
-def _mask(passes, desc):
-    import numpy as np
+def _cpu_seconds(meta: str, measured: float, cached: bool) -> float:
+    """The CPU seconds of a cached render as recorded in ``meta`` when it was made; ``measured``
+    (recorded now) when it was made by this call."""
+    if cached and os.path.isfile(meta):
+        with open(meta, encoding="utf-8") as fh:
+            return float(json.load(fh)["cpu_seconds"])
+    with open(meta, "w", encoding="utf-8") as fh:
+        json.dump({"cpu_seconds": measured}, fh)
+    return measured
 
-    index = np.rint(np.nan_to_num(passes["Material Index"])).astype(np.int64)
-    return np.isin(index, [m.index for m in desc.materials if m.scatters])
 
+def _fit_passes(scene, fingerprint: str, samples: int, cache: str, log):
+    """The fit's own passes (seed ``FIT_SEED``), cached with the CPU seconds they took."""
+    from benchmarks.fidelity import run as fidelity
 
-def _score(frame: dict, desc, techniques) -> dict:
-    """rel. RMSE of no SSS and each technique (with ``desc``'s fits) against the converged reference,
-    and each technique's apply time."""
-    from sss_lab.core import apply as core_apply
-    from sss_lab.core import metrics
-
-    passes, ref = frame["passes"], frame["reference"]
-    mask = _mask(passes, desc)
-    out = {"no SSS": {"rel_rmse": metrics.compare_images(passes["Combined"], ref, mask, box=2)["rel_rmse"]}}
-    for t in techniques:
-        start = time.perf_counter()
-        layers = core_apply.apply(passes, desc, t)
-        seconds = time.perf_counter() - start
-        image = layers[core_apply.layer_names(t)[0]]
-        out[t] = {"rel_rmse": metrics.compare_images(image, ref, mask, box=2)["rel_rmse"], "apply_s": seconds}
-    return out
+    key = hashlib.sha256(f"fit:{fingerprint}:{fidelity._thickness_digest(scene)}:{FIT_SEED}".encode()).hexdigest()[:20]
+    meta = os.path.join(cache, f"{key}_{samples}", "cpu.json")
+    start = time.process_time()
+    passes, desc, _wall, cached = fidelity._passes(scene, key, samples, cache, log, seed=FIT_SEED)
+    return passes, desc, _cpu_seconds(meta, time.process_time() - start, cached)
 
 
 def _unfitted(desc):
     return dataclasses.replace(desc, materials=tuple(dataclasses.replace(m, fit={}) for m in desc.materials))
 
 
-def _removed(no_sss: float, err: float) -> float:
-    return (no_sss - err) / no_sss if no_sss else float("nan")
+def _carried(desc, fits: dict):
+    """``desc`` with each material's fit taken from ``fits`` (material name -> fit)."""
+    return dataclasses.replace(
+        desc, materials=tuple(dataclasses.replace(m, fit=fits.get(m.name, {})) for m in desc.materials)
+    )
 
 
-def run_scene(bpy, blend: str, work: str, args, log) -> dict:
-    from sss_lab.core.fit import fit_scene, with_fits
+def _score(data, desc, methods) -> dict:
+    """{technique: relative RMSE} of no SSS ("none") and each technique at its default quality on
+    the suite's passes of ``data`` with the fits of ``desc``."""
+    from sss_lab.core import apply as core_apply
 
-    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(blend), load_ui=False)
-    scene = bpy.context.scene
-    name = os.path.splitext(os.path.basename(blend))[0]
+    out = {"none": data.score(data.passes["Combined"])["rel_rmse"]}
+    for t in methods:
+        layers = core_apply.apply(data.passes, desc, t)
+        image = layers[core_apply.layer_names(t)[0]] if layers else data.passes["Combined"]
+        out[t] = data.score(image)["rel_rmse"]
+    return out
+
+
+def _removed(errors: dict) -> dict:
+    none = errors["none"]
+    return {t: (1.0 - e / none if none else None) for t, e in errors.items() if t != "none"}
+
+
+def run_scene(name: str, args, log) -> dict:
+    import bpy
+
+    from benchmarks.fidelity import frame_b, references
+    from benchmarks.fidelity import run as fidelity
+    from sss_lab.blender.calibrate import DEFAULT_TECHNIQUES
+    from sss_lab.core import apply as core_apply
+    from sss_lab.core.fit import fit_scene
+
     methods = tuple(args.methods.split(","))
-    a = _frame(bpy, scene, work, f"{name}_A", args, log)
-    desc = _unfitted(a["scene"])
+    cache = os.path.join(args.cache, "fit")
+    os.makedirs(cache, exist_ok=True)
+    a = fidelity.load_scene(name, cache=args.cache, log=log)
+    scene = bpy.context.scene  # the suite's scene as built, prepared and baked by load_scene
+    noisy, fit_render_cpu = _render(
+        scene, cache, samples=args.fit_samples, seed=FIT_SEED, fingerprint=a.fingerprint, log=log
+    )
+    _, timing_cpu = _render(
+        scene, cache, samples=args.timing_samples, seed=TIMING_SEED, fingerprint=a.fingerprint, log=log
+    )
+    fit_passes, fit_desc, passes_cpu = _fit_passes(scene, a.fingerprint, args.fit_pass_samples, cache, log)
+    for t in methods:  # untimed: a technique's first run compiles (or loads) its Numba kernels, once per install
+        core_apply.apply(fit_passes, _unfitted(fit_desc), t)
+    results, problems, fit_cpu_by = [], [], {}
     start = time.perf_counter()
-    results, problems = fit_scene(a["passes"], desc, a["noisy"], techniques=methods, samples=args.fit_samples, log=log)
-    fit_s = time.perf_counter() - start
-    fitted = with_fits(desc, results)
-    row = {
+    for t in methods:  # one technique at a time: each one's CPU time
+        cpu0 = time.process_time()
+        got, missed = fit_scene(
+            fit_passes, _unfitted(fit_desc), noisy, techniques=(t,), samples=args.fit_samples, log=log
+        )
+        fit_cpu_by[t] = time.process_time() - cpu0
+        results += got
+        problems += missed
+    fit_s, fit_cpu = time.perf_counter() - start, sum(fit_cpu_by.values())
+    default_cpu = sum(fit_cpu_by.get(t, 0.0) for t in DEFAULT_TECHNIQUES)
+    fits: dict = {}
+    for r in results:
+        fits.setdefault(r.material, {})[r.technique] = r.params
+    row: dict = {
         "scene": name,
-        "class": "back-lit" if name in BACKLIT else "diffusion",
+        "kind": a.kind,
+        "noise_floor": {"A": a.noise_floor},
         "fits": [r.to_dict() for r in results],
         "problems": problems,
-        "seconds": {**a["seconds"], "fit": fit_s},
     }
-    row["A"] = {"unfitted": _score(a, desc, methods), "fitted": _score(a, fitted, methods)}
-    # The fit against its own noisy image: does it hold against the converged reference?
-    row["A"]["fitted_vs_noisy"] = _score({**a, "reference": a["noisy"]}, fitted, methods)
-    _turn(bpy, scene, args.turn)
-    b = _frame(bpy, scene, work, f"{name}_B", args, log)
-    carried = dataclasses.replace(
-        _unfitted(b["scene"]),
-        materials=tuple(
-            dataclasses.replace(m, fit=next((f.fit for f in fitted.materials if f.name == m.name), {}))
-            for m in b["scene"].materials
-        ),
-    )
-    row["B"] = {"unfitted": _score(b, _unfitted(b["scene"]), methods), "fitted": _score(b, carried, methods)}
-    row["seconds_B"] = b["seconds"]
+    unfitted = _unfitted(a.desc)
+    row["A"] = {"unfitted": _score(a, unfitted, methods), "fitted": _score(a, _carried(a.desc, fits), methods)}
+    if not args.no_frame_b:
+        b = fidelity.load_scene(name, scenes=frame_b, cache=args.cache, store=references.STORE_B, log=log)
+        row["noise_floor"]["B"] = b.noise_floor
+        row["B"] = {
+            "unfitted": _score(b, _unfitted(b.desc), methods),
+            "fitted": _score(b, _carried(b.desc, fits), methods),
+        }
     for frame in ("A", "B"):
+        if frame not in row:
+            continue
+        f = row[frame]
         for kind in ("unfitted", "fitted"):
-            s = row[frame][kind]
-            best = min(methods, key=lambda t: s[t]["rel_rmse"])
-            s["best"] = best
-            s["removed"] = _removed(s["no SSS"]["rel_rmse"], s[best]["rel_rmse"])
-    cost = row["seconds"]
-    row["fit_cost_share"] = (cost["fit_render"] + cost["fit"]) / cost["reference"]
+            f[f"removed_{kind}"] = _removed(f[kind])
+        both = {
+            **{f"{t} unfitted": e for t, e in f["unfitted"].items() if t != "none"},
+            **{f"{t} fitted": e for t, e in f["fitted"].items() if t != "none"},
+        }
+        f["best"] = min(both, key=both.get)
+        f["best_unfitted"] = min(methods, key=lambda t: f["unfitted"][t])
+        f["removed_best"] = 1.0 - both[f["best"]] / f["unfitted"]["none"]
+        f["removed_best_unfitted"] = f["removed_unfitted"][f["best_unfitted"]]
+    # Cost: CPU seconds of the fit against those of the render it stands in for.
+    row["cost"] = {
+        "fit_render_cpu_s": fit_render_cpu,
+        "fit_passes_cpu_s": passes_cpu,
+        "fit_cpu_s": fit_cpu,
+        "fit_cpu_s_by_technique": fit_cpu_by,
+        "fit_wall_s": fit_s,
+        "stands_in_for_cpu_s": timing_cpu,
+        "share": (fit_render_cpu + fit_cpu) / timing_cpu,
+        "share_with_passes": (fit_render_cpu + fit_cpu + passes_cpu) / timing_cpu,
+        # What ``calibrate`` fits by default (burley, combined), its passes included.
+        "share_calibrate_default": (fit_render_cpu + default_cpu + passes_cpu) / timing_cpu,
+    }
     return row
 
 
-def _median(values):
-    v = sorted(x for x in values if x == x)
-    if not v:
-        return float("nan")
-    n = len(v)
-    return v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
+def summarize(rows, methods) -> dict:
+    out = {}
+    for kind in sorted({r["kind"] for r in rows}):
+        sel = [r for r in rows if r["kind"] == kind]
+        k = {"scenes": len(sel)}
+        for frame in ("A", "B"):
+            have = [r for r in sel if frame in r]
+            if not have:
+                continue
+            k[frame] = {
+                "median_removed_best_unfitted": _median([r[frame]["removed_best_unfitted"] for r in have]),
+                "median_removed_best": _median([r[frame]["removed_best"] for r in have]),
+                "median_removed_fitted_by_technique": {
+                    t: _median([r[frame]["removed_fitted"][t] for r in have]) for t in methods
+                },
+                "median_removed_unfitted_by_technique": {
+                    t: _median([r[frame]["removed_unfitted"][t] for r in have]) for t in methods
+                },
+            }
+        out[kind] = k
+    out["cost"] = {
+        "median_share": _median([r["cost"]["share"] for r in rows]),
+        "max_share": max(r["cost"]["share"] for r in rows),
+        "median_share_with_passes": _median([r["cost"]["share_with_passes"] for r in rows]),
+        "median_share_calibrate_default": _median([r["cost"]["share_calibrate_default"] for r in rows]),
+        "max_share_calibrate_default": max(r["cost"]["share_calibrate_default"] for r in rows),
+    }
+    return out
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.fit", description=__doc__.split("\n\n")[0])
-    parser.add_argument("blends", nargs="*", help="scenes (default: the four sample scenes)")
-    parser.add_argument("--reference-samples", type=int, default=512)
-    parser.add_argument("--fit-samples", type=int, default=32)
-    parser.add_argument("--pass-samples", type=int, default=64)
-    parser.add_argument("--methods", default="ssss,burley,combined")
-    parser.add_argument("--turn", type=float, default=20.0, help="degrees camera and lights turn for frame B")
-    parser.add_argument("--cache", default=os.path.join(tempfile.gettempdir(), "sss_lab_fit_bench"))
-    parser.add_argument("--out", default=os.path.join("benchmarks", "results", "fit.json"))
+    parser.add_argument("names", nargs="*", help="fidelity scenes (default: all)")
+    parser.add_argument("--fit-samples", type=int, default=32, help="samples of the render the fit is made on (16-64)")
+    parser.add_argument("--fit-pass-samples", type=int, default=16, help="samples of the fit's passes (calibrate's)")
+    parser.add_argument(
+        "--timing-samples", type=int, default=1024, help="samples of the render the fit stands in for (timed)"
+    )
+    parser.add_argument("--methods", default="ssss,burley,combined,sta")
+    parser.add_argument("--no-frame-b", action="store_true", help="frame A only")
+    parser.add_argument("--cache", default=os.path.join(ROOT, "out", "fidelity_cache"))
+    parser.add_argument("--out", default=RESULTS)
     args = parser.parse_args(argv)
     import bpy
 
     from benchmarks._common import write_results
+    from benchmarks.fidelity import scenes as suite
 
     def log(line):
         print(line, flush=True)
 
-    with tempfile.TemporaryDirectory(prefix="sss_lab_fit_bench_") as work:
-        blends = args.blends
-        if not blends:
-            import subprocess
-            import sys
-
-            root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-            subprocess.run(
-                [sys.executable, os.path.join(root, "sample_blends", "build_scenes.py"), *SAMPLE_SCENES, "--out", work],
-                check=True,
-                stdout=subprocess.DEVNULL,
-            )
-            blends = [os.path.join(work, f"{n}.blend") for n in SAMPLE_SCENES]
-        rows = [run_scene(bpy, b, work, args, log) for b in blends]
-    summary = {}
-    for cls in ("diffusion", "back-lit"):
-        sel = [r for r in rows if r["class"] == cls]
-        if sel:
-            summary[cls] = {
-                f"{frame} {kind}": _median([r[frame][kind]["removed"] for r in sel])
-                for frame in ("A", "B")
-                for kind in ("unfitted", "fitted")
-            }
-    summary["fit cost share (median)"] = _median([r["fit_cost_share"] for r in rows])
+    names = args.names or list(suite.SCENES)
+    methods = tuple(args.methods.split(","))
+    start = time.perf_counter()
+    rows = []
+    for name in names:
+        log(f"{name}:")
+        rows.append(run_scene(name, args, log))
+        r = rows[-1]
+        for frame in ("A", "B"):
+            if frame in r:
+                f = r[frame]
+                log(
+                    f"  {frame}: no SSS {f['unfitted']['none']:.3f}; "
+                    + ", ".join(f"{t} {f['unfitted'][t]:.3f} -> {f['fitted'][t]:.3f}" for t in methods)
+                    + f"; best {f['best']} removes {f['removed_best']:.0%} (unfitted {f['removed_best_unfitted']:.0%})"
+                )
+        log(
+            f"  fit cost {r['cost']['share']:.1%} of {args.timing_samples} spp"
+            f" ({r['cost']['share_with_passes']:.1%} with its passes)"
+        )
+    summary = summarize(rows, methods)
     data = {
-        "definition": "rel. RMSE over the subsurface pixels after 2x2 box downsampling against Cycles random walk"
-        " at reference_samples; removed = share of the no-SSS error the best technique removes",
-        "settings": {k: v for k, v in vars(args).items() if k != "blends"},
+        "command": "python -m benchmarks.fit " + " ".join(argv if argv is not None else __import__("sys").argv[1:]),
+        "definition": __doc__.split("\n\n", 1)[1].strip(),
+        "settings": {k: v for k, v in vars(args).items() if k not in ("names", "cache", "out")},
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "note": "shared, loaded 2-core machine"},
         "blender": bpy.app.version_string,
-        "scenes": rows,
+        "total_seconds": time.perf_counter() - start,
         "summary": summary,
+        "scenes": rows,
     }
     write_results(args.out, data)
-    for r in rows:
+    for kind, k in summary.items():
+        if kind == "cost":
+            continue
         for frame in ("A", "B"):
-            for kind in ("unfitted", "fitted"):
-                s = r[frame][kind]
-                errs = ", ".join(f"{t} {s[t]['rel_rmse']:.3f}" for t in args.methods.split(","))
-                print(
-                    f"{r['scene']:14s} {frame} {kind:8s} no SSS {s['no SSS']['rel_rmse']:.3f}, {errs}; best {s['best']}"
-                    f" removes {100 * s['removed']:.0f} %"
+            if frame in k:
+                f = k[frame]
+                log(
+                    f"{kind} ({k['scenes']}) frame {frame}: median removed, best technique"
+                    f" {f['median_removed_best_unfitted']:.0%}"
+                    f" unfitted -> {f['median_removed_best']:.0%} with the fit; fitted by technique "
+                    + ", ".join(f"{t} {v:.0%}" for t, v in f["median_removed_fitted_by_technique"].items())
                 )
-        print(f"{r['scene']:14s} fit cost {100 * r['fit_cost_share']:.1f} % of the reference render")
-    print(summary)
+    c = summary["cost"]
+    log(
+        f"fit cost: median {c['median_share']:.1%} (max {c['max_share']:.1%}) of a {args.timing_samples}-sample render,"
+        f" {c['median_share_with_passes']:.1%} with its passes; calibrate's default (burley, combined, its passes"
+        f" included) median {c['median_share_calibrate_default']:.1%}, max {c['max_share_calibrate_default']:.1%}"
+    )
     return 0
 
 

@@ -17,7 +17,8 @@ STA: Combined + s x its term at scale 1.
 Robust to Monte Carlo noise (docs/references.md §8):
 - both images are averaged over ``box`` x ``box`` blocks; only blocks entirely inside the
   material count (the noise of a block mean falls with its pixel count, the smooth SSS
-  differences stay);
+  differences stay); a material with fewer than ``MIN_BLOCKS`` such blocks is fitted on smaller
+  ones (halving the size, down to 2 x 2) before it is refused;
 - a random ``holdout`` share of the blocks (fixed seed) is left out of the fit and measures
   it: a fit that does not lower the held-out error over-fits the noise (or the model cannot
   explain the material) and is rejected, the material left unchanged;
@@ -178,10 +179,18 @@ def fit_material(
     pixels = int(mask.sum())
     keep = box_downsample(mask.astype(np.float64), box) >= 1.0
     count = int(keep.sum())
+    # A small material: smaller blocks (down to 2 x 2, the error measure's) rather than no fit;
+    # their means are noisier, which the held-out blocks still judge.
+    first = (box, count)
+    while count < MIN_BLOCKS and box > 2:
+        box = max(box // 2, 2)
+        keep = box_downsample(mask.astype(np.float64), box) >= 1.0
+        count = int(keep.sum())
     if count < MIN_BLOCKS:
         raise FitError(
-            f"material {name!r} covers {pixels} pixels, {count} blocks of {box}x{box} inside it: too few to fit"
-            f" (at least {MIN_BLOCKS} needed; render larger or move the camera closer); left unchanged"
+            f"material {name!r} covers {pixels} pixels, {first[1]} blocks of {first[0]}x{first[0]} inside it"
+            f" ({count} of {box}x{box}): too few to fit (at least {MIN_BLOCKS} needed; render larger or move the"
+            " camera closer); left unchanged"
         )
     plain = dataclasses.replace(material, fit={})
     single = dataclasses.replace(scene, materials=(plain,))

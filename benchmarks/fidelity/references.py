@@ -36,10 +36,25 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 STORE = os.path.join(HERE, "references")
+#: Frame B of every scene (``scenes.frame_b``, camera and lights moved): its references, rendered by
+#: ``REGENERATE_B`` as the suite's (``SAMPLES_B`` samples, seeds 0 and 1); ``benchmarks/fit.py``
+#: scores on them the fits made on frame A.
+STORE_B = os.path.join(HERE, "references_b")
+SAMPLES_B = 1024
+REGENERATE_B = (
+    "nice -n 10 .venv/bin/python -m benchmarks.fidelity.references {name} --scenes-module benchmarks.fidelity.frame_b"
+    " --store benchmarks/fidelity/references_b --samples 1024"
+)
 MANIFEST = os.path.join(STORE, "manifest.json")
 SAMPLES = 1024
 SEEDS = (0, 1)
 REGENERATE = "nice -n 10 .venv/bin/python -m benchmarks.fidelity.references {name}"
+
+
+def _regenerate(store: str) -> str:
+    """The command that renders a store's references again ({name}: the scenes)."""
+    same = os.path.abspath(store) == os.path.abspath(STORE_B)
+    return REGENERATE_B if same else REGENERATE
 
 
 class StaleReferenceError(RuntimeError):
@@ -93,13 +108,15 @@ def load(name: str, fingerprint: str, *, store: str = STORE) -> tuple[np.ndarray
     path = exr_path(name, store)
     if entry is None or not os.path.isfile(path):
         raise StaleReferenceError(
-            f"fidelity scene {name!r} has no stored reference in {store}; render it: {REGENERATE.format(name=name)}"
+            f"fidelity scene {name!r} has no stored reference in {store}; render it:"
+            f" {_regenerate(store).format(name=name)}"
         )
     if entry["fingerprint"] != fingerprint:
         raise StaleReferenceError(
             f"fidelity scene {name!r} no longer matches its stored reference (scene fingerprint {fingerprint[:12]},"
             f" reference {entry['fingerprint'][:12]}, rendered with Blender {entry.get('blender')}): the scene or"
-            f" Blender changed since the reference was rendered. Render it again: {REGENERATE.format(name=name)}"
+            f" Blender changed since the reference was rendered. Render it again:"
+            f" {_regenerate(store).format(name=name)}"
         )
     layers = read_half(path)
     return layers["seed0"], layers["seed1"], entry
@@ -154,7 +171,7 @@ def render(name: str, *, samples: int = SAMPLES, scenes=None, store: str = STORE
     manifest = _manifest(manifest_path)  # read again: other processes may have added scenes
     manifest["scenes"][name] = entry
     manifest["scenes"] = dict(sorted(manifest["scenes"].items()))
-    manifest["command"] = REGENERATE.format(name="[SCENE ...]")
+    manifest["command"] = _regenerate(store).format(name="[SCENE ...]")
     from sss_lab.core._files import write_text
 
     write_text(manifest_path, json.dumps(manifest, indent=1) + "\n")

@@ -113,9 +113,10 @@ def _thickness_digest(scene) -> str:
     return h.hexdigest()[:16]
 
 
-def _passes(scene, key: str, samples: int, cache: str | None, log):
-    """The passes at ``samples``, from ``cache`` when rendered before for the same scene, bake
-    and samples. Returns (Passes, SceneDescription, seconds to render, from cache)."""
+def _passes(scene, key: str, samples: int, cache: str | None, log, *, seed: int = PASS_SEED):
+    """The passes at ``samples`` (Cycles seed ``seed``), from ``cache`` when rendered before for the
+    same ``key`` (scene, bake and seed) and samples. Returns (Passes, SceneDescription, seconds to
+    render, from cache)."""
     from sss_lab.blender.render_passes import render_passes
     from sss_lab.core import exr, sequence
     from sss_lab.core.techniques import TECHNIQUES
@@ -135,7 +136,7 @@ def _passes(scene, key: str, samples: int, cache: str | None, log):
             folder,
             techniques=tuple(TECHNIQUES),
             samples=samples,
-            seed=PASS_SEED,
+            seed=seed,
             frames=[1],
             overwrite=True,
             log=None,
@@ -144,7 +145,7 @@ def _passes(scene, key: str, samples: int, cache: str | None, log):
         exr_path = next(p for p in written if p.endswith(".exr"))
         with open(meta, "w", encoding="utf-8") as fh:
             json.dump({"seconds": seconds}, fh)
-    log(f"  passes {samples} spp: {'cached' if cached else f'{seconds:.1f} s'}")
+    log(f"  passes {samples} spp seed {seed}: {'cached' if cached else f'{seconds:.1f} s'}")
     passes = exr.read_passes(exr_path)
     desc = sequence.load_scene(exr_path)
     if cache is None:

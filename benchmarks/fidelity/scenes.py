@@ -527,6 +527,54 @@ SCENES: dict[str, SuiteScene] = {
 }
 
 
+#: Frame B of every scene (``frame_b``): the camera turned this many degrees about the vertical
+#: axis through the subsurface objects' centre and moved this share closer to it; the lights
+#: turned the other way. The same asset seen and lit otherwise, for a fit made on frame A.
+FRAME_B_CAMERA_TURN = 20.0
+FRAME_B_LIGHT_TURN = -15.0
+FRAME_B_DOLLY = 0.9
+
+
+def frame_b(scene):
+    """Move ``scene``'s camera and lights to frame B (the constants above); returns ``scene``.
+
+    The asset (geometry, materials, world, floor and walls) stays; only the view and the lighting
+    change, so that a fit made on frame A can be scored on B against B's own reference."""
+    import bpy
+    from mathutils import Matrix, Vector
+
+    bpy.context.view_layer.update()  # the builders set locations and rotations: make matrix_world current
+    centres = [
+        o.matrix_world @ (sum((Vector(c) for c in o.bound_box), Vector()) / 8.0) for o in subsurface_objects(scene)
+    ]
+    centre = sum(centres, Vector()) / max(len(centres), 1)
+
+    def turn(degrees):
+        return Matrix.Translation(centre) @ Matrix.Rotation(math.radians(degrees), 4, "Z") @ Matrix.Translation(-centre)
+
+    for obj in scene.objects:
+        if obj.type == "LIGHT":
+            obj.matrix_world = turn(FRAME_B_LIGHT_TURN) @ obj.matrix_world
+        elif obj.type == "CAMERA":
+            m = turn(FRAME_B_CAMERA_TURN) @ obj.matrix_world
+            m.translation = centre + (m.translation - centre) * FRAME_B_DOLLY
+            obj.matrix_world = m
+    bpy.context.view_layer.update()
+    return scene
+
+
+def _frame_b_builder(build):
+    return lambda: frame_b(build())
+
+
+#: Frame B of every scene, the same names and kinds (``frame_b``). Its references are stored apart
+#: (``references.STORE_B``); ``benchmarks/fit.py`` scores on it the fits made on frame A.
+SCENES_B: dict[str, SuiteScene] = {
+    name: SuiteScene(name, s.kind, _frame_b_builder(s.build), f"{s.description} Frame B: camera and lights moved.")
+    for name, s in SCENES.items()
+}
+
+
 def build(name: str, scenes: dict | None = None):
     """Build scene ``name`` (of ``scenes``, default the suite's) in the current session, at the
     suite's resolution; returns the bpy scene (not yet prepared)."""

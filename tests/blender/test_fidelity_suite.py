@@ -30,6 +30,27 @@ def test_scene_matches_its_stored_reference(name):
     assert 0 < abs(seed0 - seed1).mean() < 0.1 * seed0.mean()
 
 
+def _placement(scene):
+    bpy.context.view_layer.update()  # the builders set locations: make matrix_world current
+    return {o.name: (o.type, [list(r) for r in o.matrix_world]) for o in scene.objects}
+
+
+@pytest.mark.parametrize("name", list(scenes.SCENES_B))
+def test_frame_b_moves_camera_and_lights_only_and_matches_its_stored_reference(name):
+    a = _placement(scenes.build(name))
+    scene = scenes.build(name, scenes.SCENES_B)
+    b = _placement(scene)
+    assert a.keys() == b.keys()
+    for obj, (kind, matrix) in a.items():
+        moved = matrix != b[obj][1]
+        assert moved == (kind in ("CAMERA", "LIGHT")), (obj, kind)
+    scenes.prepare(scene)
+    seed0, seed1, entry = references.load(name, references.fingerprint(scene), store=references.STORE_B)
+    assert seed0.shape == seed1.shape == (*scenes.RESOLUTION[::-1], 3)
+    assert entry["samples"] >= references.SAMPLES_B and entry["kind"] == scenes.SCENES[name].kind
+    assert 0 < abs(seed0 - seed1).mean() < 0.1 * seed0.mean()
+
+
 def test_changed_scene_is_refused():
     scene = scenes.build("fins_backlit_jade")
     scenes.prepare(scene)

@@ -88,12 +88,32 @@ def test_a_fit_that_does_not_hold_is_rejected(synthetic):
         fit_material(passes, scene, ref, skin, "burley")
 
 
+def _small_wax(passes, scene, rows=6):
+    """The passes with only ``rows`` rows of the Wax sphere (pass index 3) left as Wax: fewer than
+    32 blocks even of 2 x 2."""
+    index = np.array(passes["Material Index"])
+    wax = np.rint(index) == 3
+    ys = np.nonzero(wax.any(axis=1))[0]
+    index[wax & (np.arange(index.shape[0])[:, None] >= ys[0] + rows)] = 0.0
+    return Passes({**{n: passes[n] for n in passes}, "Material Index": index})
+
+
+def test_a_small_material_is_fitted_on_smaller_blocks(synthetic):
+    passes, scene = synthetic
+    wax = scene.material(3)  # about 460 pixels: 19 blocks of 4 x 4, about 100 of 2 x 2
+    ref = _reference(passes, scene, "burley", TRUTH["burley"])
+    r = fit_material(passes, scene, ref, wax, "burley", regularization=0.0)
+    assert r.blocks + r.heldout_blocks > 4 * 19
+    assert r.params["d_scale"] == pytest.approx(TRUTH["burley"]["d_scale"], rel=1e-9)
+
+
 def test_bad_inputs_give_one_clear_line(synthetic):
     passes, scene = synthetic
     ref = passes["Combined"]
-    wax = scene.material(3)  # about 460 pixels: 19 blocks of 4 x 4
-    with pytest.raises(FitError, match=r"material 'Wax' covers \d+ pixels.*too few to fit.*left unchanged"):
-        fit_material(passes, scene, ref, wax, "burley")
+    small = _small_wax(passes, scene)
+    wax = scene.material(3)
+    with pytest.raises(FitError, match=r"material 'Wax' covers \d+ pixels.*of 2x2\): too few to fit.*left unchanged"):
+        fit_material(small, scene, ref, wax, "burley")
     plain = dataclasses.replace(
         scene, materials=tuple(dataclasses.replace(m, subsurface_weight=0.0) for m in scene.materials)
     )
@@ -105,15 +125,15 @@ def test_bad_inputs_give_one_clear_line(synthetic):
     with pytest.raises(FitError, match="reference: expected an image of the passes' size 96x64"):
         fit_material(passes, scene, ref[:10], _skin(scene), "burley")
     # fit_scene reports the material it could not fit and fits the others.
-    results, problems = fit_scene(passes, scene, _reference(passes, scene, "burley", TRUTH["burley"]))
+    results, problems = fit_scene(small, scene, _reference(passes, scene, "burley", TRUTH["burley"]))
     assert [r.material for r in results] == ["Skin"] and len(problems) == 1 and "'Wax'" in problems[0]
 
 
 def test_the_fit_travels_in_the_scene_description_and_apply_uses_it(synthetic):
     passes, scene = synthetic
     ref = _reference(passes, scene, "burley", TRUTH["burley"])
-    results, _ = fit_scene(passes, scene, ref, techniques=("burley",), regularization=0.0)
-    fitted = with_fits(scene, results)
+    results, _ = fit_scene(_small_wax(passes, scene), scene, ref, techniques=("burley",), regularization=0.0)
+    fitted = with_fits(scene, results)  # the Wax too small to fit: no fit
     again = SceneDescription.from_json(fitted.to_json())
     assert again.material(2).fit["burley"]["d_scale"] == pytest.approx(2**-0.5)
     assert again.material(3).fit == {}
