@@ -1,9 +1,10 @@
 """The canonical check of the light from behind: a wide slab of known thickness lit from behind,
 rendered small with Cycles, against the combined technique's transmitted light (docs/references.md §14).
 
-Per material of the fidelity suite's palette and slab thickness x: a 40 x 40 cm slab, x thick,
-under a sun of strength 1 shining straight through it from behind, a black world, an orthographic
-camera looking at the middle 2 cm of the front face (16 x 16 px). Cycles (the material's own
+Per material of the fidelity suite's palette, slab thickness x and view angle (0 and 60 degrees
+to the normal): a 40 x 40 cm slab, x thick, under a sun of strength 1 shining straight through it
+from behind, a black world, an orthographic camera looking at the middle 2 cm of the front face
+(16 x 16 px). Cycles (the material's own
 subsurface method) gives the front's radiance; the model gives W x (1 / pi) x T_c(x), with T_c
 the random walk's slab transmittance (``core/transmittance.py``; Christensen-Burley: Burley's
 law) and W the exit weight read from the Diffuse Color pass (``core.combined.exit_weight``). The
@@ -28,6 +29,8 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, "benchmarks", "results", "transmission_slab.json")
 THICKNESSES_MM = (1.0, 2.0, 4.0, 8.0, 16.0)
+#: Camera angles to the slab's normal (the walk's entry refracts the view).
+VIEWS_DEG = (0.0, 60.0)
 SIZE = 16
 
 
@@ -45,12 +48,13 @@ def _materials():
     }
 
 
-def _scene(material, thickness):
+def _scene(material, thickness, view_deg: float = 0.0):
     from .fidelity.scenes import _h
 
     scene = _h._reset(world_color=(0.0, 0.0, 0.0))
     _h._object(scene, "Slab", _h._box("Slab", (0.4, thickness, 0.4)), material=material(), smooth=False)
-    cam = _h._camera(scene, (0.0, -0.3, 0.0), (0.0, 0.0, 0.0))
+    a = math.radians(view_deg)
+    cam = _h._camera(scene, (0.0, -0.3 * math.cos(a), 0.3 * math.sin(a)), (0.0, 0.0, 0.0))
     cam.data.type = "ORTHO"
     cam.data.ortho_scale = 0.02
     _h._light(scene, "Back", "SUN", (0.0, 1.0, 0.0), (0.0, 0.0, 0.0), 1.0, angle=0.0)
@@ -59,7 +63,7 @@ def _scene(material, thickness):
     return scene
 
 
-def measure(samples: int, log=print) -> list[dict]:
+def _measure_one(name, material, mm: float, view: float, samples: int) -> dict:
     from sss_lab.blender.describe import describe_scene
     from sss_lab.blender.reference_cache import cached_reference
     from sss_lab.blender.render_passes import render_passes
@@ -69,40 +73,44 @@ def measure(samples: int, log=print) -> list[dict]:
 
     from .fidelity import scenes as suite
 
+    x = mm / 1000.0
+    scene = _scene(material, x, view)
+    suite.prepare(scene)
+    with tempfile.TemporaryDirectory(prefix="sss_lab_slab_") as tmp:
+        image, seconds, _ = cached_reference(
+            scene, tmp, samples=samples, seed=0, resolution=(SIZE, SIZE), method=None, log=lambda _l: None
+        )
+        written = render_passes(scene, os.path.join(tmp, "p"), techniques=("burley",), samples=4, frames=[1], log=None)
+        passes = exr.read_passes(next(p for p in written if p.endswith(".exr")))
+    mat = next(m for m in describe_scene(scene).materials if m.scatters)
+    cycles = image[..., :3].reshape(-1, 3).mean(axis=0)
+    albedo = passes["Diffuse Color"][..., :3].reshape(-1, 3).mean(axis=0)
+    medium = medium_of(mat)
+    w = exit_weight(albedo.reshape(1, 1, 3), medium)[0, 0]
+    view_cos = np.array([math.cos(math.radians(view))])
+    t_new = slab_transmittance_rgb(np.array([x]), tuple(mean_free_path(mat)), medium, view_cos=view_cos)[0]
+    new = w * t_new / math.pi
+    old = burley_transmittance_rgb(np.array([x]), burley_d(mat))[0] / math.pi
+    return {
+        "material": name,
+        "thickness_mm": mm,
+        "view_deg": view,
+        "cycles": [round(float(v), 5) for v in cycles],
+        "model": [round(float(v), 5) for v in new],
+        "burley_law": [round(float(v), 5) for v in old],
+        "exit_weight": [round(float(v), 4) for v in w],
+        "render_s": round(seconds, 2),
+    }
+
+
+def measure(samples: int, log=print) -> list[dict]:
     rows = []
     for name, material in _materials().items():
-        for mm in THICKNESSES_MM:
-            x = mm / 1000.0
-            scene = _scene(material, x)
-            suite.prepare(scene)
-            with tempfile.TemporaryDirectory(prefix="sss_lab_slab_") as tmp:
-                image, seconds, _ = cached_reference(
-                    scene, tmp, samples=samples, seed=0, resolution=(SIZE, SIZE), method=None, log=lambda _l: None
-                )
-                written = render_passes(scene, os.path.join(tmp, "p"), techniques=("burley",), samples=4, frames=[1])
-                passes = exr.read_passes(next(p for p in written if p.endswith(".exr")))
-            desc = describe_scene(scene)
-            mat = next(m for m in desc.materials if m.scatters)
-            cycles = image[..., :3].reshape(-1, 3).mean(axis=0)
-            albedo = passes["Diffuse Color"][..., :3].reshape(-1, 3).mean(axis=0)
-            medium = medium_of(mat)
-            w = exit_weight(albedo.reshape(1, 1, 3), medium)[0, 0]
-            t_new = slab_transmittance_rgb(np.array([x]), tuple(mean_free_path(mat)), medium, view_cos=np.ones(1))[0]
-            new = w * t_new / math.pi
-            old = burley_transmittance_rgb(np.array([x]), burley_d(mat))[0] / math.pi
-            rows.append(
-                {
-                    "material": name,
-                    "thickness_mm": mm,
-                    "cycles": [round(float(v), 5) for v in cycles],
-                    "model": [round(float(v), 5) for v in new],
-                    "burley_law": [round(float(v), 5) for v in old],
-                    "exit_weight": [round(float(v), 4) for v in w],
-                    "render_s": round(seconds, 2),
-                }
-            )
-            r = rows[-1]
-            log(f"{name} {mm:4.0f} mm: Cycles {r['cycles']}  model {r['model']}  Burley law {r['burley_law']}")
+        for view in VIEWS_DEG:
+            for mm in THICKNESSES_MM:
+                rows.append(_measure_one(name, material, mm, view, samples))
+                r = rows[-1]
+                log(f"{name} {mm:4.0f} mm, view {view:2.0f} deg: Cycles {r['cycles']}  model {r['model']}")
     return rows
 
 

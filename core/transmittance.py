@@ -54,7 +54,7 @@ TAUS = np.concatenate(([0.0], np.geomspace(0.01, 64.0, 48)))
 #: first value the table is read at it) and the key of the cosine-distributed entry.
 ENTRY_COSINES = (0.5, 0.7, 0.85, 1.0)
 COSINE_ENTRY = "cosine"
-#: Key of the rough refractive entry: (ROUGH_ENTRY, ior).
+#: Key of the rough refractive entry: (ROUGH_ENTRY, ior, view cosine).
 ROUGH_ENTRY = "ggx1"
 
 
@@ -151,34 +151,58 @@ def reduced_medium(mfp, alpha, anisotropy: float = 0.0) -> tuple[np.ndarray, np.
     return ell / np.maximum(shrink, 1e-12), a * (1.0 - g) / np.maximum(shrink, 1e-12)
 
 
-@functools.lru_cache(maxsize=8)
+def _rough_entry(rng, n: int, ior: float, view_cos: float) -> np.ndarray:
+    """Cosines to the inward normal of the camera path refracted about GGX microfacet normals of
+    roughness 1 (the Skin method's refractive half, ``subsurface_entry_bounce``) for a view at
+    ``view_cos`` to the normal: visible normals sampled as Heitz 2018 does (at roughness 1 the
+    stretched frame is the surface's), Snell with eta = 1 / ior. <= 0 where the refracted path
+    points out of the surface (Cycles then drops it)."""
+    mv = min(max(view_cos, 1e-4), 1.0)
+    v = np.array([math.sqrt(1.0 - mv * mv), 0.0, mv])
+    t1 = np.array([0.0, 1.0, 0.0]) if v[0] > 0 else np.array([1.0, 0.0, 0.0])
+    t2 = np.cross(v, t1)
+    r = np.sqrt(rng.random(n))
+    phi = 2.0 * math.pi * rng.random(n)
+    a, b = r * np.cos(phi), r * np.sin(phi)
+    s = 0.5 * (1.0 + v[2])
+    b = (1.0 - s) * np.sqrt(np.maximum(1.0 - a * a, 0.0)) + s * b
+    c = np.sqrt(np.maximum(1.0 - a * a - b * b, 0.0))
+    h = a[:, None] * t1 + b[:, None] * t2 + c[:, None] * v
+    h[:, 2] = np.maximum(h[:, 2], 0.0)
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    eta = 1.0 / ior
+    cos_hi = h @ v
+    k = eta * cos_hi - np.sqrt(np.maximum(1.0 - eta * eta * (1.0 - cos_hi * cos_hi), 0.0))
+    wo = -eta * v[None, :] + k[:, None] * h
+    return -wo[:, 2]
+
+
+@functools.lru_cache(maxsize=64)
 def passage_table(entry) -> np.ndarray:
     """P[t, n]: probability that a walk entering with cosine ``entry`` (a number in (0, 1],
-    ``COSINE_ENTRY`` or (``ROUGH_ENTRY``, ior)) first reaches optical depth ``TAUS[t]`` after exactly n scatterings, n <
-    ``MAX_SEGMENTS``, without leaving through its entry plane. float64 (len(TAUS), MAX_SEGMENTS),
+    ``COSINE_ENTRY`` or (``ROUGH_ENTRY``, ior, view cosine)) first reaches optical depth
+    ``TAUS[t]`` after exactly n scatterings, n < ``MAX_SEGMENTS``, without leaving through its
+    entry plane (a path that does not enter counts as lost). float64 (len(TAUS), MAX_SEGMENTS),
     read-only; a fixed-seed estimate from ``WALKS`` walks."""
     rng = np.random.default_rng(SEED)
     n = WALKS
     if entry == COSINE_ENTRY:
         mu = np.sqrt(rng.random(n))  # cosine-weighted hemisphere
-    elif isinstance(entry, tuple) and len(entry) == 2 and entry[0] == ROUGH_ENTRY:
-        # Refraction of a view along the normal about GGX microfacet normals of roughness 1 (the
-        # Skin method's refractive half): their visible distribution is then cosine-weighted.
-        eta = 1.0 / float(entry[1])
-        cos_h = np.sqrt(rng.random(n))
-        k = eta * cos_h - np.sqrt(np.maximum(1.0 - eta * eta * (1.0 - cos_h * cos_h), 0.0))
-        mu = np.clip(eta - k * cos_h, 1e-6, 1.0)  # -(wo . n), wo = -eta wi + k h, wi = n
+    elif isinstance(entry, tuple) and len(entry) == 3 and entry[0] == ROUGH_ENTRY:
+        mu = _rough_entry(rng, n, float(entry[1]), float(entry[2]))
     else:
         mu0 = float(entry)
         if not 0.0 < mu0 <= 1.0:
             raise ValueError(f"entry: expected a cosine in (0, 1] or {COSINE_ENTRY!r}, got {entry!r}")
         mu = np.full(n, mu0)
-    z = np.zeros(n)
-    deepest = np.zeros(n)
-    alive = np.arange(n)
+    entering = mu > 0  # a refraction that points out of the surface ends the path (Cycles)
+    mu = mu[entering]
+    z = np.zeros(mu.size)
+    deepest = np.zeros(mu.size)
+    alive = np.arange(mu.size)
     counts = np.zeros((len(TAUS), MAX_SEGMENTS), np.float64)
     taus = TAUS[1:]
-    counts[0, 0] = n  # depth 0 is reached at once
+    counts[0, 0] = mu.size  # depth 0 is reached at once
     for segment in range(MAX_SEGMENTS):
         if alive.size == 0:
             break
@@ -311,6 +335,7 @@ def transmittance_rgb(
         raise ValueError(f"cosine_share: expected a number in [0, 1], got {cosine_share!r}")
     if view_cos is None:
         mu0 = np.ones_like(x)
+        mu_v = np.ones_like(x)
     else:
         mu_v = np.clip(np.asarray(view_cos, np.float64), 0.0, 1.0)
         mu0 = np.sqrt(np.clip(1.0 - (1.0 - mu_v * mu_v) / (ior * ior), 0.0, 1.0))
@@ -323,13 +348,30 @@ def transmittance_rgb(
         tau = x / ell[c]
         if cosine_share > 0:
             # The Skin method: half cosine-distributed, half refracted at roughness 1 (Cycles'
-            # fixed value for it), the view taken along the normal.
-            rough = (ROUGH_ENTRY, round(float(ior), 2))
-            out[..., c] = (1.0 - cosine_share) * slab_transmittance(
-                tau, alpha[c], rough
-            ) + cosine_share * slab_transmittance(tau, alpha[c], COSINE_ENTRY)
+            # fixed value for it) from the pixel's view direction.
+            rough = _interp_rough(tau, mu_v, alpha[c], round(float(ior), 2))
+            out[..., c] = (1.0 - cosine_share) * rough + cosine_share * slab_transmittance(tau, alpha[c], COSINE_ENTRY)
         else:
             out[..., c] = _interp_entry(tau, mu0, alpha[c])
+    return out
+
+
+#: View cosines the Skin method's rough entry is tabulated at (linear in between).
+ROUGH_VIEW_COSINES = (0.1, 0.3, 0.5, 0.7, 0.85, 1.0)
+
+
+def _interp_rough(tau: np.ndarray, mu_v: np.ndarray, alpha: float, ior: float) -> np.ndarray:
+    """T at each (tau, view cosine) for the rough refractive entry, linear in the view cosine."""
+    grid = ROUGH_VIEW_COSINES
+    m = np.clip(mu_v, grid[0], 1.0)
+    values = [slab_transmittance(tau, alpha, (ROUGH_ENTRY, ior, g)) for g in grid]
+    out = values[-1].copy()
+    for i in range(len(grid) - 1):
+        lo, hi = grid[i], grid[i + 1]
+        sel = (m >= lo) & (m < hi)
+        if sel.any():
+            w = (m[sel] - lo) / (hi - lo)
+            out[sel] = (1.0 - w) * values[i][sel] + w * values[i + 1][sel]
     return out
 
 

@@ -67,6 +67,11 @@ def test_entry_direction_and_anisotropy():
     straight = tr.transmittance_rgb(x, (0.004,) * 3, (0.7,) * 3, view_cos=np.ones(3))
     grazing = tr.transmittance_rgb(x, (0.004,) * 3, (0.7,) * 3, view_cos=np.zeros(3), ior=1.4)
     assert np.all(grazing < straight)
+    # The Skin method: half cosine-distributed (view-independent), half refracted about rough
+    # microfacets from the view, so a grazing view passes less.
+    skin_straight = tr.transmittance_rgb(x, (0.004,) * 3, (0.7,) * 3, view_cos=np.ones(3), cosine_share=0.5)
+    skin_grazing = tr.transmittance_rgb(x, (0.004,) * 3, (0.7,) * 3, view_cos=np.full(3, 0.2), cosine_share=0.5)
+    assert np.all(skin_grazing < skin_straight)
     forward = tr.transmittance_rgb(x * 5, (0.004,) * 3, (0.7,) * 3, anisotropy=0.6)
     iso = tr.transmittance_rgb(x * 5, (0.004,) * 3, (0.7,) * 3)
     assert np.all(forward > iso)
