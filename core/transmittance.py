@@ -40,6 +40,9 @@ import numpy as np
 
 from . import _arrays
 
+#: The trapezoid rule: ``np.trapezoid`` since NumPy 2.0, ``np.trapz`` in NumPy 1.26 (Blender 4.5).
+trapezoid = getattr(np, "trapezoid", None) or getattr(np, "trapz")  # noqa: B009 (deprecated in NumPy 2)
+
 #: Cycles' cap on random-walk segments (``BSSRDF_MAX_BOUNCES``): a path still inside after it is lost.
 MAX_SEGMENTS = 256
 #: Cycles' floor on the single-scattering albedo (``subsurface_random_walk_coefficients``).
@@ -418,8 +421,8 @@ def disk_table() -> tuple[np.ndarray, np.ndarray]:
         rho = np.linspace(0.0, top, _DISK_POINTS)
         r = np.sqrt(rho * rho + u * u)
         p = (np.exp(-r) + np.exp(-r / 3.0)) / 4.0
-        t[i] = np.trapezoid(p, rho) / cdf
-        m2[i] = np.trapezoid(p * rho * rho, rho) / cdf / max(t[i], 1e-300)
+        t[i] = trapezoid(p, rho) / cdf
+        m2[i] = trapezoid(p * rho * rho, rho) / cdf / max(t[i], 1e-300)
     t.setflags(write=False)
     m2.setflags(write=False)
     return t, m2

@@ -11,6 +11,7 @@ from sss_lab.core.burley import burley
 from sss_lab.core.combined import back_irradiance, combined, slab_thickness, transmission
 from sss_lab.core.profiles import burley_transmittance
 from sss_lab.core.scene import Camera, Light
+from sss_lab.core.transmittance import trapezoid
 
 N = 24
 CAMERA = Camera(type="ORTHO", width_px=N, height_px=N, ortho_scale=1.0)  # looks down -Z from the origin
@@ -221,7 +222,7 @@ def test_light_from_behind_spreads_by_the_walks_lateral_distance():
     x, d = 0.01, 0.004
     r = np.linspace(x, x + 60 * d, 200001)
     w = np.exp(-r / d) + np.exp(-r / (3 * d))
-    expected = math.sqrt(np.trapezoid((r * r - x * x) * w, r) / np.trapezoid(w, r) / 2)
+    expected = math.sqrt(trapezoid((r * r - x * x) * w, r) / trapezoid(w, r) / 2)
     got = spread_sigma(np.array([x]), (d, d, d), None)[0, 0]
     assert got == pytest.approx(expected, rel=1e-4)
     # Christensen-Burley's disk probes: the far side's weight over rho is wider than the law's.
