@@ -25,8 +25,15 @@ any technique, how much the two things SSS adds to a plain diffuse render matter
   differ most (on the fidelity suite neither is consistently better up to footprints of about
   13 px; at 84 px Burley's error is 18 % lower).
 
+- **energy** V: how much the scattering techniques' default energy (``core/energy.py``, "object":
+  the light Cycles' random walk returns against Lambert as a function of the view angle, times a
+  finite object's light through the baked thickness) changes the material's visible light,
+  measured the same way (the view cosine from the Normal and Position passes; 0 without them, or
+  for a method without tables). It does not depend on the footprint: a material far smaller than
+  a pixel still gains from it.
+
 A model (``Model``) predicts each technique's error from those numbers, error^2 = alpha D^2 +
-beta B^2 + gamma + delta W^2 (+ G^2 for a technique without a fit), with non-negative
+beta B^2 + gamma + delta W^2 + epsilon V^2 (+ G^2 for a technique without a fit), with non-negative
 coefficients learnt per technique by least squares on measured errors (``train``;
 ``benchmarks/auto.py`` learns them on the fidelity suite and validates the choice
 leave-one-scene-out; the shipped coefficients are in ``auto_model.json`` beside this module, with
@@ -56,7 +63,8 @@ import numpy as np
 
 from . import _arrays
 from . import apply as core_apply
-from .combined import medium_of, transmission
+from .combined import medium_of, transmission, view_cosine
+from .energy import SLAB_ABOVE, entry_gain, slab_factors, unseen_irradiance
 from .errors import InputError
 from .exr import Passes
 from .fit_params import fitted
@@ -100,6 +108,7 @@ class Features:
     footprint_px: tuple[float, float, float] = (0.0, 0.0, 0.0)
     diffusion: float = 0.0
     wide: float = 0.0
+    view: float = 0.0
     back: float = 0.0
     #: Light from behind over the visible diffuse light, summed over the material (a share).
     back_share: float = 0.0
@@ -117,8 +126,8 @@ class Features:
 
 @dataclass(frozen=True)
 class Model:
-    """Per candidate: (alpha, beta, gamma[, delta]) of error^2 = alpha D^2 + beta B^2 + gamma + delta W^2
-    (delta 0 when not given)."""
+    """Per candidate: (alpha, beta, gamma[, delta[, epsilon]]) of error^2 = alpha D^2 + beta B^2 + gamma
+    + delta W^2 + epsilon V^2 (delta and epsilon 0 when not given)."""
 
     coefficients: dict
     #: What it was learnt on (scene names) and by which command.
@@ -141,7 +150,8 @@ class Model:
 
     def predict(self, candidate: str, f: Features) -> float:
         alpha, beta, gamma, *rest = self.coefficients[candidate]
-        e2 = alpha * f.diffusion**2 + beta * f.back**2 + gamma + (rest[0] * f.wide**2 if rest else 0.0)
+        e2 = alpha * f.diffusion**2 + beta * f.back**2 + gamma
+        e2 += sum(c * v**2 for c, v in zip(rest, (f.wide, f.view), strict=False))
         if candidate not in f.fitted:
             e2 += f.energy**2
         return math.sqrt(max(e2, 0.0))
@@ -152,8 +162,8 @@ class Model:
             "trained_on": list(self.trained_on),
             "command": self.command,
             "seconds_per_work": dict(self.seconds_per_work),
-            "definition": "relative error^2 = alpha D^2 + beta B^2 + gamma + delta W^2 per candidate; seconds = rate"
-            " x pixels x samples (core/auto.py)",
+            "definition": "relative error^2 = alpha D^2 + beta B^2 + gamma + delta W^2 + epsilon V^2 per candidate;"
+            " seconds = rate x pixels x samples (core/auto.py)",
         }
 
     @classmethod
@@ -163,8 +173,8 @@ class Model:
         except (KeyError, TypeError, ValueError):
             raise InputError(f"{where}: expected {{'coefficients': {{candidate: [alpha, beta, gamma]}}}}") from None
         for k, v in coefficients.items():
-            if len(v) not in (3, 4) or not all(math.isfinite(x) and x >= 0 for x in v):
-                raise InputError(f"{where}: coefficients of {k!r} must be three or four finite numbers >= 0, got {v}")
+            if len(v) not in (3, 4, 5) or not all(math.isfinite(x) and x >= 0 for x in v):
+                raise InputError(f"{where}: coefficients of {k!r} must be three to five finite numbers >= 0, got {v}")
         if NONE not in coefficients:
             raise InputError(f"{where}: no coefficients for {NONE!r} (no SSS), which every choice compares against")
         try:
@@ -221,7 +231,10 @@ class _Shared:
         self.direct = passes["Diffuse Direct"] if have else None
         self.indirect = passes["Diffuse Indirect"] if have else None
         self.depth = passes.get("Depth")
+        have_np = "Normal" in passes and "Position" in passes
+        self.normal_position = (passes["Normal"], passes["Position"]) if have_np else None
         aov = scene.thickness_aov
+        self.thickness = None
         self.missing_back = [p for p in ("Normal", "Position", aov) if p not in passes]
         if not self.missing_back:
             t = passes[aov]
@@ -244,6 +257,41 @@ def _rms(term: np.ndarray, keep: np.ndarray, base: np.ndarray) -> float:
     if mean <= 0:
         return 0.0
     return float(np.sqrt(np.mean(np.square(term[keep], dtype=np.float64)))) / mean
+
+
+def _energy_change(material, scene, sh, at, keep, albedo, e, visible, base) -> float:
+    """V: the RMS change the scattering techniques' default energy (``core.energy.apply_energy``,
+    "object") makes to the material's visible light, relative to the mean of ``base``: the entry's
+    view dependence (each channel's total kept) times the finite object's light, computed as that
+    function does on the blocks (the view cosine from the Normal and Position passes)."""
+    normal, position = (at(a) for a in sh.normal_position)
+    a = np.clip(albedo[keep], 0.0, 1.0).astype(np.float32)
+    lit = visible[keep].astype(np.float32)
+    gain = entry_gain(material.method, a, view_cosine(normal, position, scene.camera)[keep])
+    before = lit.astype(np.float64).sum(axis=0)
+    after = (lit * gain).astype(np.float64).sum(axis=0)
+    gain = gain * np.where(after > 0, before / np.where(after > 0, after, 1.0), 1.0).astype(np.float32)[None, :]
+    out = lit
+    distance = material.thickness_distance
+    if sh.thickness is not None and distance and material.method in SLAB_ABOVE:
+        tau = np.clip(at(sh.thickness)[keep].astype(np.float64), 0.0, 1.0)
+        if scene.thickness_convention == "thickness":
+            tau = 1.0 - tau
+        x = distance * np.sqrt(1.0 - tau)
+        ell = np.maximum(np.asarray(mean_free_path(material), np.float64), 1e-30)
+        f_above, f_below = slab_factors(material.method, a, x[:, None] / ell[None, :])
+        nrm, pos = normal[keep].astype(np.float64), position[keep].astype(np.float64)
+        ok = np.isfinite(nrm).all(axis=1) & np.isfinite(pos).all(axis=1) & (np.linalg.norm(nrm, axis=1) > 0)
+        if ok.any():
+            unseen = unseen_irradiance(
+                irradiance=e[keep][ok], normal=nrm[ok], position=pos[ok], camera=scene.camera, lights=scene.lights
+            )
+            out = lit * f_above + a * f_below * unseen.astype(np.float32)[None, :]
+    mean = float(np.mean(base[keep]))
+    if mean <= 0:
+        return 0.0
+    change = (out * gain).astype(np.float64) - lit
+    return float(np.sqrt(np.mean(np.square(change)))) / mean
 
 
 def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, _shared=None) -> Features:
@@ -338,6 +386,10 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
             change[..., c] = _blurred(e[..., c], keep, half) - e[..., c]
         f.diffusion = _rms(albedo * change, keep, base)
         f.wide = f.diffusion * min(1.0, max(f.footprint_px) / WIDE_PX)
+    if sh.normal_position is None:
+        f.notes.append("no Normal/Position pass: the techniques' energy not measured")
+    elif e is not None:
+        f.view = _energy_change(material, scene, sh, at, keep, albedo, e, visible, base)
     if light is not None:
         f.back = _rms(light, keep, base)
         total = float(np.sum(visible[keep]))
@@ -430,6 +482,7 @@ class AutoPlan:
                 f"    diffusion D {f.diffusion:.4f} (how much spreading the visible light over 2.5 d changes it),"
                 f" wide W {f.wide:.4f} (the part with a footprint of {WIDE_PX:g} px or more)"
             )
+            lines.append(f"    energy V {f.view:.4f} (what the techniques' energy convention changes)")
             thick = "" if f.thickness_over_d is None else f", median thickness {f.thickness_over_d:.3g} d"
             lines.append(
                 f"    light from behind B {f.back:.4f} ({100 * f.back_share:.1f} % of the visible diffuse light{thick})"
@@ -616,7 +669,7 @@ def train(samples, *, timings=(), trained_on=(), command: str = "") -> Model:
     """Learn the coefficients from measured errors.
 
     ``samples``: (Features, {candidate: relative error}) pairs, one per material of a scene,
-    the candidates including ``NONE``. Each technique's error^2 is fitted to (D^2, B^2, 1, W^2) by
+    the candidates including ``NONE``. Each technique's error^2 is fitted to (D^2, B^2, 1, W^2, V^2) by
     non-negative least squares, each material weighted by 1 / its no-SSS error^2 so that every
     material counts alike whatever its scene's error level. The energy term is not learnt (no SSS
     always keeps it, a fitted technique removes it): it is subtracted from the measured error^2
@@ -631,14 +684,16 @@ def train(samples, *, timings=(), trained_on=(), command: str = "") -> Model:
             if err is None or not math.isfinite(err):
                 continue
             e2 = err**2 - (0.0 if t in f.fitted else f.energy**2)
-            by_candidate.setdefault(t, []).append((f.diffusion**2, f.back**2, f.wide**2, max(e2, 0.0), 1.0 / none**2))
+            by_candidate.setdefault(t, []).append(
+                (f.diffusion**2, f.back**2, f.wide**2, f.view**2, max(e2, 0.0), 1.0 / none**2)
+            )
     if NONE not in by_candidate:
         raise InputError("train: no sample with a finite no-SSS error: nothing to learn from")
     coefficients = {}
     for t, rows in by_candidate.items():
         a = np.asarray(rows, np.float64)
-        x = np.column_stack([a[:, 0], a[:, 1], np.ones(len(a)), a[:, 2]])
-        coefficients[t] = tuple(float(v) for v in _nnls(x, a[:, 3], a[:, 4]))
+        x = np.column_stack([a[:, 0], a[:, 1], np.ones(len(a)), a[:, 2], a[:, 3]])
+        coefficients[t] = tuple(float(v) for v in _nnls(x, a[:, 4], a[:, 5]))
     rates: dict[str, list] = {}
     for t, work, seconds in timings:
         if work > 0 and seconds > 0 and math.isfinite(seconds):

@@ -245,20 +245,34 @@ def test_the_composite_is_each_materials_chosen_technique():
 
 def test_train_recovers_the_coefficients_it_was_made_from():
     rng = np.random.default_rng(5)
-    truth = {"none": (1.0, 1.0, 0.001, 0.0), "ssss": (0.3, 1.0, 0.002, 0.2), "combined": (0.25, 0.0, 0.004, 0.05)}
+    truth = {
+        "none": (1.0, 1.0, 0.001, 0.0, 0.8),
+        "ssss": (0.3, 1.0, 0.002, 0.2, 0.0),
+        "combined": (0.25, 0.0, 0.004, 0.05, 0.1),
+    }
     samples = []
-    for i in range(12):
+    for i in range(16):
         d = float(rng.random())
         f = auto.Features(
-            name=f"m{i}", index=1, pixels=100, diffusion=d, back=float(rng.random()), wide=d * float(rng.random())
+            name=f"m{i}",
+            index=1,
+            pixels=100,
+            diffusion=d,
+            back=float(rng.random()),
+            wide=d * float(rng.random()),
+            view=0.2 * float(rng.random()),
         )
         errors = {
-            t: math.sqrt(a * f.diffusion**2 + b * f.back**2 + c + w * f.wide**2) for t, (a, b, c, w) in truth.items()
+            t: math.sqrt(a * f.diffusion**2 + b * f.back**2 + c + w * f.wide**2 + v * f.view**2)
+            for t, (a, b, c, w, v) in truth.items()
         }
         samples.append((f, errors))
     model = auto.train(samples)
     for t, coef in truth.items():
         np.testing.assert_allclose(model.coefficients[t], coef, atol=1e-9)
+        # Predicting the samples it learnt from gives their errors back.
+        f, errors = samples[3]
+        assert model.predict(t, f) == pytest.approx(errors[t], rel=1e-9)
 
 
 def test_model_validation_and_the_shipped_model():
@@ -357,3 +371,33 @@ def test_costs_are_work_times_each_techniques_measured_rate():
     assert auto.Model.from_dict(model.to_dict()).seconds_per_work == model.seconds_per_work
     with pytest.raises(InputError, match="seconds_per_work"):
         auto.Model.from_dict({"coefficients": {"none": [1, 1, 0]}, "seconds_per_work": {"ssss": -1}})
+
+
+def test_view_energy_is_what_the_techniques_energy_convention_changes():
+    from sss_lab.core.combined import view_cosine
+    from sss_lab.core.energy import entry_gain
+
+    arrays, scene = _scene()
+    passes = Passes(arrays)
+    # Without the bake distance no light from behind is added: the measure divides by Combined's mean.
+    walk = (m for m in scene.materials if m.scatters and m.method == "RANDOM_WALK")
+    skin = dataclasses.replace(next(walk), thickness_distance=0.0)
+    f = auto.features(passes, scene, skin)
+    # Independently, on the 2 x 2 blocks wholly inside the material.
+    mask = np.rint(arrays["Material Index"]) == skin.index
+    keep = auto.box_downsample(mask.astype(float), 2) >= 1
+
+    def blocks(name):
+        return auto.box_downsample(arrays[name].astype(np.float64), 2)
+
+    albedo = blocks("Diffuse Color")[..., :3]
+    lit = (albedo * (blocks("Diffuse Direct")[..., :3] + blocks("Diffuse Indirect")[..., :3]))[keep]
+    mu = view_cosine(blocks("Normal"), blocks("Position"), scene.camera)[keep]
+    gain = entry_gain(skin.method, np.clip(albedo[keep], 0, 1), mu).astype(np.float64)
+    gain *= lit.sum(axis=0) / (lit * gain).sum(axis=0)  # each channel's total kept
+    assert f.view > 0
+    base = blocks("Combined")[..., :3][keep].mean()
+    assert f.view == pytest.approx(math.sqrt(np.mean((lit * (gain - 1)) ** 2)) / base, rel=1e-4)
+    # A method without a table (Christensen-Burley: Lambert's energy) changes nothing.
+    cb = dataclasses.replace(skin, method="BURLEY")
+    assert auto.features(passes, scene, cb).view == 0.0
