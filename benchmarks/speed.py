@@ -229,6 +229,12 @@ def run(width: int = 1920, height: int = 1080, repeat: int = 5, big: tuple[int, 
             # The same ratio in CPU time: the work, which other processes on the machine do not inflate.
             entry["mask_ratio_cpu"] = round(entry["25 % mask"]["cpu_ms"] / entry["full screen"]["cpu_ms"], 3)
             entry["thread_scaling"] = round(entry["full screen, 1 thread"]["ms"] / full, 2)
+            # The work two threads do against one (CPU time): near 1 when the second thread adds
+            # no work, so that two idle cores would divide the time by about 2; on a shared
+            # machine the wall-clock ratio above depends on what else runs.
+            entry["thread_work_ratio_cpu"] = round(
+                entry["full screen"]["cpu_ms"] / entry["full screen, 1 thread"]["cpu_ms"], 2
+            )
             results[name]["backends"][b] = entry
             log(
                 f"{name:7s} {b:6s} full {full:8.1f} ms (CPU {entry['full screen']['cpu_ms']:8.1f} ms,"
