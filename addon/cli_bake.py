@@ -41,9 +41,10 @@ def add_parser(subparsers):
     p.add_argument(
         "--source",
         choices=tuple(SOURCES),
-        default="ao",
-        help="ao: inside ambient occlusion (default); ray: the distance to the far side along the inward"
-        " normals, as a slab of that thickness bakes (attribute target; better for tubes and balls)",
+        default=None,
+        help="ray: the distance to the far side along the inward normals, as a slab of that thickness"
+        " bakes (attribute target; the default there); ao: inside ambient occlusion (the default for an"
+        " image target)",
     )
     add_samples(p, default=32, help="AO rays per vertex or texel (default: %(default)s)")
     p.add_argument(

@@ -38,6 +38,17 @@ SOURCES = {
     "ao": "Cycles Ambient Occlusion node, Inside (STA's local thickness)",
     "ray": "distance to the far side along the inward normals, as a slab of that thickness bakes",
 }
+
+
+def default_source(target: str) -> str:
+    """The source a bake uses when none is chosen: "ray" for the attribute target, "ao" for an
+    image (the ray source measures at vertices only). Chosen by the fidelity suite and the back-lit
+    and energy scenes outside it (docs/references.md §14): on slabs both read the same, on tubes and
+    balls the AO map reads 0.4-0.65 of the through-thickness, which made every technique that reads
+    the map worse than no SSS on back-lit tubes."""
+    return "ray" if target == "attribute" else "ao"
+
+
 #: Image formats and their bit depth: float32 OpenEXR, or 16-bit PNG (linear, Non-Color).
 IMAGE_FORMATS = {"OPEN_EXR": ".exr", "PNG": ".png"}
 #: Largest ray count of one AO node evaluation used per render sample (the node allows 128);
@@ -66,7 +77,7 @@ class BakeSettings:
     ``image_format``. ``link_materials``: add the result to the object's materials, feeding a
     Shader AOV output named ``aov_name`` (the render passes' thickness AOV). ``source``: what the
     map is measured from (``SOURCES``; "ray" needs the attribute target and ignores ``samples``
-    and ``only_local``).
+    and ``only_local``); None (the default) takes ``default_source(target)``.
     """
 
     target: str = "attribute"
@@ -81,11 +92,13 @@ class BakeSettings:
     image_folder: str = "//thickness"
     link_materials: bool = True
     aov_name: str = "Thickness"
-    source: str = "ao"
+    source: str | None = None
 
     def __post_init__(self):
         if self.target not in TARGETS:
             raise ValueError(f"bake target: {self.target!r} is not one of {', '.join(TARGETS)}")
+        if self.source is None:
+            object.__setattr__(self, "source", default_source(self.target))
         if self.source not in SOURCES:
             raise ValueError(f"bake source: {self.source!r} is not one of {', '.join(SOURCES)}")
         if self.source == "ray" and self.target != "attribute":

@@ -195,7 +195,7 @@ def load_scene(
     cache: str | None = CACHE,
     store: str = references.STORE,
     log=print,
-    thickness_source: str = "ao",
+    thickness_source: str | None = None,
 ):
     """Build scene ``name`` (of the module ``scenes``, default the suite), check and load its
     reference, bake, render (or reuse) the passes: a ``SceneData``."""
@@ -565,7 +565,7 @@ def run(
     cache: str | None = CACHE,
     store=references.STORE,
     log=print,
-    thickness_source: str = "ao",
+    thickness_source: str | None = None,
 ):
     """Score ``names`` (default: every scene of ``scenes``, default the suite); returns
     {"scenes": [per-scene results], "summary": ...}. Per-scene results hold ``rows`` (one per
@@ -593,8 +593,9 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--thickness-source",
         choices=("ao", "ray"),
-        default="ao",
-        help="the thickness bake's source (default %(default)s, the bake's default; core/thickness.py)",
+        default=None,
+        help="the thickness bake's source (default: the bake's default for its attribute target, ray;"
+        " core/thickness.py)",
     )
     parser.add_argument("--out", default=RESULTS, help=f"JSON results (default {RESULTS})")
     parser.add_argument("--table", default=TABLE, help=f"Markdown table (default {TABLE})")
@@ -616,7 +617,7 @@ def main(argv=None) -> int:
     total = time.perf_counter() - start
     data = {
         "command": "make fidelity"
-        if not (args.names or args.scenes_module or args.thickness_source != "ao")
+        if not (args.names or args.scenes_module or args.thickness_source)
         else " ".join(["python -m benchmarks.fidelity.run", *sys.argv[1:]]),
         "generated_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "blender": bpy.app.version_string,

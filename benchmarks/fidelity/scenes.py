@@ -612,9 +612,9 @@ def prepare(scene) -> None:
         aov.name, aov.type = THICKNESS_AOV, "VALUE"
 
 
-def bake(scene, source: str = "ao") -> list:
+def bake(scene, source: str | None = None) -> list:
     """The thickness bake of the subsurface meshes with the bake's defaults (attribute target,
-    ``THICKNESS_SAMPLES`` rays; ``source`` the bake's, "ao" by default); returns the bake results.
+    ``THICKNESS_SAMPLES`` rays; ``source`` the bake's, its default by default); returns the bake results.
     Done after the fingerprint: the map changes what STA reads, not what Cycles renders."""
     from sss_lab.blender.bake import bake_thickness
     from sss_lab.core.thickness import BakeSettings

@@ -151,7 +151,10 @@ def _snapshot():
 
 
 def _settings(**kw):
+    """Settings of the AO bake (most tests here check Cycles' inside AO: samples, only-local,
+    the cosine-weighted slab law) unless a test names its source."""
     kw.setdefault("samples", 16)
+    kw.setdefault("source", "ao")
     return BakeSettings(**kw)
 
 

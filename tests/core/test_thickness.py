@@ -125,7 +125,9 @@ def test_default_settings():
 
 
 def test_bake_source_is_checked():
-    assert BakeSettings().source == "ao" and BakeSettings(source="ray").source == "ray"
+    # The default follows the target: ray at the vertices, AO for an image (which ray cannot bake).
+    assert BakeSettings().source == "ray" and BakeSettings(target="image").source == "ao"
+    assert BakeSettings(source="ao").source == "ao" and BakeSettings(source="ray").source == "ray"
     with pytest.raises(ValueError, match="bake source: 'rays' is not one of ao, ray"):
         BakeSettings(source="rays")
     with pytest.raises(ValueError, match="use the attribute target"):
