@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import bpy
 
-from ..core.thickness import BakeSettings
+from ..core.thickness import BakeSettings, default_source
 
 _DEFAULTS = BakeSettings()
 
@@ -112,8 +112,8 @@ class SSSLabBakeSettings(bpy.types.PropertyGroup):
         return BakeSettings(
             target=self.target,
             convention=self.convention,
-            # The ray source measures at the vertices: an image is always baked from the AO.
-            source=self.source if self.target == "attribute" else "ao",
+            # The ray source measures at the vertices: an image takes its target's default source.
+            source=self.source if self.target == "attribute" else default_source(self.target),
             samples=self.samples,
             distance_su=float(self.distance),
             only_local=self.only_local,

@@ -547,8 +547,9 @@ def _own(p: Param) -> Param:
 TECHNIQUE = Technique(
     name="combined",
     label="Combined",
-    description="Burley diffusion of the visible light plus Burley transmittance of the light from behind",
-    citation="docs/references.md §1, §4 and §9; Christensen & Burley 2015 (profile and transmittance)",
+    description="Burley diffusion of the visible light plus the light from behind carried through the baked"
+    " thickness as Cycles' subsurface method carries it",
+    citation="docs/references.md §1, §4, §9 and §14; Christensen & Burley 2015 (profile and transmittance)",
     function=combined,
     scatters=True,
     adds_light=True,
