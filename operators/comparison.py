@@ -9,10 +9,10 @@ import bpy
 
 from ..blender.compare import CompareSettings, compare_job
 from ..core.report_schema import Report
-from .modal import ModalJob
+from .modal import DialogModalJob
 
 
-class SSS_LAB_OT_compare(ModalJob, bpy.types.Operator):
+class SSS_LAB_OT_compare(DialogModalJob, bpy.types.Operator):
     """Compare each technique with Cycles random walk on this scene and write a report (Esc: cancel between renders)"""
 
     bl_idname = "sss_lab.compare"
@@ -39,28 +39,12 @@ class SSS_LAB_OT_compare(ModalJob, bpy.types.Operator):
         default=CompareSettings.pass_samples,
         description="Cycles samples of the passes the techniques run on",
     )
-    # The dialog's OK button calls execute(), which starts the modal run as a new invocation.
+    # Hidden flags of the dialog-then-modal run (``DialogModalJob``).
     confirmed: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
     from_dialog: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
 
-    def invoke(self, context, event):
-        if self.confirmed or not self.interactive(context):
-            return ModalJob.invoke(self, context, event)
-        self.from_dialog = True
-        return context.window_manager.invoke_props_dialog(self)
-
-    def execute(self, context):
-        if self.from_dialog and self.interactive(context):
-            started = bpy.ops.sss_lab.compare(
-                "INVOKE_DEFAULT",
-                directory=self.directory,
-                reference_samples=self.reference_samples,
-                pass_samples=self.pass_samples,
-                confirmed=True,
-            )
-            # This call only started the modal run (which reports when it ends).
-            return {"FINISHED"} if "RUNNING_MODAL" in started else started
-        return ModalJob.execute(self, context)
+    def dialog_settings(self) -> dict:
+        return dict(directory=self.directory, reference_samples=self.reference_samples, pass_samples=self.pass_samples)
 
     def new_job(self, context):
         out_dir = bpy.path.abspath(self.directory)

@@ -9,10 +9,10 @@ from __future__ import annotations
 import bpy
 
 from ..blender.calibrate import PREFIX, calibrate_job, clear_fit
-from .modal import ModalJob
+from .modal import DialogModalJob
 
 
-class SSS_LAB_OT_fit_to_cycles(ModalJob, bpy.types.Operator):
+class SSS_LAB_OT_fit_to_cycles(DialogModalJob, bpy.types.Operator):
     """Fit each subsurface material's parameters to a short Cycles random-walk render of this view (Esc: cancel)"""
 
     bl_idname = "sss_lab.fit_to_cycles"
@@ -24,23 +24,12 @@ class SSS_LAB_OT_fit_to_cycles(ModalJob, bpy.types.Operator):
         name="Samples", min=1, default=32, description="Cycles random-walk samples of the image the fit is made on"
     )
 
-    # The dialog's OK button calls execute(), which starts the modal run as a new invocation
-    # (as ``sss_lab.compare`` does).
+    # Hidden flags of the dialog-then-modal run (``DialogModalJob``).
     confirmed: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
     from_dialog: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
 
-    def invoke(self, context, event):
-        if self.confirmed or not self.interactive(context):
-            return ModalJob.invoke(self, context, event)
-        self.from_dialog = True
-        return context.window_manager.invoke_props_dialog(self)
-
-    def execute(self, context):
-        if self.from_dialog and self.interactive(context):
-            started = bpy.ops.sss_lab.fit_to_cycles("INVOKE_DEFAULT", samples=self.samples, confirmed=True)
-            # This call only started the modal run (which reports when it ends).
-            return {"FINISHED"} if "RUNNING_MODAL" in started else started
-        return ModalJob.execute(self, context)
+    def dialog_settings(self) -> dict:
+        return dict(samples=self.samples)
 
     def new_job(self, context):
         return calibrate_job(context.scene, samples=self.samples, log=print)

@@ -171,6 +171,44 @@ class ModalJob:
         return {"CANCELLED"}
 
 
+class DialogModalJob(ModalJob):
+    """A ``ModalJob`` whose settings are asked for in a dialog first (Blender's
+    ``invoke_props_dialog``). The dialog's OK button calls ``execute()``, which starts the modal
+    run as a new invocation of the same operator with ``confirmed=True``; from scripts and
+    headless, ``execute`` runs the job to its end at once.
+
+    The operator declares the two hidden flags itself (Blender registers only the operator's own
+    property annotations)::
+
+        confirmed: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
+        from_dialog: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
+
+    and ``dialog_settings()``: the properties the dialog set, passed on to the modal run.
+    """
+
+    confirmed: bool
+    from_dialog: bool
+    bl_idname: str
+
+    def dialog_settings(self) -> dict:
+        raise NotImplementedError
+
+    def invoke(self, context, event):
+        if self.confirmed or not self.interactive(context):
+            return ModalJob.invoke(self, context, event)
+        self.from_dialog = True
+        return context.window_manager.invoke_props_dialog(self)
+
+    def execute(self, context):
+        if self.from_dialog and self.interactive(context):
+            module, name = self.bl_idname.split(".")
+            operator = getattr(getattr(bpy.ops, module), name)
+            started = operator("INVOKE_DEFAULT", confirmed=True, **self.dialog_settings())
+            # This call only started the modal run (which reports when it ends).
+            return {"FINISHED"} if "RUNNING_MODAL" in started else started
+        return ModalJob.execute(self, context)
+
+
 def _message(exc: BaseException) -> str:
     """A KeyError's message without the quotes str() adds."""
     return str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)

@@ -258,9 +258,12 @@ def modal_driver(operator_cls, **props):
     def report(self, level, message):
         self.reports.append((next(iter(level)), message))
 
-    namespace = {k: v for k, v in vars(operator_cls).items() if inspect.isfunction(v) or k == "job_label"}
+    keep = ("job_label", "bl_idname")
+    namespace = {k: v for k, v in vars(operator_cls).items() if inspect.isfunction(v) or k in keep}
     namespace.update(report=report, listen=lambda self, context: None, interactive=lambda self, context: True)
-    driver = type("Driver", (ModalJob,), namespace)()
+    # The operator's ModalJob class (``ModalJob`` itself or a subclass such as ``DialogModalJob``).
+    job_cls = next(c for c in operator_cls.__mro__[1:] if issubclass(c, ModalJob))
+    driver = type("Driver", (job_cls,), namespace)()
     module, _, name = operator_cls.bl_idname.partition(".")
     for prop in getattr(getattr(bpy.ops, module), name).get_rna_type().properties:
         if prop.identifier != "rna_type":
