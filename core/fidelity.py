@@ -110,8 +110,12 @@ def measure(technique: str, material: MaterialSSS, *, mapping=None, options=None
         back = Light(
             type="SUN", name="back", energy=1.0, matrix_world=(1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1)
         )
+        params = {**_mapping.technique_params(material, spec, mapping=mapping), **(options or {})}
+        if spec.prepare is not None:  # e.g. STA without a bake distance: the paper's map
+            spec.prepare(params)
         added = np.asarray(
             func(
+                **params,
                 albedo=albedo,
                 normal=normal,
                 position=position,

@@ -83,7 +83,7 @@ def light_at(light: Light, px, py, pz):
     return lx, ly, lz, e.astype(f32)
 
 
-FALLOFFS = ("map", "burley")
+FALLOFFS = ("medium", "map", "burley")
 
 
 def _transmittance(translucency: np.ndarray, distance: float, d_c: np.ndarray) -> np.ndarray:
@@ -119,14 +119,29 @@ def sta(
     scale: float = 1.0,
     ambient: float = 0.0,
     thickness_convention: str = "translucency",
-    falloff: str = "map",
+    falloff: str = "medium",
     d_su=None,
     thickness_distance_su: float = 0.0,
+    mfp_su=None,
+    subsurface_method: str | None = None,
+    base_color=(0.8, 0.8, 0.8),
+    subsurface_ior: float = 1.4,
+    subsurface_anisotropy: float = 0.0,
 ) -> np.ndarray:
     """The translucency term STA adds, float32 (H, W, 3); zero outside ``mask``.
 
-    ``falloff`` "map" (the paper's): the term is scaled by the translucency map t itself, the
-    same for R, G and B. "burley": the map is read back as a slab thickness,
+    ``falloff`` "medium" (the default): the map is read back as a slab thickness x (below) and the
+    term is filtered through the material's medium as Cycles' subsurface method carries light
+    through a slab (``core.combined.slab_transmittance_rgb``, docs/references.md §14: the random
+    walk's per-channel transmittance for the walks, the disk probes' for Christensen-Burley,
+    Burley's law with ``d_su`` without ``subsurface_method``), and the albedo is replaced by the
+    exit weight Cycles puts on that light (``core.combined.exit_weight``: Diffuse Color / Base
+    Color for a walk, whose medium does the colouring; Diffuse Color for Christensen-Burley).
+    ``mfp_su`` (the method's mean free path per channel, ``core.mapping.mean_free_path``; ``d_su``
+    without it), ``subsurface_method``, ``base_color``, ``subsurface_ior`` and
+    ``subsurface_anisotropy`` describe the medium. STA's view lobe, scale and ambient stay as in
+    the paper. "map" (the paper's): the term is scaled by the translucency map t itself, the
+    same for R, G and B, and coloured by the albedo. "burley": the map is read back as a slab thickness,
     x = D sqrt(1 - t) (the bake's AO of a slab is (x / D)^2, ``core/thickness.py``, with D =
     ``thickness_distance_su``), and each channel is scaled by the Burley transmittance
     T_c(x) = (e^{-x/d_c} + 3 e^{-x/3d_c}) / 4 for the profile shape ``d_su`` (HDRP's
@@ -156,6 +171,24 @@ def sta(
         raise ValueError(f"distortion: expected a finite number, got {distortion!r}")
     if falloff not in FALLOFFS:
         raise ValueError(f"falloff: {falloff!r} is not one of {', '.join(FALLOFFS)}")
+    if falloff == "medium":
+        return _through_medium(
+            albedo=albedo,
+            normal=normal,
+            position=position,
+            thickness=thickness,
+            mask=mask,
+            camera=camera,
+            lights=lights,
+            distortion=distortion,
+            power=power,
+            scale=scale,
+            ambient=ambient,
+            thickness_convention=thickness_convention,
+            length_su=d_su if mfp_su is None else mfp_su,
+            thickness_distance_su=thickness_distance_su,
+            medium_args=(subsurface_method, base_color, subsurface_ior, subsurface_anisotropy),
+        )
     # Per-channel Burley transmittance through the slab the map stands for, or the paper's map.
     transmits = falloff == "burley"
     if transmits:
@@ -304,6 +337,55 @@ def sta(
     return out
 
 
+def _through_medium(
+    *, albedo, thickness, mask, thickness_convention, length_su, thickness_distance_su, medium_args, **lobe
+) -> np.ndarray:
+    """STA's "medium" falloff (``sta``'s docstring): the paper's lobe with the exit weight for the
+    albedo and a thickness of 1, times the medium's per-channel transmittance through the slab
+    the map stands for. The lobe is the "map" falloff's computation (compiled or NumPy, checked
+    against each other by ``sta``'s check mode); the transmittance is computed once, in NumPy."""
+    from .combined import Medium, exit_weight, slab_thickness, slab_transmittance_rgb, view_cosine
+
+    if length_su is None or not thickness_distance_su:
+        raise ValueError(
+            "falloff 'medium' reads the map as a thickness through the material: it needs mfp_su (or d_su), the"
+            f" material's lengths per channel, and thickness_distance_su > 0, the bake's distance (got"
+            f" {length_su!r} and {thickness_distance_su!r}); falloff 'map' needs neither"
+        )
+    length = _arrays.rgb_lengths(length_su, "mfp_su")
+    distance = _arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
+    method, base_color, ior, anisotropy = medium_args
+    medium = None if method is None else Medium(method, tuple(base_color), float(ior), float(anisotropy))
+    a = _arrays.image(albedo, "albedo")
+    t = _arrays.image(thickness, "thickness", None)
+    _arrays.same_size(a.shape[:2], thickness=t)
+    m = _arrays.mask_array(mask, a.shape[:2])
+    weight = exit_weight(a, medium)
+    if weight is None:  # Burley's law without a material: the albedo colours the light, as "burley"
+        weight = a
+    weight = np.where(np.isfinite(a), weight, a)  # a non-finite albedo still gives 0 in the lobe
+    ok = np.isfinite(t)
+    tt = np.where(ok, np.clip(np.where(ok, t, 0.0), 0.0, 1.0), np.float32(0.0)).astype(np.float32)
+    if thickness_convention == "thickness":
+        tt = np.float32(1.0) - tt
+    out = sta.__wrapped__(  # type: ignore[attr-defined]
+        albedo=weight,
+        thickness=np.where(ok, np.float32(1.0), t).astype(np.float32),
+        mask=m,
+        thickness_convention="translucency",
+        falloff="map",
+        **lobe,
+    )
+    lit = m & ok & (out.max(axis=2) > 0)
+    if lit.any():
+        view_cos = None
+        if medium is not None and medium.walks:
+            view_cos = view_cosine(lobe["normal"], lobe["position"], lobe["camera"])[lit]
+        x = slab_thickness(tt[lit], distance)
+        out[lit] *= slab_transmittance_rgb(x, length, medium, view_cos=view_cos)
+    return out
+
+
 def _compiled(a, n, p, t, m, camera, lights, distortion, power, scale, ambient, convention, out, d_c, distance):
     """The per-pixel loop above as one compiled kernel (``core.compiled.sta_kernel``)."""
     f32 = np.float32
@@ -335,9 +417,21 @@ def _compiled(a, n, p, t, m, camera, lights, distortion, power, scale, ambient, 
     )
 
 
+def _prepare(params: dict) -> list[str]:
+    """Without the bake's distance the map cannot be read as a thickness: the paper's falloff."""
+    if params.get("falloff") != "medium" or params.get("thickness_distance_su"):
+        return []
+    params["falloff"] = "map"
+    return [
+        "the thickness map has no bake distance (bake it with SSS Lab's Bake Thickness): STA scales by the"
+        " map itself (falloff map), not through the material's medium"
+    ]
+
+
 #: STA's spec (``core/spec.py``): the defaults are the signature's (three.js's distortion, power and
 #: ambient, docs/references.md §4); scale 1 makes the translucency as bright as a Lambertian surface
-#: facing the light. STA has no physical scale: the comparison calibrates it with each falloff.
+#: facing the light; the "medium" falloff filters it as the material's Cycles method does
+#: (docs/references.md §14). The comparison can still calibrate the scale with each falloff.
 TECHNIQUE = Technique(
     name="sta",
     label="STA",
@@ -367,6 +461,12 @@ TECHNIQUE = Technique(
             "How the thickness map scales the translucency",
             type=str,
             choices=(
+                (
+                    "medium",
+                    "Through the Medium",
+                    "The light filtered through the slab thickness the baked map stands for, as the material's"
+                    " Cycles subsurface method carries it (uses the bake distance)",
+                ),
                 ("map", "Map", "The paper's: the translucency map itself, the same for R, G and B"),
                 (
                     "burley",
@@ -377,7 +477,9 @@ TECHNIQUE = Technique(
             ),
         ),
     ),
-    qualities=({}, {"falloff": "burley"}),
-    default_quality=0,
+    # The paper's map first (the cheapest), then the default.
+    qualities=({"falloff": "map"}, {}),
+    default_quality=1,
     calibration={"falloff": FALLOFFS, "scale": (0.25, 0.5, 1.0, 2.0, 4.0)},
+    prepare=_prepare,
 )

@@ -76,7 +76,7 @@ BOX = 2
 #: Each technique's qualities: its default first (``core/mapping.py``), then higher ones. A
 #: registered technique not listed here runs at its default only.
 QUALITIES: dict[str, tuple[dict, ...]] = {
-    "sta": ({}, {"falloff": "burley"}),
+    "sta": ({}, {"falloff": "map"}),
     "ssss": ({}, {"n_taps": 25}),
     "burley": ({}, {"n_samples": 64}, {"n_samples": 128}),
 }

@@ -248,7 +248,8 @@ def test_sta_matches_numpy(tmp_path, convention):
         camera=CAMERA, lights=tuple(_lights()), materials=(SKIN, WAX), thickness_convention=convention
     )
     options = {"distortion": 0.3, "power": 3.0, "scale": 2.0, "ambient": 0.05}
-    got, want = _composite(tmp_path, arrays, desc, "sta", options)
+    # The group is the paper's STA (docs/compositor.md): NumPy's default falloff filters through the medium.
+    got, want = _composite(tmp_path, arrays, desc, "sta", options, numpy_only={"falloff": "map"})
     term = want - arrays["Combined"][..., :3]
     on = arrays["Material Index"] > 0
     assert term[on].max() > 0.01 and (term[on] > 1e-4).mean() > 0.5  # the lights do reach the surface
@@ -476,9 +477,12 @@ def _socket_defaults(group):
 def test_group_inputs_have_the_numpy_names_and_defaults():
     d = mapping.burley_d(SKIN)
     sta_defaults = _socket_defaults(ensure_sta_group())
-    # The Burley-transmission falloff of STA is NumPy-only (docs/compositor.md): the group is the
-    # paper's STA, whose thickness map scales all channels alike.
-    numpy_only = {"falloff", "d_su", "thickness_distance_su"}
+    # STA's falloffs through the medium (its default) and Burley's transmittance are NumPy-only
+    # (docs/compositor.md): the group is the paper's STA, whose thickness map scales all channels alike.
+    numpy_only = {
+        "falloff", "d_su", "thickness_distance_su", "mfp_su", "subsurface_method", "base_color",
+        "subsurface_ior", "subsurface_anisotropy",
+    }  # fmt: skip
     for name, param in inspect.signature(sta.sta).parameters.items():
         if param.default is not inspect.Parameter.empty and name not in numpy_only:
             if isinstance(param.default, str):

@@ -81,6 +81,54 @@ def _second_moment(img, cy, cx):
     return (img * r2[..., None]).sum(axis=(0, 1)) / img.sum(axis=(0, 1))
 
 
+def test_sta_medium_falloff_filters_light_through_the_materials_medium():
+    # A jade-like walk (green Base Color, red going furthest) seen straight on, a sun straight
+    # behind: translucency 1, 0.75 and 0.19 against the bake distance D = 0.02 are slabs of 0,
+    # 1 and 1.8 cm (x = D sqrt(1 - t), the bake's slab law).
+    from sss_lab.core.combined import Medium, slab_transmittance_rgb
+
+    cam = Camera(type="ORTHO", width_px=3, height_px=1)
+    n = np.zeros((1, 3, 3), np.float32)
+    n[..., 2] = 1.0
+    p = np.zeros((1, 3, 3), np.float32)
+    p[..., 2] = -5.0
+    back = Light(type="SUN", energy=math.pi, matrix_world=(1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1))
+    base = (0.3, 0.8, 0.4)
+    mfp = (0.004, 0.002, 0.001)
+    # Diffuse Color = Base Color x 0.9 (a specular layer's share): the exit weight is 0.9 everywhere.
+    albedo = np.tile(np.asarray(base, np.float32) * np.float32(0.9), (1, 3, 1))
+    tau = np.array([[1.0, 0.75, 0.19]], np.float32)
+    kw = dict(
+        albedo=albedo, normal=n, position=p, thickness=tau, mask=np.ones((1, 3), bool), camera=cam,
+        lights=[back], distortion=0.0, mfp_su=mfp, thickness_distance_su=0.02,
+        subsurface_method="RANDOM_WALK", base_color=base,
+    )  # fmt: skip
+    out = sta(**kw)
+    # Lobe 1 and E / pi = 1: what is left is the exit weight times the walk's slab transmittance,
+    # which colours the light (the walk's medium), not the albedo, which would colour it twice.
+    x = 0.02 * np.sqrt(1.0 - tau[0].astype(np.float64))
+    want = 0.9 * slab_transmittance_rgb(x, mfp, Medium("RANDOM_WALK", base), view_cos=np.ones(3))
+    assert np.allclose(out[0], want, rtol=1e-5, atol=1e-7)
+    # A part of no thickness passes all of it; thicker parts pass less, and the light turns a more
+    # saturated green with the thickness (the issue's jade: random walk's green, not the pale albedo).
+    assert np.allclose(out[0, 0], 0.9, rtol=0.02)
+    assert np.all(out[0, 1] < out[0, 0]) and np.all(out[0, 2] < out[0, 1]) and np.all(out[0, 2] > 0)
+    green = out[0, :, 1] / out[0, :, [0, 2]].max(axis=0)
+    assert green[2] > green[1] > green[0]
+    # The paper's map passes 0.19 of the albedo's pale colour there, whatever the material's lengths.
+    paper = sta(**{**kw, "falloff": "map"})
+    assert np.allclose(paper[0, 2], 0.19 * albedo[0, 2], rtol=1e-5)
+    # Christensen-Burley keeps the closure weight (Diffuse Color) and the disk probes' far side.
+    disk = sta(**{**kw, "subsurface_method": "BURLEY"})
+    want = albedo[0] * slab_transmittance_rgb(x, mfp, Medium("BURLEY", base))
+    assert np.allclose(disk[0], want, rtol=1e-5, atol=1e-7)
+    # The map read as a thickness needs the material's lengths and the bake's distance.
+    with pytest.raises(ValueError, match="falloff 'medium' .* needs mfp_su .* thickness_distance_su"):
+        sta(**{**kw, "thickness_distance_su": 0.0})
+    with pytest.raises(ValueError, match="falloff 'medium'"):
+        sta(**{**kw, "mfp_su": None})
+
+
 @pytest.mark.parametrize("fn", (ssss, burley))
 def test_red_spreads_wider_than_blue_and_impulse_energy_is_kept(fn):
     e, a, z, m = _flat(61, 61, 0.0)
@@ -118,14 +166,16 @@ def test_sta_adds_light_from_behind_and_none_from_the_front():
     mask = np.ones((h, w), bool)
     # A sun shining towards the camera (+Z) lights the back: L = -Z, V = +Z, L_T = L + 0.1 N.
     back = Light(type="SUN", energy=math.pi, matrix_world=(1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1))
-    out = sta(albedo=albedo, normal=normal, position=pos, thickness=thick, mask=mask, camera=cam, lights=[back])
+    # The paper's arithmetic; the "medium" falloff has its own test.
+    paper = dict(albedo=albedo, normal=normal, position=pos, thickness=thick, mask=mask, camera=cam, falloff="map")
+    out = sta(lights=[back], **paper)
     # V . -L_T = 1 (normalized), so T_dir = 1: added = 0.5 x (pi / pi) x 1 x 1.
     assert np.allclose(out, 0.5, atol=1e-6)
     front = Light(type="SUN", energy=math.pi)  # shines down -Z, from the camera's side
-    out = sta(albedo=albedo, normal=normal, position=pos, thickness=thick, mask=mask, camera=cam, lights=[front])
+    out = sta(lights=[front], **paper)
     assert np.all(out == 0)
     # Thickness 0 adds nothing; ambient adds a_T even where the lobe is 0; the mask limits it.
-    kw = dict(albedo=albedo, normal=normal, position=pos, mask=mask, camera=cam)
+    kw = dict(albedo=albedo, normal=normal, position=pos, mask=mask, camera=cam, falloff="map")
     assert np.all(sta(thickness=np.zeros((h, w)), lights=[back], **kw) == 0)
     amb = sta(thickness=thick, lights=[front], ambient=0.2, **kw)
     assert np.allclose(amb, 0.5 * 0.2, atol=1e-6)
@@ -144,7 +194,7 @@ def test_sta_extremes():
     t = np.ones((1, 1), np.float32)
     m = np.ones((1, 1), bool)
     back = Light(type="SUN", energy=math.pi, matrix_world=(1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1))
-    kw = dict(albedo=a, normal=n, position=p, thickness=t, mask=m, camera=cam, lights=[back])
+    kw = dict(albedo=a, normal=n, position=p, thickness=t, mask=m, camera=cam, lights=[back], falloff="map")
     # d_T = 1 makes L + d_T N = -Z + Z = 0: undefined direction, no light (not NaN).
     out = sta(distortion=1.0, **kw)
     assert np.all(out == 0) and np.all(np.isfinite(out))
@@ -170,6 +220,7 @@ def test_sta_point_and_spot_attenuation():
         mask=np.ones((1, 1), bool),
         camera=cam,
         distortion=0.0,
+        falloff="map",
     )
     # A point light 2 units behind: E = P / (4 pi r^2), lobe 1.
     point = Light(type="POINT", energy=100.0, matrix_world=(1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, -7, 0, 0, 0, 1))
@@ -334,7 +385,7 @@ def test_sta_burley_falloff_filters_light_by_thickness_per_channel():
     out = sta(falloff="burley", d_su=d, thickness_distance_su=0.04, **kw)
     # A part of zero thickness passes everything: the same as the paper's map there.
     assert np.allclose(out[0, 0], 1.0, atol=1e-6)
-    assert np.allclose(out[0, 0], sta(**kw)[0, 0], atol=1e-6)
+    assert np.allclose(out[0, 0], sta(falloff="map", **kw)[0, 0], atol=1e-6)
     # tau = 0.75 is a slab of 0.04 x sqrt(0.25) = 0.02: T_c = (e^{-x/d} + 3 e^{-x/3d}) / 4.
     x = 0.02
     expected = [0.25 * (math.exp(-x / dc) + 3 * math.exp(-x / (3 * dc))) for dc in d]
@@ -343,5 +394,5 @@ def test_sta_burley_falloff_filters_light_by_thickness_per_channel():
     assert out[0, 2, 0] > out[0, 2, 1] > out[0, 2, 2] >= 0
     with pytest.raises(ValueError, match="thickness_distance_su: expected a finite number > 0"):
         sta(falloff="burley", d_su=d, **kw)
-    with pytest.raises(ValueError, match="falloff: 'hdrp' is not one of map, burley"):
+    with pytest.raises(ValueError, match="falloff: 'hdrp' is not one of medium, map, burley"):
         sta(falloff="hdrp", **kw)
