@@ -210,6 +210,84 @@ def measure_slabs(method="RANDOM_WALK", *, light="above", samples=64, seed=0, mf
     }
 
 
+#: Sphere radii in mean free paths (``measure_spheres``); the largest stands for a flat surface.
+SPHERE_RADII = (2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 256.0)
+SPHERE_MFP = 0.001
+SPHERE_PX = 64
+
+
+def build_spheres(method: str, radius_mfp: float, *, weight: float, mfp: float = SPHERE_MFP, px: int = SPHERE_PX):
+    """Four spheres of radius ``radius_mfp`` mean free paths in a row, each with three of the 12
+    albedos (``_box_colors``), under a uniform white world (every point of a convex object gets
+    the same irradiance, so that the ratio to Lambert is the share of the light the curved medium
+    returns, whatever direction it leaves in), seen by an orthographic camera, ``px`` pixels
+    across each sphere's slot."""
+    import bpy
+    from mathutils import Vector
+
+    from benchmarks.fidelity.scenes import _h as h
+    from sss_lab.core.mapping import skin_radius_factor
+
+    scene = h._reset(world_color=(1.0, 1.0, 1.0))
+    r = radius_mfp * mfp
+    scale = mfp * (4.0 * math.pi if method in ("BURLEY", "RANDOM_WALK_LEGACY") else 1.0)
+    for i, color in enumerate(_box_colors()):
+        radius = (1.0, 1.0, 1.0)
+        if method == "RANDOM_WALK_SKIN":
+            radius = tuple(float(1.0 / v) for v in skin_radius_factor(color, IOR))
+        mat = h._material(
+            f"M{i}", color, radius=radius, scale=scale, method=method, ior=IOR, roughness=ROUGHNESS, weight=weight
+        )
+        sphere = h._uv_sphere(f"S{i}", r, segments=96, rings=48)
+        h._object(scene, f"S{i}", sphere, location=((i - 1.5) * 3 * r, 0.0, 0.0), material=mat)
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    cam.data.type = "ORTHO"
+    cam.data.ortho_scale = 12 * r
+    cam.data.clip_start, cam.data.clip_end = 0.1 * r, 100 * r
+    cam.location = (0.0, -10 * r, 0.0)
+    cam.rotation_euler = (Vector((0, 0, 0)) - Vector(cam.location)).to_track_quat("-Z", "Y").to_euler()
+    scene.camera = cam
+    scene.render.resolution_x, scene.render.resolution_y = 4 * px, px
+    layer = scene.view_layers[0]
+    for flag in ("use_pass_diffuse_direct", "use_pass_diffuse_indirect", "use_pass_diffuse_color", "use_pass_position"):
+        setattr(layer, flag, True)
+    return scene
+
+
+def measure_spheres(method="RANDOM_WALK", *, samples=128, seed=0, mfp=SPHERE_MFP) -> dict:
+    """Per albedo of ``ALBEDOS`` and radius of ``SPHERE_RADII``: the light of the spheres'
+    visible pixels (Diffuse Color x (Direct + Indirect)) with the method over the same with
+    Subsurface Weight 0."""
+    start = time.perf_counter()
+    ratio: dict[float, list[float]] = {a: [] for a in ALBEDOS}
+    for k in SPHERE_RADII:
+        light = []
+        for weight in (1.0, 0.0):
+            p = _render(build_spheres(method, k, weight=weight, mfp=mfp), samples, seed)
+            light.append(p["Diffuse Color"][..., :3] * (p["Diffuse Direct"][..., :3] + p["Diffuse Indirect"][..., :3]))
+            pos = p["Position"][..., :3]
+        r = k * mfp
+        on = np.linalg.norm(pos, axis=-1) > 0
+        for i in range(4):
+            sel = on & (np.abs(pos[..., 0] - (i - 1.5) * 3 * r) < 1.2 * r)
+            if sel.sum() < 100:
+                raise RuntimeError(f"sphere {i}: only {int(sel.sum())} pixels")
+            q = light[0][sel].sum(axis=0) / light[1][sel].sum(axis=0)
+            for c in range(3):
+                ratio[ALBEDOS[i + 4 * c]].append(round(float(q[c]), 4))
+    return {
+        "method": method,
+        "mfp": mfp,
+        "samples": samples,
+        "seed": seed,
+        "radius_mfp": list(SPHERE_RADII),
+        "albedo": list(ALBEDOS),
+        "ratio": [ratio[a] for a in ALBEDOS],  # per albedo, per radius
+        "seconds": round(time.perf_counter() - start, 1),
+    }
+
+
 #: View angles of the table (degrees from the normal).
 VIEWS = (0.0, 20.0, 40.0, 55.0, 65.0, 75.0, 85.0)
 
@@ -271,7 +349,32 @@ def table_block(data: dict) -> str:
                 lines.append("        (" + ", ".join(f"{v:.3f}" for v in row) + f"),  # albedo {a:g}")
             lines.append("    ),")
         lines.append("}")
+    lines += convex_block(data)
     return "\n".join(lines)
+
+
+def convex_block(data: dict) -> list[str]:
+    """``CONVEX`` of ``core/energy.py`` from the sphere measurements of ``data``: per method and
+    albedo, for each radius of ``core.energy.CONVEX_RADII``, the sphere's light over the largest
+    sphere's (a flat surface), divided by what the slab tables give a slab as thick as the
+    sphere's chord along the normal (2 R) under the same light on both faces (f_above + f_below):
+    the light a convex surface returns beyond a slab's (``core.energy.apply_energy``)."""
+    from sss_lab.core.energy import CONVEX_RADII, slab_factors
+
+    lines = ["CONVEX: dict[str, tuple[tuple[float, ...], ...]] = {"]
+    for s in data.get("spheres", []):
+        radii = list(s["radius_mfp"])
+        flat = radii.index(max(radii))
+        lines.append(f'    "{s["method"]}": (')
+        for a, row in zip(s["albedo"], s["ratio"], strict=True):
+            values = []
+            for k in CONVEX_RADII:
+                f_above, f_below = slab_factors(s["method"], np.full((1, 3), a), np.full((1, 3), 2.0 * k))
+                values.append(row[radii.index(k)] / row[flat] / float(f_above[0, 0] + f_below[0, 0]))
+            lines.append("        (" + ", ".join(f"{v:.3f}" for v in values) + f"),  # albedo {a:g}")
+        lines.append("    ),")
+    lines.append("}")
+    return lines
 
 
 def write_table(results: str = RESULTS, module: str = ENERGY_MODULE) -> None:
@@ -294,7 +397,7 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="the table only, without the checks")
     parser.add_argument(
         "--only",
-        choices=("table", "slabs"),
+        choices=("table", "slabs", "spheres"),
         help="measure one part and keep the other from --out (default: both)",
     )
     parser.add_argument("--out", default=RESULTS)
@@ -312,18 +415,23 @@ def main(argv=None) -> int:
         with open(args.out, encoding="utf-8") as fh:
             old = json.load(fh)
     start = time.perf_counter()
-    rows, slabs = old.get("rows", []), old.get("slabs", [])
-    if args.only != "slabs":
+    rows, slabs, spheres = old.get("rows", []), old.get("slabs", []), old.get("spheres", [])
+    if args.only in (None, "table"):
         rows = []
         for case in cases(args.quick):
             rows.append(measure(samples=args.samples, **case))
             print(json.dumps(rows[-1]), flush=True)
-    if args.only != "table":
+    if args.only in (None, "slabs"):
         slabs = []
         for method in TABLE_METHODS + ("BURLEY",):
             for light in ("above", "below"):
                 slabs.append(measure_slabs(method, light=light, samples=args.samples))
                 print(json.dumps(slabs[-1]), flush=True)
+    if args.only in (None, "spheres"):
+        spheres = []
+        for method in TABLE_METHODS + ("BURLEY",):
+            spheres.append(measure_spheres(method, samples=args.samples))
+            print(json.dumps(spheres[-1]), flush=True)
     data = {
         "command": "python -m benchmarks.energy" + (" --quick" if args.quick else "") + f" --samples {args.samples}",
         "generated_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
@@ -333,6 +441,7 @@ def main(argv=None) -> int:
         "box_m": list(BOX),
         "rows": rows,
         "slabs": slabs,
+        "spheres": spheres,
     }
     from benchmarks._common import write_results
 

@@ -2,7 +2,7 @@
 
 The techniques read passes rendered with Subsurface Weight 0: plain diffuse (Lambert) light.
 They redistribute it and keep its energy. Cycles' methods return another amount of light, for
-two reasons this module models (docs/references.md §15), each from canonical Cycles renders
+three reasons this module models (docs/references.md §15, §17), each from canonical Cycles renders
 (``benchmarks/energy.py``; tables below, in ``benchmarks/results/energy.json``):
 
 1. **The entry** (a convention of the method, the same for every object). In Random Walk,
@@ -17,23 +17,32 @@ two reasons this module models (docs/references.md §15), each from canonical Cy
    Lambertian, as for the passes). Christensen-Burley returns exactly the Lambert light.
    ``entry_gain`` interpolates it per pixel and channel (bilinear in the albedo and the view
    cosine, which ``view_cosine`` reconstructs from the Depth pass).
-2. **A finite object** (``slab_factors``). The visible surface of an object of thickness x (the
-   baked thickness map read as a slab, ``core/thickness.py``) returns ``SLAB_ABOVE`` of the thick
-   object's light: the rest leaves through the far side. And light that enters the far side comes
-   through: ``SLAB_BELOW`` of the irradiance there, both per albedo and thickness in mean free
-   paths, measured on slabs. The irradiance of the surfaces the camera does not see
-   (``unseen_irradiance``) is estimated once per material: each lamp's irradiance on the visible
-   normals mirrored through the view plane (the back of a convex object), unshadowed, plus the
-   visible light that the lamps do not explain (a world or bounce light, taken to reach the
-   unseen side alike).
+2. **A convex surface** (``convex_gain``). Where the surface curves away from a walk it leaves
+   sooner and is absorbed less: spheres of radius R return more light than a flat surface, by
+   ``CONVEX`` (per albedo and R in mean free paths; +3-4 % at 32, +7-9 % at 16, +10-18 % at 8 for a
+   random walk, measured under a uniform world so that every exit sees the same light), beyond
+   what a slab as thick as the sphere's chord gives. ``surface_curvature`` reads the mean
+   curvature from the Normal and Position passes, averaged over a mean free path.
+3. **A finite object** (``slab_factors``). The visible surface of an object of thickness x (the
+   baked thickness map read as a slab, ``core/thickness.py``; where the map finds no far side
+   within its distance D, the sphere's chord 2 / curvature, at least D and at most ``CHORD_CAP``
+   D) returns ``SLAB_ABOVE`` of the thick object's light: the rest leaves through the far side.
+   And light that enters the far side comes through: ``SLAB_BELOW`` of the irradiance there,
+   both per albedo and thickness in mean free paths, measured on slabs. The irradiance of the
+   surfaces the camera does not see (``unseen_irradiance``) is estimated once per material: each
+   lamp's irradiance on the visible normals mirrored through the view plane (the back of a convex
+   object), unshadowed, plus the visible light that the lamps do not explain (a world or bounce
+   light, taken to reach the unseen side alike).
 
-The diffusion techniques' ``energy`` parameter chooses. "object" (their default): the entry's
-gain, scaled per material and channel so that it keeps the passes' total (on objects the level
-of the semi-infinite entry is off by -5 to +29 % while its dependence on the view angle holds,
-docs/references.md §15), times (their light x f_above + albedo x f_below x E_unseen); without a
-thickness map or the Normal and Position passes (rendered with the combined technique's passes)
-the finite-object factor is left out. "view": the scaled entry alone. "lambert": the passes'
-light as it is. The constants are the tables; nothing is fitted to a scene.
+The diffusion techniques' ``energy`` parameter chooses. "object" (their default), with the Normal
+and Position passes (rendered with the combined technique's passes): the entry's gain as
+measured, times the convex gain (faded towards 1 on a shell thinner than its curvature's sphere,
+which the slab tables hold), times (their light x f_above + albedo x f_below x E_unseen) where a
+thickness map is baked. Without those passes, the entry's gain scaled per material and channel so
+that it keeps the passes' total (before the convex gain was modelled, the level of the
+semi-infinite entry was off by -5 to +29 % on objects, docs/references.md §15). "view": that
+scaled entry alone. "lambert": the passes' light as it is. The constants are the tables; nothing
+is fitted to a scene.
 """
 
 from __future__ import annotations
@@ -57,8 +66,8 @@ ENERGY_PARAM = Param(
         (
             "object",
             "Object",
-            "As Cycles' method returns it: spread over the view angles, less what leaves through a thin "
-            "object's far side, plus what comes through it",
+            "As Cycles' method returns it: at each view angle and curvature, less what leaves through a "
+            "thin object's far side, plus what comes through it",
         ),
         (
             "view",
@@ -77,6 +86,17 @@ ALBEDO = (0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95)
 #: and ``SLAB_BELOW``.
 SLAB_MFPS = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 128.0)
 SLAB_ALBEDO = (0.2, 0.35, 0.5, 0.65, 0.8, 0.92)
+
+#: Sphere radii (mean free paths) of ``CONVEX``'s columns; its rows are the albedos of ``ALBEDO``.
+CONVEX_RADII = (64.0, 32.0, 16.0, 8.0, 4.0, 2.0)
+
+#: The longest chord given to a pixel whose thickness map finds no far side within the bake's
+#: distance D, in D: the side of a cube whose diagonal is 4 D (the bake's automatic D is a quarter
+#: of the object's bounding-box diagonal, ``core.thickness.auto_distance_su``).
+CHORD_CAP = 4.0 / 3.0**0.5
+
+#: The widest square (half-width, px) the curvature is averaged over (``apply_energy``).
+CURVATURE_REACH_PX = 32
 
 #: Method -> rows per albedo of ``SLAB_ALBEDO``, columns per thickness of ``SLAB_MFPS``: a slab's
 #: top face seen straight on, lit straight from above (``SLAB_ABOVE``) or from below
@@ -182,6 +202,64 @@ SLAB_BELOW: dict[str, tuple[tuple[float, ...], ...]] = {
         (0.927, 0.836, 0.640, 0.368, 0.118, 0.000, 0.000, 0.000),  # albedo 0.92
     ),
 }
+CONVEX: dict[str, tuple[tuple[float, ...], ...]] = {
+    "RANDOM_WALK": (
+        (1.012, 1.030, 1.065, 1.154, 1.366, 2.154),  # albedo 0.05
+        (1.013, 1.030, 1.067, 1.161, 1.358, 1.816),  # albedo 0.1
+        (1.013, 1.030, 1.067, 1.163, 1.356, 1.684),  # albedo 0.15
+        (1.015, 1.033, 1.069, 1.165, 1.359, 1.613),  # albedo 0.2
+        (1.014, 1.036, 1.079, 1.174, 1.377, 1.521),  # albedo 0.3
+        (1.015, 1.038, 1.083, 1.182, 1.374, 1.420),  # albedo 0.4
+        (1.016, 1.037, 1.082, 1.187, 1.339, 1.287),  # albedo 0.5
+        (1.017, 1.040, 1.087, 1.186, 1.268, 1.181),  # albedo 0.6
+        (1.017, 1.040, 1.089, 1.167, 1.181, 1.094),  # albedo 0.7
+        (1.017, 1.039, 1.085, 1.121, 1.079, 1.028),  # albedo 0.8
+        (1.018, 1.041, 1.085, 1.050, 1.013, 0.996),  # albedo 0.9
+        (1.018, 1.041, 1.082, 1.026, 0.989, 0.978),  # albedo 0.95
+    ),
+    "RANDOM_WALK_SKIN": (
+        (1.016, 1.033, 1.084, 1.260, 1.798, 3.209),  # albedo 0.05
+        (1.015, 1.031, 1.072, 1.209, 1.557, 2.307),  # albedo 0.1
+        (1.014, 1.029, 1.069, 1.197, 1.476, 2.003),  # albedo 0.15
+        (1.015, 1.029, 1.068, 1.190, 1.442, 1.838),  # albedo 0.2
+        (1.015, 1.034, 1.076, 1.187, 1.408, 1.626),  # albedo 0.3
+        (1.015, 1.035, 1.077, 1.184, 1.374, 1.463),  # albedo 0.4
+        (1.015, 1.034, 1.077, 1.180, 1.323, 1.308),  # albedo 0.5
+        (1.016, 1.036, 1.081, 1.176, 1.249, 1.187),  # albedo 0.6
+        (1.016, 1.036, 1.078, 1.147, 1.159, 1.093),  # albedo 0.7
+        (1.017, 1.035, 1.075, 1.100, 1.064, 1.025),  # albedo 0.8
+        (1.015, 1.029, 1.061, 1.019, 1.001, 0.994),  # albedo 0.9
+        (1.028, 1.059, 1.068, 0.997, 0.985, 0.986),  # albedo 0.95
+    ),
+    "RANDOM_WALK_LEGACY": (
+        (1.013, 1.030, 1.065, 1.155, 1.367, 2.164),  # albedo 0.05
+        (1.013, 1.030, 1.068, 1.160, 1.358, 1.819),  # albedo 0.1
+        (1.013, 1.030, 1.067, 1.163, 1.356, 1.686),  # albedo 0.15
+        (1.014, 1.033, 1.070, 1.166, 1.360, 1.614),  # albedo 0.2
+        (1.014, 1.037, 1.081, 1.175, 1.379, 1.522),  # albedo 0.3
+        (1.015, 1.039, 1.086, 1.183, 1.375, 1.419),  # albedo 0.4
+        (1.016, 1.037, 1.082, 1.189, 1.339, 1.285),  # albedo 0.5
+        (1.016, 1.041, 1.089, 1.186, 1.265, 1.178),  # albedo 0.6
+        (1.017, 1.041, 1.091, 1.163, 1.175, 1.090),  # albedo 0.7
+        (1.017, 1.038, 1.082, 1.110, 1.068, 1.022),  # albedo 0.8
+        (1.019, 1.039, 1.080, 1.029, 1.000, 0.990),  # albedo 0.9
+        (1.018, 1.038, 1.077, 1.012, 0.988, 0.987),  # albedo 0.95
+    ),
+    "BURLEY": (
+        (1.003, 1.011, 1.030, 1.079, 1.000, 0.750),  # albedo 0.05
+        (1.003, 1.011, 1.029, 1.077, 0.996, 0.749),  # albedo 0.1
+        (1.003, 1.010, 1.028, 1.076, 0.997, 0.747),  # albedo 0.15
+        (1.003, 1.010, 1.030, 1.080, 1.002, 0.752),  # albedo 0.2
+        (1.003, 1.010, 1.029, 1.079, 1.002, 0.751),  # albedo 0.3
+        (1.003, 1.010, 1.029, 1.078, 0.999, 0.751),  # albedo 0.4
+        (1.003, 1.010, 1.029, 1.078, 1.000, 0.750),  # albedo 0.5
+        (1.003, 1.010, 1.029, 1.080, 1.003, 0.753),  # albedo 0.6
+        (1.003, 1.010, 1.029, 1.080, 1.004, 0.753),  # albedo 0.7
+        (1.003, 1.010, 1.030, 1.081, 1.003, 0.754),  # albedo 0.8
+        (1.003, 1.010, 1.029, 1.080, 1.003, 0.753),  # albedo 0.9
+        (1.003, 1.010, 1.029, 1.080, 1.005, 0.754),  # albedo 0.95
+    ),
+}
 # END TABLE
 
 
@@ -248,6 +326,94 @@ def slab_factors(method: str, albedo, thickness_mfp) -> tuple[np.ndarray, np.nda
         lo = table[j, i] * (1 - ft) + table[j, i + 1] * ft
         hi = table[j + 1, i] * (1 - ft) + table[j + 1, i + 1] * ft
         out.append((lo * (1 - fa) + hi * fa).astype(np.float32))
+    return out[0], out[1]
+
+
+def convex_gain(method: str, albedo, curvature_mfp) -> np.ndarray:
+    """``CONVEX`` for ``method`` at Base Color ``albedo`` (..., 3) and mean curvature times the
+    method's mean free path ``curvature_mfp`` (..., 3; l / R on a sphere of radius R), float32
+    (..., 3): linear in the albedo and in the curvature, 1 at a flat surface, clamped to the
+    table's largest curvature; 1 where the surface is flat or concave (not measured) and for a
+    method without a table."""
+    a = np.asarray(albedo, dtype=np.float64)
+    k = np.asarray(curvature_mfp, dtype=np.float64)
+    if a.shape != k.shape or a.shape[-1:] != (3,):
+        raise ValueError(f"albedo {a.shape} and curvature_mfp {k.shape}: expected the same (..., 3)")
+    if method not in CONVEX:
+        return np.ones(a.shape, np.float32)
+    table = np.concatenate([np.ones((len(ALBEDO), 1)), _nodes(CONVEX[method])], axis=1)
+    nodes = np.concatenate([[0.0], 1.0 / _nodes(CONVEX_RADII)])
+    kc = np.clip(np.nan_to_num(k, nan=0.0), 0.0, nodes[-1])
+    i = np.clip(np.searchsorted(nodes, kc, side="right") - 1, 0, len(nodes) - 2)
+    fk = (kc - nodes[i]) / (nodes[i + 1] - nodes[i])
+    albedos = _nodes(ALBEDO)
+    ac = np.clip(np.nan_to_num(a, nan=albedos[0]), albedos[0], albedos[-1])
+    j = np.clip(np.searchsorted(albedos, ac, side="right") - 1, 0, len(albedos) - 2)
+    fa = (ac - albedos[j]) / (albedos[j + 1] - albedos[j])
+    lo = table[j, i] * (1 - fk) + table[j, i + 1] * fk
+    hi = table[j + 1, i] * (1 - fk) + table[j + 1, i + 1] * fk
+    return (lo * (1 - fa) + hi * fa).astype(np.float32)
+
+
+def _box_sum(a: np.ndarray, radius: int) -> np.ndarray:
+    """The sum of each pixel's (2 radius + 1)^2 neighbourhood (zero outside the image), by
+    cumulative sums."""
+    out = np.asarray(a, np.float64)
+    for axis in (0, 1):
+        pad = [(0, 0), (0, 0)]
+        pad[axis] = (radius + 1, radius)
+        c = np.cumsum(np.pad(out, pad), axis=axis)
+        n = out.shape[axis]
+        out = np.take(c, np.arange(2 * radius + 1, 2 * radius + 1 + n), axis=axis) - np.take(c, np.arange(n), axis=axis)
+    return out
+
+
+def surface_curvature(normal, position, mask, radius_px: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(mean, largest) curvature of the surface seen at each pixel (1 / scene units; > 0 convex,
+    < 0 concave), float32 (H, W) each, from world-space ``normal`` and ``position`` (H, W, 3):
+    along each image axis the normal curvature (n_b - n_a) . (p_b - p_a) / |p_b - p_a|^2 between
+    the pixel's two neighbours on ``mask`` (1 / R on a sphere of radius R in every direction), or
+    between the pixel and its one neighbour on the mask; "mean" is the mean of both axes (a
+    cylinder of radius R reads 1 / (2 R)), "largest" the larger (1 / R on the cylinder where an
+    image axis crosses it). Each is then averaged over the pixels on the mask within
+    ``radius_px`` (a square of 2 radius_px + 1; a flat-shaded mesh's edges spread over the faces
+    beside them, as far as a walk reaches); 0 where no neighbour is on the mask."""
+    n = np.asarray(normal, np.float64)[..., :3]
+    p = np.asarray(position, np.float64)[..., :3]
+    m = np.asarray(mask, dtype=bool) & np.isfinite(n).all(-1) & np.isfinite(p).all(-1)
+    length = np.linalg.norm(n, axis=-1, keepdims=True)
+    m &= length[..., 0] > 0.5
+    n = np.where(m[..., None], n / np.where(length > 0, length, 1.0), 0.0)
+    total = np.zeros(m.shape)
+    count = np.zeros(m.shape)
+    most = np.full(m.shape, -np.inf)
+    for axis in (0, 1):
+        ok_n = np.roll(m, -1, axis=axis)
+        ok_p = np.roll(m, 1, axis=axis)
+        if axis == 0:
+            ok_n[-1, :] = False
+            ok_p[0, :] = False
+        else:
+            ok_n[:, -1] = False
+            ok_p[:, 0] = False
+        n_b = np.where(ok_n[..., None], np.roll(n, -1, axis=axis), n)
+        p_b = np.where(ok_n[..., None], np.roll(p, -1, axis=axis), p)
+        n_a = np.where(ok_p[..., None], np.roll(n, 1, axis=axis), n)
+        p_a = np.where(ok_p[..., None], np.roll(p, 1, axis=axis), p)
+        dp = p_b - p_a
+        dd = (dp * dp).sum(-1)
+        ok = m & (ok_n | ok_p) & (dd > 0)
+        k = np.where(ok, ((n_b - n_a) * dp).sum(-1) / np.where(ok, dd, 1.0), 0.0)
+        total += k
+        count += ok
+        most = np.where(ok, np.maximum(most, k), most)
+    valid = count > 0
+    weight = valid.astype(np.float64)
+    r = max(1, int(radius_px))
+    near = _box_sum(weight, r)
+    out = []
+    for h in (np.where(valid, total / np.maximum(count, 1), 0.0), np.where(valid, most, 0.0)):
+        out.append(np.where(m & (near > 0), _box_sum(h * weight, r) / np.maximum(near, 1.0), 0.0).astype(np.float32))
     return out[0], out[1]
 
 
@@ -381,14 +547,19 @@ def apply_energy(
     lamps_behind: bool = True,
 ):
     """``out`` (H, W, 3, a diffusion's result: albedo x its light) with its pixels on ``mask``
-    given the light of Cycles' ``subsurface_method`` (module docstring): "view" multiplies them by
+    given the light of Cycles' ``subsurface_method`` (module docstring). "view" multiplies them by
     the entry's gain g, scaled per channel so that the mask's total is what it was (the view
-    dependence, the passes' energy); "object" returns that times (out x f_above + albedo x
-    f_below x E_unseen), the finite object's light. ``diffuse`` and ``albedo`` are the
-    diffusion's inputs (in the "pre-post" mode sqrt(A) x E and sqrt(A)). The finite-object part
-    needs ``thickness`` (H, W, the baked map), ``thickness_distance_su`` > 0, ``mfp_su`` (the
-    method's length per channel), ``normal`` and ``position`` (H, W, 3); without them "object" is
-    "view". ``subsurface_method`` None (unknown) or "lambert": ``out`` unchanged."""
+    dependence, the passes' energy). "object" with ``normal`` and ``position`` (H, W, 3) and
+    ``mfp_su`` (the method's length per channel) multiplies them by g as measured and by the
+    convex surface's gain c (``convex_gain`` at the mean curvature, ``surface_curvature``), and
+    with ``thickness`` (H, W, the baked map) and ``thickness_distance_su`` D > 0 as well returns
+    g c' (out x f_above + albedo x f_below x E_unseen), the finite object's light, where c' fades
+    c towards 1 on an object thinner than the curvature's sphere (x < 2 / largest curvature: a
+    curved shell is a slab) and a pixel whose map reads "no far side within D" is given the
+    sphere's chord 2 / (largest curvature), at least D and at most ``CHORD_CAP`` D (the object's
+    size). Without ``normal`` or ``position`` "object" is "view". ``diffuse`` and ``albedo`` are
+    the diffusion's inputs (in the "pre-post" mode sqrt(A) x E and sqrt(A)).
+    ``subsurface_method`` None (unknown) or "lambert": ``out`` unchanged."""
     if energy not in ENERGY_MODES:
         raise ValueError(f"energy: {energy!r} is not one of {', '.join(ENERGY_MODES)}")
     method = subsurface_method
@@ -402,27 +573,35 @@ def apply_energy(
     if albedo_mode == "pre-post":
         e = e / np.maximum(a, np.float32(1e-6))
         a = a * a
-    # The entry's dependence on the view angle, each channel's total over the mask kept.
     light = out[m]
     gain = entry_gain(method, a, view_cosine(depth, m, camera)[m])
-    before = light.astype(np.float64).sum(axis=0)
-    after = (light * gain).astype(np.float64).sum(axis=0)
-    gain = gain * np.where(after > 0, before / np.where(after > 0, after, 1.0), 1.0).astype(np.float32)[None, :]
-    finite = (
-        energy == "object"
-        and thickness is not None
-        and normal is not None
-        and position is not None
-        and mfp_su is not None
-        and thickness_distance_su > 0
-        and method in SLAB_ABOVE
-    )
+    shaped = energy == "object" and normal is not None and position is not None and mfp_su is not None
+    if not shaped:
+        # The entry's dependence on the view angle, each channel's total over the mask kept.
+        before = light.astype(np.float64).sum(axis=0)
+        after = (light * gain).astype(np.float64).sum(axis=0)
+        gain = gain * np.where(after > 0, before / np.where(after > 0, after, 1.0), 1.0).astype(np.float32)[None, :]
+        out[m] = light * gain
+        return out
+    ell = np.maximum(_arrays.rgb_lengths(mfp_su, "mfp_su").astype(np.float64), 1e-30)
+    # The curvature over the reach of a walk, a mean free path, per channel (its pixels at the
+    # material's median depth, at least 1 and at most CURVATURE_REACH_PX).
+    ppu = camera.pixels_per_unit(np.asarray(depth, np.float32))[m]
+    ppu = float(np.median(ppu[ppu > 0])) if (ppu > 0).any() else 0.0
+    reach = [int(np.clip(round(v * ppu), 1, CURVATURE_REACH_PX)) for v in ell]
+    maps = {r: surface_curvature(normal, position, m, radius_px=r) for r in sorted(set(reach))}
+    mean = np.stack([maps[r][0][m] for r in reach], axis=1).astype(np.float64)
+    largest = maps[max(reach)][1][m].astype(np.float64)
+    convex = convex_gain(method, a, mean * ell[None, :])
+    finite = thickness is not None and thickness_distance_su > 0 and method in SLAB_ABOVE
     if finite:
         tau = np.clip(np.nan_to_num(np.asarray(thickness, np.float64)[m]), 0.0, 1.0)
         if thickness_convention == "thickness":
             tau = 1.0 - tau
         x = thickness_distance_su * np.sqrt(1.0 - tau)  # the slab law of core/thickness.py
-        ell = np.maximum(np.asarray(mfp_su, np.float64), 1e-30)
+        # No far side within D: the sphere's chord along the normal, within the object's size.
+        chord = 2.0 / np.maximum(largest, 2.0 / (CHORD_CAP * thickness_distance_su))
+        x = np.where(tau <= 1e-6, np.maximum(x, chord), x)
         f_above, f_below = slab_factors(method, a, x[:, None] / ell[None, :])
         nrm = np.asarray(normal, np.float64)[m]
         pos = np.asarray(position, np.float64)[m]
@@ -432,5 +611,8 @@ def apply_energy(
                 irradiance=e[ok], normal=nrm[ok], position=pos[ok], camera=camera, lights=lights, lamps=lamps_behind
             )
             light = light * f_above + a * f_below * unseen.astype(np.float32)[None, :]
-    out[m] = light * gain
+        # A shell thinner than its curvature's sphere is a slab: the slab tables hold its light.
+        shell = np.clip(x * np.maximum(largest, 0.0) / 2.0, 0.0, 1.0).astype(np.float32)[:, None]
+        convex = 1.0 + (convex - 1.0) * shell
+    out[m] = light * gain * convex
     return out

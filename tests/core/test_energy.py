@@ -241,7 +241,8 @@ def test_a_thin_slab_lit_from_behind_gets_the_light_through_and_loses_its_own():
     d = (0.02, 0.01, 0.005)
     normal = np.zeros((h, w, 3), np.float32)
     normal[..., 2] = 1.0
-    position = np.zeros((h, w, 3), np.float32)
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
+    position = np.stack([xs / w, -ys / h, np.zeros_like(xs)], -1)  # a plane: no curvature
     camera = Camera(type="ORTHO", width_px=w, height_px=h, ortho_scale=1.0)
     p = dict(p, camera=camera, depth=np.full((h, w), 2.0, np.float32))
     below = _sun((0.0, 0.0, 1.0))
@@ -249,19 +250,172 @@ def test_a_thin_slab_lit_from_behind_gets_the_light_through_and_loses_its_own():
     common = dict(d_su=d, subsurface_method="RANDOM_WALK", normal=normal, position=position, lights=[below])
     common.update(mfp_su=ell, thickness_distance_su=0.04)
     thin = np.full((h, w), 1.0 - (0.004 / 0.04) ** 2, np.float32)  # 4 mm: one mean free path
-    thick = np.zeros((h, w), np.float32)  # at least the bake distance: 10 mean free paths
+    thick = np.zeros((h, w), np.float32)  # no far side within D: a flat object's size, CHORD_CAP D
     lam = burley(**p, d_su=d, energy="lambert")
     out_thin = burley(**p, **common, thickness=thin)
     out_thick = burley(**p, **common, thickness=thick)
-    # An orthographic camera facing the plane: one view angle, so the scaled gain is 1.
-    gain = 1.0
+    # An orthographic camera facing the plane: the entry's gain as measured along the normal.
+    gain = energy.entry_gain("RANDOM_WALK", p["albedo"][m], np.ones(m.sum()))
     f_above, f_below = energy.slab_factors("RANDOM_WALK", p["albedo"][m], np.full((m.sum(), 3), 1.0))
     # The sun from below lights only the unseen side; the visible light (random) is more than the
     # lamps explain there, so it counts for the unseen side too.
     unseen = 3.0 / math.pi + p["diffuse"][m].astype(np.float64).mean(axis=0)
     expected = gain * (lam[m] * f_above + p["albedo"][m] * f_below * unseen)
     np.testing.assert_allclose(out_thin[m], expected, rtol=1e-4)
-    # Ten mean free paths: almost the semi-infinite medium, almost no light through.
-    f10, b10 = energy.slab_factors("RANDOM_WALK", p["albedo"][m], np.full((m.sum(), 3), 10.0))
+    # 23 mean free paths: almost the semi-infinite medium, almost no light through.
+    far = energy.CHORD_CAP * 0.04 / 0.004
+    f10, b10 = energy.slab_factors("RANDOM_WALK", p["albedo"][m], np.full((m.sum(), 3), far))
     np.testing.assert_allclose(out_thick[m], gain * (lam[m] * f10 + p["albedo"][m] * b10 * unseen), rtol=1e-4)
     assert np.array_equal(out_thin[~m], lam[~m])
+
+
+def _ortho_surface(kind, h=48, w=48, radius=0.4):
+    """World normal and position passes of a sphere or a cylinder (axis along x) of ``radius``
+    seen by an orthographic camera looking down -Z (one scene unit across the image), and the
+    mask of the pixels on it (a margin inside the silhouette)."""
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    x = (xs + 0.5 - w / 2) / w
+    y = (h / 2 - ys - 0.5) / h
+    if kind == "sphere":
+        r2 = x * x + y * y
+        mask = r2 < (0.9 * radius) ** 2
+        z = np.sqrt(np.maximum(radius**2 - r2, 0.0))
+        position = np.stack([x, y, z], -1)
+        normal = position / radius
+    elif kind == "cylinder":
+        mask = np.abs(y) < 0.9 * radius
+        z = np.sqrt(np.maximum(radius**2 - y * y, 0.0))
+        position = np.stack([x, y, z], -1)
+        normal = np.stack([np.zeros_like(x), y, z], -1) / radius
+    else:
+        mask = np.ones((h, w), bool)
+        position = np.stack([x, y, np.zeros_like(x)], -1)
+        normal = np.broadcast_to([0.0, 0.0, 1.0], position.shape).copy()
+    normal[~mask] = 0.0
+    return normal.astype(np.float32), position.astype(np.float32), mask
+
+
+@pytest.mark.parametrize(("kind", "mean", "largest"), [("sphere", 2.5, 2.5), ("cylinder", 1.25, 2.5), ("plane", 0, 0)])
+def test_surface_curvature_of_a_sphere_a_cylinder_and_a_plane(kind, mean, largest):
+    normal, position, mask = _ortho_surface(kind)
+    got_mean, got_largest = energy.surface_curvature(normal, position, mask)
+    # Normals that are exactly position / R: every difference gives 1 / R (2.5 per unit) up to
+    # float32 rounding of the passes, on an axis across the cylinder, 0 along it.
+    np.testing.assert_allclose(got_mean[mask], mean, rtol=2e-3, atol=2e-3)
+    np.testing.assert_allclose(got_largest[mask], largest, rtol=2e-3, atol=2e-3)
+    assert np.all(got_mean[~mask] == 0) and np.all(got_largest[~mask] == 0)
+
+
+@pytest.mark.parametrize("method", sorted(energy.CONVEX))
+def test_convex_gain_at_its_nodes_flat_and_concave(method):
+    table = np.array(energy.CONVEX[method])
+    assert table.shape == (len(energy.ALBEDO), len(energy.CONVEX_RADII))
+    j = 4
+    a = np.full((len(energy.CONVEX_RADII), 3), energy.ALBEDO[j])
+    k = np.repeat(1.0 / np.array(energy.CONVEX_RADII)[:, None], 3, axis=1)
+    np.testing.assert_allclose(energy.convex_gain(method, a, k)[:, 0], table[j], rtol=1e-5)
+    # Flat, concave (not measured) and unknown: 1; more curved than the table: its last column.
+    np.testing.assert_allclose(energy.convex_gain(method, a[:2], np.array([[0.0] * 3, [-0.3] * 3])), 1.0)
+    np.testing.assert_allclose(energy.convex_gain(method, a[:1], np.full((1, 3), 10.0))[0, 0], table[j, -1], rtol=1e-5)
+    assert np.all(energy.convex_gain("UNKNOWN", a, k) == 1.0)
+
+
+def test_the_convex_gain_is_measured_above_one_for_a_walk():
+    # Spheres 8 mean free paths in radius return more light than a flat surface at every albedo
+    # below 0.9 (benchmarks/energy.py, --only spheres): a convex surface lets walks out sooner.
+    table = np.array(energy.CONVEX["RANDOM_WALK"])
+    column = energy.CONVEX_RADII.index(8.0)
+    assert np.all(table[np.array(energy.ALBEDO) < 0.9, column] > 1.05)
+
+
+def _object_inputs(kind, **kw):
+    normal, position, mask = _ortho_surface(kind)
+    h, w = mask.shape
+    rng = np.random.default_rng(5)
+    albedo = np.broadcast_to(np.array([0.6, 0.4, 0.2], np.float32), (h, w, 3)).copy()
+    diffuse = rng.uniform(0.5, 1.0, (h, w, 3)).astype(np.float32)
+    camera = Camera(type="ORTHO", width_px=w, height_px=h, ortho_scale=1.0)
+    depth = (2.0 - position[..., 2]).astype(np.float32)
+    args = dict(
+        diffuse=diffuse,
+        albedo=albedo,
+        depth=depth,
+        mask=mask,
+        camera=camera,
+        subsurface_method="RANDOM_WALK",
+        energy="object",
+        albedo_mode="post",
+        normal=normal,
+        position=position,
+        mfp_su=(0.05, 0.05, 0.05),
+    )
+    args.update(kw)
+    return args, albedo * diffuse
+
+
+def test_object_energy_keeps_the_measured_level_times_the_convex_gain():
+    args, light = _object_inputs("sphere")
+    m = args["mask"]
+    got = energy.apply_energy(light.copy(), **args)
+    mu = energy.view_cosine(args["depth"], m, args["camera"])[m]
+    g = energy.entry_gain("RANDOM_WALK", args["albedo"][m], mu)
+    mean, _ = energy.surface_curvature(args["normal"], args["position"], m)
+    c = energy.convex_gain("RANDOM_WALK", args["albedo"][m], np.repeat(mean[m][:, None] * 0.05, 3, axis=1))
+    # The sphere (R = 8 mean free paths): the table's level, not the passes' total.
+    np.testing.assert_allclose(got[m], light[m] * g * c, rtol=1e-5)
+    assert c.min() > 1.05
+    assert np.array_equal(got[~m], light[~m])
+    # Without the Normal and Position passes "object" is "view" (each channel's total kept).
+    view = energy.apply_energy(light.copy(), **dict(args, normal=None, position=None))
+    np.testing.assert_allclose(view[m].astype(np.float64).sum(0), light[m].astype(np.float64).sum(0), rtol=1e-5)
+
+
+def test_a_map_without_far_side_reads_the_spheres_chord_and_a_thin_shell_is_a_slab():
+    args, light = _object_inputs("sphere", thickness_distance_su=0.3)
+    m = args["mask"]
+    common = dict(args, lights=[])
+    no_curvature = dict(
+        common, normal=np.tile(np.float32([0, 0, 1]), (*m.shape, 1)), position=np.zeros((*m.shape, 3), np.float32)
+    )
+    # The map finds no far side within D = 0.3: the sphere's chord 2 R = 0.8 is given (within
+    # the cap 2.31 D = 0.69), where a flat surface reads the cap.
+    saturated = energy.apply_energy(light.copy(), **dict(common, thickness=np.zeros(m.shape, np.float32)))
+    chord = energy.apply_energy(
+        light.copy(), **dict(common, thickness=np.zeros(m.shape, np.float32), thickness_distance_su=0.4)
+    )
+    slab = energy.apply_energy(
+        light.copy(),
+        **dict(common, thickness=np.full(m.shape, 1.0 - (0.8 / 0.9) ** 2, np.float32), thickness_distance_su=0.9),
+    )
+    np.testing.assert_allclose(chord[m], slab[m], rtol=1e-5)  # 2 / 2.5 = 0.8 <= 2.31 x 0.4
+    capped = energy.apply_energy(
+        light.copy(),
+        **dict(
+            common,
+            thickness=np.full(m.shape, 1.0 - (energy.CHORD_CAP * 0.3 / 0.9) ** 2, np.float32),
+            thickness_distance_su=0.9,
+        ),
+    )
+    np.testing.assert_allclose(saturated[m], capped[m], rtol=1e-4)
+    flat = energy.apply_energy(light.copy(), **dict(no_curvature, thickness=np.zeros(m.shape, np.float32)))
+    flat_cap = energy.apply_energy(
+        light.copy(),
+        **dict(
+            no_curvature,
+            thickness=np.full(m.shape, 1.0 - (energy.CHORD_CAP * 0.3 / 0.9) ** 2, np.float32),
+            thickness_distance_su=0.9,
+        ),
+    )
+    np.testing.assert_allclose(flat[m], flat_cap[m], rtol=1e-4)
+    # A shell 0.08 thick on that sphere (a tenth of its chord) keeps a tenth of the convex gain.
+    shell = energy.apply_energy(
+        light.copy(), **dict(common, thickness=np.full(m.shape, 1.0 - (0.08 / 0.3) ** 2, np.float32))
+    )
+    mu = energy.view_cosine(args["depth"], m, args["camera"])[m]
+    g = energy.entry_gain("RANDOM_WALK", args["albedo"][m], mu)
+    c = energy.convex_gain("RANDOM_WALK", args["albedo"][m], np.full((m.sum(), 3), 2.5 * 0.05))
+    f_above, f_below = energy.slab_factors("RANDOM_WALK", args["albedo"][m], np.full((m.sum(), 3), 0.08 / 0.05))
+    # No lamps: the visible light counts for the unseen side (unseen_irradiance).
+    unseen = args["diffuse"][m].astype(np.float64).mean(axis=0)
+    expected = g * (1 + (c - 1) * 0.1) * (light[m] * f_above + args["albedo"][m] * f_below * unseen)
+    np.testing.assert_allclose(shell[m], expected, rtol=2e-3)
