@@ -226,8 +226,12 @@ def _gather(
     _arrays.same_size(shape, albedo=a, depth=z, object_id=ids)
     m = _arrays.mask_array(mask, shape)
 
-    base = a * e
     dmax = float(d.max())
+    if dmax > 0 and backend.active() == "numba":
+        return _compiled(
+            e, a, z, m, ids, camera, int(n_samples), d, random_rotation, seed, int(smooth_px), albedo_mode
+        )  # fmt: skip
+    base = a * e
     ok = m & _arrays.finite_pixels(e, a, z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)
     if ids is not None:
         ok &= np.isfinite(ids)
@@ -243,21 +247,13 @@ def _gather(
     light = e if pre is None else pre * e
     h, w = shape
     f32 = np.float32
-    # exp(-r'/(3 d_c)) per channel; a channel with d_c = 0 keeps its light (its footprint below).
-    # At least the smallest normal float32 (a d beyond float32 would round it to 0), so that a
-    # sample with r' = inf (off the object) still gets e^-inf = 0, never inf x 0 = NaN.
-    inv3d = np.array([max(1.0 / (3.0 * v), 1e-37) if v > 0 else 0.0 for v in d], f32)
+    inv3d = _inv3d(d)
     reach_c = TRUNCATION * d  # each channel's own footprint, scene units (float64: d may be huge)
     # The spiral reaches 16 d_max, or the object's extent when that is smaller (core.extent):
     # beyond it there is nothing of the object to gather, so the result is unchanged by the
     # bound and continuous as d grows; every backend gets the bounded spiral.
     # One group without index arrays when there are no object ids (core.extent.object_extent).
     groups = group_extents(ok, scale, ids) if ids is not None else [(None, object_extent(ok, scale))]
-    if backend.active() == "numba":
-        return _compiled(
-            light, z, ok, scale, ids, groups, int(n_samples), d, inv3d, reach_c, random_rotation, seed,
-            int(smooth_px), post, base,
-        )  # fmt: skip
     # Each pixel as one 16-byte item (r, g, b, depth key), plus a last item (0, 0, 0, inf) that
     # samples off the image or from another object read: one gather per sample fetches colour
     # and depth. Pixels that take no part have colour 0 (a NaN times a zero weight would still
@@ -368,13 +364,33 @@ def _smoothed(result, idx_all, groups, shape, scale, d, z, ids, smooth_px, post,
     return out
 
 
-def _compiled(light, z, ok, scale, ids, groups, n, d, inv3d, reach_c, random_rotation, seed, smooth_px, post, out):
-    """The gather and the clean-up as one compiled kernel (``core.compiled.burley_kernel``),
-    into ``out``, with the NumPy code's tables: one bounded spiral per object (``spiral_su``),
-    the rotation, the object ids."""
+def _inv3d(d: np.ndarray) -> np.ndarray:
+    """exp(-r'/(3 d_c)) per channel as the factor 1 / (3 d_c); a channel with d_c = 0 keeps its
+    light (its footprint). At least the smallest normal float32 (a d beyond float32 would round
+    it to 0), so that a sample with r' = inf (off the object) still gets e^-inf = 0, never
+    inf x 0 = NaN."""
+    return np.array([max(1.0 / (3.0 * v), 1e-37) if v > 0 else 0.0 for v in d], np.float32)
+
+
+def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, albedo_mode):
+    """``_gather`` on the compiled backend: the pixels that take part in one pass over the frame
+    (``_arrays.compiled_pixels``, with the footprint rule), then the gather and the clean-up as
+    one compiled kernel (``core.compiled.burley_kernel``) over their bounding box, into the
+    albedo x diffuse frame, with the NumPy code's tables: one bounded spiral per object
+    (``spiral_su``), the rotation, the object ids."""
     f32 = np.float32
     c = np.ascontiguousarray
     dmax = float(d.max())
+    if ids is not None:
+        m = m & np.isfinite(ids)
+    out, ok, scale, box, extent_su = _arrays.compiled_pixels(e, a, z, m, camera, TRUNCATION * dmax, 1.0)
+    if box is None:
+        return out
+    groups = group_extents(ok, scale, ids) if ids is not None else [(None, extent_su)]
+    pre, post = _arrays.split_albedo(a, albedo_mode)
+    light = e if pre is None else pre * e
+    inv3d = _inv3d(d)
+    reach_c = TRUNCATION * d
     tables = np.empty((5, len(groups), n), f32)  # radius, radius^2, cos, sin, inverse pdf
     extents = np.empty(len(groups), np.float64)
     group_map = np.zeros((1, 1), np.int32)
@@ -394,15 +410,12 @@ def _compiled(light, z, ok, scale, ids, groups, n, d, inv3d, reach_c, random_rot
     z = c(z, dtype=f32)
     backend.run_kernel("burley_zkey", ok, z, zkey)
     light = c(light, dtype=f32)
-    scale = c(scale, dtype=f32)
     post = c(post, dtype=f32)
     reach = np.asarray(reach_c, np.float64)
     tol = np.array([min(float(v), 3.0e38) for v in d], f32)
     radius = max(int(smooth_px), 0)
     # The rows and columns that hold pixels to gather (the 25 % mask case: a quarter of the work).
-    rows = np.flatnonzero(ok.any(axis=1))
-    cols = np.flatnonzero(ok.any(axis=0))
-    r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+    r0, r1, c0, c1 = box
     # Bands of rows, each with the rotation of its pixels (and of the clean-up's margin) only:
     # two frames of cosines and sines would take more memory than the output.
     band = r1 - r0 if not random_rotation else _BAND_ROWS
@@ -419,7 +432,7 @@ def _compiled(light, z, ok, scale, ids, groups, n, d, inv3d, reach_c, random_rot
             rot_cos = np.cos(phi, out=phi)
         backend.run_kernel(
             "burley_kernel", light, zkey, ok, scale, id_map, group_map, tables, rot_cos, rot_sin, rot_y0, rot_x0,
-            inv3d, reach, extents, z, tol, radius, SMOOTH_MIN_FOOTPRINT_PX, post, y_lo, y_hi, out,
+            inv3d, reach, extents, z, tol, radius, SMOOTH_MIN_FOOTPRINT_PX, post, y_lo, y_hi, c0, c1, out,
         )  # fmt: skip
     return out
 

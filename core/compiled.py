@@ -13,7 +13,7 @@ sums over a pixel's taps or samples are in another order (SSSS sums its taps one
 other; Burley's sums over its samples are reassociated, ``fastmath={"reassoc"}`` on the
 function that holds them and on nothing that places a sample, so that they vectorize; the
 reference sums with BLAS matrix products, in its own order), a tap's two samples share one
-multiplication by its weight, SSSS's sums of products are fused multiply-adds (one rounding
+multiplication by its weight, Burley's sums of products are fused multiply-adds (one rounding
 where the reference has two), and e^x is ``_exp`` (within 1 unit in the last place; NumPy's is
 within 4). The bound that follows is ``core.backend.tolerance``; the tests run every technique
 call of the core suite on both backends against it. Where the reference multiplies a sample by
@@ -21,9 +21,12 @@ a weight of exactly 0 (a pixel that takes no part: colour 0, depth key +inf), a 
 (selects it away), which is the same. Burley's clean-up (``core.burley._smooth``) sums in
 float64 in the reference's order: the same result to the bit, from the same gathered values.
 
-Pixels are visited row by row (``prange`` over rows; SSSS's vertical pass over strips of
-columns, Burley over blocks of rows), each written by one thread only, and no kernel allocates
-anything the size of a frame. Index arithmetic in the vectorized loops is 32-bit (frames
+What SSSS and Burley share before their kernels (albedo x diffuse, the pixels that take part,
+their footprint, their bounding box and extent) is one pass over the frame
+(``prepare_pixels``); the kernels then visit only the bounding box of the pixels that take
+part. Pixels are visited row by row (``prange`` over rows; SSSS's vertical pass over strips of
+columns, Burley over tiles), each written by one thread only, and no kernel allocates anything
+the size of a frame. Index arithmetic in the vectorized loops is 32-bit (frames
 have fewer than 2^31 / 3 pixels), so that a 512-bit register holds 16 lanes (``core.backend``
 lets LLVM use them).
 """
@@ -109,6 +112,58 @@ def _span(row):
     while x1 > x0 and not row[x1 - 1]:
         x1 -= 1
     return x0, x1
+
+
+_BACKGROUND = f32(1e9)  # core._arrays.BACKGROUND_DEPTH, exactly a float32
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def prepare_pixels(diffuse, albedo, depth, mask, is_ortho, focal, gate, threshold, out, ok, scale, spans, smallest):
+    """What SSSS and Burley share before their kernels, in one pass over the frame (the NumPy
+    code takes a dozen): ``out`` = albedo x diffuse; ``scale`` = ``core.scene.Camera.
+    pixels_per_unit`` of ``depth`` as NumPy computes it in float32 (``is_ortho``: ``focal``, the
+    camera's constant; else ``focal`` / depth; 0 where the depth or the quotient is not finite
+    or the depth <= 0); ``ok`` = the pixels of ``mask``
+    whose diffuse, albedo and depth are finite, with 0 < depth < 1e9 and ``gate`` x scale >
+    ``threshold`` (float32 product; ``gate`` +inf: scale > 0, which is what the reference's
+    product gives when its factor is beyond float32). Per row y, ``spans[y]`` = (first, last)
+    column of ``ok`` ((W, -1) when none) and ``smallest[y]`` the smallest scale there (+inf):
+    the bounding box and ``core.extent.object_extent`` without another pass."""
+    h, w = mask.shape
+    inf_gate = gate == _INF
+    for y in prange(h):
+        lo = w
+        hi = -1
+        least = _INF
+        for x in range(w):
+            e0 = diffuse[y, x, 0]
+            e1 = diffuse[y, x, 1]
+            e2 = diffuse[y, x, 2]
+            a0 = albedo[y, x, 0]
+            a1 = albedo[y, x, 1]
+            a2 = albedo[y, x, 2]
+            z = depth[y, x]
+            out[y, x, 0] = a0 * e0
+            out[y, x, 1] = a1 * e1
+            out[y, x, 2] = a2 * e2
+            if is_ortho:
+                s = focal if np.isfinite(z) else _ZERO
+            else:
+                s = focal / z
+                s = s if np.isfinite(s) and z > _ZERO else _ZERO
+            scale[y, x] = s
+            take = mask[y, x] and z > _ZERO and z < _BACKGROUND
+            take = take and np.isfinite(e0) and np.isfinite(e1) and np.isfinite(e2)
+            take = take and np.isfinite(a0) and np.isfinite(a1) and np.isfinite(a2)
+            take = take and (s > _ZERO if inf_gate else gate * s > threshold)
+            ok[y, x] = take
+            if take:
+                lo = min(lo, x)
+                hi = x
+                least = min(least, s)
+        spans[y, 0] = lo
+        spans[y, 1] = hi
+        smallest[y] = least
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -369,146 +424,226 @@ def sta_kernel(
                     out[y, x, c] = albedo[y, x, c] * light if okr[i] else _ZERO
 
 
+#: Pixels per chunk of a line in SSSS's passes: the chunk's sums (6 x 4 bytes each) and the part
+#: of the line its taps read stay in the first-level cache.
+SSSS_CHUNK = 256
+
+_u64 = np.uint64
+
+
 @njit(cache=True, error_model="numpy")
-def _ssss_positions(s, offsets, coord, last, js, fs):
-    """Where a pixel's taps read, as the reference computes it: tap k reads pixels js[k] and
-    js[k] + 1 with the weight fs[k] on the second. Compiled without fastmath and called from
-    the kernels, never from a function with fastmath (Numba compiles a function's callees with
-    its flags): the pixels read are the reference's to the bit."""
-    lastf = f32(last)
-    for k in range(offsets.size):
-        pos = s * offsets[k]
-        pos += coord
-        pos = _clip(pos, lastf)
-        fl = np.floor(pos)
-        js[k] = np.int32(fl)
-        fs[k] = pos - fl
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _ssss_taps(lines, i, kc, js, fs, weights):
-    """The off-centre taps of one 1-D SSSS pass (core.ssss._pass) for one pixel, read where
-    ``_ssss_positions`` put them: per channel sum_k w_k a_k and sum_k w_k a_k g_k, as
-    (aw R, G, B, ag R, G, B).
-
-    ``lines[i]`` (4, last + 2): the line's light R, G, B and key (the line's last + 1 pixels,
-    then (0, 0, 0, +inf), the neighbour the reference gives the line's last pixel), 0 and +inf
-    where pixels take no part (their weight is then exactly 0); ``kc`` the pixel's key.
-
-    One tap at a time, in scalar code: vectorized over the taps, as the reference's matrix
-    products are, the gathers and the sums across the vector cost more than the taps (measured:
-    334 vs 222 ms per pass at 1080p). The sums are in the taps' order (the reference's matrix
-    products sum in their own), with their products fused into them (``fastmath`` "contract":
-    one rounding instead of two)."""
-    aw0 = _ZERO
-    aw1 = _ZERO
-    aw2 = _ZERO
-    ag0 = _ZERO
-    ag1 = _ZERO
-    ag2 = _ZERO
-    for k in range(js.size):
-        j = js[k]
-        f = fs[k]
-        j1 = np.int32(j + np.int32(1))  # the padding past the end only when f = 0: weight 0
-        a0 = _ONE - abs(lines[i, 3, j] - kc)
+def _ssss_shifted(lr, lg, lb, lk, kc, fb, c0, ia, ib, d, w0, w1, w2, aw0, aw1, aw2, ag0, ag1, ag2):
+    """One tap for the chunk's pixels ``ia``..``ib`` - 1 (from its first pixel ``c0``), all of
+    which read the line at their own coordinate plus ``d`` (and the pixel after it), with the
+    interpolation weights ``fb``: contiguous loads, no gathers (unsigned indices: Numba adds no
+    wrap-around test, so the loads stay contiguous and the loop vectorizes)."""
+    b = _u64(c0 + ia + d)
+    q = _u64(c0 + ia)
+    ua = _u64(ia)
+    for t in range(ib - ia):
+        ut = _u64(t)
+        i = ua + ut
+        j = b + ut
+        j1 = j + _u64(1)
+        f = fb[i]
+        kcx = kc[q + ut]
+        a0 = _ONE - abs(lk[j] - kcx)
         a0 = (a0 if a0 > _ZERO else _ZERO) * (_ONE - f)
-        a1 = _ONE - abs(lines[i, 3, j1] - kc)
+        a1 = _ONE - abs(lk[j1] - kcx)
         a1 = (a1 if a1 > _ZERO else _ZERO) * f
         aw = a0 + a1
-        w0 = weights[k, 0]
-        w1 = weights[k, 1]
-        w2 = weights[k, 2]
-        aw0 += aw * w0
-        aw1 += aw * w1
-        aw2 += aw * w2
-        ag0 += (a0 * lines[i, 0, j] + a1 * lines[i, 0, j1]) * w0
-        ag1 += (a0 * lines[i, 1, j] + a1 * lines[i, 1, j1]) * w1
-        ag2 += (a0 * lines[i, 2, j] + a1 * lines[i, 2, j1]) * w2
-    return aw0, aw1, aw2, ag0, ag1, ag2
+        aw0[i] += aw * w0
+        aw1[i] += aw * w1
+        aw2[i] += aw * w2
+        ag0[i] += (a0 * lr[j] + a1 * lr[j1]) * w0
+        ag1[i] += (a0 * lg[j] + a1 * lg[j1]) * w1
+        ag2[i] += (a0 * lb[j] + a1 * lb[j1]) * w2
 
 
-#: Columns per work item of SSSS's vertical pass: a strip of the frame is copied, column by
-#: column, into line buffers that stay in the cache (16 columns x 2161 rows x 4 values: 553 KB).
+@njit(cache=True, error_model="numpy")
+def _ssss_line(lr, lg, lb, lk, sc, kc, lo, hi, offsets, weights, wsum, r0, r1, r2):
+    """One 1-D SSSS pass (core.ssss._pass) over the pixels ``lo``..``hi`` - 1 of one line, into
+    ``r0``, ``r1``, ``r2`` (R, G, B, indexed by the coordinate).
+
+    ``lr``, ``lg``, ``lb``, ``lk`` (last + 2,): the line's light and key (0 and +inf where
+    pixels take no part, then (0, 0, 0, +inf): the neighbour the reference gives the line's last
+    pixel; it is only read with weight 0); ``sc``, ``kc``: each pixel's scale and key, indexed
+    by its coordinate. A pixel that takes no part gets a result that nobody reads.
+
+    Vectorized across the pixels of a chunk, one tap at a time: a loop places the tap for every
+    pixel with the reference's float32 operations in the reference's order (compiled without
+    fastmath: no fused multiply-add, so the pixels read are the reference's to the bit), as the
+    shift d = floor(position) - coordinate and the interpolation weight; then over each run of
+    pixels with the same d (the whole chunk, or runs found by a scan: about 90 pixels long on
+    the benchmark's spheres, as the footprint varies slowly over a surface) the tap's samples
+    are contiguous loads (``_ssss_shifted``), not gathers (measured: a gather per value made
+    the pass slower than one pixel at a time). Each pixel's sums are in the taps' order (the
+    reference's matrix products sum in their own)."""
+    lastf = f32(lr.size - 2)
+    aw0 = np.empty(SSSS_CHUNK, np.float32)
+    aw1 = np.empty(SSSS_CHUNK, np.float32)
+    aw2 = np.empty(SSSS_CHUNK, np.float32)
+    ag0 = np.empty(SSSS_CHUNK, np.float32)
+    ag1 = np.empty(SSSS_CHUNK, np.float32)
+    ag2 = np.empty(SSSS_CHUNK, np.float32)
+    fb = np.empty(SSSS_CHUNK, np.float32)
+    db = np.empty(SSSS_CHUNK, np.int32)
+    for c0 in range(lo, hi, SSSS_CHUNK):
+        m = min(SSSS_CHUNK, hi - c0)
+        aw0[:m] = _ZERO
+        aw1[:m] = _ZERO
+        aw2[:m] = _ZERO
+        ag0[:m] = _ZERO
+        ag1[:m] = _ZERO
+        ag2[:m] = _ZERO
+        for k in range(offsets.size):
+            o = offsets[k]
+            w0 = weights[k, 0]
+            w1 = weights[k, 1]
+            w2 = weights[k, 2]
+            for i in range(m):
+                x = c0 + i
+                pos = sc[_u64(x)] * o
+                pos += f32(x)
+                pos = _clip(pos, lastf)
+                fl = np.floor(pos)
+                fb[i] = pos - fl
+                db[i] = np.int32(np.int32(fl) - np.int32(x))
+            d_lo = db[0]
+            d_hi = db[0]
+            for i in range(m):
+                d_lo = min(d_lo, db[i])
+                d_hi = max(d_hi, db[i])
+            if d_lo == d_hi:
+                _ssss_shifted(lr, lg, lb, lk, kc, fb, c0, 0, m, d_lo, w0, w1, w2, aw0, aw1, aw2, ag0, ag1, ag2)
+                continue
+            # Runs of pixels with the same shift (about 90 pixels long on the benchmark's spheres).
+            i = 0
+            while i < m:
+                d = db[i]
+                e = i + 1
+                while e < m and db[e] == d:
+                    e += 1
+                _ssss_shifted(lr, lg, lb, lk, kc, fb, c0, i, e, d, w0, w1, w2, aw0, aw1, aw2, ag0, ag1, ag2)
+                i = e
+        q = _u64(c0)
+        for i in range(m):
+            ui = _u64(i)
+            r0[q + ui] = (wsum[0] - aw0[i]) * lr[q + ui] + ag0[i]
+            r1[q + ui] = (wsum[1] - aw1[i]) * lg[q + ui] + ag1[i]
+            r2[q + ui] = (wsum[2] - aw2[i]) * lb[q + ui] + ag2[i]
+
+
+#: Columns per work item of SSSS's vertical pass: the strip of the frame is copied into line
+#: buffers, one per column (16 columns x 4 values x 2161 rows: 553 KB), that stay in the
+#: second-level cache, in tiles of ``STRIP`` x ``STRIP`` pixels (a transposition that reads and
+#: writes whole cache lines); the results go back row by row.
 STRIP = 16
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def ssss_kernel(light, key, ok, scale, offsets, weights, wsum, post, out):
-    """core.ssss's two passes over the pixels ``ok`` of ``out`` (which holds the albedo times
-    the light, kept where pixels take no part): along rows from ``light``, written into
-    ``out``; then along columns, strip by strip of ``STRIP`` columns (a column's pass reads only
-    that column), from a copy of the strip (0 where pixels take no part), times ``post``.
-    ``key`` (H, W) is the depth times the follow-surface factor, +inf where pixels take no part;
-    ``offsets`` (n,) the non-zero taps in scene units, ``weights`` (n, 3) theirs, ``wsum`` (3,)
-    the sum of all weights. Each line is read from planar buffers (R, G, B, key) of the line
-    plus one padding pixel. Nothing the size of a frame is allocated."""
+def ssss_kernel(light, depth, ok, scale, follow, gate, offsets, weights, wsum, post, box, out):
+    """core.ssss's two passes over the pixels that take part, into ``out`` (which holds the
+    albedo times the light, kept where pixels take no part): along rows from ``light``,
+    written into ``out``; then along columns, strip by strip of ``STRIP`` columns (a column's
+    pass reads only that column), from a copy of the strip (0 where pixels take no part), times
+    ``post``.
+
+    A pixel takes part where ``ok`` (``prepare_pixels``) and ``gate`` x ``scale`` > 0.5 (its
+    kernel spans more than a pixel), both float32 as the reference computes them; its key is
+    ``depth`` x ``follow`` (the follow-surface factor), +inf for the others. ``offsets`` (n,)
+    the non-zero taps in scene units, ``weights`` (n, 3) theirs, ``wsum`` (3,) the sum of all
+    weights. Each line is read from planar buffers (R, G, B, key) of the line plus one padding
+    pixel (``_ssss_line``). Only the rows box[0]..box[1] - 1 and columns box[2]..box[3] - 1,
+    which hold every pixel of ``ok``, are read: outside them the buffers hold (0, 0, 0, +inf),
+    the value of a pixel that takes no part. Nothing the size of a frame is allocated."""
     h, w = ok.shape
-    for y in prange(h):
-        x0, x1 = _span(ok[y])
+    r0, r1, c0, c1 = box[0], box[1], box[2], box[3]
+    half = f32(0.5)
+    for y in prange(r0, r1):
+        lr = np.zeros(w + 1, np.float32)
+        lg = np.zeros(w + 1, np.float32)
+        lb = np.zeros(w + 1, np.float32)
+        lk = np.full(w + 1, _INF, np.float32)
+        sc = np.zeros(w, np.float32)
+        okr = np.zeros(w, np.bool_)
+        for x in range(c0, c1):
+            s = scale[y, x]
+            o = ok[y, x] & (gate * s > half)
+            okr[x] = o
+            sc[x] = s
+            # The row's light, 0 where pixels take no part (a NaN times a zero weight is NaN).
+            lr[x] = light[y, x, 0] if o else _ZERO
+            lg[x] = light[y, x, 1] if o else _ZERO
+            lb[x] = light[y, x, 2] if o else _ZERO
+            lk[x] = depth[y, x] * follow if o else _INF
+        x0, x1 = _span(okr[c0:c1])
         if x0 >= x1:
             continue
-        # The row's light, 0 where pixels take no part (a NaN times a zero weight is NaN).
-        line = np.empty((1, 4, w + 1), np.float32)
-        for x in range(w):
-            o = ok[y, x]
-            line[0, 0, x] = light[y, x, 0] if o else _ZERO
-            line[0, 1, x] = light[y, x, 1] if o else _ZERO
-            line[0, 2, x] = light[y, x, 2] if o else _ZERO
-            line[0, 3, x] = key[y, x]
-        line[0, 0, w] = _ZERO
-        line[0, 1, w] = _ZERO
-        line[0, 2, w] = _ZERO
-        line[0, 3, w] = _INF
-        js = np.empty(offsets.size, np.int32)
-        fs = np.empty(offsets.size, np.float32)
-        for x in range(x0, x1):
-            if ok[y, x]:
-                _ssss_positions(scale[y, x], offsets, f32(x), w - 1, js, fs)
-                aw0, aw1, aw2, ag0, ag1, ag2 = _ssss_taps(line, 0, key[y, x], js, fs, weights)
-                out[y, x, 0] = (wsum[0] - aw0) * line[0, 0, x] + ag0
-                out[y, x, 1] = (wsum[1] - aw1) * line[0, 1, x] + ag1
-                out[y, x, 2] = (wsum[2] - aw2) * line[0, 2, x] + ag2
-    for strip in prange((w + STRIP - 1) // STRIP):
-        xa = strip * STRIP
-        xb = min(xa + STRIP, w)
-        m = xb - xa
-        # Rows ya..yb - 1 hold the strip's pixels that take part; the others, and the padding,
-        # are (0, 0, 0, +inf), as the pixels that take no part are.
+        res = np.empty((3, w), np.float32)
+        _ssss_line(lr, lg, lb, lk, sc, lk, c0 + x0, c0 + x1, offsets, weights, wsum, res[0], res[1], res[2])
+        for x in range(c0 + x0, c0 + x1):
+            if okr[x]:
+                out[y, x, 0] = res[0, x]
+                out[y, x, 1] = res[1, x]
+                out[y, x, 2] = res[2, x]
+    for strip in prange((c1 - c0 + STRIP - 1) // STRIP):
+        xa = c0 + strip * STRIP
+        m = min(STRIP, c1 - xa)
+        lines = np.empty((m, 4, h + 1), np.float32)
+        scs = np.zeros((m, h), np.float32)
+        oks = np.zeros((m, h), np.bool_)
+        res = np.empty((m, 3, h), np.float32)
+        for i in range(m):
+            lines[i, :3, :r0] = _ZERO
+            lines[i, 3, :r0] = _INF
+            lines[i, :3, r1:] = _ZERO
+            lines[i, 3, r1:] = _INF
+        for ya in range(r0, r1, STRIP):
+            for i in range(m):
+                x = xa + i
+                for y in range(ya, min(ya + STRIP, r1)):
+                    s = scale[y, x]
+                    o = ok[y, x] & (gate * s > half)
+                    oks[i, y] = o
+                    scs[i, y] = s
+                    lines[i, 0, y] = out[y, x, 0] if o else _ZERO
+                    lines[i, 1, y] = out[y, x, 1] if o else _ZERO
+                    lines[i, 2, y] = out[y, x, 2] if o else _ZERO
+                    lines[i, 3, y] = depth[y, x] * follow if o else _INF
         ya = h
         yb = 0
-        for y in range(h):
-            for i in range(m):
-                if ok[y, xa + i]:
-                    ya = min(ya, y)
-                    yb = y + 1
-        if ya >= yb:
-            continue
-        lines = np.empty((m, 4, h + 1), np.float32)
-        js = np.empty(offsets.size, np.int32)
-        fs = np.empty(offsets.size, np.float32)
         for i in range(m):
-            for c in range(3):
-                lines[i, c, :ya] = _ZERO
-                lines[i, c, yb:] = _ZERO
-            lines[i, 3, :ya] = _INF
-            lines[i, 3, yb:] = _INF
+            lo, hi = _span(oks[i, r0:r1])
+            if lo >= hi:
+                continue
+            ya = min(ya, r0 + lo)
+            yb = max(yb, r0 + hi)
+            line = lines[i]
+            r = res[i]
+            _ssss_line(
+                line[0],
+                line[1],
+                line[2],
+                line[3],
+                scs[i],
+                line[3],
+                r0 + lo,
+                r0 + hi,
+                offsets,
+                weights,
+                wsum,
+                r[0],
+                r[1],
+                r[2],
+            )
         for y in range(ya, yb):
             for i in range(m):
-                x = xa + i
-                o = ok[y, x]
-                lines[i, 0, y] = out[y, x, 0] if o else _ZERO
-                lines[i, 1, y] = out[y, x, 1] if o else _ZERO
-                lines[i, 2, y] = out[y, x, 2] if o else _ZERO
-                lines[i, 3, y] = key[y, x] if o else _INF
-        for y in range(ya, yb):  # row by row, so that the strip's row of the output is written at once
-            for i in range(m):
-                x = xa + i
-                if ok[y, x]:
-                    _ssss_positions(scale[y, x], offsets, f32(y), h - 1, js, fs)
-                    aw0, aw1, aw2, ag0, ag1, ag2 = _ssss_taps(lines, i, key[y, x], js, fs, weights)
-                    out[y, x, 0] = ((wsum[0] - aw0) * lines[i, 0, y] + ag0) * post[y, x, 0]
-                    out[y, x, 1] = ((wsum[1] - aw1) * lines[i, 1, y] + ag1) * post[y, x, 1]
-                    out[y, x, 2] = ((wsum[2] - aw2) * lines[i, 2, y] + ag2) * post[y, x, 2]
+                if oks[i, y]:
+                    x = xa + i
+                    out[y, x, 0] = res[i, 0, y] * post[y, x, 0]
+                    out[y, x, 1] = res[i, 1, y] * post[y, x, 1]
+                    out[y, x, 2] = res[i, 2, y] * post[y, x, 2]
 
 
 @njit(cache=True, error_model="numpy")
@@ -672,10 +807,11 @@ def _burley_tile(
 @njit(cache=True, parallel=True, error_model="numpy")
 def burley_kernel(
     light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, extents, depth, tol,
-    radius, min_px, post, y_lo, y_hi, out,
+    radius, min_px, post, y_lo, y_hi, x_lo, x_hi, out,
 ):  # fmt: skip
     """core.burley's gather and clean-up (``_smooth``, when ``radius`` > 0) over the pixels
-    ``ok`` of rows ``y_lo``..``y_hi`` - 1, times ``post``, into ``out``.
+    ``ok`` of rows ``y_lo``..``y_hi`` - 1 and columns ``x_lo``..``x_hi`` - 1 (which hold all
+    those of these rows), times ``post``, into ``out``.
 
     ``zkey`` (H, W): the depth where ``ok``, +inf elsewhere (``burley_zkey``); ``tables``
     (5, G, n): per object group the spiral's radii, radii squared, cosines, sines and inverse
@@ -697,13 +833,13 @@ def burley_kernel(
     grouped = group.size > 1
     use_ids = ids.size > 1
     r = max(radius, 0)
-    n_cols = (w + TILE_COLS - 1) // TILE_COLS
+    n_cols = (x_hi - x_lo + TILE_COLS - 1) // TILE_COLS
     n_rows = (y_hi - y_lo + BLOCK_ROWS - 1) // BLOCK_ROWS
     for tile in prange(n_rows * n_cols):
         y0 = y_lo + (tile // n_cols) * BLOCK_ROWS
         y1 = min(y0 + BLOCK_ROWS, y_hi)
-        x0 = (tile % n_cols) * TILE_COLS
-        x1 = min(x0 + TILE_COLS, w)
+        x0 = x_lo + (tile % n_cols) * TILE_COLS
+        x1 = min(x0 + TILE_COLS, x_hi)
         ya = max(y0 - r, 0)
         yb = min(y1 + r, h)
         xa = max(x0 - r, 0)

@@ -273,6 +273,18 @@ def _filter(
     elif not isinstance(kernel, SeparableKernel):
         raise ValueError(f"kernel: expected a core.kernels.SeparableKernel, got {type(kernel).__name__}")
 
+    def over_object(extent_su: float) -> SeparableKernel:
+        # Taps beyond the object's extent would all land off it and give their weight back to the
+        # centre (no scattering at all for a radius far too large): lay the kernel over the object
+        # instead (core.extent), rebuilt from its parameters, so that every backend filters with it.
+        if kernel.radius_su <= extent_su:
+            return kernel
+        if given is None:
+            return make_kernel(kernel_type, n_taps, d_su=d_su, radius_su=extent_su, **artist)
+        return bounded(given, extent_su)
+
+    if len(kernel) > 1 and backend.active() == "numba":
+        return _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode)
     base = a * e
     ok = m & _arrays.finite_pixels(e, a, z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)
     if len(kernel) == 1 or not ok.any():
@@ -281,15 +293,7 @@ def _filter(
     ok &= scale > 0
     if not ok.any():
         return base
-    # Taps beyond the object's extent would all land off it and give their weight back to the
-    # centre (no scattering at all for a radius far too large): lay the kernel over the object
-    # instead (core.extent), rebuilt from its parameters, so that every backend filters with it.
-    extent_su = object_extent(ok, scale)
-    if kernel.radius_su > extent_su:
-        if given is None:
-            kernel = make_kernel(kernel_type, n_taps, d_su=d_su, radius_su=extent_su, **artist)
-        else:
-            kernel = bounded(given, extent_su)
+    kernel = over_object(object_extent(ok, scale))
     # Pixels whose whole kernel is within one pixel would not change: skip them (EEVEE Next does).
     ok &= kernel.radius_su * scale > 0.5
     if not ok.any():
@@ -297,13 +301,8 @@ def _filter(
     pre, post = _arrays.split_albedo(a, albedo_mode)
     light = e if pre is None else pre * e
     h, w = shape
-    # Follow surface compares depths in units of 2 R: key = z / (2 R) where pixels may give light,
-    # +inf elsewhere (so that they give nothing); without it, 0 and +inf.
-    fs = np.float32(1.0 / (2.0 * kernel.radius_su)) if follow_surface else np.float32(0.0)
     key = np.full(shape, np.inf, np.float32)
-    np.multiply(z, fs, out=key, where=ok)
-    if backend.active() == "numba":
-        return _compiled(light, key, ok, scale, kernel, post, base)
+    np.multiply(z, _follow(kernel, follow_surface), out=key, where=ok)
     idx = np.flatnonzero(ok)
     buf = np.empty((h * w + 1, 8), np.float32)
     # Pass 1, along rows. Pixels that take no part give no light (a NaN times a zero weight would
@@ -329,21 +328,42 @@ def _filter(
     return out
 
 
-def _compiled(light, key, ok, scale, kernel, post, out):
-    """Both passes as one compiled kernel (``core.compiled.ssss_kernel``), into ``out``."""
+def _follow(kernel: SeparableKernel, follow_surface: bool) -> np.float32:
+    """Follow surface compares depths in units of 2 R: a pixel's key is z / (2 R) where it may
+    give light, +inf elsewhere (so that it gives nothing); without it, 0 and +inf."""
+    if not follow_surface:
+        return np.float32(0.0)
+    with np.errstate(over="ignore"):  # a vanishing radius: +inf, and no pixel passes the one-pixel rule
+        return np.float32(1.0 / (2.0 * kernel.radius_su))
+
+
+def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode):
+    """The NumPy code above on the compiled backend: the pixels that take part in one pass over
+    the frame (``_arrays.compiled_pixels``), then both passes as one kernel
+    (``core.compiled.ssss_kernel``, which applies the one-pixel rule and the keys itself), into
+    the albedo x diffuse frame."""
     f32 = np.float32
-    taps = kernel.offsets_su != 0
     c = np.ascontiguousarray
+    out, ok, scale, box, extent_su = _arrays.compiled_pixels(e, a, z, m, camera)
+    if box is None:
+        return out
+    kernel = over_object(extent_su)
+    pre, post = _arrays.split_albedo(a, albedo_mode)
+    light = e if pre is None else pre * e
+    taps = kernel.offsets_su != 0
     backend.run_kernel(
         "ssss_kernel",
         c(light, dtype=f32),
-        key,
+        c(z),
         ok,
-        c(scale, dtype=f32),
+        scale,
+        _follow(kernel, follow_surface),
+        _arrays.float32_factor(kernel.radius_su),
         c(kernel.offsets_su[taps], dtype=f32),
         c(kernel.weights[taps], dtype=f32),
         kernel.weights.sum(axis=0).astype(f32),
         c(post, dtype=f32),
+        np.array(box, np.int64),
         out,
     )
     return out
