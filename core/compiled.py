@@ -294,12 +294,19 @@ def sta_kernel(
     burley,
     distance,
     three_d,
+    medium,
+    table,
+    inv_base,
+    wclip,
     out,
 ):
     """core.sta.sta's per-pixel arithmetic (its docstring has the formulas) into ``out``
     (H, W, 3), which holds zeros; ``lights`` is the (L, LIGHT_COLUMNS) table of
     ``light_table``; with ``burley`` each channel is scaled by the transmittance through
-    ``distance`` sqrt(1 - t) for the profile lengths ``three_d`` = 3 d_c (0: no scattering).
+    ``distance`` sqrt(1 - t) for the profile lengths ``three_d`` = 3 d_c (0: no scattering);
+    with ``medium`` by ``table`` (core.sta.medium_table: T_c over sqrt(x / D) and the view
+    cosine) interpolated as ``core.sta._lookup`` does, and the albedo times ``inv_base`` (clipped
+    to [0, 1] with ``wclip``) in place of the albedo.
 
     Per row, loops over the masked span that each do one thing for all its pixels (the
     pixel's vectors; per light its lobe, ``_sta_light`` and ``_sta_lobe``, then its sum), with
@@ -392,10 +399,48 @@ def sta_kernel(
                     c2[i] += col2 * lobe
             if is_grey:
                 first_grey = False
+        if medium:
+            # The table's coordinates first (a loop that vectorizes), then its reads per channel.
+            nxs = table.shape[0]
+            nmu = table.shape[1]
+            for i in range(m):
+                xs = _ONE - tr[i]
+                sx = math.sqrt(math.sqrt(xs if xs > _ZERO else _ZERO)) * f32(nxs - 1)
+                fl = np.floor(sx)
+                fl = fl if fl < f32(nxs - 2) else f32(nxs - 2)
+                tr[i] = sx - fl  # tr now holds the fraction along x, lens its node
+                lens[i] = fl
+                mu = nxr[i] * vxr[i]
+                mu += nyr[i] * vyr[i]
+                mu += nzr[i] * vzr[i]
+                mu = abs(mu)
+                sm = (mu if mu < _ONE else _ONE) * f32(nmu - 1)
+                fm = np.floor(sm)
+                fm = fm if fm < f32(nmu - 2) else f32(nmu - 2)
+                vd[i] = sm - fm
+                er[i] = fm
         for i in range(m):
             x = x0 + i
             t = tr[i]
-            if burley:
+            if medium:
+                ix = int(lens[i])
+                jm = int(er[i])
+                fx = tr[i]
+                fm = vd[i]
+                for c in range(3):
+                    if has_col:
+                        light = (c0[i] if c == 0 else c1[i] if c == 1 else c2[i]) + (grey[i] if has_grey else _ZERO)
+                    else:
+                        light = grey[i]
+                    lo = table[ix, jm, c] + fx * (table[ix + 1, jm, c] - table[ix, jm, c])
+                    hi = table[ix, jm + 1, c] + fx * (table[ix + 1, jm + 1, c] - table[ix, jm + 1, c])
+                    tm = lo + fm * (hi - lo)
+                    wgt = albedo[y, x, c] * inv_base[c]
+                    if wclip:
+                        wgt = _clip(wgt, _ONE)
+                    v = wgt * light * tm
+                    out[y, x, c] = v if okr[i] else _ZERO
+            elif burley:
                 xs = _ONE - t
                 xs = distance * math.sqrt(xs if xs > _ZERO else _ZERO)
                 for c in range(3):

@@ -24,6 +24,7 @@ nothing there; p_T = 0 gives s_T wherever V . -L_T > 0 (and nothing where it is 
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -171,29 +172,20 @@ def sta(
         raise ValueError(f"distortion: expected a finite number, got {distortion!r}")
     if falloff not in FALLOFFS:
         raise ValueError(f"falloff: {falloff!r} is not one of {', '.join(FALLOFFS)}")
-    if falloff == "medium":
-        return _through_medium(
-            albedo=albedo,
-            normal=normal,
-            position=position,
-            thickness=thickness,
-            mask=mask,
-            camera=camera,
-            lights=lights,
-            distortion=distortion,
-            power=power,
-            scale=scale,
-            ambient=ambient,
-            thickness_convention=thickness_convention,
-            length_su=d_su if mfp_su is None else mfp_su,
-            thickness_distance_su=thickness_distance_su,
-            medium_args=(subsurface_method, base_color, subsurface_ior, subsurface_anisotropy),
-        )
     # Per-channel Burley transmittance through the slab the map stands for, or the paper's map.
     transmits = falloff == "burley"
     if transmits:
         d_c = _arrays.rgb_lengths(d_su, "d_su")
         distance = _arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
+    # Through the medium: the transmittance tabulated over thickness and view cosine, and the
+    # exit weight's per-channel factor (1 / Base Color, clipped to 1, for a walk).
+    through = None
+    if falloff == "medium":
+        through = _medium_inputs(
+            d_su if mfp_su is None else mfp_su,
+            thickness_distance_su,
+            (subsurface_method, base_color, subsurface_ior, subsurface_anisotropy),
+        )
     power = _arrays.positive_finite(power, "power")
     scale = _arrays.positive_finite(scale, "scale")
     ambient = _arrays.positive_finite(ambient, "ambient")
@@ -225,6 +217,7 @@ def sta(
             out,
             d_c if transmits else None,
             distance if transmits else 0.0,
+            through,
         )
         return out
     rows = {name: _arrays.pixel_rows(arr) for name, arr in (("a", a), ("n", n), ("p", p))}
@@ -317,7 +310,18 @@ def sta(
                     coloured = np.zeros((3, tt.size), f32)
                 for c in range(3):
                     coloured[c] += color[c] * lobe
-        if transmits:
+        if through is not None:
+            table, inv_base, clip = through
+            mu = nx * vx
+            mu += ny * vy
+            mu += nz * vz
+            trans = _lookup(table, tt, np.abs(mu))
+            light = grey[:, None] if coloured is None else (coloured + (0.0 if grey is None else grey)).T
+            weight = albedo_rows * inv_base
+            if clip:
+                weight = np.clip(weight, f32(0.0), f32(1.0))
+            res = weight * light * trans
+        elif transmits:
             trans = _transmittance(tt, distance, d_c)  # (B, 3)
             light = grey[:, None] if coloured is None else (coloured + (0.0 if grey is None else grey)).T
             res = albedo_rows * light * trans
@@ -337,56 +341,77 @@ def sta(
     return out
 
 
-def _through_medium(
-    *, albedo, thickness, mask, thickness_convention, length_su, thickness_distance_su, medium_args, **lobe
-) -> np.ndarray:
-    """STA's "medium" falloff (``sta``'s docstring): the paper's lobe with the exit weight for the
-    albedo and a thickness of 1, times the medium's per-channel transmittance through the slab
-    the map stands for. The lobe is the "map" falloff's computation (compiled or NumPy, checked
-    against each other by ``sta``'s check mode); the transmittance is computed once, in NumPy."""
-    from .combined import Medium, exit_weight, slab_thickness, slab_transmittance_rgb, view_cosine
+#: The "medium" falloff's table: slab thicknesses x = D u^2 for u uniform over [0, 1] (D the bake
+#: distance; finer where thin parts pass most light), and view cosines uniform over [0, 1]. The
+#: transmittance is interpolated bilinearly: within 0.01 of the light through no thickness of the
+#: model it tabulates, for walks and disks
+#: at bake distances of 1 to 60 mean free paths (``tests/core/test_techniques.py``; measured
+#: 0.006, at Christensen-Burley's cut at 16 d and the Skin method's view interpolation).
+MEDIUM_X = 129
+MEDIUM_MU = 17
 
-    if length_su is None or not thickness_distance_su:
+
+@functools.lru_cache(maxsize=64)
+def medium_table(length_su: tuple, distance_su: float, medium) -> np.ndarray:
+    """T_c(x, mu), float32 (MEDIUM_X, MEDIUM_MU, 3): ``core.combined.slab_transmittance_rgb``
+    through x = ``distance_su`` (i / (MEDIUM_X - 1))^2 for the view cosine mu = j / (MEDIUM_MU - 1)
+    (``medium`` a ``core.combined.Medium`` or None for Burley's law with d = ``length_su``)."""
+    from .combined import slab_transmittance_rgb
+
+    x = distance_su * np.linspace(0.0, 1.0, MEDIUM_X) ** 2
+    mu = np.linspace(0.0, 1.0, MEDIUM_MU)
+    xx, mm = np.meshgrid(x, mu, indexing="ij")
+    walks = medium is not None and medium.walks
+    tr = slab_transmittance_rgb(xx.ravel(), length_su, medium, view_cos=mm.ravel() if walks else None)
+    table = np.asarray(tr, np.float32).reshape(MEDIUM_X, MEDIUM_MU, 3)
+    table.flags.writeable = False
+    return table
+
+
+def _medium_inputs(length_su, distance_su, medium_args):
+    """(table, per-channel factor of the exit weight, clip it to 1) for the "medium" falloff."""
+    if length_su is None or not distance_su:
         raise ValueError(
             "falloff 'medium' reads the map as a thickness through the material: it needs mfp_su (or d_su), the"
             f" material's lengths per channel, and thickness_distance_su > 0, the bake's distance (got"
-            f" {length_su!r} and {thickness_distance_su!r}); falloff 'map' needs neither"
+            f" {length_su!r} and {distance_su!r}); falloff 'map' needs neither"
         )
-    length = _arrays.rgb_lengths(length_su, "mfp_su")
-    distance = _arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
+    from .combined import Medium
+
+    length = tuple(float(v) for v in _arrays.rgb_lengths(length_su, "mfp_su"))
+    distance = _arrays.positive_finite(distance_su, "thickness_distance_su", allow_zero=False)
     method, base_color, ior, anisotropy = medium_args
-    medium = None if method is None else Medium(method, tuple(base_color), float(ior), float(anisotropy))
-    a = _arrays.image(albedo, "albedo")
-    t = _arrays.image(thickness, "thickness", None)
-    _arrays.same_size(a.shape[:2], thickness=t)
-    m = _arrays.mask_array(mask, a.shape[:2])
-    weight = exit_weight(a, medium)
-    if weight is None:  # Burley's law without a material: the albedo colours the light, as "burley"
-        weight = a
-    weight = np.where(np.isfinite(a), weight, a)  # a non-finite albedo still gives 0 in the lobe
-    ok = np.isfinite(t)
-    tt = np.where(ok, np.clip(np.where(ok, t, 0.0), 0.0, 1.0), np.float32(0.0)).astype(np.float32)
-    if thickness_convention == "thickness":
-        tt = np.float32(1.0) - tt
-    out = sta.__wrapped__(  # type: ignore[attr-defined]
-        albedo=weight,
-        thickness=np.where(ok, np.float32(1.0), t).astype(np.float32),
-        mask=m,
-        thickness_convention="translucency",
-        falloff="map",
-        **lobe,
+    medium = (
+        None if method is None else Medium(method, tuple(float(v) for v in base_color), float(ior), float(anisotropy))
     )
-    lit = m & ok & (out.max(axis=2) > 0)
-    if lit.any():
-        view_cos = None
-        if medium is not None and medium.walks:
-            view_cos = view_cosine(lobe["normal"], lobe["position"], lobe["camera"])[lit]
-        x = slab_thickness(tt[lit], distance)
-        out[lit] *= slab_transmittance_rgb(x, length, medium, view_cos=view_cos)
-    return out
+    table = medium_table(length, float(distance), medium)
+    if medium is not None and medium.walks:
+        # A walk divides the closure weight by Base Color (core.combined.exit_weight).
+        base = np.asarray(medium.base_color, np.float64)
+        inv = np.where(base > 0, 1.0 / np.maximum(base, 1e-6), 0.0).astype(np.float32)
+        return table, inv, True
+    return table, np.ones(3, np.float32), False
 
 
-def _compiled(a, n, p, t, m, camera, lights, distortion, power, scale, ambient, convention, out, d_c, distance):
+def _lookup(table: np.ndarray, translucency: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """T_c per pixel (B, 3) from ``medium_table``: bilinear in u = sqrt(x / D) (from the translucency
+    t in [0, 1]: x / D = sqrt(1 - t)) and the view cosine ``mu``; the float32
+    operations of ``core.compiled.sta_kernel``, in its order."""
+    f32 = np.float32
+    sx = np.sqrt(np.sqrt(np.maximum(f32(1.0) - translucency, f32(0.0)))) * f32(MEDIUM_X - 1)
+    i = np.minimum(np.floor(sx), f32(MEDIUM_X - 2)).astype(np.int64)
+    fx = (sx - i.astype(f32))[:, None]
+    sm = np.where(mu < f32(1.0), mu, f32(1.0)) * f32(MEDIUM_MU - 1)  # NaN reads as 1, as the kernel's
+    j = np.minimum(np.floor(sm), f32(MEDIUM_MU - 2)).astype(np.int64)
+    fm = (sm - j.astype(f32))[:, None]
+    lo = table[i, j] + fx * (table[i + 1, j] - table[i, j])
+    hi = table[i, j + 1] + fx * (table[i + 1, j + 1] - table[i, j + 1])
+    return lo + fm * (hi - lo)
+
+
+def _compiled(
+    a, n, p, t, m, camera, lights, distortion, power, scale, ambient, convention, out, d_c, distance, through
+):
     """The per-pixel loop above as one compiled kernel (``core.compiled.sta_kernel``)."""
     f32 = np.float32
     c = np.ascontiguousarray
@@ -413,8 +438,16 @@ def _compiled(a, n, p, t, m, camera, lights, distortion, power, scale, ambient, 
         d_c is not None,
         f32(distance),
         three_d,
+        through is not None,
+        _NO_TABLE if through is None else through[0],
+        np.ones(3, f32) if through is None else through[1],
+        through is not None and through[2],
         out,
     )
+
+
+#: The compiled kernel's table argument when there is none (a typed placeholder).
+_NO_TABLE = np.zeros((2, 2, 3), np.float32)
 
 
 def _prepare(params: dict) -> list[str]:
