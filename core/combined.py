@@ -13,11 +13,13 @@ saturated green, not pale). Real-time engines combine the two (HDRP's diffusion 
   channel (docs/references.md §1); it conserves the visible diffuse light.
 - The transmitted term follows what Cycles does for the material's subsurface method
   (docs/references.md §14): the irradiance the back of the object receives from each light
-  (Lambert's cosine against the reversed visible normal, E_L as in ``core.sta.light_at``: sun,
-  point, spot and area lights), divided by pi (Cycles puts a diffuse closure at the walk's exit),
-  times the per-channel transmittance T_c(x) through the slab thickness x read back from the
-  baked map, x = D sqrt(1 - t) with D the bake distance (``core/thickness.py``: a slab of
-  thickness x bakes to AO (x / D)^2), times the exit weight W at the visible surface.
+  (Lambert's cosine against the far surface's normal, ``far_side``: the visible normal reversed
+  on a slab, the back seen through a round object for a walk; E_L as in ``core.sta.light_at``:
+  sun, point, spot and area lights), divided by pi (Cycles puts a diffuse closure at the walk's
+  exit), times the per-channel transmittance T_c(x) through the slab thickness x read back from
+  the baked map, x = D sqrt(1 - t) with D the bake distance (``core/thickness.py``: a slab of
+  thickness x bakes to AO (x / D)^2; where it finds no far side within D, the chord of the
+  surface's curvature sphere), times the exit weight W at the visible surface.
   - Random walks (Random Walk, Skin, Legacy): T_c is the walk's own expectation through a slab
     (``core/transmittance.py``: Cycles' extinction 1 / l_c and single-scattering albedo from Base
     Color, entry refracted from the view, 256 segments), and W = Diffuse Color / Base Color (the
@@ -33,9 +35,12 @@ saturated green, not pale). Real-time engines combine the two (HDRP's diffusion 
     light of its material and object with a Gaussian whose second moment is the walk's
     light-weighted squared lateral distance at its thickness (``core.transmittance.lateral_spread``;
     Christensen-Burley: the profile's over the far side, ``spread_sigma``).
-- No double counting: a light contributes to the transmitted term only where the visible
-  surface faces away from it (N . L < 0), which is exactly where it adds nothing to the Diffuse
-  Direct pass that the diffusion redistributes; the two terms meet at zero at the terminator.
+- No double counting: the diffusion redistributes the light that enters the visible surface (the
+  Diffuse passes), the transmitted term the light that enters the far surface. On a slab the far
+  normal is the visible one reversed: a light contributes to the transmitted term only where the
+  visible surface faces away from it (N . L < 0), where it adds nothing to the Diffuse Direct
+  pass, and the two terms meet at zero at the terminator. On a round object lit from the side both
+  faces of a rim can take light from the same lamp: two entries, each counted once.
 
 ``transmission_scale`` s_tr (one number, or one per channel: the fit's tint of the transmitted
 light) and ``transmission_d_su`` (the transmittance's length per channel: the walk's mean free
@@ -124,6 +129,49 @@ def back_irradiance(*, normal, position, mask, lights) -> np.ndarray:
         acc += back[:, None] * np.asarray(light.color, np.float32)[None, :]
     out.reshape(-1, 3)[idx] = acc
     return out
+
+
+def far_side(*, translucency, distance_su, normal, position, mask, camera=None, medium=None):
+    """(x, n) per pixel: the thickness x (scene units, float64 (H, W)) the light from behind
+    crosses, and the normal n (float32 (H, W, 3)) whose reverse faces the surface it enters
+    through, for ``back_irradiance`` (docs/references.md §14).
+
+    x is ``slab_thickness`` of the map; where the map finds no far side within its distance D
+    (translucency 0) the object is at least D thick, and x is the chord of the sphere of the
+    surface's largest curvature, 2 / k, within D and ``core.energy.CHORD_CAP`` D (as
+    ``core.energy.apply_energy`` reads the map). Without ``camera`` n is the visible normal.
+
+    For a random walk (``medium`` walks) the far surface is the one the light enters through on
+    its way towards the camera: on a slab the face behind the visible one (its normal the visible
+    one reversed), on a round object the back seen through it, which faces away from the camera
+    wherever the visible normal turns towards a rim. n blends the visible normal towards the
+    direction of the camera v by how round the object is there, s = x k / 2 clipped to [0, 1]
+    (0 on a slab, 1 on a sphere as thick as its curvature's: the shell measure of
+    ``core.energy.apply_energy``). Measured on the back-lit scenes (the irradiance the reference
+    implies over the transmittance, per band of view cosine): flat or rising towards the rims,
+    where the reversed visible normal falls by 2 to 10 times. Christensen-Burley's disk probes go
+    along the visible normal's axis, and without a ``medium`` nothing is known: n stays the
+    visible normal."""
+    from .energy import CHORD_CAP, surface_curvature
+
+    tau = np.clip(np.asarray(translucency, np.float64), 0.0, 1.0)
+    x = float(distance_su) * np.sqrt(1.0 - tau)
+    n = _arrays.image(normal, "normal")
+    if camera is None:
+        return x, n
+    p = _arrays.image(position, "position")
+    m = _arrays.mask_array(mask, tau.shape) & _arrays.finite_pixels(n, p)
+    _, largest = surface_curvature(n, p, m, radius_px=1)
+    k = np.maximum(np.nan_to_num(np.asarray(largest, np.float64)), 0.0)
+    chord = 2.0 / np.maximum(k, 2.0 / (CHORD_CAP * float(distance_su)))
+    x = np.where(m & (tau <= 1e-6), np.maximum(x, chord), x)
+    if medium is None or not medium.walks:
+        return x, n
+    s = np.clip(x * k / 2.0, 0.0, 1.0)[..., None]
+    unit = n / np.maximum(np.linalg.norm(n, axis=2, keepdims=True), np.float32(1e-20))
+    v = camera.view_vectors(p)
+    blend = np.where(m[..., None], (1.0 - s) * np.nan_to_num(unit) + s * v, n)
+    return x, blend.astype(np.float32)
 
 
 @dataclass(frozen=True)
@@ -351,26 +399,28 @@ def transmission(
     scale = _arrays.rgb_lengths(transmission_scale, "transmission_scale").astype(np.float32)
     _arrays.rgb_lengths(d_su, "transmission_d_su")
     t = _arrays.image(thickness, "thickness", None)
-    e = back_irradiance(normal=normal, position=position, mask=mask, lights=lights)
-    _arrays.same_size(e.shape[:2], thickness=t)
     ok = np.isfinite(t)
     tt = np.where(ok, t, np.float32(0.0))
     if thickness_convention == "thickness":
         tt = np.float32(1.0) - tt
+    x_all, far_normal = far_side(
+        translucency=tt, distance_su=distance, normal=normal, position=position, mask=mask, camera=camera, medium=medium
+    )
+    e = back_irradiance(normal=far_normal, position=position, mask=mask, lights=lights)
+    _arrays.same_size(e.shape[:2], thickness=t)
     view_cos = None
     if camera is not None and medium is not None and medium.walks:
         view_cos = view_cosine(normal, position, camera)
     lit = (e.max(axis=2) > 0) & ok
     out = np.zeros_like(e)
     if lit.any():
-        x = slab_thickness(tt[lit], distance)
+        x = x_all[lit]
         tr = slab_transmittance_rgb(x, d_su, medium, view_cos=None if view_cos is None else view_cos[lit])
         out[lit] = e[lit] * tr
     if depth is not None and camera is not None and lit.any():  # no light from behind: nothing to spread
         # The light a walk leaves with entered the far side up to about the thickness away.
         m = _arrays.mask_array(mask, e.shape[:2]) & ok
         ppu = camera.pixels_per_unit(_arrays.image(depth, "depth", None))
-        x_all = slab_thickness(tt, distance)
         if object_id is None:
             parts = [m]
         else:  # light does not cross from one object to another

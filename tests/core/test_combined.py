@@ -228,3 +228,76 @@ def test_light_from_behind_spreads_by_the_walks_lateral_distance():
     # Christensen-Burley's disk probes: the far side's weight over rho is wider than the law's.
     disk = spread_sigma(np.array([x]), (d, d, d), Medium("BURLEY"))[0, 0]
     assert disk > 0
+
+
+def _sphere(n=48, radius=0.4):
+    """A sphere of ``radius`` centred in front of the orthographic camera (which looks down -Z,
+    CAMERA's 1 unit across ``n`` px): normals, positions and the mask of its visible half."""
+    cam = Camera(type="ORTHO", width_px=n, height_px=n, ortho_scale=1.0)
+    c = (np.arange(n) + 0.5) / n - 0.5
+    xx, yy = np.meshgrid(c, -c)
+    r2 = xx**2 + yy**2
+    mask = r2 < radius**2
+    zz = np.sqrt(np.maximum(radius**2 - r2, 0.0))
+    normal = np.stack([xx, yy, zz], axis=-1) / radius
+    position = np.stack([xx, yy, zz - 2.0], axis=-1)
+    normal[~mask] = 0.0
+    return cam, normal.astype(np.float32), position.astype(np.float32), mask
+
+
+def test_far_side_of_a_round_walk_faces_away_from_the_camera_and_a_slab_keeps_its_normal():
+    # A sun straight behind a sphere (shining towards the camera). Its visible normal, reversed,
+    # faces the sun fully at the centre and not at all at the rim; the back the light enters
+    # through faces it everywhere (docs/references.md §14, the far side of a round object).
+    from sss_lab.core.combined import Medium, far_side
+
+    cam, normal, position, mask = _sphere()
+    radius, distance = 0.4, 1.0
+    # The map of a sphere baked along its normals reads its diameter everywhere.
+    tau = np.full(mask.shape, 1.0 - (2 * radius / distance) ** 2, np.float32)
+    back = _sun((0.0, 0.0, 1.0), energy=math.pi)
+    walk = Medium("RANDOM_WALK", (0.8, 0.6, 0.5))
+    x, n_far = far_side(
+        translucency=tau, distance_su=distance, normal=normal, position=position, mask=mask, camera=cam, medium=walk
+    )
+    assert np.allclose(x[mask], 2 * radius)
+    e_far = back_irradiance(normal=n_far, position=position, mask=mask, lights=(back,))[..., 0]
+    e_vis = back_irradiance(normal=normal, position=position, mask=mask, lights=(back,))[..., 0]
+    r = np.hypot(*(np.argwhere(mask) - (mask.shape[0] / 2 - 0.5)).T) / (radius * mask.shape[0])
+    rim = np.zeros_like(mask)
+    rim[mask] = r > 0.9
+    centre = np.zeros_like(mask)
+    centre[mask] = r < 0.3
+    # Within the curvature read at 48 px (a few pixels of the rim read the sphere flatter).
+    assert e_far[rim].mean() > 0.8 * e_far[centre].mean()
+    assert e_vis[rim].mean() < 0.5 * e_vis[centre].mean()
+    # Christensen-Burley probes along the visible normal: unchanged; so is a slab (no curvature).
+    _, n_disk = far_side(
+        translucency=tau, distance_su=distance, normal=normal, position=position, mask=mask, camera=cam,
+        medium=Medium("BURLEY", (0.8, 0.6, 0.5)),
+    )  # fmt: skip
+    assert np.array_equal(n_disk, normal)
+    flat = np.zeros_like(normal)
+    flat[..., 2] = 1.0
+    x_slab, n_slab = far_side(
+        translucency=np.full(mask.shape, 0.75, np.float32), distance_su=0.04, normal=flat,
+        position=position, mask=np.ones_like(mask), camera=cam, medium=walk,
+    )  # fmt: skip
+    assert np.allclose(n_slab, flat) and np.allclose(x_slab, 0.02)
+
+
+def test_a_map_with_no_far_side_within_its_distance_reads_the_spheres_chord():
+    # Translucency 0 says "at least D thick": the chord of the curvature's sphere, at most
+    # core.energy.CHORD_CAP D, as the energy model reads the map.
+    from sss_lab.core.combined import far_side
+    from sss_lab.core.energy import CHORD_CAP
+
+    cam, normal, position, mask = _sphere(radius=0.4)
+    x, _ = far_side(
+        translucency=np.zeros(mask.shape, np.float32), distance_su=0.5, normal=normal, position=position,
+        mask=mask, camera=cam,
+    )  # fmt: skip
+    inner = mask.copy()
+    inner[mask] = np.hypot(*(np.argwhere(mask) - 23.5).T) < 0.3 * 48
+    assert np.allclose(np.median(x[inner]), 0.8, rtol=0.05)  # 2 R
+    assert x[mask].max() <= CHORD_CAP * 0.5 + 1e-9 and x[mask].min() >= 0.5
