@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from . import _arrays, backend
-from .energy import ENERGY_PARAM, apply_energy, energy_inputs
+from .energy import ENERGY_PARAM, apply_energy, energy_inputs, view_cosine
 from .extent import group_extents, object_extent
 from .passes import THICKNESS
 from .profiles import TRUNCATION, burley_icdf
@@ -196,6 +196,30 @@ def burley(
     return apply_energy(out, **energy_inputs(locals()))
 
 
+#: The smallest view cosine ``surface_area`` reads: a pixel covers at most 5 times the surface of
+#: one facing the camera (a silhouette's pixel would otherwise weigh without bound).
+MIN_VIEW_COSINE = 0.2
+
+
+def surface_area(depth, ok, camera: Camera) -> np.ndarray:
+    """The surface each pixel of ``ok`` covers over that of a pixel facing the camera at the same
+    depth, 1 / max(cos, ``MIN_VIEW_COSINE``) with cos the view cosine from the Depth pass
+    (``core.energy.view_cosine``, on the pixels' bounding box), float32 (H, W), C-contiguous; 1
+    elsewhere. A spiral sample stands for the screen area around it; on a surface seen at an
+    angle that is 1 / cos as much surface, and the profile integrates over the surface: at a
+    silhouette, where the cosine falls to 0, the samples on the rim are the larger part of the
+    surface the kernel covers, not the lit interior's (docs/references.md §17)."""
+    ok = np.asarray(ok, dtype=bool)
+    out = np.ones(ok.shape, np.float32)
+    if not ok.any():
+        return out
+    rows, cols = np.flatnonzero(ok.any(axis=1)), np.flatnonzero(ok.any(axis=0))
+    box = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
+    cos = view_cosine(np.asarray(depth)[box], ok[box], camera, origin=(box[0].start, box[1].start), frame=ok.shape)
+    out[box] = np.where(ok[box], np.float32(1.0) / np.maximum(cos, np.float32(MIN_VIEW_COSINE)), np.float32(1.0))
+    return out
+
+
 def _gather(
     *,
     diffuse,
@@ -269,6 +293,7 @@ def _gather(
     items = packed.view(np.dtype((np.void, 16))).ravel()
     sentinel = h * w
     zkey = packed[:, 3]
+    aflat = np.append(surface_area(z, ok, camera).ravel(), f32(0.0))
     idflat = None if ids is None else np.rint(ids).astype(np.int64).ravel()
     sflat = scale.ravel()
     n = int(n_samples)
@@ -319,6 +344,7 @@ def _gather(
         # R_c(r') / pdf_area(r) up to constants: (e^{-r'/d} + e^{-r'/3d}) / r' x r / f(r).
         ratio = np.maximum(rp, f32(1e-30))
         np.divide(inv_pdf[None, :], ratio, out=ratio)
+        ratio *= np.take(aflat, j)  # the surface the sample's pixel covers
         e3 = np.empty_like(rp)
         wgt = np.empty_like(rp)
         for c in range(3):
@@ -409,6 +435,15 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
     zkey = np.empty(ok.shape, f32)
     z = c(z, dtype=f32)
     backend.run_kernel("burley_zkey", ok, z, zkey)
+    area = np.ones(ok.shape, f32)
+    h, w = ok.shape
+    if camera.type == "ORTHO":
+        ortho, f, cx, cy = True, float(camera.ortho_px_per_unit), w / 2, h / 2
+    else:
+        ortho, f = False, float(camera.focal_px)
+        cx, cy = w / 2 - camera.shift_x * max(w, h), h / 2 + camera.shift_y * max(w, h)
+    far = np.float32(_arrays.BACKGROUND_DEPTH)
+    backend.run_kernel("surface_area", z, ok, far, ortho, f, cx, cy, MIN_VIEW_COSINE, *box, area)
     light = c(light, dtype=f32)
     post = c(post, dtype=f32)
     reach = np.asarray(reach_c, np.float64)
@@ -431,7 +466,7 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
             rot_sin = np.sin(phi)  # NumPy's cosine and sine, as the reference's
             rot_cos = np.cos(phi, out=phi)
         backend.run_kernel(
-            "burley_kernel", light, zkey, ok, scale, id_map, group_map, tables, rot_cos, rot_sin, rot_y0, rot_x0,
+            "burley_kernel", light, zkey, area, ok, scale, id_map, group_map, tables, rot_cos, rot_sin, rot_y0, rot_x0,
             inv3d, reach, extents, z, tol, radius, SMOOTH_MIN_FOOTPRINT_PX, post, y_lo, y_hi, c0, c1, out,
         )  # fmt: skip
     return out

@@ -717,11 +717,11 @@ def _burley_positions(xf, yf, s, rc, rsn, tables, g, wl, hl, w, js, inside):
 
 
 @njit(cache=True, error_model="numpy", fastmath={"reassoc", "contract"})
-def _burley_pixel(light, zkey, ids, q, tables, g, js, inside, k0, k1, k2, sums):
+def _burley_pixel(light, zkey, area, ids, q, tables, g, js, inside, k0, k1, k2, sums):
     """The spiral samples of pixel ``q``, read where ``_burley_positions`` put them, summed
     into ``sums`` (num R, G, B, den R, G, B). ``light`` flat RGB, ``zkey`` flat (the depth
-    where pixels take part, +inf elsewhere), ``ids`` flat object ids or one 0 for none;
-    ``tables[:, g]`` the spiral.
+    where pixels take part, +inf elsewhere), ``area`` flat (the surface each pixel covers, which
+    weighs its samples), ``ids`` flat object ids or one 0 for none; ``tables[:, g]`` the spiral.
 
     The loop over the samples vectorizes (a gather per value read), with the weights and sums
     reassociated and fused (``fastmath`` "reassoc" and "contract": the sums in another order,
@@ -748,6 +748,7 @@ def _burley_pixel(light, zkey, ids, q, tables, g, js, inside, k0, k1, k2, sums):
         rp += tables[1, g, k]
         rp = math.sqrt(rp)
         ratio = tables[4, g, k] / (rp if rp > _TINY else _TINY)
+        ratio *= area[j]
         e3 = _exp(rp * k0)
         w0 = (e3 * e3 * e3 + e3) * ratio
         e3 = _exp(rp * k1)
@@ -767,6 +768,71 @@ def _burley_pixel(light, zkey, ids, q, tables, g, js, inside, k0, k1, k2, sums):
     sums[3] = d0
     sums[4] = d1
     sums[5] = d2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _camera_point(y, x, z, ortho, f, cx, cy):
+    """Pixel (``y``, ``x``) at planar depth ``z`` in camera space, as ``core.energy.view_cosine``
+    unprojects it (``f``: pixels per unit for an orthographic camera, the focal length in pixels
+    otherwise; ``cx``, ``cy`` the principal point)."""
+    if ortho:
+        return (x + 0.5 - cx) / f, (cy - y - 0.5) / f, -z
+    return (x + 0.5 - cx) / f * z, (cy - y - 0.5) / f * z, -z
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _axis_step(depth, ok, far, y, x, dy, dx, px, py, pz, ortho, f, cx, cy):
+    """The difference in camera space from pixel (``y``, ``x``) (at ``px``, ``py``, ``pz``) along
+    one image axis (``dy``, ``dx`` the step), as ``core.energy.view_cosine`` takes it: to the next
+    pixel of ``ok`` or from the previous one, whichever has the smaller depth step (the next on a
+    tie); ``found`` False when neither is on ``ok`` with a depth in (0, ``far``)."""
+    h, w = ok.shape
+    best = np.inf
+    ex = ey = ez = 0.0
+    ny, nx = y + dy, x + dx
+    if 0 <= ny < h and 0 <= nx < w and ok[ny, nx] and 0.0 < depth[ny, nx] < far:
+        qx, qy, qz = _camera_point(np.float64(ny), np.float64(nx), np.float64(depth[ny, nx]), ortho, f, cx, cy)
+        ex, ey, ez = qx - px, qy - py, qz - pz
+        best = abs(ez)
+    ny, nx = y - dy, x - dx
+    if 0 <= ny < h and 0 <= nx < w and ok[ny, nx] and 0.0 < depth[ny, nx] < far:
+        qx, qy, qz = _camera_point(np.float64(ny), np.float64(nx), np.float64(depth[ny, nx]), ortho, f, cx, cy)
+        if abs(pz - qz) < best:
+            ex, ey, ez = px - qx, py - qy, pz - qz
+            best = abs(ez)
+    return ex, ey, ez, best < np.inf
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def surface_area(depth, ok, far, ortho, f, cx, cy, min_cos, y0, y1, x0, x1, area):
+    """``core.burley.surface_area`` over rows ``y0``..``y1`` - 1 and columns ``x0``..``x1`` - 1
+    (``area`` holds 1 elsewhere): 1 / max(cos, ``min_cos``) on the pixels ``ok``, with cos the view
+    cosine of ``core.energy.view_cosine`` (in float64: on each axis the difference to a neighbour
+    of ``ok`` with the smaller depth step, the normal their cross product), 1 where a pixel has no
+    neighbour of ``ok`` on an axis. Pixels count when their depth is in (0, ``far``) (the reference's
+    valid depth)."""
+    for y in prange(y0, y1):
+        for x in range(x0, x1):
+            if not ok[y, x]:
+                area[y, x] = _ONE
+                continue
+            if not 0.0 < depth[y, x] < far:
+                area[y, x] = f32(1.0 / max(1.0, min_cos))
+                continue
+            px, py, pz = _camera_point(np.float64(y), np.float64(x), np.float64(depth[y, x]), ortho, f, cx, cy)
+            ax, ay, az, found_x = _axis_step(depth, ok, far, y, x, 0, 1, px, py, pz, ortho, f, cx, cy)
+            bx, by, bz, found_y = _axis_step(depth, ok, far, y, x, 1, 0, px, py, pz, ortho, f, cx, cy)
+            cos = 1.0
+            if found_x and found_y:
+                nx = ay * bz - az * by
+                ny = az * bx - ax * bz
+                nz = ax * by - ay * bx
+                vx, vy, vz = (0.0, 0.0, 1.0) if ortho else (-px, -py, -pz)
+                den = math.sqrt(nx * nx + ny * ny + nz * nz) * math.sqrt(vx * vx + vy * vy + vz * vz)
+                c = abs(nx * vx + ny * vy + nz * vz) / den if den > 0.0 else np.nan
+                if c == c:
+                    cos = min(max(c, 0.0), 1.0)
+            area[y, x] = f32(1.0 / max(cos, min_cos))
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -812,8 +878,9 @@ TILE_COLS = 256
 
 @njit(cache=True, error_model="numpy")
 def _burley_tile(
-    light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, ya, yb, xa, xb, buf
-):
+    light, zkey, area, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, ya, yb, xa, xb,
+    buf,
+):  # fmt: skip
     """core.burley's gather (the scattered light, before the albedo) of the pixels ``ok`` of
     rows ``ya``..``yb`` - 1 and columns ``xa``..``xb`` - 1 into ``buf`` (from (ya, xa), 3);
     ``rot_cos``/``rot_sin`` hold rows from ``rot_y0`` and columns from ``rot_x0``."""
@@ -827,6 +894,7 @@ def _burley_tile(
     k2 = -inv3d[2]
     light_flat = light.reshape(-1)
     zflat = zkey.reshape(-1)
+    aflat = area.reshape(-1)
     sums = np.empty(6, np.float32)
     js = np.empty(tables.shape[2], np.int32)
     inside = np.empty(tables.shape[2], np.bool_)
@@ -839,7 +907,7 @@ def _burley_tile(
             rsn = rot_sin[y - rot_y0, x - rot_x0] if rotate else rot_sin[0, 0]
             g = group[y, x] if grouped else 0
             _burley_positions(f32(x), f32(y), s, rc, rsn, tables, g, wl, hl, w, js, inside)
-            _burley_pixel(light_flat, zflat, ids, y * w + x, tables, g, js, inside, k0, k1, k2, sums)
+            _burley_pixel(light_flat, zflat, aflat, ids, y * w + x, tables, g, js, inside, k0, k1, k2, sums)
             for c in range(3):
                 den = sums[3 + c]
                 if reach[c] <= 0.0 or reach[c] * np.float64(s) <= 1.0 or den <= _TINY:
@@ -851,14 +919,16 @@ def _burley_tile(
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def burley_kernel(
-    light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, extents, depth, tol,
-    radius, min_px, post, y_lo, y_hi, x_lo, x_hi, out,
+    light, zkey, area, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, extents, depth,
+    tol, radius, min_px, post, y_lo, y_hi, x_lo, x_hi, out,
 ):  # fmt: skip
     """core.burley's gather and clean-up (``_smooth``, when ``radius`` > 0) over the pixels
     ``ok`` of rows ``y_lo``..``y_hi`` - 1 and columns ``x_lo``..``x_hi`` - 1 (which hold all
     those of these rows), times ``post``, into ``out``.
 
-    ``zkey`` (H, W): the depth where ``ok``, +inf elsewhere (``burley_zkey``); ``tables``
+    ``zkey`` (H, W): the depth where ``ok``, +inf elsewhere (``burley_zkey``); ``area`` (H, W):
+    the surface each pixel covers over a pixel facing the camera (``core.burley.surface_area``),
+    a factor of its samples' weights; ``tables``
     (5, G, n): per object group the spiral's radii, radii squared, cosines, sines and inverse
     pdfs; ``group`` (H, W) each pixel's group, or (1, 1) for one group; ``reach`` (3,) float64,
     16 d_c per channel (0: the channel keeps its light; so does a channel whose reach times the
@@ -897,8 +967,8 @@ def burley_kernel(
             continue
         buf = np.empty((yb - ya, xb - xa, 3), np.float32)
         _burley_tile(
-            light, zkey, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, ya, yb, xa, xb,
-            buf,
+            light, zkey, area, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, ya, yb,
+            xa, xb, buf,
         )  # fmt: skip
         for y in range(y0, y1):
             for x in range(x0, x1):

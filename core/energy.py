@@ -455,16 +455,18 @@ def unseen_irradiance(*, irradiance, normal, position, camera: Camera, lights, l
     return lamp_irradiance(lights, mirrored, pos).mean(axis=0) + other
 
 
-def view_cosine(depth, mask, camera: Camera) -> np.ndarray:
+def view_cosine(depth, mask, camera: Camera, *, origin=(0, 0), frame=None) -> np.ndarray:
     """|cos| of the angle between the surface normal and the direction to the camera, float32
     (H, W), from the planar Depth pass: each pixel is unprojected to camera space, the normal is
     the cross product of its horizontal and vertical differences (on each axis the smaller of the
     two one-sided differences to a neighbour of ``mask``, so that a silhouette does not bend it).
-    1 (facing the camera) where no neighbour is on the mask."""
+    1 (facing the camera) where no neighbour is on the mask. ``depth`` and ``mask`` may be a
+    window of the frame: ``origin`` (row, column) its first pixel, ``frame`` (H, W) the frame's
+    size (default: the window's)."""
     z = np.asarray(depth, dtype=np.float64)
     m = np.asarray(mask, dtype=bool) & np.isfinite(z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)
-    h, w = z.shape
-    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    h, w = z.shape if frame is None else frame
+    ys, xs = np.mgrid[origin[0] : origin[0] + z.shape[0], origin[1] : origin[1] + z.shape[1]].astype(np.float64)
     if camera.type == "ORTHO":
         s = 1.0 / camera.ortho_px_per_unit
         p = np.stack([(xs + 0.5 - w / 2) * s, (h / 2 - ys - 0.5) * s, -z], axis=-1)
@@ -574,7 +576,13 @@ def apply_energy(
         e = e / np.maximum(a, np.float32(1e-6))
         a = a * a
     light = out[m]
-    gain = entry_gain(method, a, view_cosine(depth, m, camera)[m])
+    # The view cosine and the curvature on the mask's bounding box only (they read nothing else).
+    rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
+    box = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
+    mb = m[box]
+    origin = (box[0].start, box[1].start)
+    mu = view_cosine(np.asarray(depth)[box], mb, camera, origin=origin, frame=m.shape)[mb]
+    gain = entry_gain(method, a, mu)
     shaped = energy == "object" and normal is not None and position is not None and mfp_su is not None
     if not shaped:
         # The entry's dependence on the view angle, each channel's total over the mask kept.
@@ -586,12 +594,13 @@ def apply_energy(
     ell = np.maximum(_arrays.rgb_lengths(mfp_su, "mfp_su").astype(np.float64), 1e-30)
     # The curvature over the reach of a walk, a mean free path, per channel (its pixels at the
     # material's median depth, at least 1 and at most CURVATURE_REACH_PX).
-    ppu = camera.pixels_per_unit(np.asarray(depth, np.float32))[m]
-    ppu = float(np.median(ppu[ppu > 0])) if (ppu > 0).any() else 0.0
+    scales = camera.pixels_per_unit(np.asarray(depth, np.float32)[box])[mb]
+    ppu = float(np.median(scales[scales > 0])) if (scales > 0).any() else 0.0
     reach = [int(np.clip(round(v * ppu), 1, CURVATURE_REACH_PX)) for v in ell]
-    maps = {r: surface_curvature(normal, position, m, radius_px=r) for r in sorted(set(reach))}
-    mean = np.stack([maps[r][0][m] for r in reach], axis=1).astype(np.float64)
-    largest = maps[max(reach)][1][m].astype(np.float64)
+    nb, pb = np.asarray(normal)[box], np.asarray(position)[box]
+    maps = {r: surface_curvature(nb, pb, mb, radius_px=r) for r in sorted(set(reach))}
+    mean = np.stack([maps[r][0][mb] for r in reach], axis=1).astype(np.float64)
+    largest = maps[max(reach)][1][mb].astype(np.float64)
     convex = convex_gain(method, a, mean * ell[None, :])
     finite = thickness is not None and thickness_distance_su > 0 and method in SLAB_ABOVE
     if finite:

@@ -210,6 +210,18 @@ def _material_params(material: MaterialSSS, technique: Technique, mapping_table,
     return params
 
 
+def _changes_level(technique: Technique, params: dict, material: MaterialSSS) -> bool:
+    """True when the technique's energy model (``core/energy.py``, docs/references.md §15, §17)
+    gives the material Cycles' level of light, which differs from the passes' however small its
+    kernel: its ``energy`` is not "lambert" and the energy tables know the material's method."""
+    from .energy import CONVEX
+
+    if "energy" not in technique.keywords:
+        return False
+    energy = params.get("energy", technique.defaults.get("energy", "lambert"))
+    return energy != "lambert" and material.method in CONVEX
+
+
 def _accepted(func) -> tuple[set[str], bool]:
     sig = inspect.signature(func)
     names = {p.name for p in sig.parameters.values() if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
@@ -287,8 +299,9 @@ def plan(
             mp.kernel_px = tuple(r * ppu_median for r in mp.kernel_su)
             mp.warning = kernel_warning(max(mp.kernel_px), mask_extent_px(index == material.index), passes.shape)
             widest_px = max(mp.kernel_su) * ppu_nearest
-            # A fitted gain or the light from behind still change a material whose kernel is tiny.
-            adds_light = technique.adds_light or "gain" in mp.params
+            # A fitted gain, the light from behind or the energy model still change a material whose
+            # kernel is tiny.
+            adds_light = technique.adds_light or "gain" in mp.params or _changes_level(technique, mp.params, material)
             if not adds_light:
                 mp.unchanged_channels = tuple(c for c, r in enumerate(mp.kernel_su) if r * ppu_nearest <= 1.0)
             if widest_px <= 1.0 and not adds_light:

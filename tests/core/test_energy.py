@@ -419,3 +419,76 @@ def test_a_map_without_far_side_reads_the_spheres_chord_and_a_thin_shell_is_a_sl
     unseen = args["diffuse"][m].astype(np.float64).mean(axis=0)
     expected = g * (1 + (c - 1) * 0.1) * (light[m] * f_above + args["albedo"][m] * f_below * unseen)
     np.testing.assert_allclose(shell[m], expected, rtol=2e-3)
+
+
+@pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
+def test_view_cosine_of_a_window_is_the_frames(kind):
+    h, w = 40, 56
+    camera = Camera(type=kind, width_px=w, height_px=h, lens_mm=50.0, ortho_scale=1.0)
+    z = _plane_depth(camera, 35.0, h, w)
+    mask = np.zeros((h, w), bool)
+    mask[8:30, 12:50] = True
+    full = energy.view_cosine(z, mask, camera)
+    window = (slice(6, 33), slice(10, 53))
+    part = energy.view_cosine(z[window], mask[window], camera, origin=(6, 10), frame=(h, w))
+    np.testing.assert_array_equal(part, full[window])
+
+
+def test_a_material_below_a_pixel_still_gets_cycles_level():
+    import dataclasses
+
+    from sss_lab.core.apply import apply
+    from sss_lab.core.exr import Passes
+    from sss_lab.core.plan import plan
+    from sss_lab.core.synthetic import sphere_scene
+
+    arrays, scene = sphere_scene(96, 64)
+    tiny = tuple(
+        dataclasses.replace(m, method="RANDOM_WALK", subsurface_scale=m.subsurface_scale * 1e-5) if m.scatters else m
+        for m in scene.materials
+    )
+    scene = dataclasses.replace(scene, materials=tiny)
+    passes = Passes(arrays)
+    skin = scene.material(2)
+    # The kernel is far below a pixel, but Cycles' level of light (the entry's gain) still applies.
+    mp = next(m for m in plan(passes, scene, "burley").materials if m.material.index == 2)
+    assert mp.skip is None and mp.unchanged_channels == ()
+    lam = next(m for m in plan(passes, scene, "burley", energy="lambert").materials if m.material.index == 2)
+    assert "at most one pixel" in lam.skip
+    out = apply(passes, scene, "burley")["SSSLab.burley.Image"]
+    on = np.rint(arrays["Material Index"]) == 2
+    light = arrays["Diffuse Color"] * (arrays["Diffuse Direct"] + arrays["Diffuse Indirect"])
+    term = out[on, :3] - arrays["Combined"][on, :3]
+    # What changed is the light times (gain - 1), the gain within the tables' range for its albedo.
+    ratio = (term + light[on, :3]).sum(0) / light[on, :3].sum(0)
+    assert skin.method in energy.SEMI_INFINITE
+    assert np.all(ratio < 0.99) and np.all(ratio > 0.75)
+
+
+@pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
+@pytest.mark.parametrize("tilt", [0.0, 60.0, 85.0])
+def test_burley_weighs_its_samples_by_the_surface_a_pixel_covers(kind, tilt):
+    from sss_lab.core import backend
+    from sss_lab.core.burley import MIN_VIEW_COSINE, surface_area
+
+    h, w = 32, 48
+    camera = Camera(type=kind, width_px=w, height_px=h, lens_mm=50.0, ortho_scale=1.0)
+    z = _plane_depth(camera, tilt, h, w)
+    ok = np.zeros((h, w), bool)
+    ok[4:28, 6:40] = True
+    area = surface_area(z, ok, camera)
+    cos = energy.view_cosine(z, ok, camera)
+    np.testing.assert_allclose(area[ok], 1.0 / np.maximum(cos[ok], MIN_VIEW_COSINE), rtol=1e-6)
+    assert np.all(area[~ok] == 1.0)
+    if kind == "ORTHO" and tilt < 80:  # one view angle: 1 / cos(tilt) (at 85 degrees part of the plane is behind)
+        expected = 1.0 / max(math.cos(math.radians(tilt)), MIN_VIEW_COSINE)
+        np.testing.assert_allclose(area[ok], expected, rtol=2e-3)
+    # The compiled kernel computes the same (float64 in both, rounded to float32 once).
+    got = np.ones((h, w), np.float32)
+    if kind == "ORTHO":
+        args = (True, float(camera.ortho_px_per_unit), w / 2, h / 2)
+    else:
+        args = (False, float(camera.focal_px), w / 2, h / 2)
+    far = np.float32(1e9)  # the background depth (core._arrays.BACKGROUND_DEPTH)
+    backend.run_kernel("surface_area", z, ok, far, *args, MIN_VIEW_COSINE, 0, h, 0, w, got)
+    np.testing.assert_allclose(got, area, rtol=1e-6)
