@@ -103,7 +103,8 @@ def compiled_pixels(e, a, z, m, camera, gate: float = math.inf, threshold: float
     """The compiled backend's shared start of SSSS and Burley, one pass over the frame
     (``core.compiled.prepare_pixels``): (albedo x diffuse, the pixels that take part, their
     pixels per scene unit, their bounding box (rows r0..r1 - 1, columns c0..c1 - 1) or None when
-    there are none, and ``core.extent.object_extent`` of them), the same values as the NumPy
+    there are none, ``core.extent.object_extent`` of them and their largest scale), the same
+    values as the NumPy
     code's ``a * e``, ``m & finite_pixels(e, a, z) & (z > 0) & (z < BACKGROUND_DEPTH)``,
     ``camera.pixels_per_unit(z)`` and ``ok &= gate * scale > threshold`` (``gate`` +inf:
     ``scale > 0``)."""
@@ -116,20 +117,20 @@ def compiled_pixels(e, a, z, m, camera, gate: float = math.inf, threshold: float
     ok = np.empty((h, w), bool)
     scale = np.empty((h, w), f32)
     spans = np.empty((h, 2), np.int64)
-    smallest = np.empty(h, f32)
+    extremes = np.empty((h, 2), f32)
     ortho = camera.type == "ORTHO"
     focal = f32(camera.ortho_px_per_unit if ortho else camera.focal_px)
     args = (c(e), c(a), c(z), c(m), ortho, focal, float32_factor(gate), f32(threshold))
-    backend.run_kernel("prepare_pixels", *args, out, ok, scale, spans, smallest)
+    backend.run_kernel("prepare_pixels", *args, out, ok, scale, spans, extremes)
     rows = np.flatnonzero(spans[:, 1] >= 0)
     if rows.size == 0:
-        return out, ok, scale, None, 0.0
+        return out, ok, scale, None, 0.0, 0.0
     r0, r1 = int(rows[0]), int(rows[-1]) + 1
     c0, c1 = int(spans[rows, 0].min()), int(spans[rows, 1].max()) + 1
     diag_px = math.hypot(float(c1 - 1 - c0), float(r1 - 1 - r0)) + 1.0
-    least = float(smallest.min())
+    least = float(extremes[:, 0].min())
     extent = diag_px / least if least > 0 else math.inf
-    return out, ok, scale, (r0, r1, c0, c1), extent
+    return out, ok, scale, (r0, r1, c0, c1), extent, float(extremes[:, 1].max())
 
 
 def positive_finite(value, name: str, *, allow_zero: bool = True) -> float:

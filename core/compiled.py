@@ -118,7 +118,7 @@ _BACKGROUND = f32(1e9)  # core._arrays.BACKGROUND_DEPTH, exactly a float32
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def prepare_pixels(diffuse, albedo, depth, mask, is_ortho, focal, gate, threshold, out, ok, scale, spans, smallest):
+def prepare_pixels(diffuse, albedo, depth, mask, is_ortho, focal, gate, threshold, out, ok, scale, spans, extremes):
     """What SSSS and Burley share before their kernels, in one pass over the frame (the NumPy
     code takes a dozen): ``out`` = albedo x diffuse; ``scale`` = ``core.scene.Camera.
     pixels_per_unit`` of ``depth`` as NumPy computes it in float32 (``is_ortho``: ``focal``, the
@@ -127,14 +127,16 @@ def prepare_pixels(diffuse, albedo, depth, mask, is_ortho, focal, gate, threshol
     whose diffuse, albedo and depth are finite, with 0 < depth < 1e9 and ``gate`` x scale >
     ``threshold`` (float32 product; ``gate`` +inf: scale > 0, which is what the reference's
     product gives when its factor is beyond float32). Per row y, ``spans[y]`` = (first, last)
-    column of ``ok`` ((W, -1) when none) and ``smallest[y]`` the smallest scale there (+inf):
-    the bounding box and ``core.extent.object_extent`` without another pass."""
+    column of ``ok`` ((W, -1) when none) and ``extremes[y]`` the smallest and the largest scale
+    there (+inf, 0): the bounding box, ``core.extent.object_extent`` and the reach of a
+    footprint in pixels without another pass."""
     h, w = mask.shape
     inf_gate = gate == _INF
     for y in prange(h):
         lo = w
         hi = -1
         least = _INF
+        most = _ZERO
         for x in range(w):
             e0 = diffuse[y, x, 0]
             e1 = diffuse[y, x, 1]
@@ -161,9 +163,11 @@ def prepare_pixels(diffuse, albedo, depth, mask, is_ortho, focal, gate, threshol
                 lo = min(lo, x)
                 hi = x
                 least = min(least, s)
+                most = max(most, s)
         spans[y, 0] = lo
         spans[y, 1] = hi
-        smallest[y] = least
+        extremes[y, 0] = least
+        extremes[y, 1] = most
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -692,12 +696,15 @@ def ssss_kernel(light, depth, ok, scale, follow, gate, offsets, weights, wsum, p
 
 
 @njit(cache=True, error_model="numpy")
-def _burley_positions(xf, yf, s, rc, rsn, tables, g, wl, hl, w, js, inside):
+def _burley_positions(xf, yf, s, rc, rsn, tables, g, wl, hl, py0, px0, ph, pw, js, inside):
     """Where the spiral samples of the pixel (``xf``, ``yf``) land, as the reference computes
-    it: sample k reads the flat pixel js[k], which the reference keeps only if ``inside[k]``
+    it: sample k reads the pixel js[k] of the packed pixels (``burley_pack``, flat: ``ph`` rows
+    from ``py0`` of ``pw`` columns from ``px0``), which the reference keeps only if ``inside[k]``
     (the rounded position is on the image). Compiled without fastmath and called from the
     kernels, never from a function with fastmath (Numba compiles a function's callees with its
-    flags): the pixels read are the reference's to the bit. The loop vectorizes (no gathers)."""
+    flags): the pixels read are the reference's to the bit. The loop vectorizes (no gathers).
+    The packed pixels reach beyond every sample (``core.burley._compiled``); the row and the
+    column are clamped to them all the same, so that nothing outside them is ever read."""
     for k in range(tables.shape[2]):
         ca = rc * tables[2, g, k] - rsn * tables[3, g, k]
         sa = rsn * tables[2, g, k] + rc * tables[3, g, k]
@@ -712,16 +719,25 @@ def _burley_positions(xf, yf, s, rc, rsn, tables, g, wl, hl, w, js, inside):
         yc = _clip(ys, hl)
         # 32-bit index arithmetic (Numba widens integer products to 64 bits; the truncation
         # lets LLVM keep 16 lanes per 512-bit register): frames have fewer than 2^31 / 3 pixels.
-        js[k] = np.int32(np.int32(yc) * np.int32(w) + np.int32(xc))
+        row = np.int32(yc) - np.int32(py0)
+        row = row if row > np.int32(0) else np.int32(0)
+        row = row if row < np.int32(ph) else np.int32(ph - 1)
+        col = np.int32(xc) - np.int32(px0)
+        col = col if col > np.int32(0) else np.int32(0)
+        col = col if col < np.int32(pw) else np.int32(pw - 1)
+        js[k] = np.int32(row * np.int32(pw) + col)
         inside[k] = (xc == xs) & (yc == ys)
 
 
 @njit(cache=True, error_model="numpy", fastmath={"reassoc", "contract"})
-def _burley_pixel(light, zkey, area, ids, q, tables, g, js, inside, k0, k1, k2, sums):
+def _burley_pixel(packed, area, ids, id_base, q, tables, g, js, inside, k0, k1, k2, sums):
     """The spiral samples of pixel ``q``, read where ``_burley_positions`` put them, summed
-    into ``sums`` (num R, G, B, den R, G, B). ``light`` flat RGB, ``zkey`` flat (the depth
-    where pixels take part, +inf elsewhere), ``area`` flat (the surface each pixel covers, which
-    weighs its samples), ``ids`` flat object ids or one 0 for none; ``tables[:, g]`` the spiral.
+    into ``sums`` (num R, G, B, den R, G, B). ``packed`` flat (R, G, B, depth key) per pixel
+    of the packed rows (``burley_pack``: 0, 0, 0, +inf where pixels take no part; one 64-byte
+    cache line holds a sample's four values), ``q`` and ``js`` index it, and ``area`` (the
+    surface each packed pixel covers, which weighs its samples); ``ids`` flat object
+    ids of the frame (a packed index plus ``id_base``: the packed rows are whole rows when there
+    are ids) or one 0 for none; ``tables[:, g]`` the spiral.
 
     The loop over the samples vectorizes (a gather per value read), with the weights and sums
     reassociated and fused (``fastmath`` "reassoc" and "contract": the sums in another order,
@@ -729,8 +745,8 @@ def _burley_pixel(light, zkey, area, ids, q, tables, g, js, inside, k0, k1, k2, 
     weights by exactly 0 (off the image, off the mask, another object) is selected away (its
     light may be NaN)."""
     use_ids = ids.size > 1
-    own = ids[q] if use_ids else ids[0]
-    zc = zkey[q]
+    own = ids[q + id_base] if use_ids else ids[0]
+    zc = packed[np.int32(np.int32(4) * np.int32(q) + np.int32(3))]
     n0 = _ZERO
     n1 = _ZERO
     n2 = _ZERO
@@ -738,17 +754,17 @@ def _burley_pixel(light, zkey, area, ids, q, tables, g, js, inside, k0, k1, k2, 
     d1 = _ZERO
     d2 = _ZERO
     for k in range(js.size):
-        j = js[k]
-        zj = zkey[j]
+        j4 = np.int32(js[k] * np.int32(4))
+        zj = packed[np.int32(j4 + np.int32(3))]
         valid = inside[k] & (zj < _INF)
         if use_ids:
-            valid &= ids[j] == own
+            valid &= ids[js[k] + id_base] == own
         rp = zj - zc
         rp *= rp
         rp += tables[1, g, k]
         rp = math.sqrt(rp)
         ratio = tables[4, g, k] / (rp if rp > _TINY else _TINY)
-        ratio *= area[j]
+        ratio *= area[js[k]]
         e3 = _exp(rp * k0)
         w0 = (e3 * e3 * e3 + e3) * ratio
         e3 = _exp(rp * k1)
@@ -758,10 +774,9 @@ def _burley_pixel(light, zkey, area, ids, q, tables, g, js, inside, k0, k1, k2, 
         d0 += w0 if valid else _ZERO
         d1 += w1 if valid else _ZERO
         d2 += w2 if valid else _ZERO
-        j3 = np.int32(j * np.int32(3))
-        n0 += w0 * light[j3] if valid else _ZERO
-        n1 += w1 * light[np.int32(j3 + np.int32(1))] if valid else _ZERO
-        n2 += w2 * light[np.int32(j3 + np.int32(2))] if valid else _ZERO
+        n0 += w0 * packed[j4] if valid else _ZERO
+        n1 += w1 * packed[np.int32(j4 + np.int32(1))] if valid else _ZERO
+        n2 += w2 * packed[np.int32(j4 + np.int32(2))] if valid else _ZERO
     sums[0] = n0
     sums[1] = n1
     sums[2] = n2
@@ -836,13 +851,22 @@ def surface_area(depth, ok, far, ortho, f, cx, cy, min_cos, y0, y1, x0, x1, area
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def burley_zkey(ok, depth, zkey):
-    """``zkey`` = the depth where ``ok``, +inf elsewhere (a sample's test of the pixel it reads
-    is then one float comparison, not a gather of bytes)."""
-    h, w = ok.shape
-    for y in prange(h):
-        for x in range(w):
-            zkey[y, x] = depth[y, x] if ok[y, x] else _INF
+def burley_pack(light, depth, ok, area, y0, x0, packed, packed_area):
+    """``packed`` (rows, columns, 4): the rows from y0 and columns from x0 of the frame as (R,
+    G, B, depth) where ``ok``, (0, 0, 0, +inf) elsewhere (the reference's packed items: a
+    pixel that takes no part gives no light and its weight is 0), so that a sample's four
+    values are one aligned 16-byte read; ``packed_area`` (rows, columns) the same pixels of
+    ``area``."""
+    for i in prange(packed.shape[0]):
+        y = y0 + i
+        for j in range(packed.shape[1]):
+            x = x0 + j
+            o = ok[y, x]
+            packed[i, j, 0] = light[y, x, 0] if o else _ZERO
+            packed[i, j, 1] = light[y, x, 1] if o else _ZERO
+            packed[i, j, 2] = light[y, x, 2] if o else _ZERO
+            packed[i, j, 3] = depth[y, x] if o else _INF
+            packed_area[i, j] = area[y, x]
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -870,19 +894,22 @@ def burley_angles(ok, seed, y0, x0, phi):
 #: tile's pixels then read a window of the frame (the tile plus the spiral's reach) that stays
 #: in the second-level cache at any resolution, where whole rows' windows would not at 4K.
 #: With the clean-up, a tile gathers its pixels plus ``radius`` of margin on each side
-#: (recomputed by its neighbours: 2 radius / BLOCK_ROWS more work) into a buffer of the tile
-#: that the clean-up reads, instead of a whole scattered frame.
-BLOCK_ROWS = 32
-TILE_COLS = 256
+#: (recomputed by its neighbours: 2 radius (1 / BLOCK_ROWS + 1 / TILE_COLS) more work) into a
+#: buffer of the tile that the clean-up reads, instead of a whole scattered frame. Measured
+#: (CPU time, one thread, 1080p / 4K): 32 x 256 350 / 1610 ms, 64 x 64 370 / 1518 ms, 64 x 128
+#: 330 / 1430 ms, 128 x 128 331 / 1431 ms, 16 x 32 385 / 1894 ms.
+BLOCK_ROWS = 64
+TILE_COLS = 128
 
 
 @njit(cache=True, error_model="numpy")
 def _burley_tile(
-    light, zkey, area, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, ya, yb, xa, xb,
-    buf,
+    light, packed, packed_area, py0, px0, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d,
+    reach, ya, yb, xa, xb, buf,
 ):  # fmt: skip
     """core.burley's gather (the scattered light, before the albedo) of the pixels ``ok`` of
-    rows ``ya``..``yb`` - 1 and columns ``xa``..``xb`` - 1 into ``buf`` (from (ya, xa), 3);
+    rows ``ya``..``yb`` - 1 and columns ``xa``..``xb`` - 1 into ``buf`` (3, from (ya, xa)),
+    reading the samples from ``packed`` (``burley_pack``, rows from ``py0``, columns from ``px0``);
     ``rot_cos``/``rot_sin`` hold rows from ``rot_y0`` and columns from ``rot_x0``."""
     h, w = ok.shape
     rotate = rot_cos.size > 1
@@ -892,9 +919,10 @@ def _burley_tile(
     k0 = -inv3d[0]
     k1 = -inv3d[1]
     k2 = -inv3d[2]
-    light_flat = light.reshape(-1)
-    zflat = zkey.reshape(-1)
-    aflat = area.reshape(-1)
+    ph = packed.shape[0]
+    pw = packed.shape[1]
+    flat = packed.reshape(-1)
+    area = packed_area.reshape(-1)
     sums = np.empty(6, np.float32)
     js = np.empty(tables.shape[2], np.int32)
     inside = np.empty(tables.shape[2], np.bool_)
@@ -906,29 +934,32 @@ def _burley_tile(
             rc = rot_cos[y - rot_y0, x - rot_x0] if rotate else rot_cos[0, 0]
             rsn = rot_sin[y - rot_y0, x - rot_x0] if rotate else rot_sin[0, 0]
             g = group[y, x] if grouped else 0
-            _burley_positions(f32(x), f32(y), s, rc, rsn, tables, g, wl, hl, w, js, inside)
-            _burley_pixel(light_flat, zflat, aflat, ids, y * w + x, tables, g, js, inside, k0, k1, k2, sums)
+            _burley_positions(f32(x), f32(y), s, rc, rsn, tables, g, wl, hl, py0, px0, ph, pw, js, inside)
+            q = (y - py0) * pw + x - px0
+            _burley_pixel(flat, area, ids, py0 * w, q, tables, g, js, inside, k0, k1, k2, sums)
             for c in range(3):
                 den = sums[3 + c]
                 if reach[c] <= 0.0 or reach[c] * np.float64(s) <= 1.0 or den <= _TINY:
                     v = light[y, x, c]
                 else:
                     v = sums[c] / den
-                buf[y - ya, x - xa, c] = v
+                buf[c, y - ya, x - xa] = v
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def burley_kernel(
-    light, zkey, area, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, extents, depth,
-    tol, radius, min_px, post, y_lo, y_hi, x_lo, x_hi, out,
+    light, packed, packed_area, py0, px0, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d,
+    reach, extents, depth, tol, radius, min_px, post, y_lo, y_hi, x_lo, x_hi, out,
 ):  # fmt: skip
     """core.burley's gather and clean-up (``_smooth``, when ``radius`` > 0) over the pixels
     ``ok`` of rows ``y_lo``..``y_hi`` - 1 and columns ``x_lo``..``x_hi`` - 1 (which hold all
     those of these rows), times ``post``, into ``out``.
 
-    ``zkey`` (H, W): the depth where ``ok``, +inf elsewhere (``burley_zkey``); ``area`` (H, W):
-    the surface each pixel covers over a pixel facing the camera (``core.burley.surface_area``),
-    a factor of its samples' weights; ``tables``
+    ``packed`` (``burley_pack``) rows from ``py0`` and columns from ``px0`` (every pixel a sample
+    of these pixels reaches; whole rows when there are ids), with ``packed_area`` the surface
+    each of them covers over a pixel facing the camera (``core.burley.surface_area``), a factor
+    of its samples' weights:
+    per pixel (R, G, B, depth) where ``ok``, (0, 0, 0, +inf) elsewhere; ``tables``
     (5, G, n): per object group the spiral's radii, radii squared, cosines, sines and inverse
     pdfs; ``group`` (H, W) each pixel's group, or (1, 1) for one group; ``reach`` (3,) float64,
     16 d_c per channel (0: the channel keeps its light; so does a channel whose reach times the
@@ -945,8 +976,6 @@ def burley_kernel(
     Work items are tiles (``BLOCK_ROWS``, ``TILE_COLS``), gathered with their ``radius`` pixels
     of margin into a buffer of the tile: nothing the size of a frame is allocated."""
     h, w = ok.shape
-    grouped = group.size > 1
-    use_ids = ids.size > 1
     r = max(radius, 0)
     n_cols = (x_hi - x_lo + TILE_COLS - 1) // TILE_COLS
     n_rows = (y_hi - y_lo + BLOCK_ROWS - 1) // BLOCK_ROWS
@@ -965,32 +994,70 @@ def burley_kernel(
                 any_ok |= ok[y, x]
         if not any_ok:
             continue
-        buf = np.empty((yb - ya, xb - xa, 3), np.float32)
+        buf = np.zeros((3, yb - ya, xb - xa), np.float32)
         _burley_tile(
-            light, zkey, area, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, ya, yb,
-            xa, xb, buf,
+            light, packed, packed_area, py0, px0, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0,
+            inv3d, reach, ya, yb, xa, xb, buf,
         )  # fmt: skip
-        for y in range(y0, y1):
-            for x in range(x0, x1):
-                if not ok[y, x]:
-                    continue
-                px = np.float64(scale[y, x])
+        _burley_clean(
+            ok, scale, ids, group, reach, extents, depth, tol, r, min_px, post, buf, ya, xa, y0, y1, x0, x1, out
+        )
+
+
+@njit(cache=True, error_model="numpy")
+def _burley_clean(ok, scale, ids, group, reach, extents, depth, tol, r, min_px, post, buf, ya, xa, y0, y1, x0, x1, out):
+    """The clean-up (``core.burley._smooth``) of the tile's rows ``y0``..``y1`` - 1 and columns
+    ``x0``..``x1`` - 1 from their gathered light ``buf`` (3, rows from ``ya``, columns from
+    ``xa``: the tile and ``r`` pixels of margin), times ``post``, into ``out``: per row and
+    channel, a loop over the row's pixels for each neighbour (dy, then dx, the reference's
+    order of the float64 sums), which vectorizes; a channel whose footprint is below ``min_px``
+    keeps its gathered light."""
+    h, w = ok.shape
+    grouped = group.size > 1
+    use_ids = ids.size > 1
+    n = x1 - x0
+    total = np.empty(n, np.float64)
+    count = np.empty(n, np.float64)
+    keep = np.empty(n, np.bool_)
+    for y in range(y0, y1):
+        for c in range(3):
+            any_keep = False
+            for i in range(n):
+                x = x0 + i
                 g = group[y, x] if grouped else 0
-                zc = depth[y, x]
-                own = ids[y * w + x] if use_ids else ids[0]
-                for c in range(3):
-                    v = buf[y - ya, x - xa, c]
-                    if r > 0 and px * min(reach[c], extents[g]) >= min_px:
-                        total = 0.0
-                        count = 0.0
-                        for ny in range(max(y - r, 0), min(y + r + 1, h)):
-                            for nx in range(max(x - r, 0), min(x + r + 1, w)):
-                                if not ok[ny, nx] or (use_ids and ids[ny * w + nx] != own):
-                                    continue
-                                if abs(depth[ny, nx] - zc) <= tol[c]:
-                                    total += np.float64(buf[ny - ya, nx - xa, c])
-                                    count += 1.0
-                        v = f32(total / max(count, 1.0))
+                k = r > 0 and ok[y, x] and np.float64(scale[y, x]) * min(reach[c], extents[g]) >= min_px
+                keep[i] = k
+                any_keep |= k
+            if any_keep:
+                total[:] = 0.0
+                count[:] = 0.0
+                tc = tol[c]
+                own_z = depth[y]
+                own_ids = ids[y * w : (y + 1) * w] if use_ids else ids
+                for ny in range(max(y - r, 0), min(y + r + 1, h)):
+                    ok_row = ok[ny]
+                    z_row = depth[ny]
+                    id_row = ids[ny * w : (ny + 1) * w] if use_ids else ids
+                    b_row = buf[c, ny - ya]
+                    for dx in range(-r, r + 1):
+                        lo = max(x0, -dx)
+                        hi = min(x1, w - dx)
+                        # Unsigned offsets: no wrap-around tests, so that the loop vectorizes.
+                        xo = _u64(lo)
+                        no = _u64(lo + dx)
+                        bo = _u64(lo + dx - xa)
+                        io = _u64(lo - x0)
+                        for t in range(hi - lo):
+                            ut = _u64(t)
+                            take = ok_row[no + ut] & (abs(z_row[no + ut] - own_z[xo + ut]) <= tc)
+                            if use_ids:
+                                take &= id_row[no + ut] == own_ids[xo + ut]
+                            total[io + ut] += np.float64(b_row[bo + ut]) if take else 0.0
+                            count[io + ut] += 1.0 if take else 0.0
+            for i in range(n):
+                x = x0 + i
+                if ok[y, x]:
+                    v = f32(total[i] / max(count[i], 1.0)) if keep[i] else buf[c, y - ya, x - xa]
                     out[y, x, c] = post[y, x, c] * v
 
 

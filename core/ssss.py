@@ -344,7 +344,7 @@ def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode):
     the albedo x diffuse frame."""
     f32 = np.float32
     c = np.ascontiguousarray
-    out, ok, scale, box, extent_su = _arrays.compiled_pixels(e, a, z, m, camera)
+    out, ok, scale, box, extent_su, _ = _arrays.compiled_pixels(e, a, z, m, camera)
     if box is None:
         return out
     kernel = over_object(extent_su)

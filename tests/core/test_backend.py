@@ -191,9 +191,11 @@ def test_burley_rotation_of_any_seed_matches_the_reference(seed):
 
 
 def test_burley_tiles_and_bands_match_the_reference(monkeypatch):
-    # The compiled gather works on tiles of 32 rows x 256 columns within bands of rows (each
-    # band with its own rotation): a frame wider than a tile, cut into bands of 16 rows here,
-    # against the reference, with object ids and the clean-up's margins across tiles and bands.
+    # The compiled gather works on tiles of 64 rows x 128 columns within bands of rows (each
+    # band with its own rotation and its packed copy of the rows its samples reach): a frame
+    # wider than a tile, cut into bands of 16 rows here, against the reference, with object ids
+    # (whole packed rows) and the clean-up's margins across tiles and bands; then without ids
+    # on a mask away from the frame's edges (packed columns around the mask only).
     from sss_lab.core import burley as burley_module
 
     monkeypatch.setattr(burley_module, "_BAND_ROWS", 16)
@@ -202,5 +204,12 @@ def test_burley_tiles_and_bands_match_the_reference(monkeypatch):
         diffuse=passes["Diffuse Direct"] + passes["Diffuse Indirect"], albedo=albedo, depth=passes["Depth"],
         mask=passes["Material Index"] > 0, camera=scene.camera, d_su=(0.2, 0.08, 0.04),
         object_id=passes["Object Index"], seed=11,
+    )  # fmt: skip
+    assert np.isfinite(out).all()
+    inner = np.zeros((40, 300), bool)
+    inner[5:33, 140:290] = True
+    out = burley(
+        diffuse=passes["Diffuse Direct"] + passes["Diffuse Indirect"], albedo=albedo, depth=passes["Depth"],
+        mask=inner & (passes["Material Index"] > 0), camera=scene.camera, d_su=(0.2, 0.08, 0.04), seed=11,
     )  # fmt: skip
     assert np.isfinite(out).all()
