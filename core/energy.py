@@ -378,12 +378,17 @@ def surface_curvature(normal, position, mask, radius_px: int = 1) -> tuple[np.nd
     image axis crosses it). Each is then averaged over the pixels on the mask within
     ``radius_px`` (a square of 2 radius_px + 1; a flat-shaded mesh's edges spread over the faces
     beside them, as far as a walk reaches); 0 where no neighbour is on the mask."""
-    n = np.asarray(normal, np.float64)[..., :3]
-    p = np.asarray(position, np.float64)[..., :3]
+    return _smoothed_curvature(_curvature_per_pixel(normal, position, mask), radius_px)
+
+
+def _curvature_per_pixel(normal, position, mask):
+    """``surface_curvature`` before its average: (mean, largest, valid, on) per pixel."""
+    n = np.asarray(normal, np.float32)[..., :3]
+    p = np.asarray(position, np.float32)[..., :3]
     m = np.asarray(mask, dtype=bool) & np.isfinite(n).all(-1) & np.isfinite(p).all(-1)
-    length = np.linalg.norm(n, axis=-1, keepdims=True)
+    length = np.sqrt(np.einsum("...i,...i->...", n, n))[..., None]
     m &= length[..., 0] > 0.5
-    n = np.where(m[..., None], n / np.where(length > 0, length, 1.0), 0.0)
+    n = np.where(m[..., None], n / np.where(length > 0, length, np.float32(1.0)), np.float32(0.0))
     total = np.zeros(m.shape)
     count = np.zeros(m.shape)
     most = np.full(m.shape, -np.inf)
@@ -401,18 +406,24 @@ def surface_curvature(normal, position, mask, radius_px: int = 1) -> tuple[np.nd
         n_a = np.where(ok_p[..., None], np.roll(n, 1, axis=axis), n)
         p_a = np.where(ok_p[..., None], np.roll(p, 1, axis=axis), p)
         dp = p_b - p_a
-        dd = (dp * dp).sum(-1)
+        dd = np.einsum("...i,...i->...", dp, dp)
         ok = m & (ok_n | ok_p) & (dd > 0)
-        k = np.where(ok, ((n_b - n_a) * dp).sum(-1) / np.where(ok, dd, 1.0), 0.0)
+        k = np.where(ok, np.einsum("...i,...i->...", n_b - n_a, dp) / np.where(ok, dd, np.float32(1.0)), 0.0)
         total += k
         count += ok
         most = np.where(ok, np.maximum(most, k), most)
     valid = count > 0
+    return np.where(valid, total / np.maximum(count, 1), 0.0), np.where(valid, most, 0.0), valid, m
+
+
+def _smoothed_curvature(parts, radius_px: int) -> tuple[np.ndarray, np.ndarray]:
+    """``surface_curvature``'s average of ``_curvature_per_pixel``'s ``parts`` over ``radius_px``."""
+    mean, most, valid, m = parts
     weight = valid.astype(np.float64)
     r = max(1, int(radius_px))
     near = _box_sum(weight, r)
     out = []
-    for h in (np.where(valid, total / np.maximum(count, 1), 0.0), np.where(valid, most, 0.0)):
+    for h in (mean, most):
         out.append(np.where(m & (near > 0), _box_sum(h * weight, r) / np.maximum(near, 1.0), 0.0).astype(np.float32))
     return out[0], out[1]
 
@@ -598,7 +609,8 @@ def apply_energy(
     ppu = float(np.median(scales[scales > 0])) if (scales > 0).any() else 0.0
     reach = [int(np.clip(round(v * ppu), 1, CURVATURE_REACH_PX)) for v in ell]
     nb, pb = np.asarray(normal)[box], np.asarray(position)[box]
-    maps = {r: surface_curvature(nb, pb, mb, radius_px=r) for r in sorted(set(reach))}
+    parts = _curvature_per_pixel(nb, pb, mb)
+    maps = {r: _smoothed_curvature(parts, r) for r in sorted(set(reach))}
     mean = np.stack([maps[r][0][mb] for r in reach], axis=1).astype(np.float64)
     largest = maps[max(reach)][1][mb].astype(np.float64)
     convex = convex_gain(method, a, mean * ell[None, :])
