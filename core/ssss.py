@@ -273,12 +273,14 @@ def _filter(
     elif not isinstance(kernel, SeparableKernel):
         raise ValueError(f"kernel: expected a core.kernels.SeparableKernel, got {type(kernel).__name__}")
 
+    built: SeparableKernel = kernel  # not None from here on (mypy cannot see it in the closure)
+
     def over_object(extent_su: float) -> SeparableKernel:
         # Taps beyond the object's extent would all land off it and give their weight back to the
         # centre (no scattering at all for a radius far too large): lay the kernel over the object
         # instead (core.extent), rebuilt from its parameters, so that every backend filters with it.
-        if kernel.radius_su <= extent_su:
-            return kernel
+        if built.radius_su <= extent_su:
+            return built
         if given is None:
             return make_kernel(kernel_type, n_taps, d_su=d_su, radius_su=extent_su, **artist)
         return bounded(given, extent_su)
