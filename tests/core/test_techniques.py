@@ -81,18 +81,25 @@ def _second_moment(img, cy, cx):
     return (img * r2[..., None]).sum(axis=(0, 1)) / img.sum(axis=(0, 1))
 
 
-def test_sta_medium_falloff_filters_light_through_the_materials_medium():
-    # A jade-like walk (green Base Color, red going furthest) seen straight on, a sun straight
-    # behind: translucency 1, 0.75 and 0.19 against the bake distance D = 0.02 are slabs of 0,
-    # 1 and 1.8 cm (x = D sqrt(1 - t), the bake's slab law).
-    from sss_lab.core.combined import Medium, slab_transmittance_rgb
-
+def _three_pixels_lit_from_behind():
+    """A row of three pixels facing an orthographic camera, a sun of irradiance pi straight behind
+    them (shining towards the camera): (camera, normal, position, light)."""
     cam = Camera(type="ORTHO", width_px=3, height_px=1)
     n = np.zeros((1, 3, 3), np.float32)
     n[..., 2] = 1.0
     p = np.zeros((1, 3, 3), np.float32)
     p[..., 2] = -5.0
     back = Light(type="SUN", energy=math.pi, matrix_world=(1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1))
+    return cam, n, p, back
+
+
+def test_sta_medium_falloff_filters_light_through_the_materials_medium():
+    # A jade-like walk (green Base Color, red going furthest) seen straight on, a sun straight
+    # behind: translucency 1, 0.75 and 0.19 against the bake distance D = 0.02 are slabs of 0,
+    # 1 and 1.8 cm (x = D sqrt(1 - t), the bake's slab law).
+    from sss_lab.core.combined import Medium, slab_transmittance_rgb
+
+    cam, n, p, back = _three_pixels_lit_from_behind()
     base = (0.3, 0.8, 0.4)
     mfp = (0.004, 0.002, 0.001)
     # Diffuse Color = Base Color x 0.9 (a specular layer's share): the exit weight is 0.9 everywhere.
@@ -389,12 +396,7 @@ def test_bad_input_names_the_value(fn):
 
 
 def test_sta_burley_falloff_filters_light_by_thickness_per_channel():
-    cam = Camera(type="ORTHO", width_px=3, height_px=1)
-    n = np.zeros((1, 3, 3), np.float32)
-    n[..., 2] = 1.0
-    p = np.zeros((1, 3, 3), np.float32)
-    p[..., 2] = -5.0
-    back = Light(type="SUN", energy=math.pi, matrix_world=(1, 0, 0, 0, 0, -1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1))
+    cam, n, p, back = _three_pixels_lit_from_behind()
     # Translucency 1 (no thickness), 0.75 and 0 (thicker than the bake distance D = 0.04).
     tau = np.array([[1.0, 0.75, 0.0]], np.float32)
     d = (0.01, 0.004, 0.002)
