@@ -433,15 +433,15 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
     if id_map.size > 1 and np.iinfo(np.int32).min <= id_map.min() and id_map.max() <= np.iinfo(np.int32).max:
         id_map = id_map.astype(np.int32)  # the same ids, gathered 16 per 512-bit register instead of 8
     z = c(z, dtype=f32)
-    area = np.ones(ok.shape, f32)
     h, w = ok.shape
     if camera.type == "ORTHO":
         ortho, f, cx, cy = True, float(camera.ortho_px_per_unit), w / 2, h / 2
     else:
         ortho, f = False, float(camera.focal_px)
         cx, cy = w / 2 - camera.shift_x * max(w, h), h / 2 + camera.shift_y * max(w, h)
-    far = np.float32(_arrays.BACKGROUND_DEPTH)
-    backend.run_kernel("surface_area", z, ok, far, ortho, f, cx, cy, MIN_VIEW_COSINE, *box, area)
+    # The surface each pixel covers (``surface_area``), computed by ``burley_pack`` for the pixels
+    # each band's samples reach.
+    area_args = (np.float32(_arrays.BACKGROUND_DEPTH), ortho, f, cx, cy, MIN_VIEW_COSINE)
     light = c(light, dtype=f32)
     post = c(post, dtype=f32)
     reach = np.asarray(reach_c, np.float64)
@@ -471,7 +471,7 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
         py0 = max(y_lo - margin, 0)
         rows = packed[: min(y_hi + margin, h) - py0]
         rows_area = packed_area[: rows.shape[0]]
-        backend.run_kernel("burley_pack", light, z, ok, area, py0, px0, rows, rows_area)
+        backend.run_kernel("burley_pack", light, z, ok, *area_args, py0, px0, rows, rows_area)
         rot_y0 = rot_x0 = 0
         if random_rotation:
             rot_y0, rot_x0 = max(y_lo - radius, r0), c0

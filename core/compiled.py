@@ -859,35 +859,40 @@ def surface_area(depth, ok, far, ortho, f, cx, cy, min_cos, y0, y1, x0, x1, area
     valid depth)."""
     for y in prange(y0, y1):
         for x in range(x0, x1):
-            if not ok[y, x]:
-                area[y, x] = _ONE
-                continue
-            if not 0.0 < depth[y, x] < far:
-                area[y, x] = f32(1.0 / max(1.0, min_cos))
-                continue
-            px, py, pz = _camera_point(np.float64(y), np.float64(x), np.float64(depth[y, x]), ortho, f, cx, cy)
-            ax, ay, az, found_x = _axis_step(depth, ok, far, y, x, 0, 1, px, py, pz, ortho, f, cx, cy)
-            bx, by, bz, found_y = _axis_step(depth, ok, far, y, x, 1, 0, px, py, pz, ortho, f, cx, cy)
-            cos = 1.0
-            if found_x and found_y:
-                nx = ay * bz - az * by
-                ny = az * bx - ax * bz
-                nz = ax * by - ay * bx
-                vx, vy, vz = (0.0, 0.0, 1.0) if ortho else (-px, -py, -pz)
-                den = math.sqrt(nx * nx + ny * ny + nz * nz) * math.sqrt(vx * vx + vy * vy + vz * vz)
-                c = abs(nx * vx + ny * vy + nz * vz) / den if den > 0.0 else np.nan
-                if c == c:
-                    cos = min(max(c, 0.0), 1.0)
-            area[y, x] = f32(1.0 / max(cos, min_cos))
+            area[y, x] = _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x):
+    """``surface_area``'s value at pixel (``y``, ``x``)."""
+    if not ok[y, x]:
+        return _ONE
+    if not 0.0 < depth[y, x] < far:
+        return f32(1.0 / max(1.0, min_cos))
+    px, py, pz = _camera_point(np.float64(y), np.float64(x), np.float64(depth[y, x]), ortho, f, cx, cy)
+    ax, ay, az, found_x = _axis_step(depth, ok, far, y, x, 0, 1, px, py, pz, ortho, f, cx, cy)
+    bx, by, bz, found_y = _axis_step(depth, ok, far, y, x, 1, 0, px, py, pz, ortho, f, cx, cy)
+    cos = 1.0
+    if found_x and found_y:
+        nx = ay * bz - az * by
+        ny = az * bx - ax * bz
+        nz = ax * by - ay * bx
+        vx, vy, vz = (0.0, 0.0, 1.0) if ortho else (-px, -py, -pz)
+        den = math.sqrt(nx * nx + ny * ny + nz * nz) * math.sqrt(vx * vx + vy * vy + vz * vz)
+        c = abs(nx * vx + ny * vy + nz * vz) / den if den > 0.0 else np.nan
+        if c == c:
+            cos = min(max(c, 0.0), 1.0)
+    return f32(1.0 / max(cos, min_cos))
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def burley_pack(light, depth, ok, area, y0, x0, packed, packed_area):
+def burley_pack(light, depth, ok, far, ortho, f, cx, cy, min_cos, y0, x0, packed, packed_area):
     """``packed`` (rows, columns, 4): the rows from y0 and columns from x0 of the frame as (R,
     G, B, depth) where ``ok``, (0, 0, 0, +inf) elsewhere (the reference's packed items: a
     pixel that takes no part gives no light and its weight is 0), so that a sample's four
-    values are one aligned 16-byte read; ``packed_area`` (rows, columns) the same pixels of
-    ``area``."""
+    values are one aligned 16-byte read; ``packed_area`` (rows, columns) the surface each of
+    these pixels covers (``surface_area``, with its parameters ``far`` .. ``min_cos``; computed
+    here for the pixels the band's samples reach, not for a frame)."""
     for i in prange(packed.shape[0]):
         y = y0 + i
         for j in range(packed.shape[1]):
@@ -897,7 +902,7 @@ def burley_pack(light, depth, ok, area, y0, x0, packed, packed_area):
             packed[i, j, 1] = light[y, x, 1] if o else _ZERO
             packed[i, j, 2] = light[y, x, 2] if o else _ZERO
             packed[i, j, 3] = depth[y, x] if o else _INF
-            packed_area[i, j] = area[y, x]
+            packed_area[i, j] = _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
