@@ -409,10 +409,10 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
     dmax = float(d.max())
     if ids is not None:
         m = m & np.isfinite(ids)
-    out, ok, scale, box, extent_su, largest = _arrays.compiled_pixels(e, a, z, m, camera, TRUNCATION * dmax, 1.0)
+    out, ok, cam, box, extent_su, largest = _arrays.compiled_pixels(e, a, z, m, camera, TRUNCATION * dmax, 1.0)
     if box is None:
         return out
-    groups = group_extents(ok, scale, ids) if ids is not None else [(None, extent_su)]
+    groups = group_extents(ok, camera.pixels_per_unit(z), ids) if ids is not None else [(None, extent_su)]
     pre, post = _arrays.split_albedo(a, albedo_mode)
     light = e if pre is None else pre * e
     inv3d = _inv3d(d)
@@ -480,7 +480,7 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
             rot_sin = np.sin(phi)  # NumPy's cosine and sine, as the reference's
             rot_cos = np.cos(phi, out=phi)
         backend.run_kernel(
-            "burley_kernel", light, rows, rows_area, py0, px0, ok, scale, id_map, group_map, tables, rot_cos, rot_sin,
+            "burley_kernel", light, rows, rows_area, py0, px0, ok, cam, id_map, group_map, tables, rot_cos, rot_sin,
             rot_y0, rot_x0, inv3d, reach, extents, z, tol, radius, SMOOTH_MIN_FOOTPRINT_PX, post, y_lo, y_hi, c0, c1,
             out,
         )  # fmt: skip

@@ -117,10 +117,19 @@ def _span(row):
 _BACKGROUND = f32(1e9)  # core._arrays.BACKGROUND_DEPTH, exactly a float32
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _scale_of(z, cam):
+    """A pixel's ``core.scene.Camera.pixels_per_unit`` at depth ``z`` (finite, > 0: a pixel that
+    takes part), float32 as NumPy computes it; ``cam`` = (1 for orthographic else 0, the
+    orthographic pixels per unit or the focal length in pixels). The kernels compute it where
+    they need it instead of reading a frame of it."""
+    return cam[1] if cam[0] != _ZERO else cam[1] / z
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
-def prepare_pixels(diffuse, albedo, depth, mask, is_ortho, focal, gate, threshold, out, ok, scale, spans, extremes):
+def prepare_pixels(diffuse, albedo, depth, mask, is_ortho, focal, gate, threshold, out, ok, spans, extremes):
     """What SSSS and Burley share before their kernels, in one pass over the frame (the NumPy
-    code takes a dozen): ``out`` = albedo x diffuse; ``scale`` = ``core.scene.Camera.
+    code takes a dozen): ``out`` = albedo x diffuse; with scale = ``core.scene.Camera.
     pixels_per_unit`` of ``depth`` as NumPy computes it in float32 (``is_ortho``: ``focal``, the
     camera's constant; else ``focal`` / depth; 0 where the depth or the quotient is not finite
     or the depth <= 0); ``ok`` = the pixels of ``mask``
@@ -153,7 +162,6 @@ def prepare_pixels(diffuse, albedo, depth, mask, is_ortho, focal, gate, threshol
             else:
                 s = focal / z
                 s = s if np.isfinite(s) and z > _ZERO else _ZERO
-            scale[y, x] = s
             take = mask[y, x] and z > _ZERO and z < _BACKGROUND
             take = take and np.isfinite(e0) and np.isfinite(e1) and np.isfinite(e2)
             take = take and np.isfinite(a0) and np.isfinite(a1) and np.isfinite(a2)
@@ -622,15 +630,16 @@ STRIP = 16
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def ssss_kernel(light, depth, ok, scale, follow, gate, offsets, weights, wsum, post, box, out):
+def ssss_kernel(light, depth, ok, cam, follow, gate, offsets, weights, wsum, post, box, out):
     """core.ssss's two passes over the pixels that take part, into ``out`` (which holds the
     albedo times the light, kept where pixels take no part): along rows from ``light``,
     written into ``out``; then along columns, strip by strip of ``STRIP`` columns (a column's
     pass reads only that column), from a copy of the strip (0 where pixels take no part), times
     ``post``.
 
-    A pixel takes part where ``ok`` (``prepare_pixels``) and ``gate`` x ``scale`` > 0.5 (its
-    kernel spans more than a pixel), both float32 as the reference computes them; its key is
+    A pixel takes part where ``ok`` (``prepare_pixels``) and ``gate`` x scale > 0.5 (its
+    kernel spans more than a pixel; scale ``_scale_of`` its depth and ``cam``), both float32 as
+    the reference computes them; its key is
     ``depth`` x ``follow`` (the follow-surface factor), +inf for the others. ``offsets`` (n,)
     the non-zero taps in scene units, ``weights`` (n, 3) theirs, ``wsum`` (3,) the sum of all
     weights. Each line is read from planar buffers (R, G, B, key) of the line plus one padding
@@ -648,7 +657,7 @@ def ssss_kernel(light, depth, ok, scale, follow, gate, offsets, weights, wsum, p
         sc = np.zeros(w, np.float32)
         okr = np.zeros(w, np.bool_)
         for x in range(c0, c1):
-            s = scale[y, x]
+            s = _scale_of(depth[y, x], cam)
             o = ok[y, x] & (gate * s > half)
             okr[x] = o
             sc[x] = s
@@ -683,7 +692,7 @@ def ssss_kernel(light, depth, ok, scale, follow, gate, offsets, weights, wsum, p
             for i in range(m):
                 x = xa + i
                 for y in range(ya, min(ya + STRIP, r1)):
-                    s = scale[y, x]
+                    s = _scale_of(depth[y, x], cam)
                     o = ok[y, x] & (gate * s > half)
                     oks[i, y] = o
                     scs[i, y] = s
@@ -940,7 +949,7 @@ TILE_COLS = 128
 
 @njit(cache=True, error_model="numpy")
 def _burley_tile(
-    light, packed, packed_area, py0, px0, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d,
+    light, packed, packed_area, py0, px0, ok, cam, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d,
     reach, ya, yb, xa, xb, buf,
 ):  # fmt: skip
     """core.burley's gather (the scattered light, before the albedo) of the pixels ``ok`` of
@@ -966,7 +975,7 @@ def _burley_tile(
         for x in range(xa, xb):
             if not ok[y, x]:
                 continue
-            s = scale[y, x]
+            s = _scale_of(flat[np.int32(np.int32(4) * np.int32((y - py0) * pw + x - px0) + np.int32(3))], cam)
             rc = rot_cos[y - rot_y0, x - rot_x0] if rotate else rot_cos[0, 0]
             rsn = rot_sin[y - rot_y0, x - rot_x0] if rotate else rot_sin[0, 0]
             g = group[y, x] if grouped else 0
@@ -984,7 +993,7 @@ def _burley_tile(
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def burley_kernel(
-    light, packed, packed_area, py0, px0, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d,
+    light, packed, packed_area, py0, px0, ok, cam, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d,
     reach, extents, depth, tol, radius, min_px, post, y_lo, y_hi, x_lo, x_hi, out,
 ):  # fmt: skip
     """core.burley's gather and clean-up (``_smooth``, when ``radius`` > 0) over the pixels
@@ -1005,7 +1014,8 @@ def burley_kernel(
     (1, 1) holding 1 and 0 for none; ``ids`` flat object ids (int32 or int64), or one 0 for
     none.
 
-    The clean-up, per pixel of ``ok`` and channel c whose footprint (``scale`` x min(16 d_c,
+    A pixel's scale (pixels per scene unit) is ``_scale_of`` its depth and ``cam``.
+    The clean-up, per pixel of ``ok`` and channel c whose footprint (scale x min(16 d_c,
     the group's extent ``extents[g]``), float64) spans at least ``min_px``: the float64 mean of
     the scattered light over the (2 ``radius`` + 1)^2 box's pixels of ``ok`` with the same id
     and |``depth`` - own depth| <= ``tol[c]``, in the reference's order (rows, then columns).
@@ -1032,16 +1042,16 @@ def burley_kernel(
             continue
         buf = np.zeros((3, yb - ya, xb - xa), np.float32)
         _burley_tile(
-            light, packed, packed_area, py0, px0, ok, scale, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0,
+            light, packed, packed_area, py0, px0, ok, cam, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0,
             inv3d, reach, ya, yb, xa, xb, buf,
         )  # fmt: skip
         _burley_clean(
-            ok, scale, ids, group, reach, extents, depth, tol, r, min_px, post, buf, ya, xa, y0, y1, x0, x1, out
+            ok, cam, ids, group, reach, extents, depth, tol, r, min_px, post, buf, ya, xa, y0, y1, x0, x1, out
         )
 
 
 @njit(cache=True, error_model="numpy")
-def _burley_clean(ok, scale, ids, group, reach, extents, depth, tol, r, min_px, post, buf, ya, xa, y0, y1, x0, x1, out):
+def _burley_clean(ok, cam, ids, group, reach, extents, depth, tol, r, min_px, post, buf, ya, xa, y0, y1, x0, x1, out):
     """The clean-up (``core.burley._smooth``) of the tile's rows ``y0``..``y1`` - 1 and columns
     ``x0``..``x1`` - 1 from their gathered light ``buf`` (3, rows from ``ya``, columns from
     ``xa``: the tile and ``r`` pixels of margin), times ``post``, into ``out``: per row and
@@ -1061,7 +1071,7 @@ def _burley_clean(ok, scale, ids, group, reach, extents, depth, tol, r, min_px, 
             for i in range(n):
                 x = x0 + i
                 g = group[y, x] if grouped else 0
-                k = r > 0 and ok[y, x] and np.float64(scale[y, x]) * min(reach[c], extents[g]) >= min_px
+                k = r > 0 and ok[y, x] and np.float64(_scale_of(depth[y, x], cam)) * min(reach[c], extents[g]) >= min_px
                 keep[i] = k
                 any_keep |= k
             if any_keep:

@@ -346,7 +346,7 @@ def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode):
     the albedo x diffuse frame."""
     f32 = np.float32
     c = np.ascontiguousarray
-    out, ok, scale, box, extent_su, _ = _arrays.compiled_pixels(e, a, z, m, camera)
+    out, ok, cam, box, extent_su, _ = _arrays.compiled_pixels(e, a, z, m, camera)
     if box is None:
         return out
     kernel = over_object(extent_su)
@@ -358,7 +358,7 @@ def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode):
         c(light, dtype=f32),
         c(z),
         ok,
-        scale,
+        cam,
         _follow(kernel, follow_surface),
         _arrays.float32_factor(kernel.radius_su),
         c(kernel.offsets_su[taps], dtype=f32),
