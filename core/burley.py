@@ -196,19 +196,22 @@ def burley(
     return apply_energy(out, **energy_inputs(locals()))
 
 
-#: The smallest view cosine ``surface_area`` reads: a pixel covers at most 5 times the surface of
+#: ``surface_area`` is at most 1 / MIN_VIEW_COSINE: a pixel covers at most 5 times the surface of
 #: one facing the camera (a silhouette's pixel would otherwise weigh without bound).
 MIN_VIEW_COSINE = 0.2
 
 
 def surface_area(depth, ok, camera: Camera) -> np.ndarray:
-    """The surface each pixel of ``ok`` covers over that of a pixel facing the camera at the same
-    depth, 1 / max(cos, ``MIN_VIEW_COSINE``) with cos the view cosine from the Depth pass
-    (``core.energy.view_cosine``, on the pixels' bounding box), float32 (H, W), C-contiguous; 1
-    elsewhere. A spiral sample stands for the screen area around it; on a surface seen at an
-    angle that is 1 / cos as much surface, and the profile integrates over the surface: at a
-    silhouette, where the cosine falls to 0, the samples on the rim are the larger part of the
-    surface the kernel covers, not the lit interior's (docs/references.md §17)."""
+    """The surface each pixel of ``ok`` covers over that of a pixel at its place in the image on a
+    plane at its depth facing the camera's axis: cos a / cos, with cos the view cosine from the
+    Depth pass (``core.energy.view_cosine``, on the pixels' bounding box) and a the angle of the
+    pixel's ray to the axis (0 for an orthographic camera), at most 1 / ``MIN_VIEW_COSINE``;
+    float32 (H, W), C-contiguous; 1 elsewhere and where the view cosine is unknown (no neighbour
+    on ``ok``: view_cosine's 1). A spiral sample stands for the screen area around it, which the
+    pixels' scale already turns into the surface of a plane facing the axis at that depth; a
+    surface turned away from it is cos a / cos times as large: at a silhouette, where the cosine
+    falls to 0, the samples on the rim are the larger part of the surface the kernel covers, not
+    the lit interior's (docs/references.md §17). A plane facing the axis reads 1 everywhere."""
     ok = np.asarray(ok, dtype=bool)
     out = np.ones(ok.shape, np.float32)
     if not ok.any():
@@ -216,7 +219,16 @@ def surface_area(depth, ok, camera: Camera) -> np.ndarray:
     rows, cols = np.flatnonzero(ok.any(axis=1)), np.flatnonzero(ok.any(axis=0))
     box = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
     cos = view_cosine(np.asarray(depth)[box], ok[box], camera, origin=(box[0].start, box[1].start), frame=ok.shape)
-    out[box] = np.where(ok[box], np.float32(1.0) / np.maximum(cos, np.float32(MIN_VIEW_COSINE)), np.float32(1.0))
+    axis = np.ones(cos.shape, np.float64)
+    if camera.type != "ORTHO":
+        h, w = ok.shape
+        f = camera.focal_px
+        cx = w / 2 - camera.shift_x * max(w, h)
+        cy = h / 2 + camera.shift_y * max(w, h)
+        ys, xs = np.mgrid[box[0], box[1]].astype(np.float64)
+        axis = 1.0 / np.sqrt(1.0 + ((xs + 0.5 - cx) / f) ** 2 + ((cy - ys - 0.5) / f) ** 2)
+    ratio = np.minimum(axis / np.maximum(cos.astype(np.float64), 1e-30), 1.0 / MIN_VIEW_COSINE)
+    out[box] = np.where(ok[box] & (cos < 1.0), ratio, 1.0).astype(np.float32)
     return out
 
 

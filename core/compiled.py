@@ -861,11 +861,12 @@ def _axis_step(depth, ok, far, y, x, dy, dx, px, py, pz, ortho, f, cx, cy):
 @njit(cache=True, parallel=True, error_model="numpy")
 def surface_area(depth, ok, far, ortho, f, cx, cy, min_cos, y0, y1, x0, x1, area):
     """``core.burley.surface_area`` over rows ``y0``..``y1`` - 1 and columns ``x0``..``x1`` - 1
-    (``area`` holds 1 elsewhere): 1 / max(cos, ``min_cos``) on the pixels ``ok``, with cos the view
-    cosine of ``core.energy.view_cosine`` (in float64: on each axis the difference to a neighbour
-    of ``ok`` with the smaller depth step, the normal their cross product), 1 where a pixel has no
-    neighbour of ``ok`` on an axis. Pixels count when their depth is in (0, ``far``) (the reference's
-    valid depth)."""
+    (``area`` holds 1 elsewhere): min(cos a / cos, 1 / ``min_cos``) on the pixels ``ok``, with cos
+    the view cosine of ``core.energy.view_cosine`` (in float64: on each axis the difference to a
+    neighbour of ``ok`` with the smaller depth step, the normal their cross product; then rounded
+    to float32 as the reference's) and a the angle of the pixel's ray to the camera's axis; 1
+    where a pixel has no neighbour of ``ok`` on an axis (a cosine of 1). Pixels count when their
+    depth is in (0, ``far``) (the reference's valid depth)."""
     for y in prange(y0, y1):
         for x in range(x0, x1):
             area[y, x] = _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x)
@@ -877,7 +878,7 @@ def _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x):
     if not ok[y, x]:
         return _ONE
     if not 0.0 < depth[y, x] < far:
-        return f32(1.0 / max(1.0, min_cos))
+        return _ONE
     px, py, pz = _camera_point(np.float64(y), np.float64(x), np.float64(depth[y, x]), ortho, f, cx, cy)
     ax, ay, az, found_x = _axis_step(depth, ok, far, y, x, 0, 1, px, py, pz, ortho, f, cx, cy)
     bx, by, bz, found_y = _axis_step(depth, ok, far, y, x, 1, 0, px, py, pz, ortho, f, cx, cy)
@@ -891,7 +892,16 @@ def _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x):
         c = abs(nx * vx + ny * vy + nz * vz) / den if den > 0.0 else np.nan
         if c == c:
             cos = min(max(c, 0.0), 1.0)
-    return f32(1.0 / max(cos, min_cos))
+    # The reference rounds the view cosine to float32 before the ratio.
+    cos = np.float64(f32(cos))
+    if cos >= 1.0:
+        return _ONE
+    axis = 1.0
+    if not ortho:
+        u = (x + 0.5 - cx) / f
+        v = (cy - y - 0.5) / f
+        axis = 1.0 / math.sqrt(1.0 + u * u + v * v)
+    return f32(min(axis / max(cos, 1e-30), 1.0 / min_cos))
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

@@ -63,6 +63,9 @@ SCALE = CAMERA.focal_px / DEPTH  # pixels per scene unit at the surfaces' depth 
 SKIN = MaterialSSS(index=1, name="Skin", method="BURLEY", subsurface_radius=(1.0, 0.5, 0.25), subsurface_scale=0.201)
 WAX = MaterialSSS(index=2, name="Wax", method="BURLEY", subsurface_radius=(0.5, 0.5, 0.4), subsurface_scale=0.201)
 FFT_TOL = 1e-5
+#: The node groups keep the passes' energy (docs/compositor.md): the NumPy techniques they are
+#: compared with run with energy="lambert" (their default, "object", models Cycles' energy).
+LAMBERT = {"energy": "lambert"}
 
 
 # -- running the compositor --------------------------------------------------------------------
@@ -274,7 +277,7 @@ def test_ssss_flat_matches_numpy(tmp_path, options):
     index = _two_materials()
     arrays = _passes(index, seed=2)
     desc = _desc(SKIN, WAX)
-    got, want = _composite(tmp_path, arrays, desc, "ssss", options)
+    got, want = _composite(tmp_path, arrays, desc, "ssss", options, numpy_only=LAMBERT)
     radius = max(
         separable_kernel_image(
             make_kernel(options["kernel_type"], options["n_taps"], d_su=mapping.burley_d(m)), SCALE
@@ -347,7 +350,7 @@ def test_burley_flat_quadratic_matches_numpy_by_the_kernel_moments(tmp_path):
     e = 1.0 + b * u[..., None] + c * v[..., None] + q * (u * u + v * v)[..., None] + t * (u * v)[..., None]
     albedo = np.random.default_rng(3).uniform(0.3, 0.9, (H, W, 3)).astype(np.float32)
     arrays = _passes(np.ones((H, W), np.int32), seed=3, diffuse=e.astype(np.float32), albedo=albedo)
-    got, want = _composite(tmp_path, arrays, _desc(SKIN), "burley", numpy_only=FIXED_SPIRAL)
+    got, want = _composite(tmp_path, arrays, _desc(SKIN), "burley", numpy_only={**FIXED_SPIRAL, **LAMBERT})
     d = mapping.burley_d(SKIN)
     kernel = burley_kernel_image(d, SCALE)
     mk, mn = _kernel_moments(kernel), _numpy_kernel_moments(d)
@@ -376,7 +379,7 @@ def test_burley_textured_matches_the_convolution_model_and_is_measured_against_n
     index = _two_materials()
     arrays = _passes(index, seed=4)
     desc = _desc(SKIN, WAX)
-    got, want = _composite(tmp_path, arrays, desc, "burley", {"albedo_mode": "post"})
+    got, want = _composite(tmp_path, arrays, desc, "burley", {"albedo_mode": "post"}, numpy_only=LAMBERT)
     # The NumPy model of the chain: per material, conv(E M) / conv(M) with the same kernel image.
     model = arrays["Combined"][..., :3].astype(np.float64)
     e = (arrays["Diffuse Direct"] + arrays["Diffuse Indirect"]).astype(np.float64)
@@ -413,13 +416,13 @@ def test_depth_varying_is_measured(tmp_path, technique):
         ("step", np.where(cols < W // 2, 1.6, 2.4)),
     ):
         arrays["Depth"] = depth.astype(np.float32)
-        got, want = _composite(tmp_path, arrays, _desc(SKIN), technique)
+        got, want = _composite(tmp_path, arrays, _desc(SKIN), technique, numpy_only=LAMBERT)
         combined = arrays["Combined"][..., :3]
         inner = np.zeros((H, W), bool)
         inner[12:-12, 12:-12] = True
         figures[case] = round(_rel_rms(got - combined, want - combined, inner), 4)
         if technique == "burley":  # without the 32-sample spiral's own error
-            many = apply(read_passes(str(tmp_path / "passes.exr")), _desc(SKIN), technique, n_samples=1024)[
+            many = apply(read_passes(str(tmp_path / "passes.exr")), _desc(SKIN), technique, n_samples=1024, **LAMBERT)[
                 "SSSLab.burley.Image"
             ]
             figures[f"{case} (numpy 1024 samples)"] = round(

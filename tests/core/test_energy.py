@@ -477,13 +477,23 @@ def test_burley_weighs_its_samples_by_the_surface_a_pixel_covers(kind, tilt):
     ok = np.zeros((h, w), bool)
     ok[4:28, 6:40] = True
     area = surface_area(z, ok, camera)
-    cos = energy.view_cosine(z, ok, camera)
-    np.testing.assert_allclose(area[ok], 1.0 / np.maximum(cos[ok], MIN_VIEW_COSINE), rtol=1e-6)
-    assert np.all(area[~ok] == 1.0)
-    if kind == "ORTHO" and tilt < 80:  # one view angle: 1 / cos(tilt) (at 85 degrees part of the plane is behind)
-        expected = 1.0 / max(math.cos(math.radians(tilt)), MIN_VIEW_COSINE)
-        np.testing.assert_allclose(area[ok], expected, rtol=2e-3)
-    # The compiled kernel computes the same (float64 in both, rounded to float32 once).
+    assert np.all(area[~ok] == 1.0) and np.all(area <= 1.0 / MIN_VIEW_COSINE)
+    if tilt == 0.0:
+        # A plane facing the camera's axis: every pixel covers the surface the pixels' scale says.
+        np.testing.assert_allclose(area, 1.0, rtol=1e-6)
+    elif tilt < 80:  # (at 85 degrees part of the plane is behind the camera)
+        # cos a / cos: the plane's normal n and each pixel's ray r (unit), cos = |n . r|, cos a = |r_z|.
+        ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+        if kind == "ORTHO":
+            ray = np.broadcast_to([0.0, 0.0, 1.0], (h, w, 3))
+        else:
+            f = camera.focal_px
+            ray = np.stack([(xs + 0.5 - w / 2) / f, (h / 2 - ys - 0.5) / f, -np.ones_like(xs)], -1)
+            ray = ray / np.linalg.norm(ray, axis=-1, keepdims=True)
+        n = np.array([0.0, math.sin(math.radians(tilt)), math.cos(math.radians(tilt))])
+        expected = np.minimum(np.abs(ray[..., 2]) / np.abs(ray @ n), 1.0 / MIN_VIEW_COSINE)
+        np.testing.assert_allclose(area[ok], expected[ok], rtol=3e-3)
+    # The compiled kernel computes the same (the view cosine rounded to float32 in both).
     got = np.ones((h, w), np.float32)
     if kind == "ORTHO":
         args = (True, float(camera.ortho_px_per_unit), w / 2, h / 2)
