@@ -464,8 +464,9 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
     # Bands of rows, each with the rotation of its pixels (and of the clean-up's margin) only:
     # two frames of cosines and sines would take more memory than the output. Each band's
     # samples read a packed copy of the rows they reach (light and depth key as one 16-byte
-    # item per pixel, ``burley_pack``): one cache line per sample instead of two or three.
-    band = r1 - r0 if not random_rotation else _BAND_ROWS
+    # item per pixel, ``burley_pack``): one cache line per sample instead of two or three. Bands
+    # without the rotation too, so that the packed copy stays small (a whole 4K frame's: 133 MB).
+    band = _BAND_ROWS
     with np.errstate(over="ignore", invalid="ignore"):
         # How far a sample lands from its pixel: |rint(s r (cos, sin))| <= s r + 1/2.
         reach_px = largest * float(tables[0].max()) * 1.001 + 2.0
