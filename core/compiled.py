@@ -310,9 +310,10 @@ def sta_kernel(
     out,
 ):
     """core.sta.sta's per-pixel arithmetic (its docstring has the formulas) into ``out``
-    (H, W, 3), which holds zeros; ``lights`` is the (L, LIGHT_COLUMNS) table of
-    ``light_table``; with ``burley`` each channel is scaled by the transmittance through
-    ``distance`` sqrt(1 - t) for the profile lengths ``three_d`` = 3 d_c (0: no scattering);
+    (H, W, 3), every pixel of which it writes (0 off the mask: ``out`` need not hold zeros);
+    ``lights`` is the (L, LIGHT_COLUMNS) table of ``light_table``; with ``burley`` each channel
+    is scaled by the transmittance through ``distance`` sqrt(1 - t) for the profile lengths
+    ``three_d`` = 3 d_c (0: no scattering);
     with ``medium`` by ``table`` (core.sta.medium_table: T_c over sqrt(x / D) and the view
     cosine) interpolated as ``core.sta._lookup`` does, and the albedo times ``inv_base`` (clipped
     to [0, 1] with ``wclip``) in place of the albedo.
@@ -333,6 +334,15 @@ def sta_kernel(
             has_col = True
     for y in prange(h):
         x0, x1 = _span(mask[y])
+        orow = out[y]
+        for x in range(x0 if x0 < x1 else w):
+            orow[x, 0] = _ZERO
+            orow[x, 1] = _ZERO
+            orow[x, 2] = _ZERO
+        for x in range(x1 if x0 < x1 else w, w):
+            orow[x, 0] = _ZERO
+            orow[x, 1] = _ZERO
+            orow[x, 2] = _ZERO
         if x0 >= x1:
             continue
         m = x1 - x0

@@ -196,11 +196,11 @@ def sta(
     t = _arrays.image(thickness, "thickness", None)
     _arrays.same_size(shape, normal=n, position=p, thickness=t)
     m = _arrays.mask_array(mask, shape)
-    out = np.zeros(a.shape, np.float32)
     lights = [light for light in lights if light.energy > 0]
     if not m.any() or not lights:
-        return out
+        return np.zeros(a.shape, np.float32)
     if backend.active() == "numba":
+        out = np.empty(a.shape, np.float32)  # the kernel writes every pixel (zeros off the mask)
         _compiled(
             a,
             n,
@@ -220,6 +220,7 @@ def sta(
             through,
         )
         return out
+    out = np.zeros(a.shape, np.float32)
     rows = {name: _arrays.pixel_rows(arr) for name, arr in (("a", a), ("n", n), ("p", p))}
     flat_t = np.ascontiguousarray(t).ravel()
     out_rows = _arrays.pixel_rows(out)
