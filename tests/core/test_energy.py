@@ -377,6 +377,12 @@ def test_a_map_without_far_side_reads_the_spheres_chord_and_a_thin_shell_is_a_sl
     no_curvature = dict(
         common, normal=np.tile(np.float32([0, 0, 1]), (*m.shape, 1)), position=np.zeros((*m.shape, 3), np.float32)
     )
+
+    def slab_map(x, distance):
+        """The map a slab ``x`` thick reads with bake distance ``distance`` (the slab law)."""
+        return np.full(m.shape, 1.0 - (x / distance) ** 2, np.float32)
+
+    cap_map = slab_map(energy.CHORD_CAP * 0.3, 0.9)  # the cap 2.31 D at D = 0.3, read with D = 0.9
     # The map finds no far side within D = 0.3: the sphere's chord 2 R = 0.8 is given (within
     # the cap 2.31 D = 0.69), where a flat surface reads the cap.
     saturated = energy.apply_energy(light.copy(), **dict(common, thickness=np.zeros(m.shape, np.float32)))
@@ -385,32 +391,16 @@ def test_a_map_without_far_side_reads_the_spheres_chord_and_a_thin_shell_is_a_sl
     )
     slab = energy.apply_energy(
         light.copy(),
-        **dict(common, thickness=np.full(m.shape, 1.0 - (0.8 / 0.9) ** 2, np.float32), thickness_distance_su=0.9),
+        **dict(common, thickness=slab_map(0.8, 0.9), thickness_distance_su=0.9),
     )
     np.testing.assert_allclose(chord[m], slab[m], rtol=1e-5)  # 2 / 2.5 = 0.8 <= 2.31 x 0.4
-    capped = energy.apply_energy(
-        light.copy(),
-        **dict(
-            common,
-            thickness=np.full(m.shape, 1.0 - (energy.CHORD_CAP * 0.3 / 0.9) ** 2, np.float32),
-            thickness_distance_su=0.9,
-        ),
-    )
+    capped = energy.apply_energy(light.copy(), **dict(common, thickness=cap_map, thickness_distance_su=0.9))
     np.testing.assert_allclose(saturated[m], capped[m], rtol=1e-4)
     flat = energy.apply_energy(light.copy(), **dict(no_curvature, thickness=np.zeros(m.shape, np.float32)))
-    flat_cap = energy.apply_energy(
-        light.copy(),
-        **dict(
-            no_curvature,
-            thickness=np.full(m.shape, 1.0 - (energy.CHORD_CAP * 0.3 / 0.9) ** 2, np.float32),
-            thickness_distance_su=0.9,
-        ),
-    )
+    flat_cap = energy.apply_energy(light.copy(), **dict(no_curvature, thickness=cap_map, thickness_distance_su=0.9))
     np.testing.assert_allclose(flat[m], flat_cap[m], rtol=1e-4)
     # A shell 0.08 thick on that sphere (a tenth of its chord) keeps a tenth of the convex gain.
-    shell = energy.apply_energy(
-        light.copy(), **dict(common, thickness=np.full(m.shape, 1.0 - (0.08 / 0.3) ** 2, np.float32))
-    )
+    shell = energy.apply_energy(light.copy(), **dict(common, thickness=slab_map(0.08, 0.3)))
     mu = energy.view_cosine(args["depth"], m, args["camera"])[m]
     g = energy.entry_gain("RANDOM_WALK", args["albedo"][m], mu)
     c = energy.convex_gain("RANDOM_WALK", args["albedo"][m], np.full((m.sum(), 3), 2.5 * 0.05))
