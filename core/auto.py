@@ -45,6 +45,17 @@ light for a technique whose spec says it adds light), times the technique's meas
 unit of work (learnt with the coefficients: one sample of the separable filter and one of
 Burley's spiral do not cost the same).
 
+**With a fit** (``calibrate``, ``core/fit.py``) the error is measured, not predicted: the fit
+scores each technique it fitted against a Cycles render of the same view on held-out blocks of
+the material (its provenance, ``info["heldout_after"]``). When a material carries such a
+measurement for two or more techniques, made on renders of the same sample count, ``choose``
+takes the cheapest of the measured techniques whose measured error is within ``max_error`` of
+the lowest measured one; the techniques the fit did not measure are not candidates then (a
+prediction and a measurement are not on the same footing). The measurement holds the fit
+render's Monte Carlo noise, which adds alike to every technique's error (where the techniques
+differ by less than that noise, the cheapest is taken), and covers the blocks wholly inside the
+material (4 x 4 pixels by default), not its silhouette.
+
 ``apply_auto`` carries the choice out: each material gets its chosen technique's result
 (``core.apply.apply``), composited into ``SSSLab.auto.Image`` / ``SSSLab.auto.SSS``.
 NumPy only.
@@ -67,7 +78,7 @@ from .combined import medium_of, transmission, view_cosine
 from .energy import SLAB_ABOVE, entry_gain, slab_factors, unseen_irradiance
 from .errors import InputError
 from .exr import Passes
-from .fit_params import fitted
+from .fit_params import INFO, fitted
 from .mapping import burley_d, mean_free_path, technique_params
 from .metrics import box_downsample
 from .plan import Plan, _index_map, plan, required_passes
@@ -416,6 +427,8 @@ class Candidate:
     excluded: str | None = None
     #: Work estimate: pixels x samples per pixel (0 for no SSS).
     work: float = 0.0
+    #: The error its fit measured against Cycles on the material's held-out blocks (None: not measured).
+    measured: float | None = None
 
 
 @dataclass
@@ -466,8 +479,9 @@ class AutoPlan:
     def explain(self) -> str:
         h, w = self.shape
         lines = [
-            f"auto on {w}x{h} pixels: per material, the cheapest technique whose predicted error is within"
-            f" {100 * self.max_error:.0f} % of the best predicted error (model: {self.model.command or 'given'})"
+            f"auto on {w}x{h} pixels: per material, the cheapest technique whose predicted error (measured, where"
+            f" the material's fit measured two or more) is within {100 * self.max_error:.0f} % of the best"
+            f" (model: {self.model.command or 'given'})"
         ]
         if not self.choices:
             lines.append("  no material in the scene description scatters light on screen: nothing to do")
@@ -494,14 +508,38 @@ class AutoPlan:
                 if cand.excluded:
                     lines.append(f"    {cand.name:9s} not a candidate: {cand.excluded}")
                 else:
+                    seen = "" if cand.measured is None else f", measured {cand.measured:.4f} (its fit, held out)"
                     lines.append(
-                        f"    {cand.name:9s} predicted error {cand.predicted:.4f}, estimated {1000 * cand.cost:.3g} ms"
-                        f" ({cand.work:.3g} pixel-samples)"
+                        f"    {cand.name:9s} predicted error {cand.predicted:.4f}{seen}, estimated"
+                        f" {1000 * cand.cost:.3g} ms ({cand.work:.3g} pixel-samples)"
                     )
             lines.append(f"    => {c.chosen}: {c.reason}")
             if c.warning:
                 lines.append(f"    warning: {c.warning}")
         return "\n".join(lines)
+
+
+def measured_errors(material: MaterialSSS) -> dict[str, float]:
+    """{technique: the held-out error its fit measured against Cycles} for the techniques the
+    material carries a fit for (``core/fit.py``'s provenance, ``info["heldout_after"]``), when two or
+    more were measured on renders of the same sample count (``samples`` in their provenance; the
+    fits of one ``calibrate`` run share one render). {} otherwise: measurements against renders of
+    different noise are not compared."""
+    found: dict[str, tuple] = {}
+    for technique, params in (material.fit or {}).items():
+        if not fitted(material.fit, technique):
+            continue
+        info = params.get(INFO) or {}
+        try:
+            err = float(info["heldout_after"])
+        except (KeyError, TypeError, ValueError):
+            continue
+        if math.isfinite(err) and err >= 0:
+            found[technique] = (err, info.get("samples"))
+    renders = {samples for _, samples in found.values()}
+    if len(found) < 2 or len(renders) != 1:
+        return {}
+    return {t: v[0] for t, v in found.items()}
 
 
 def _work(technique: str, material: MaterialSSS, pixels: int, lights: int, mapping) -> float:
@@ -567,20 +605,31 @@ def choose(
                 continue
             work = _work(t, material, f.pixels, len(scene.lights), mapping)
             cands.append(Candidate(t, model.predict(t, f), model.seconds(t, work), work=work))
+        measured = measured_errors(material)
+        runnable = [c for c in cands if c.excluded is None]
+        # With two or more runnable techniques measured by the material's fit, the measurements decide.
+        what = "measured" if sum(c.name in measured for c in runnable) >= 2 else "predicted"
+        for c in cands:
+            c.measured = measured.get(c.name)
+            if what == "measured" and c.excluded is None and c.measured is None:
+                c.excluded = f"not measured by the material's fit (measured: {', '.join(sorted(measured))})"
         ok = [c for c in cands if c.excluded is None]
-        best = min(ok, key=lambda c: c.predicted)
-        limit = best.predicted * (1.0 + max_error)
-        within = [c for c in ok if c.predicted <= limit + 1e-12]
-        pick = min(within, key=lambda c: (c.cost, c.predicted))
+        score = {c.name: c.measured if what == "measured" and c.measured is not None else c.predicted for c in ok}
+        best = min(ok, key=lambda c: score[c.name])
+        limit = score[best.name] * (1.0 + max_error)
+        within = [c for c in ok if score[c.name] <= limit + 1e-12]
+        pick = min(within, key=lambda c: (c.cost, score[c.name]))
         if pick is best:
-            reason = f"the best predicted error ({best.predicted:.4f})"
+            reason = f"the best {what} error ({score[best.name]:.4f})"
             if len(within) > 1:
                 reason += " and the cheapest within the margin"
         else:
             reason = (
-                f"cheapest within {100 * max_error:.0f} % of the best predicted error"
-                f" ({best.name} {best.predicted:.4f}); predicted {pick.predicted:.4f}"
+                f"cheapest within {100 * max_error:.0f} % of the best {what} error"
+                f" ({best.name} {score[best.name]:.4f}); {what} {score[pick.name]:.4f}"
             )
+        if what == "measured":
+            reason += " (measured by the fit against Cycles on the material's held-out blocks)"
         reason += _why(f, pick.name)
         kept = (keep or {}).get(f.name)
         if kept is not None and kept != pick.name:

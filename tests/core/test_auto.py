@@ -401,3 +401,54 @@ def test_view_energy_is_what_the_techniques_energy_convention_changes():
     # A method without a table (Christensen-Burley: Lambert's energy) changes nothing.
     cb = dataclasses.replace(skin, method="BURLEY")
     assert auto.features(passes, scene, cb).view == 0.0
+
+
+def _measured(scene, errors: dict, samples=(32,)):
+    """``scene`` with every scattering material carrying a fit per technique of ``errors``, whose
+    provenance says the fit measured that held-out error on a render of ``samples`` samples (one
+    count per technique, cycled)."""
+    fit = {
+        t: {"gain": (1.0, 1.0, 1.0), "info": {"samples": samples[i % len(samples)], "heldout_after": e}}
+        for i, (t, e) in enumerate(errors.items())
+    }
+    mats = tuple(dataclasses.replace(m, fit=fit) if m.scatters else m for m in scene.materials)
+    return dataclasses.replace(scene, materials=mats)
+
+
+def test_a_fits_measured_errors_decide_over_the_prediction():
+    arrays, scene = _scene()
+    passes = Passes(arrays)
+    # MODEL predicts Combined best (light from behind); the fit measured Burley within 4 % of it.
+    measured = _measured(scene, {"burley": 0.100, "combined": 0.104})
+    plan = auto.choose(passes, measured, model=MODEL, max_error=0.05)
+    for c in plan.choices:
+        by = {k.name: k for k in c.candidates}
+        assert c.chosen == "burley", plan.explain()
+        # Burley is cheaper than Combined (fewer samples per pixel, no light added), so it is taken.
+        assert by["burley"].cost < by["combined"].cost
+        assert by["burley"].measured == 0.100 and by["combined"].measured == 0.104
+        assert "measured" in c.reason
+        for name in ("none", "sta", "ssss"):
+            assert by[name].excluded and "not measured by the material's fit" in by[name].excluded
+    assert "measured 0.1000 (its fit, held out)" in plan.explain()
+    # Combined measured 20 % better: beyond the margin, Combined.
+    better = auto.choose(passes, _measured(scene, {"burley": 0.100, "combined": 0.080}), model=MODEL, max_error=0.05)
+    assert [c.chosen for c in better.choices] == ["combined", "combined"]
+    # The same measurements with a margin of 25 %: Burley again (0.100 <= 1.25 x 0.080).
+    wide = auto.choose(passes, _measured(scene, {"burley": 0.100, "combined": 0.080}), model=MODEL, max_error=0.25)
+    assert [c.chosen for c in wide.choices] == ["burley", "burley"]
+
+
+def test_measurements_from_renders_of_different_noise_or_of_one_technique_are_not_compared():
+    arrays, scene = _scene()
+    passes = Passes(arrays)
+    unfitted = auto.choose(passes, scene, model=MODEL, max_error=0.05)
+    for errors, samples in (({"burley": 0.1, "combined": 0.5}, (32, 64)), ({"burley": 0.1}, (32,))):
+        m = _measured(scene, errors, samples)
+        assert all(auto.measured_errors(x) == {} for x in m.materials if x.scatters)
+        plan = auto.choose(passes, m, model=MODEL, max_error=0.05)
+        # The prediction decides, as without the measurements (the fit's gain is 1: no energy term).
+        assert plan.chosen == unfitted.chosen
+        assert all("predicted" in c.reason and "measured" not in c.reason for c in plan.choices)
+    m = _measured(scene, {"burley": 0.1, "ssss": 0.2}, (32,))
+    assert auto.measured_errors(next(x for x in m.materials if x.scatters)) == {"burley": 0.1, "ssss": 0.2}
