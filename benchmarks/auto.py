@@ -21,6 +21,16 @@ timed the same way (its features and choice included). Per scene:
   expensive technique (the one with the largest total time over the scenes, run on every scene),
   per scene and over the suite (1 - sum of auto's times / sum of that technique's).
 
+With ``--fit``, the same again with each scene fitted as ``calibrate`` fits it (``benchmarks/fit.py``'s
+render and passes: Cycles random walk of the same view at 32 samples and passes at 16, its own
+seed, cached in ``out/fidelity_cache/fit``; ``core.fit.fit_scene`` for every technique that has
+a fit): auto then chooses by the errors the fit measured (``core.auto.measured_errors``), and
+**regret with the fit** = auto's error / the lowest error of no SSS and every technique at
+default quality, unfitted *or* fitted - 1 (the fitted techniques count among the choices). Its
+time saved is against the same unfitted most expensive technique (a fit changes a technique's
+parameters, not its work); the fit's own cost (a one-off per asset, ``benchmarks/fit.py``) is not
+in it.
+
 Nothing here knows a scene by name: every scene is scored the same way. ``--write-model`` stores
 the model learnt on all scenes as ``core/auto_model.json`` (what ``apply --method auto`` ships).
 Writes ``benchmarks/results/auto.json`` and prints a table. Timing on a loaded shared 2-core
@@ -49,8 +59,10 @@ BOX = 2
 class Scene:
     """What the validation needs of one scene."""
 
-    def __init__(self, name, kind, passes, desc, reference):
+    def __init__(self, name, kind, passes, desc, reference, fitted=None):
         self.name, self.kind = name, kind
+        #: The scene description with each material's fit (``--fit``), None without.
+        self.fitted = fitted
         self.passes, self.desc, self.reference = passes, desc, reference[..., :3]
         index = np.rint(np.nan_to_num(passes["Material Index"])).astype(np.int64)
         self.index = index[..., 0] if index.ndim == 3 else index
@@ -64,7 +76,35 @@ class Scene:
         return float("nan") if r["rel_rmse"] is None else float(r["rel_rmse"])
 
 
-def _fidelity_scenes(names, log):
+def _fit(data, fit_samples: int, fit_pass_samples: int, log) -> object:
+    """``data.desc`` with each material's fit, made as ``calibrate`` makes it (``benchmarks/fit.py``'s
+    cached render and passes of the scene just loaded, ``core.fit.fit_scene`` for every technique
+    that has a fit)."""
+    import bpy
+
+    from benchmarks import fit as fit_bench
+    from sss_lab.core.fit import fit_scene
+    from sss_lab.core.fit_params import FIT_PARAMETERS
+
+    cache = os.path.join(fit_bench.ROOT, "out", "fidelity_cache", "fit")
+    os.makedirs(cache, exist_ok=True)
+    scene = bpy.context.scene  # the suite's scene as load_scene built, prepared and baked it
+    noisy, _ = fit_bench._render(
+        scene, cache, samples=fit_samples, seed=fit_bench.FIT_SEED, fingerprint=data.fingerprint, log=log
+    )
+    passes, desc, _ = fit_bench._fit_passes(scene, data.fingerprint, fit_pass_samples, cache, log)
+    results, problems = fit_scene(
+        passes, fit_bench._unfitted(desc), noisy, techniques=tuple(FIT_PARAMETERS), samples=fit_samples
+    )
+    for line in problems:
+        log(f"  fit: {line}")
+    fits: dict = {}
+    for r in results:
+        fits.setdefault(r.material, {})[r.technique] = r.params
+    return fit_bench._carried(data.desc, fits)
+
+
+def _fidelity_scenes(names, log, fit=None):
     from benchmarks.fidelity import run as fidelity
     from benchmarks.fidelity import scenes as suite
 
@@ -72,7 +112,8 @@ def _fidelity_scenes(names, log):
     for name in names or list(suite.SCENES):
         log(f"{name}: loading (fidelity suite)")
         data = fidelity.load_scene(name, log=log)
-        out.append(Scene(name, data.kind, data.passes, data.desc, data.reference))
+        fitted = _fit(data, *fit, log) if fit else None
+        out.append(Scene(name, data.kind, data.passes, data.desc, data.reference, fitted))
     return out
 
 
@@ -159,6 +200,13 @@ def measure(scene: Scene, techniques, repeat: int, time_scale: int = 1) -> dict:
         images[t] = layers[core_apply.layer_names(t)[0]] if layers else scene.passes["Combined"]
         _, seconds[t] = _fastest(lambda t=t: core_apply.apply(big, big_desc, t), repeat)
     errors = {t: scene.error(img) for t, img in images.items()}
+    fitted_errors = {}
+    if scene.fitted is not None:  # each technique with the scene's fits
+        for t in images:
+            if t == auto.NONE:
+                continue
+            layers = core_apply.apply(scene.passes, scene.fitted, t)
+            fitted_errors[t] = scene.error(layers[core_apply.layer_names(t)[0]] if layers else scene.passes["Combined"])
     # Each technique's work on this scene (pixels x samples, from its plan): the model's cost unit.
     unit = auto.Model({auto.NONE: (1.0, 1.0, 0.0), **{t: (1.0, 1.0, 0.0) for t in images}})
     work = {}
@@ -172,7 +220,11 @@ def measure(scene: Scene, techniques, repeat: int, time_scale: int = 1) -> dict:
         f = auto.features(scene.passes, scene.desc, m)
         per_material.append((f, {t: scene.error(img, mask) for t, img in images.items()}))
     timings = [(t, work[t], seconds[t]) for t in work if t in seconds]
-    return {"errors": errors, "seconds": seconds, "materials": per_material, "timings": timings, "big": (big, big_desc)}
+    out = {"errors": errors, "seconds": seconds, "materials": per_material, "timings": timings, "big": (big, big_desc)}
+    if scene.fitted is not None:
+        out["fitted_errors"] = fitted_errors
+        out["big_fitted"] = upscaled(scene.passes, scene.fitted, time_scale)
+    return out
 
 
 def run(scenes, *, techniques, repeat: int, max_error: float, time_scale: int = 1, log=print) -> dict:
@@ -245,12 +297,20 @@ def run(scenes, *, techniques, repeat: int, max_error: float, time_scale: int = 
                 "material_errors": {f.name: e for f, e in m["materials"]},
             }
         )
+        if s.fitted is not None:
+            rows[-1]["with_fit"] = _with_fit(s, m, choose_and_apply, priciest, repeat)
+            w = rows[-1]["with_fit"]
+            log(
+                f"{s.name} with the fit: auto chose {w['choices']}: error {w['error']:.4f}, best {w['best']}"
+                f" {w['best_error']:.4f} (regret {w['regret']:+.1%}); {w['seconds']:.3f} s"
+            )
         log(
             f"{s.name}: auto chose {rows[-1]['auto']['choices']}: error {err:.4f}, best {best} "
             f"{m['errors'][best]:.4f} (regret {rows[-1]['regret']:+.1%}); {t_auto:.3f} s vs {priciest} "
             f"{m['seconds'][priciest]:.3f} s"
         )
     regrets = [r["regret"] for r in rows]
+    fit_rows = [r["with_fit"] for r in rows if "with_fit" in r]
     t_auto = sum(r["auto"]["seconds"] for r in rows)
     t_max = sum(r["seconds"][r["most_expensive"]] for r in rows)
     always = {}
@@ -276,8 +336,55 @@ def run(scenes, *, techniques, repeat: int, max_error: float, time_scale: int = 
             "most_expensive": priciest,
             "total_seconds": {**totals, "auto": t_auto},
             "always_one_technique": always,
+            **({"with_fit": _fit_summary(rows)} if fit_rows else {}),
         },
         "model": full,
+    }
+
+
+def _with_fit(s: Scene, m: dict, choose_and_apply, priciest: str, repeat: int) -> dict:
+    """auto on the scene's passes with its fits (choosing by the fits' measured errors where they
+    exist), scored against the lowest error of no SSS and every technique unfitted or fitted."""
+    plan, layers = choose_and_apply(s.passes, s.fitted)
+    image = layers["SSSLab.auto.Image"] if layers else s.passes["Combined"]
+    err = s.error(image)
+    _, seconds = _fastest(lambda: choose_and_apply(*m["big_fitted"], keep=plan.chosen), repeat)
+    every = {**m["errors"], **{f"{t} fitted": e for t, e in m["fitted_errors"].items()}}
+    best = min(every, key=every.get)
+    return {
+        "error": err,
+        "seconds": seconds,
+        "choices": {c.features.name: c.chosen for c in plan.choices},
+        "measured": {
+            c.features.name: {k.name: k.measured for k in c.candidates if k.measured is not None} for c in plan.choices
+        },
+        "fitted_errors": m["fitted_errors"],
+        "best": best,
+        "best_error": every[best],
+        "regret": err / every[best] - 1.0,
+        "time_saved": 1.0 - seconds / m["seconds"][priciest] if m["seconds"][priciest] > 0 else None,
+    }
+
+
+def _fit_summary(rows) -> dict:
+    """Regret and time saved with the fit, and always one fitted technique's regret (against the
+    same best, unfitted or fitted)."""
+    fit = [r["with_fit"] for r in rows]
+    regrets = [w["regret"] for w in fit]
+    t_auto = sum(w["seconds"] for w in fit)
+    t_max = sum(r["seconds"][r["most_expensive"]] for r in rows)
+    always = {}
+    for t in sorted({t for w in fit for t in w["fitted_errors"]}):
+        errs = [w["fitted_errors"][t] / w["best_error"] - 1.0 for w in fit if t in w["fitted_errors"]]
+        always[t] = {"mean_regret": statistics.mean(errs), "median_regret": statistics.median(errs)}
+    return {
+        "mean_regret": statistics.mean(regrets),
+        "median_regret": statistics.median(regrets),
+        "max_regret": max(regrets),
+        "time_saved_total": 1.0 - t_auto / t_max if t_max > 0 else None,
+        "time_saved_median": statistics.median(w["time_saved"] for w in fit if w["time_saved"] is not None),
+        "total_seconds": t_auto,
+        "always_one_fitted_technique": always,
     }
 
 
@@ -333,6 +440,13 @@ def main(argv=None) -> int:
         "--sweep-transmission",
         help="comma-separated transmission scales of the combined technique to score on every scene (its default)",
     )
+    parser.add_argument(
+        "--fit",
+        action="store_true",
+        help="also validate with each scene fitted as calibrate fits it (benchmarks/fit.py's render and passes)",
+    )
+    parser.add_argument("--fit-samples", type=int, default=32, help="with --fit: samples of the fit's render")
+    parser.add_argument("--fit-pass-samples", type=int, default=16, help="with --fit: samples of the fit's passes")
     parser.add_argument("--out", default=RESULTS)
     args = parser.parse_args(argv)
     import bpy
@@ -351,7 +465,12 @@ def main(argv=None) -> int:
     if source is None:
         source = "fidelity" if os.path.isdir(os.path.join(ROOT, "benchmarks", "fidelity")) else "samples"
     start = time.perf_counter()
-    scenes = _fidelity_scenes(args.names, print) if source == "fidelity" else _sample_scenes(args.names, args, print)
+    if args.fit and source != "fidelity":
+        parser.error("--fit: only with the fidelity suite (the fit's render is cached by benchmarks/fit.py)")
+    fit = (args.fit_samples, args.fit_pass_samples) if args.fit else None
+    scenes = (
+        _fidelity_scenes(args.names, print, fit) if source == "fidelity" else _sample_scenes(args.names, args, print)
+    )
     max_error = auto.DEFAULT_MAX_ERROR if args.max_error is None else args.max_error
     swept = None
     if args.sweep_transmission:
@@ -387,6 +506,15 @@ def main(argv=None) -> int:
     )
     for t, v in s["always_one_technique"].items():
         print(f"  always {t}: mean regret {v['mean_regret']:+.1%}")
+    if "with_fit" in s:
+        w = s["with_fit"]
+        print(
+            f"with the fit: regret mean {w['mean_regret']:+.1%}, median {w['median_regret']:+.1%}, max"
+            f" {w['max_regret']:+.1%} (best of unfitted and fitted); time saved {w['time_saved_total']:.0%} (total),"
+            f" {w['time_saved_median']:.0%} (median)"
+        )
+        for t, v in w["always_one_fitted_technique"].items():
+            print(f"  always {t} fitted: mean regret {v['mean_regret']:+.1%}")
     return 0
 
 
