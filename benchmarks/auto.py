@@ -328,17 +328,24 @@ def run(scenes, *, techniques, repeat: int, max_error: float, time_scale: int = 
         "rows": rows,
         "summary": {
             "scenes": len(rows),
-            "mean_regret": statistics.mean(regrets),
-            "median_regret": statistics.median(regrets),
-            "max_regret": max(regrets),
-            "time_saved_total": 1.0 - t_auto / t_max if t_max > 0 else None,
-            "time_saved_median": statistics.median(r["time_saved"] for r in rows if r["time_saved"] is not None),
+            **_regret_and_time(regrets, [r["time_saved"] for r in rows], t_auto, t_max),
             "most_expensive": priciest,
             "total_seconds": {**totals, "auto": t_auto},
             "always_one_technique": always,
             **({"with_fit": _fit_summary(rows)} if fit_rows else {}),
         },
         "model": full,
+    }
+
+
+def _regret_and_time(regrets, saved, t_auto: float, t_max: float) -> dict:
+    """Mean, median and largest regret; time saved over the scenes (total) and per scene (median)."""
+    return {
+        "mean_regret": statistics.mean(regrets),
+        "median_regret": statistics.median(regrets),
+        "max_regret": max(regrets),
+        "time_saved_total": 1.0 - t_auto / t_max if t_max > 0 else None,
+        "time_saved_median": statistics.median(v for v in saved if v is not None),
     }
 
 
@@ -378,11 +385,7 @@ def _fit_summary(rows) -> dict:
         errs = [w["fitted_errors"][t] / w["best_error"] - 1.0 for w in fit if t in w["fitted_errors"]]
         always[t] = {"mean_regret": statistics.mean(errs), "median_regret": statistics.median(errs)}
     return {
-        "mean_regret": statistics.mean(regrets),
-        "median_regret": statistics.median(regrets),
-        "max_regret": max(regrets),
-        "time_saved_total": 1.0 - t_auto / t_max if t_max > 0 else None,
-        "time_saved_median": statistics.median(w["time_saved"] for w in fit if w["time_saved"] is not None),
+        **_regret_and_time(regrets, [w["time_saved"] for w in fit], t_auto, t_max),
         "total_seconds": t_auto,
         "always_one_fitted_technique": always,
     }
@@ -417,6 +420,16 @@ def sweep(scenes, technique: str, parameter: str, values, log=print) -> dict:
             f" (by kind {per_value[str(v)]['by_kind']}); worse than no SSS on {per_value[str(v)]['worse_than_no_sss']}"
         )
     return per_value
+
+
+def _print_summary(title: str, s: dict, always: dict, suffix: str) -> None:
+    print(
+        f"{title}: regret mean {s['mean_regret']:+.1%}, median {s['median_regret']:+.1%}, max {s['max_regret']:+.1%};"
+        f" time saved against the most expensive technique {s['time_saved_total']:.0%} (total),"
+        f" {s['time_saved_median']:.0%} (median)"
+    )
+    for t, v in always.items():
+        print(f"  always {t}{suffix}: mean regret {v['mean_regret']:+.1%}")
 
 
 def main(argv=None) -> int:
@@ -499,22 +512,10 @@ def main(argv=None) -> int:
         data["combined_transmission_scale_sweep"] = swept
     write_results(args.out, data)
     s = out["summary"]
-    print(
-        f"{s['scenes']} scenes, leave-one-scene-out: regret mean {s['mean_regret']:+.1%}, median "
-        f"{s['median_regret']:+.1%}, max {s['max_regret']:+.1%}; time saved against the most expensive technique "
-        f"{s['time_saved_total']:.0%} (total), {s['time_saved_median']:.0%} (median)"
-    )
-    for t, v in s["always_one_technique"].items():
-        print(f"  always {t}: mean regret {v['mean_regret']:+.1%}")
+    _print_summary(f"{s['scenes']} scenes, leave-one-scene-out", s, s["always_one_technique"], "")
     if "with_fit" in s:
         w = s["with_fit"]
-        print(
-            f"with the fit: regret mean {w['mean_regret']:+.1%}, median {w['median_regret']:+.1%}, max"
-            f" {w['max_regret']:+.1%} (best of unfitted and fitted); time saved {w['time_saved_total']:.0%} (total),"
-            f" {w['time_saved_median']:.0%} (median)"
-        )
-        for t, v in w["always_one_fitted_technique"].items():
-            print(f"  always {t} fitted: mean regret {v['mean_regret']:+.1%}")
+        _print_summary("with the fit (best of unfitted and fitted)", w, w["always_one_fitted_technique"], " fitted")
     return 0
 
 
