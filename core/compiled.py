@@ -61,7 +61,7 @@ ROWS_PER_CHUNK = 4
 
 #: Kernels whose parallel loop is over larger work items than rows, with their chunk size
 #: (Burley's tiles: one per chunk).
-CHUNKS = {"burley_kernel": 1}
+CHUNKS = {"burley_kernel": 1, "sta_kernel": 1}
 
 _LOG2E = f32(1.4426950408889634)
 _LN2_HI = f32(0.693359375)  # 9 significant bits: k ln2_hi is exact for |k| < 2^15
@@ -103,12 +103,40 @@ def _clip(v, hi):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _span(row):
-    """(first, last + 1) of the True entries of a bool row; (0, 0) when there are none."""
+    """(first, last + 1) of the True entries of a bool row; first >= last + 1 when there are none."""
     n = row.size
     x0 = 0
     while x0 < n and not row[x0]:
         x0 += 1
     x1 = n
+    while x1 > x0 and not row[x1 - 1]:
+        x1 -= 1
+    return x0, x1
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _bytes_span(row):
+    """``_span`` of a bool row viewed as bytes (uint8), 32 entries at a time where they are all
+    False (an OR of 32 bytes, which vectorizes), then one at a time: the same (first, last + 1)."""
+    n = row.size
+    x0 = 0
+    while x0 + 32 <= n:
+        acc = np.uint8(0)
+        for k in range(32):
+            acc |= row[x0 + k]
+        if acc:
+            break
+        x0 += 32
+    while x0 < n and not row[x0]:
+        x0 += 1
+    x1 = n
+    while x1 - 32 >= x0:
+        acc = np.uint8(0)
+        for k in range(32):
+            acc |= row[x1 - 32 + k]
+        if acc:
+            break
+        x1 -= 32
     while x1 > x0 and not row[x1 - 1]:
         x1 -= 1
     return x0, x1
@@ -285,6 +313,10 @@ def _sta_lobe(power, m, vd, lens):
             vd[i] = v**power if lens[i] > _EPS else _ZERO
 
 
+#: Rows per work item of ``sta_kernel``: one set of row buffers serves them all.
+STA_ROWS = 16
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def sta_kernel(
     albedo,
@@ -318,11 +350,15 @@ def sta_kernel(
     cosine) interpolated as ``core.sta._lookup`` does, and the albedo times ``inv_base`` (clipped
     to [0, 1] with ``wclip``) in place of the albedo.
 
-    Per row, loops over the masked span that each do one thing for all its pixels (the
-    pixel's vectors; per light its lobe, ``_sta_light`` and ``_sta_lobe``, then its sum), with
-    the values kept in row buffers, so that every loop vectorizes over the pixels; the medium's
-    table is read one pixel at a time, its three channels together (vectorized over the pixels
-    with a gather per corner it was slower: 37 against 31 ms of CPU at 1080p)."""
+    Work items are ``STA_ROWS`` rows: each writes the zeros of its rows off the mask as
+    contiguous runs (a memset each, where per-pixel stores took longer than the masked pixels'
+    arithmetic with a quarter of the frame masked), then takes one set of row buffers for its
+    rows (an allocation per row and buffer cost as much again). Per row, loops over the masked
+    span that each do one thing for all its pixels (the pixel's vectors; per light its lobe,
+    ``_sta_light`` and ``_sta_lobe``, then its sum), with the values kept in row buffers, so
+    that every loop vectorizes over the pixels; the medium's table is read one pixel at a time,
+    its three channels together (vectorized over the pixels with a gather per corner it was
+    slower: 37 against 31 ms of CPU at 1080p)."""
     h, w = mask.shape
     n_lights = lights.shape[0]
     has_grey = False
@@ -332,196 +368,209 @@ def sta_kernel(
             has_grey = True
         else:
             has_col = True
-    for y in prange(h):
-        x0, x1 = _span(mask[y])
-        orow = out[y]
-        for x in range(x0 if x0 < x1 else w):
-            orow[x, 0] = _ZERO
-            orow[x, 1] = _ZERO
-            orow[x, 2] = _ZERO
-        for x in range(x1 if x0 < x1 else w, w):
-            orow[x, 0] = _ZERO
-            orow[x, 1] = _ZERO
-            orow[x, 2] = _ZERO
-        if x0 >= x1:
+    flat = out.reshape(-1)
+    mask_bytes = mask.view(np.uint8)
+    n_items = (h + STA_ROWS - 1) // STA_ROWS
+    for item in prange(n_items):
+        ya = item * STA_ROWS
+        yb = min(ya + STA_ROWS, h)
+        spans = np.empty((yb - ya, 2), np.int64)
+        widest = 0
+        for y in range(ya, yb):
+            x0, x1 = _bytes_span(mask_bytes[y])
+            if x0 >= x1:
+                x0 = w
+                x1 = w
+            spans[y - ya, 0] = x0
+            spans[y - ya, 1] = x1
+            widest = max(widest, x1 - x0)
+            row = y * 3 * w
+            flat[row : row + 3 * x0] = _ZERO
+            flat[row + 3 * x1 : row + 3 * w] = _ZERO
+        if widest == 0:
             continue
-        m = x1 - x0
         # One contiguous buffer per value (views of rows of one 2-D buffer would be strided
         # arrays to Numba: gathers and scatters instead of vector loads and stores).
-        nxr, nyr, nzr = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
-        vxr, vyr, vzr = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
-        tr, grey, c0 = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
-        c1, c2 = np.empty(m, np.float32), np.empty(m, np.float32)
-        vd, lens, er = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
-        okr = np.empty(m, np.bool_)
-        # Rows indexed with unsigned offsets: no wrap-around tests, so the loops keep vector loads.
-        arow = albedo[y]
-        nrow = normal[y]
-        prow = position[y]
-        trow = thickness[y]
-        mrow = mask[y]
-        ux0 = _u64(x0)
-        for i in range(m):
-            x = ux0 + _u64(i)
-            a0 = arow[x, 0]
-            s = a0 + arow[x, 1]
-            s += arow[x, 2]
-            nx = nrow[x, 0]
-            ny = nrow[x, 1]
-            nz = nrow[x, 2]
-            px = prow[x, 0]
-            py = prow[x, 1]
-            pz = prow[x, 2]
-            t = trow[x]
-            s += nx
-            s += ny
-            s += nz
-            s += px
-            s += py
-            s += pz
-            s += t
-            okr[i] = mrow[x] & np.isfinite(s)
-            t = _clip(t, _ONE)
-            tr[i] = _ONE - t if flip else t
-            nxr[i], nyr[i], nzr[i], _ = _unit(nx, ny, nz)
-            if ortho:
-                vxr[i] = view[0]
-                vyr[i] = view[1]
-                vzr[i] = view[2]
-            else:
-                vxr[i], vyr[i], vzr[i], _ = _unit(view[0] - px, view[1] - py, view[2] - pz)
-            grey[i] = _ZERO
-            c0[i] = _ZERO
-            c1[i] = _ZERO
-            c2[i] = _ZERO
-        first_grey = True
-        for k in range(n_lights):
-            sun = int(lights[k, 0]) == SUN
-            is_grey = lights[k, 14] != _ZERO
-            _sta_light(k, lights, position, y, x0, m, distortion, nxr, nyr, nzr, vxr, vyr, vzr, vd, lens, er)
-            _sta_lobe(power, m, vd, lens)
-            e_sun_pi = lights[k, 7] * f32(1.0 / math.pi)
-            sun_scale = scale * e_sun_pi
-            sun_ambient = ambient * e_sun_pi
-            col0 = lights[k, 8]
-            col1 = lights[k, 9]
-            col2 = lights[k, 10]
-            tint = is_grey and col0 != _ONE
-            for i in range(m):
-                lobe = vd[i]
-                if sun:
-                    lobe *= sun_scale
-                    if ambient != _ZERO:
-                        lobe += sun_ambient
-                else:
-                    lobe *= scale
-                    lobe += ambient
-                    lobe *= er[i] * f32(1.0 / math.pi)
-                if is_grey:
-                    if tint:
-                        lobe *= col0
-                    grey[i] = lobe if first_grey else grey[i] + lobe
-                else:
-                    c0[i] += col0 * lobe
-                    c1[i] += col1 * lobe
-                    c2[i] += col2 * lobe
-            if is_grey:
-                first_grey = False
-        if medium:
-            # The table's coordinates first (a loop that vectorizes), then its reads per channel.
-            nxs = table.shape[0]
-            nmu = table.shape[1]
-            for i in range(m):
-                xs = _ONE - tr[i]
-                sx = math.sqrt(math.sqrt(xs if xs > _ZERO else _ZERO)) * f32(nxs - 1)
-                fl = np.floor(sx)
-                fl = fl if fl < f32(nxs - 2) else f32(nxs - 2)
-                tr[i] = sx - fl  # tr now holds the fraction along x, lens its node
-                lens[i] = fl
-                mu = nxr[i] * vxr[i]
-                mu += nyr[i] * vyr[i]
-                mu += nzr[i] * vzr[i]
-                mu = abs(mu)
-                sm = (mu if mu < _ONE else _ONE) * f32(nmu - 1)
-                fm = np.floor(sm)
-                fm = fm if fm < f32(nmu - 2) else f32(nmu - 2)
-                vd[i] = sm - fm
-                er[i] = fm
-        if medium:
-            orow = out[y]
-            ib0 = inv_base[0]
-            ib1 = inv_base[1]
-            ib2 = inv_base[2]
+        nxr, nyr, nzr = np.empty(widest, np.float32), np.empty(widest, np.float32), np.empty(widest, np.float32)
+        vxr, vyr, vzr = np.empty(widest, np.float32), np.empty(widest, np.float32), np.empty(widest, np.float32)
+        tr, grey, c0 = np.empty(widest, np.float32), np.empty(widest, np.float32), np.empty(widest, np.float32)
+        c1, c2 = np.empty(widest, np.float32), np.empty(widest, np.float32)
+        vd, lens, er = np.empty(widest, np.float32), np.empty(widest, np.float32), np.empty(widest, np.float32)
+        okr = np.empty(widest, np.bool_)
+        for y in range(ya, yb):
+            x0 = spans[y - ya, 0]
+            x1 = spans[y - ya, 1]
+            m = x1 - x0
+            if m <= 0:
+                continue
+            # Rows indexed with unsigned offsets: no wrap-around tests, so the loops keep vector loads.
+            arow = albedo[y]
+            nrow = normal[y]
+            prow = position[y]
+            trow = thickness[y]
+            mrow = mask[y]
+            ux0 = _u64(x0)
             for i in range(m):
                 x = ux0 + _u64(i)
-                if has_col:
-                    g = grey[i] if has_grey else _ZERO
-                    l0 = c0[i] + g
-                    l1 = c1[i] + g
-                    l2 = c2[i] + g
+                a0 = arow[x, 0]
+                s = a0 + arow[x, 1]
+                s += arow[x, 2]
+                nx = nrow[x, 0]
+                ny = nrow[x, 1]
+                nz = nrow[x, 2]
+                px = prow[x, 0]
+                py = prow[x, 1]
+                pz = prow[x, 2]
+                t = trow[x]
+                s += nx
+                s += ny
+                s += nz
+                s += px
+                s += py
+                s += pz
+                s += t
+                okr[i] = mrow[x] & np.isfinite(s)
+                t = _clip(t, _ONE)
+                tr[i] = _ONE - t if flip else t
+                nxr[i], nyr[i], nzr[i], _ = _unit(nx, ny, nz)
+                if ortho:
+                    vxr[i] = view[0]
+                    vyr[i] = view[1]
+                    vzr[i] = view[2]
                 else:
-                    l0 = grey[i]
-                    l1 = l0
-                    l2 = l0
-                ix = _u64(np.int32(lens[i]))
-                jm = _u64(np.int32(er[i]))
-                fx = tr[i]
-                fm = vd[i]
-                p00 = table[ix, jm]
-                p01 = table[ix, jm + _u64(1)]
-                p10 = table[ix + _u64(1), jm]
-                p11 = table[ix + _u64(1), jm + _u64(1)]
-                lo0 = p00[0] + fx * (p10[0] - p00[0])
-                lo1 = p00[1] + fx * (p10[1] - p00[1])
-                lo2 = p00[2] + fx * (p10[2] - p00[2])
-                hi0 = p01[0] + fx * (p11[0] - p01[0])
-                hi1 = p01[1] + fx * (p11[1] - p01[1])
-                hi2 = p01[2] + fx * (p11[2] - p01[2])
-                t0 = lo0 + fm * (hi0 - lo0)
-                t1 = lo1 + fm * (hi1 - lo1)
-                t2 = lo2 + fm * (hi2 - lo2)
-                w0 = arow[x, 0] * ib0
-                w1 = arow[x, 1] * ib1
-                w2 = arow[x, 2] * ib2
-                if wclip:
-                    w0 = _clip(w0, _ONE)
-                    w1 = _clip(w1, _ONE)
-                    w2 = _clip(w2, _ONE)
-                o = okr[i]
-                orow[x, 0] = w0 * l0 * t0 if o else _ZERO
-                orow[x, 1] = w1 * l1 * t1 if o else _ZERO
-                orow[x, 2] = w2 * l2 * t2 if o else _ZERO
-            continue
-        for i in range(m):
-            x = x0 + i
-            t = tr[i]
-            if burley:
-                xs = _ONE - t
-                xs = distance * math.sqrt(xs if xs > _ZERO else _ZERO)
-                for c in range(3):
+                    vxr[i], vyr[i], vzr[i], _ = _unit(view[0] - px, view[1] - py, view[2] - pz)
+                grey[i] = _ZERO
+                c0[i] = _ZERO
+                c1[i] = _ZERO
+                c2[i] = _ZERO
+            first_grey = True
+            for k in range(n_lights):
+                sun = int(lights[k, 0]) == SUN
+                is_grey = lights[k, 14] != _ZERO
+                _sta_light(k, lights, position, y, x0, m, distortion, nxr, nyr, nzr, vxr, vyr, vzr, vd, lens, er)
+                _sta_lobe(power, m, vd, lens)
+                e_sun_pi = lights[k, 7] * f32(1.0 / math.pi)
+                sun_scale = scale * e_sun_pi
+                sun_ambient = ambient * e_sun_pi
+                col0 = lights[k, 8]
+                col1 = lights[k, 9]
+                col2 = lights[k, 10]
+                tint = is_grey and col0 != _ONE
+                for i in range(m):
+                    lobe = vd[i]
+                    if sun:
+                        lobe *= sun_scale
+                        if ambient != _ZERO:
+                            lobe += sun_ambient
+                    else:
+                        lobe *= scale
+                        lobe += ambient
+                        lobe *= er[i] * f32(1.0 / math.pi)
+                    if is_grey:
+                        if tint:
+                            lobe *= col0
+                        grey[i] = lobe if first_grey else grey[i] + lobe
+                    else:
+                        c0[i] += col0 * lobe
+                        c1[i] += col1 * lobe
+                        c2[i] += col2 * lobe
+                if is_grey:
+                    first_grey = False
+            if medium:
+                # The table's coordinates first (a loop that vectorizes), then its reads per channel.
+                nxs = table.shape[0]
+                nmu = table.shape[1]
+                for i in range(m):
+                    xs = _ONE - tr[i]
+                    sx = math.sqrt(math.sqrt(xs if xs > _ZERO else _ZERO)) * f32(nxs - 1)
+                    fl = np.floor(sx)
+                    fl = fl if fl < f32(nxs - 2) else f32(nxs - 2)
+                    tr[i] = sx - fl  # tr now holds the fraction along x, lens its node
+                    lens[i] = fl
+                    mu = nxr[i] * vxr[i]
+                    mu += nyr[i] * vyr[i]
+                    mu += nzr[i] * vzr[i]
+                    mu = abs(mu)
+                    sm = (mu if mu < _ONE else _ONE) * f32(nmu - 1)
+                    fm = np.floor(sm)
+                    fm = fm if fm < f32(nmu - 2) else f32(nmu - 2)
+                    vd[i] = sm - fm
+                    er[i] = fm
+            if medium:
+                orow = out[y]
+                ib0 = inv_base[0]
+                ib1 = inv_base[1]
+                ib2 = inv_base[2]
+                for i in range(m):
+                    x = ux0 + _u64(i)
                     if has_col:
-                        light = (c0[i] if c == 0 else c1[i] if c == 1 else c2[i]) + (grey[i] if has_grey else _ZERO)
+                        g = grey[i] if has_grey else _ZERO
+                        l0 = c0[i] + g
+                        l1 = c1[i] + g
+                        l2 = c2[i] + g
                     else:
-                        light = grey[i]
-                    if three_d[c] > _ZERO:
-                        e3 = _exp(-xs / three_d[c])
-                        tm = _QUARTER * (e3 * e3 * e3 + _THREE * e3)
-                    else:
-                        tm = _ONE if xs == _ZERO else _ZERO
-                    v = albedo[y, x, c] * light * tm
-                    out[y, x, c] = v if okr[i] else _ZERO
-            elif not has_col:
-                g = grey[i] * t
-                out[y, x, 0] = albedo[y, x, 0] * g if okr[i] else _ZERO
-                out[y, x, 1] = albedo[y, x, 1] * g if okr[i] else _ZERO
-                out[y, x, 2] = albedo[y, x, 2] * g if okr[i] else _ZERO
-            else:
-                for c in range(3):
-                    light = c0[i] if c == 0 else c1[i] if c == 1 else c2[i]
-                    if has_grey:
-                        light += grey[i]
-                    light *= t
-                    out[y, x, c] = albedo[y, x, c] * light if okr[i] else _ZERO
+                        l0 = grey[i]
+                        l1 = l0
+                        l2 = l0
+                    ix = _u64(np.int32(lens[i]))
+                    jm = _u64(np.int32(er[i]))
+                    fx = tr[i]
+                    fm = vd[i]
+                    p00 = table[ix, jm]
+                    p01 = table[ix, jm + _u64(1)]
+                    p10 = table[ix + _u64(1), jm]
+                    p11 = table[ix + _u64(1), jm + _u64(1)]
+                    lo0 = p00[0] + fx * (p10[0] - p00[0])
+                    lo1 = p00[1] + fx * (p10[1] - p00[1])
+                    lo2 = p00[2] + fx * (p10[2] - p00[2])
+                    hi0 = p01[0] + fx * (p11[0] - p01[0])
+                    hi1 = p01[1] + fx * (p11[1] - p01[1])
+                    hi2 = p01[2] + fx * (p11[2] - p01[2])
+                    t0 = lo0 + fm * (hi0 - lo0)
+                    t1 = lo1 + fm * (hi1 - lo1)
+                    t2 = lo2 + fm * (hi2 - lo2)
+                    w0 = arow[x, 0] * ib0
+                    w1 = arow[x, 1] * ib1
+                    w2 = arow[x, 2] * ib2
+                    if wclip:
+                        w0 = _clip(w0, _ONE)
+                        w1 = _clip(w1, _ONE)
+                        w2 = _clip(w2, _ONE)
+                    o = okr[i]
+                    orow[x, 0] = w0 * l0 * t0 if o else _ZERO
+                    orow[x, 1] = w1 * l1 * t1 if o else _ZERO
+                    orow[x, 2] = w2 * l2 * t2 if o else _ZERO
+                continue
+            for i in range(m):
+                x = x0 + i
+                t = tr[i]
+                if burley:
+                    xs = _ONE - t
+                    xs = distance * math.sqrt(xs if xs > _ZERO else _ZERO)
+                    for c in range(3):
+                        if has_col:
+                            light = (c0[i] if c == 0 else c1[i] if c == 1 else c2[i]) + (grey[i] if has_grey else _ZERO)
+                        else:
+                            light = grey[i]
+                        if three_d[c] > _ZERO:
+                            e3 = _exp(-xs / three_d[c])
+                            tm = _QUARTER * (e3 * e3 * e3 + _THREE * e3)
+                        else:
+                            tm = _ONE if xs == _ZERO else _ZERO
+                        v = albedo[y, x, c] * light * tm
+                        out[y, x, c] = v if okr[i] else _ZERO
+                elif not has_col:
+                    g = grey[i] * t
+                    out[y, x, 0] = albedo[y, x, 0] * g if okr[i] else _ZERO
+                    out[y, x, 1] = albedo[y, x, 1] * g if okr[i] else _ZERO
+                    out[y, x, 2] = albedo[y, x, 2] * g if okr[i] else _ZERO
+                else:
+                    for c in range(3):
+                        light = c0[i] if c == 0 else c1[i] if c == 1 else c2[i]
+                        if has_grey:
+                            light += grey[i]
+                        light *= t
+                        out[y, x, c] = albedo[y, x, c] * light if okr[i] else _ZERO
 
 
 #: Pixels per chunk of a line in SSSS's passes: the chunk's sums (6 x 4 bytes each) and the part

@@ -213,3 +213,42 @@ def test_burley_tiles_and_bands_match_the_reference(monkeypatch):
         mask=inner & (passes["Material Index"] > 0), camera=scene.camera, d_su=(0.2, 0.08, 0.04), seed=11,
     )  # fmt: skip
     assert np.isfinite(out).all()
+
+
+def test_sta_mask_spans_read_32_bytes_at_a_time_give_each_rows_first_and_last():
+    # The STA kernel finds each row's masked span 32 mask bytes at a time (core.compiled._bytes_span):
+    # the same (first, last + 1) as one byte at a time, on rows shorter and longer than 32, empty
+    # (an empty span, first >= last + 1), full, and with the span's ends on and off the 32-byte steps.
+    mod = backend.compiled()
+    rng = np.random.default_rng(5)
+    rows = [np.zeros(n, bool) for n in (1, 31, 32, 33, 100)] + [np.ones(n, bool) for n in (1, 32, 65)]
+    for _ in range(300):
+        row = np.zeros(int(rng.integers(1, 200)), bool)
+        a, b = sorted(int(v) for v in rng.integers(0, row.size + 1, 2))
+        row[a:b] = rng.random(b - a) < 0.7
+        rows.append(row)
+    for row in rows:
+        first = np.flatnonzero(row)
+        got = mod._bytes_span(row.view(np.uint8))
+        assert got == mod._span(row), row
+        if first.size:
+            assert got == (int(first[0]), int(first[-1]) + 1), row
+        else:
+            assert got[0] >= got[1], row
+
+
+def test_sta_masks_of_every_shape_match_the_reference():
+    # Work items of core.compiled.STA_ROWS rows: rows with no masked pixel (whole rows of zeros),
+    # items with none at all, and spans of different widths, against the reference.
+    passes, scene, albedo, normal = _scene(70, 53)
+    rng = np.random.default_rng(9)
+    mask = np.zeros((53, 70), bool)
+    for y in range(20, 53):
+        a, b = sorted(int(v) for v in rng.integers(0, 71, 2))
+        mask[y, a:b] = True
+    mask[40:44] = False
+    out = sta(
+        albedo=albedo, normal=normal, position=passes["Position"], thickness=passes["Thickness"], mask=mask,
+        camera=scene.camera, lights=scene.lights, mfp_su=(0.03, 0.01, 0.005), thickness_distance_su=0.1,
+    )  # fmt: skip
+    assert np.all(out[~mask] == 0) and np.any(out[mask] > 0)
