@@ -629,7 +629,7 @@ def choose(
                 f" ({best.name} {score[best.name]:.4f}); {what} {score[pick.name]:.4f}"
             )
         if what == "measured":
-            reason += " (measured by the fit against Cycles on the material's held-out blocks)"
+            reason += "; measured by its fit against Cycles on the material's held-out blocks"
         reason += _why(f, pick.name)
         kept = (keep or {}).get(f.name)
         if kept is not None and kept != pick.name:
