@@ -504,6 +504,11 @@ class AutoPlan:
             if f.fitted:
                 lines.append(f"    fitted for {', '.join(f.fitted)}; energy its fitted gain corrects G {f.energy:.4f}")
             lines += [f"    {n}" for n in f.notes]
+            if not any(k.measured is not None and k.excluded is None for k in c.candidates):
+                lines.append(
+                    "    no fit measured two or more techniques here: the errors are predicted (calibrate, or"
+                    " Fit to Cycles in the panel, measures them against Cycles)"
+                )
             for cand in sorted(c.candidates, key=lambda k: k.cost):
                 if cand.excluded:
                     lines.append(f"    {cand.name:9s} not a candidate: {cand.excluded}")

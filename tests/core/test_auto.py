@@ -431,6 +431,7 @@ def test_a_fits_measured_errors_decide_over_the_prediction():
         for name in ("none", "sta", "ssss"):
             assert by[name].excluded and "not measured by the material's fit" in by[name].excluded
     assert "measured 0.1000 (its fit, held out)" in plan.explain()
+    assert "the errors are predicted" not in plan.explain()
     # Combined measured 20 % better: beyond the margin, Combined.
     better = auto.choose(passes, _measured(scene, {"burley": 0.100, "combined": 0.080}), model=MODEL, max_error=0.05)
     assert [c.chosen for c in better.choices] == ["combined", "combined"]
@@ -450,5 +451,6 @@ def test_measurements_from_renders_of_different_noise_or_of_one_technique_are_no
         # The prediction decides, as without the measurements (the fit's gain is 1: no energy term).
         assert plan.chosen == unfitted.chosen
         assert all("predicted" in c.reason and "measured" not in c.reason for c in plan.choices)
+        assert plan.explain().count("the errors are predicted (calibrate") == 2
     m = _measured(scene, {"burley": 0.1, "ssss": 0.2}, (32,))
     assert auto.measured_errors(next(x for x in m.materials if x.scatters)) == {"burley": 0.1, "ssss": 0.2}
