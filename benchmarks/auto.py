@@ -24,12 +24,12 @@ timed the same way (its features and choice included). Per scene:
 With ``--fit``, the same again with each scene fitted as ``calibrate`` fits it (``benchmarks/fit.py``'s
 render and passes: Cycles random walk of the same view at 32 samples and passes at 16, its own
 seed, cached in ``out/fidelity_cache/fit``; ``core.fit.fit_scene`` for every technique that has
-a fit): auto then chooses by the errors the fit measured (``core.auto.measured_errors``), and
-**regret with the fit** = auto's error / the lowest error of no SSS and every technique at
-default quality, unfitted *or* fitted - 1 (the fitted techniques count among the choices). Its
-time saved is against the same unfitted most expensive technique (a fit changes a technique's
-parameters, not its work); the fit's own cost (a one-off per asset, ``benchmarks/fit.py``) is not
-in it.
+a fit, or ``--fit-methods``): auto then chooses by the errors the fit measured
+(``core.auto.measured_errors``), and **regret with the fit** = auto's error / the lowest error of
+no SSS and every technique at default quality, unfitted *or* fitted - 1 (the fitted techniques
+count among the choices). Its time saved is against the same unfitted most expensive technique
+(a fit changes a technique's parameters, not its work); the fit's own cost (a one-off per asset,
+``benchmarks/fit.py``) is not in it.
 
 Nothing here knows a scene by name: every scene is scored the same way. ``--write-model`` stores
 the model learnt on all scenes as ``core/auto_model.json`` (what ``apply --method auto`` ships).
@@ -76,15 +76,13 @@ class Scene:
         return float("nan") if r["rel_rmse"] is None else float(r["rel_rmse"])
 
 
-def _fit(data, fit_samples: int, fit_pass_samples: int, log) -> object:
+def _fit(data, fit_samples: int, fit_pass_samples: int, methods, log) -> object:
     """``data.desc`` with each material's fit, made as ``calibrate`` makes it (``benchmarks/fit.py``'s
-    cached render and passes of the scene just loaded, ``core.fit.fit_scene`` for every technique
-    that has a fit)."""
+    cached render and passes of the scene just loaded, ``core.fit.fit_scene`` for ``methods``)."""
     import bpy
 
     from benchmarks import fit as fit_bench
     from sss_lab.core.fit import fit_scene
-    from sss_lab.core.fit_params import FIT_PARAMETERS
 
     cache = os.path.join(fit_bench.ROOT, "out", "fidelity_cache", "fit")
     os.makedirs(cache, exist_ok=True)
@@ -94,7 +92,7 @@ def _fit(data, fit_samples: int, fit_pass_samples: int, log) -> object:
     )
     passes, desc, _ = fit_bench._fit_passes(scene, data.fingerprint, fit_pass_samples, cache, log)
     results, problems = fit_scene(
-        passes, fit_bench._unfitted(desc), noisy, techniques=tuple(FIT_PARAMETERS), samples=fit_samples
+        passes, fit_bench._unfitted(desc), noisy, techniques=tuple(methods), samples=fit_samples
     )
     for line in problems:
         log(f"  fit: {line}")
@@ -201,9 +199,10 @@ def measure(scene: Scene, techniques, repeat: int, time_scale: int = 1) -> dict:
         _, seconds[t] = _fastest(lambda t=t: core_apply.apply(big, big_desc, t), repeat)
     errors = {t: scene.error(img) for t, img in images.items()}
     fitted_errors = {}
-    if scene.fitted is not None:  # each technique with the scene's fits
+    if scene.fitted is not None:  # each technique the scene's materials carry a fit for, with its fits
+        have = {t for m in scene.fitted.materials for t in m.fit}
         for t in images:
-            if t == auto.NONE:
+            if t not in have:
                 continue
             layers = core_apply.apply(scene.passes, scene.fitted, t)
             fitted_errors[t] = scene.error(layers[core_apply.layer_names(t)[0]] if layers else scene.passes["Combined"])
@@ -460,6 +459,11 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--fit-samples", type=int, default=32, help="with --fit: samples of the fit's render")
     parser.add_argument("--fit-pass-samples", type=int, default=16, help="with --fit: samples of the fit's passes")
+    parser.add_argument(
+        "--fit-methods",
+        help="with --fit: the techniques fitted, comma-separated (default: every technique that has a fit;"
+        " calibrate's own default is burley,combined)",
+    )
     parser.add_argument("--out", default=RESULTS)
     args = parser.parse_args(argv)
     import bpy
@@ -480,7 +484,13 @@ def main(argv=None) -> int:
     start = time.perf_counter()
     if args.fit and source != "fidelity":
         parser.error("--fit: only with the fidelity suite (the fit's render is cached by benchmarks/fit.py)")
-    fit = (args.fit_samples, args.fit_pass_samples) if args.fit else None
+    from sss_lab.core.fit_params import FIT_PARAMETERS
+
+    methods = args.fit_methods.split(",") if args.fit_methods else list(FIT_PARAMETERS)
+    unknown = [m for m in methods if m not in FIT_PARAMETERS]
+    if unknown:
+        parser.error(f"--fit-methods: no fit exists for {', '.join(unknown)}; expected: {', '.join(FIT_PARAMETERS)}")
+    fit = (args.fit_samples, args.fit_pass_samples, methods) if args.fit else None
     scenes = (
         _fidelity_scenes(args.names, print, fit) if source == "fidelity" else _sample_scenes(args.names, args, print)
     )
@@ -500,6 +510,7 @@ def main(argv=None) -> int:
         "source": source,
         "max_error": max_error,
         "time_scale": args.time_scale,
+        "fit": None if fit is None else dict(zip(("samples", "pass_samples", "methods"), fit, strict=True)),
         "command": command,
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "note": "shared, loaded 2-core machine"},
         "blender": bpy.app.version_string,
