@@ -29,12 +29,16 @@ Robust to Monte Carlo noise (docs/references.md §8):
   at its default.
 For each k (one technique run) and each f the problem is linear in (g, s): its normal equations
 come from a few dot products per channel, so the whole grid costs little more than the
-technique runs. NumPy only.
+technique runs. Each k runs only the technique's light transport (``_Diffusion``: its energy
+stage does not depend on d and is applied in closed form), with the compiled kernels on one
+thread (``_one_thread``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import inspect
 import math
 import time
 from dataclasses import dataclass, field
@@ -43,12 +47,14 @@ from typing import Any
 import numpy as np
 
 from . import apply as core_apply
+from . import backend
 from . import mapping as _mapping
 from .combined import Medium, transmission
+from .energy import apply_energy, energy_inputs
 from .errors import InputError
 from .fit_params import FIT_PARAMETERS, INFO, PARAMETERS
 from .metrics import box_downsample
-from .plan import _index_map
+from .plan import _index_map, plan
 from .scene import MaterialSSS, SceneDescription
 from .techniques import get_spec
 
@@ -59,6 +65,10 @@ MIN_BLOCKS = 32
 #: Below this share of the target's energy a basis (light from behind, STA's term) counts as
 #: absent on the material: its parameters keep their defaults.
 _ABSENT = 1e-6
+#: Relative difference allowed between the energy stage run on a light and its affine form
+#: G light + B (``_Diffusion``): the two differ by the order of a handful of float32 products and
+#: sums (each within 2^-24 relatively), far below it; a stage that is not affine differs by more.
+_AFFINE_TOL = 1e-5
 
 
 class FitError(InputError):
@@ -141,6 +151,28 @@ def _check_inputs(passes, scene: SceneDescription, reference, technique: str) ->
     return ref
 
 
+@contextlib.contextmanager
+def _one_thread():
+    """The compiled kernels on one thread while the fit runs. The fit's cost is its CPU time, and
+    it runs each technique a dozen times on one frame: a second thread only adds the threads'
+    hand-overs and spin-waits. Measured on the synthetic spheres (``core.synthetic``), CPU time
+    per call of SSSS / Burley, two threads -> one, on the shared 2-core machine: 41 -> 6 / 16 -> 6
+    ms at 128 x 128, 53 -> 18 / 55 -> 19 ms at 256, 101 -> 73 / 121 -> 86 ms at 512 (the wall
+    time fell too there; on a quiet machine two threads take about half the wall time at 1080p,
+    README's speed table)."""
+    if backend.active() == "numpy":
+        yield
+        return
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
 def heldout_blocks(count: int, *, holdout: float, seed: int) -> np.ndarray:
     """Which of ``count`` blocks (in row-major order of the material's blocks) are held out: a
     random ``holdout`` share drawn with ``seed`` (every fourth block if the draw takes none or all)."""
@@ -168,6 +200,22 @@ def fit_material(
     line naming the material and the reason when it cannot be fitted: too few pixels, no bake
     distance for the combined technique, a fit that does not converge or does not hold on the
     held-out blocks. ``samples``: the reference's sample count, kept in the provenance."""
+    with _one_thread():
+        return _fit_material(
+            passes,
+            scene,
+            reference,
+            material,
+            technique,
+            box=box,
+            holdout=holdout,
+            seed=seed,
+            regularization=regularization,
+            samples=samples,
+        )
+
+
+def _fit_material(passes, scene, reference, material, technique, *, box, holdout, seed, regularization, samples):
     start = time.perf_counter()
     ref = _check_inputs(passes, scene, reference, technique)
     if not 0.0 < holdout < 1.0:
@@ -210,7 +258,6 @@ def fit_material(
     original = albedo * (core_apply._clean(passes["Diffuse Direct"]) + core_apply._clean(passes["Diffuse Indirect"]))
     rest = _blocks(combined_rgb - original, keep, box)
     y = target - rest
-    d0 = np.asarray(_mapping.burley_d(plain), np.float64)
     params0 = _mapping.technique_params(plain, technique)
 
     # Light from behind (combined only): E_back per channel and slab thickness, at full size.
@@ -247,13 +294,7 @@ def fit_material(
             trans = None
             notes.append("no light from behind on its pixels: transmission left at its defaults")
 
-    def diffusion(k: float) -> np.ndarray:
-        options: dict[str, Any] = {"d_su": tuple(d0 * k)}
-        if spec.adds_light:
-            options["transmission_scale"] = 0.0
-        layers = core_apply.apply(passes, single, technique, **options)
-        term = layers[core_apply.layer_names(technique)[1]] if layers else 0.0
-        return _blocks(original + term, keep, box)
+    diffusion = _Diffusion(passes, single, spec, keep, box)
 
     solver = _Solver(y, train, trans, regularization)
     evaluated: dict[float, tuple] = {}
@@ -299,6 +340,69 @@ def fit_material(
     if trans is not None and any(i in (0, len(GRID) - 1) for i in f_idx):
         result.at_bounds.append("transmission_d_su")
     return _accept(result, params, samples, pixels, start)
+
+
+class _Diffusion:
+    """S(k): the block means of the technique's light on the material with d times k (the
+    diffusion alone for the combined technique), as ``core.apply`` gives it with the fit.
+
+    The technique's function runs once per k with ``energy="lambert"``: the light it moves, no
+    more. Its energy stage (``core/energy.py``) reads the material's mean free path and the
+    passes, not d, and is affine per pixel and channel in that light (out -> G out + B: the
+    entry's and the convex surface's gain times what a finite object keeps, plus what comes
+    through it), so G and B come from two runs of it on a frame of zeros and one of ones, once,
+    and are checked against the full stage on the k = 1 light; a stage that is not affine there
+    ("view": a gain renormalized to the material's total) runs on each k's light instead.
+    The same result as running the whole technique for every k (``core.apply`` with the fit's d),
+    for a fraction of its cost."""
+
+    def __init__(self, passes, scene: SceneDescription, spec, keep: np.ndarray, box: int):
+        # Planned as with a fit (a gain of 1): a fitted material is computed whatever its kernel's
+        # size, every channel (core.plan), and the model must be what apply gives it then.
+        (material,) = scene.materials
+        fitted = dataclasses.replace(material, fit={spec.name: {"gain": (1.0, 1.0, 1.0)}})
+        p = plan(passes, dataclasses.replace(scene, materials=(fitted,)), spec)
+        (mp,) = p.applied
+        inputs, original, ok = core_apply._inputs(spec, passes, scene, p.albedo_mode)
+        mask = (_index_map(passes) == mp.material.index) & ok & core_apply._finite(passes["Combined"][..., :3])
+        kwargs = {**inputs, **mp.params, "mask": mask, "energy": "lambert"}
+        if "gain" not in spec.keywords:
+            kwargs.pop("gain", None)
+        if spec.adds_light:
+            kwargs["transmission_scale"] = 0.0
+        self.spec, self.kwargs, self.keep, self.box = spec, kwargs, keep, box
+        self.d0 = np.asarray(mp.params["d_su"], np.float64)
+        own = {k: v for k, v in mp.params.items() if k in spec.keywords}
+        bound = inspect.signature(spec.function).bind_partial(**own)
+        bound.apply_defaults()
+        args = {**bound.arguments, **inputs, "mask": mask}
+        self.energy = energy_inputs(args)
+        if spec.adds_light:  # the combined technique's diffusion leaves the lamps behind to its transmission
+            self.energy["lamps_behind"] = False
+        zeros = np.zeros(original.shape, np.float32)
+        self.offset = apply_energy(zeros.copy(), **self.energy)
+        self.factor = apply_energy(zeros + np.float32(1.0), **self.energy) - self.offset
+        self.affine = True
+        light = self.scatter(1.0)
+        full = apply_energy(light.copy(), **self.energy)
+        affine = self.factor * light + self.offset
+        scale = float(np.max(np.abs(full[mask]), initial=0.0))
+        # A few float32 roundings apart at most (the same products in another order).
+        self.affine = bool(np.all(np.abs(full - affine)[mask] <= _AFFINE_TOL * max(scale, 1e-30)))
+        self._first = _blocks(full, keep, box)
+
+    def scatter(self, k: float) -> np.ndarray:
+        kwargs = {**self.kwargs, "d_su": tuple(self.d0 * k)}
+        with np.errstate(over="ignore", invalid="ignore"):
+            return np.asarray(core_apply._call(self.spec.function, kwargs), np.float32)
+
+    def __call__(self, k: float) -> np.ndarray:
+        if k == 1.0:
+            return self._first
+        light = self.scatter(k)
+        if self.affine:
+            return _blocks(self.factor * light + self.offset, self.keep, self.box)
+        return _blocks(apply_energy(light, **self.energy), self.keep, self.box)
 
 
 def _bounds(params: dict, result: FitResult) -> None:
