@@ -55,7 +55,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import _arrays
+from . import _arrays, backend
 from .burley import TECHNIQUE as BURLEY
 from .burley import burley
 from .passes import THICKNESS
@@ -263,10 +263,15 @@ def _box(a: np.ndarray, radius: int, axis: int) -> np.ndarray:
     return (hi - lo).astype(np.float32)
 
 
+def _box_radius(sigma_px: float) -> int:
+    """Half-width r of the boxes ``_blur`` uses for ``sigma_px``."""
+    return max(1, int(round((math.sqrt(4.0 * sigma_px * sigma_px + 1.0) - 1.0) / 2.0)))
+
+
 def _blur(a: np.ndarray, sigma_px: float) -> np.ndarray:
     """Three box filters per axis, whose variance is sigma_px^2 (an approximate Gaussian; the width
     2 r + 1 of each box satisfies 3 ((2 r + 1)^2 - 1) / 12 = sigma^2 to the nearest integer r)."""
-    r = max(1, int(round((math.sqrt(4.0 * sigma_px * sigma_px + 1.0) - 1.0) / 2.0)))
+    r = _box_radius(sigma_px)
     for axis in (0, 1):
         for _ in range(3):
             a = _box(a, r, axis)
@@ -314,7 +319,49 @@ def spread_back_light(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> 
     """``e`` (H, W, 3) on ``mask`` blurred per pixel and channel by a Gaussian of ``sigma_px``
     (H, W, 3) px, renormalized over the mask (light from outside it is not gathered; the
     normalization keeps a uniform light unchanged): interpolated between blurs at
-    ``SPREAD_LEVELS_PX``. Pixels with sigma below the first level keep a share of their own value."""
+    ``SPREAD_LEVELS_PX``. Pixels with sigma below the first level keep a share of their own value.
+
+    On the compiled backend ``core.compiled.spread_light`` computes it with the same float32 and
+    float64 operations in the same order (equal to the bit: check mode compares with bound 0); the
+    NumPy code below is the reference (``core.backend``)."""
+    mode = backend.active()
+    if mode == "numpy":
+        return _spread_reference(e, mask, sigma_px)
+    result = _spread_compiled(e, mask, sigma_px)
+    if mode == "check":
+        reference = _spread_reference(e, mask, sigma_px)
+        backend.compare("spread_back_light", reference, result, np.zeros(reference.shape))
+    return result
+
+
+def _spread_levels(top: float) -> list[float]:
+    """The widths of the levels ``spread_back_light`` blurs at for a largest width ``top`` (0 first:
+    the light itself), up to the first that reaches ``top``."""
+    sigmas = [0.0]
+    for sg in SPREAD_LEVELS_PX:
+        if sigmas[-1] >= top:
+            break
+        sigmas.append(sg)
+    return sigmas
+
+
+def _spread_compiled(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> np.ndarray:
+    """``spread_back_light`` on the compiled backend (``core.compiled.spread_light``)."""
+    top = float(np.max(sigma_px[mask], initial=0.0))
+    sigmas = _spread_levels(top)
+    if len(sigmas) == 1:
+        return e
+    c = np.ascontiguousarray
+    e32 = c(e, np.float32)
+    out = np.empty(e32.shape, np.float32)
+    radii = np.array([_box_radius(sg) for sg in sigmas[1:]], np.int64)
+    grid = np.asarray(sigmas, np.float64)
+    backend.run_kernel("spread_light", e32, c(mask, bool), c(sigma_px, np.float32), grid, radii, out)
+    return out
+
+
+def _spread_reference(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> np.ndarray:
+    """``spread_back_light`` in NumPy: the reference."""
     m = mask.astype(np.float32)
     top = float(np.max(sigma_px[mask], initial=0.0))
     levels = [e]

@@ -1176,6 +1176,98 @@ def _burley_clean(ok, cam, ids, group, reach, extents, depth, tol, r, min_px, po
                     out[y, x, c] = post[y, x, c] * v
 
 
+#: Columns (vertical passes) or rows (horizontal ones) per work item of ``spread_light``'s box sums.
+SPREAD_STRIP = 16
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def spread_light(e, mask, sigma, grid, radii, out):
+    """``core.combined.spread_back_light`` (the reference: its docstring and ``_blur``) of ``e``
+    (H, W, 3) over ``mask`` with per-pixel and channel widths ``sigma`` (H, W, 3) into ``out``:
+    level k (1 <= k < len(``grid``)) is the light on the mask (``e`` x mask) and the mask itself,
+    each blurred by three box sums of half-width ``radii[k - 1]`` along the columns, then three
+    along the rows, the light divided by the blurred mask (at least 1e-6); level 0 is ``e``. A
+    pixel of the mask interpolates between the two levels whose widths ``grid`` (float64,
+    ascending from 0) enclose its own (clipped to the last), as the reference's searchsorted
+    picks them; elsewhere ``out`` is ``e``.
+
+    Each box sum is the reference's: a float64 running sum along the line, from the line's start
+    (zeros before it), of the float32 values, and the float32 of the difference of two of its
+    values, 2 r + 1 apart, so the same float64 sums in the same order and the same roundings
+    (equal to the bit). Levels are computed one after the other, each pixel's result written
+    when its upper level is done: two levels and the four planes being summed are held, not the
+    reference's stack of every level."""
+    h, w, _ = e.shape
+    n_levels = grid.size
+    top = grid[n_levels - 1]
+    prev = np.empty((3, h, w), np.float32)
+    planes = np.empty((4, h, w), np.float32)
+    for y in prange(h):
+        for x in range(w):
+            for c in range(3):
+                prev[c, y, x] = e[y, x, c]
+                out[y, x, c] = e[y, x, c]
+    n_col = (w + SPREAD_STRIP - 1) // SPREAD_STRIP
+    n_row = (h + SPREAD_STRIP - 1) // SPREAD_STRIP
+    for k in range(1, n_levels):
+        r = radii[k - 1]
+        for y in prange(h):
+            for x in range(w):
+                mk = _ONE if mask[y, x] else _ZERO
+                planes[0, y, x] = e[y, x, 0] * mk
+                planes[1, y, x] = e[y, x, 1] * mk
+                planes[2, y, x] = e[y, x, 2] * mk
+                planes[3, y, x] = mk
+        for item in prange(4 * n_col):
+            p = item // n_col
+            x0 = (item % n_col) * SPREAD_STRIP
+            bw = min(x0 + SPREAD_STRIP, w) - x0
+            cum = np.zeros((h + 2 * r + 1, SPREAD_STRIP), np.float64)
+            for _ in range(3):
+                for j in range(h):
+                    for t in range(bw):
+                        cum[r + 1 + j, t] = cum[r + j, t] + np.float64(planes[p, j, x0 + t])
+                for j in range(r):
+                    for t in range(bw):
+                        cum[r + 1 + h + j, t] = cum[r + h + j, t]
+                for i in range(h):
+                    for t in range(bw):
+                        planes[p, i, x0 + t] = f32(cum[2 * r + 1 + i, t] - cum[i, t])
+        for item in prange(4 * n_row):
+            p = item // n_row
+            y0 = (item % n_row) * SPREAD_STRIP
+            cum = np.zeros(w + 2 * r + 1, np.float64)
+            for y in range(y0, min(y0 + SPREAD_STRIP, h)):
+                line = planes[p, y]
+                for _ in range(3):
+                    for j in range(w):
+                        cum[r + 1 + j] = cum[r + j] + np.float64(line[j])
+                    for j in range(r):
+                        cum[r + 1 + w + j] = cum[r + w + j]
+                    for i in range(w):
+                        line[i] = f32(cum[2 * r + 1 + i] - cum[i])
+        lo_w = grid[k - 1]
+        span = grid[k] - grid[k - 1]
+        for y in prange(h):
+            for x in range(w):
+                den = planes[3, y, x]
+                den = den if den > f32(1e-6) or den != den else f32(1e-6)
+                for c in range(3):
+                    cur = planes[c, y, x] / den
+                    if mask[y, x]:
+                        s = np.float64(sigma[y, x, c])
+                        s = _ZERO if s < 0.0 else s
+                        s = top if s > top else s
+                        hi = 0
+                        while hi < n_levels and not grid[hi] >= s:
+                            hi += 1
+                        hi = min(max(hi, 1), n_levels - 1)
+                        if hi == k:
+                            wt = f32((s - lo_w) / span)
+                            out[y, x, c] = (_ONE - wt) * prev[c, y, x] + wt * cur
+                    prev[c, y, x] = cur
+
+
 def light_table(lights) -> np.ndarray:
     """core.scene.Light list as the STA kernel's (L, LIGHT_COLUMNS) float32 table, each value
     rounded to float32 exactly where ``core.sta.light_at`` rounds it."""
