@@ -438,13 +438,83 @@ def transmission(
     walk's refracted entry) are optional: without them the exit weight is 1 and the entry normal.
     ``depth`` (the Depth pass, with ``camera``) turns on the lateral spread, ``object_id`` keeps it
     within each object."""
+    scale = _arrays.rgb_lengths(transmission_scale, "transmission_scale").astype(np.float32)
+    _arrays.rgb_lengths(d_su, "transmission_d_su")
+    back = back_light(
+        normal=normal,
+        position=position,
+        thickness=thickness,
+        mask=mask,
+        lights=lights,
+        thickness_distance_su=thickness_distance_su,
+        thickness_convention=thickness_convention,
+        medium=medium,
+        albedo=albedo,
+        camera=camera,
+        albedo_mode=albedo_mode,
+        depth=depth,
+        object_id=object_id,
+    )
+    return back.transmitted(d_su, scale)
+
+
+@dataclass
+class BackLight:
+    """What ``transmission`` reads that does not depend on the transmittance's length: the slab
+    thickness x (H, W) and the irradiance over pi (H, W, 3) of the far side, the pixels it lights,
+    the view cosine of the walk's entry, the parts the light spreads within with their pixels per
+    scene unit, and the exit weight. ``transmitted`` gives the light at a length; a caller that
+    tries many lengths (``core/fit.py``) builds this once."""
+
+    x: np.ndarray
+    irradiance: np.ndarray
+    lit: np.ndarray
+    medium: Medium | None
+    view_cos: np.ndarray | None
+    parts: list
+    ppu: np.ndarray | None
+    weight: np.ndarray | None
+
+    def transmitted(self, d_su, transmission_scale=1.0) -> np.ndarray:
+        """``transmission`` at the length ``d_su`` (R, G, B) and the scale ``transmission_scale``."""
+        scale = _arrays.rgb_lengths(transmission_scale, "transmission_scale").astype(np.float32)
+        e, lit = self.irradiance, self.lit
+        out = np.zeros_like(e)
+        if lit.any():
+            x = self.x[lit]
+            view = None if self.view_cos is None else self.view_cos[lit]
+            out[lit] = e[lit] * slab_transmittance_rgb(x, d_su, self.medium, view_cos=view)
+        for part in self.parts:
+            out = _spread_part(out, part, spread_sigma(self.x[part], d_su, self.medium) * self.ppu[part][:, None])
+        if self.weight is not None:
+            out *= self.weight
+        if np.any(scale != 1):
+            out *= scale
+        return out
+
+
+def back_light(
+    *,
+    normal,
+    position,
+    thickness,
+    mask,
+    lights,
+    thickness_distance_su: float,
+    thickness_convention: str = "translucency",
+    medium: Medium | None = None,
+    albedo=None,
+    camera: Camera | None = None,
+    albedo_mode: str = "post",
+    depth=None,
+    object_id=None,
+) -> BackLight:
+    """The length-independent part of ``transmission`` (same arguments but ``d_su`` and the scale)."""
     if thickness_convention not in THICKNESS_CONVENTIONS:
         raise ValueError(
             f"thickness_convention: {thickness_convention!r} is not one of {', '.join(THICKNESS_CONVENTIONS)}"
         )
     distance = _arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
-    scale = _arrays.rgb_lengths(transmission_scale, "transmission_scale").astype(np.float32)
-    _arrays.rgb_lengths(d_su, "transmission_d_su")
     t = _arrays.image(thickness, "thickness", None)
     ok = np.isfinite(t)
     tt = np.where(ok, t, np.float32(0.0))
@@ -459,11 +529,7 @@ def transmission(
     if camera is not None and medium is not None and medium.walks:
         view_cos = view_cosine(normal, position, camera)
     lit = (e.max(axis=2) > 0) & ok
-    out = np.zeros_like(e)
-    if lit.any():
-        x = x_all[lit]
-        tr = slab_transmittance_rgb(x, d_su, medium, view_cos=None if view_cos is None else view_cos[lit])
-        out[lit] = e[lit] * tr
+    parts, ppu = [], None
     if depth is not None and camera is not None and lit.any():  # no light from behind: nothing to spread
         # The light a walk leaves with entered the far side up to about the thickness away.
         m = _arrays.mask_array(mask, e.shape[:2]) & ok
@@ -474,15 +540,10 @@ def transmission(
             ids = np.asarray(object_id)
             ids = ids[..., 0] if ids.ndim == 3 else ids
             parts = [m & (ids == i) for i in np.unique(ids[m])]
-        for part in parts:
-            out = _spread_part(out, part, spread_sigma(x_all[part], d_su, medium) * ppu[part][:, None])
     w = exit_weight(albedo, medium, albedo_mode)
     if w is not None:
         _arrays.same_size(e.shape[:2], albedo=w)
-        out *= w
-    if np.any(scale != 1):
-        out *= scale
-    return out
+    return BackLight(x_all, e, lit, medium, view_cos, parts, ppu, w)
 
 
 def combined(
@@ -537,15 +598,7 @@ def combined(
     if diffusion not in DIFFUSIONS:
         raise ValueError(f"diffusion: {diffusion!r} is not one of {', '.join(DIFFUSIONS)}")
     d = _arrays.rgb_lengths(d_su, "d_su")
-    medium = None
-    if subsurface_method is not None:
-        medium = Medium(subsurface_method, tuple(base_color), float(subsurface_ior), float(subsurface_anisotropy))
-    if transmission_d_su is not None:
-        d_tr = _arrays.rgb_lengths(transmission_d_su, "transmission_d_su")
-    elif mfp_su is not None:
-        d_tr = _arrays.rgb_lengths(mfp_su, "mfp_su")
-    else:
-        d_tr = d
+    medium, d_tr = _medium_and_length(locals())
     # The diffusion's energy (core/energy.py); the transmission below carries the lamps' light
     # from behind, so the diffusion's unseen-side light leaves them out.
     energy_kw = {
@@ -594,24 +647,49 @@ def combined(
         out[m] *= g
     scale = _arrays.rgb_lengths(transmission_scale, "transmission_scale")
     if scale.max() > 0:
-        out += transmission(
-            normal=normal,
-            position=position,
-            thickness=thickness,
-            mask=m,
-            lights=lights,
-            d_su=tuple(d_tr),
-            thickness_distance_su=thickness_distance_su,
-            transmission_scale=tuple(scale),
-            thickness_convention=thickness_convention,
-            medium=medium,
-            albedo=albedo if medium is not None else None,
-            camera=camera,
-            albedo_mode=albedo_mode,
-            depth=depth,
-            object_id=object_id,
-        )
+        out += back_light(**_back_light_arguments(locals(), medium)).transmitted(tuple(d_tr), tuple(scale))
     return out
+
+
+def _medium_and_length(arguments: dict) -> tuple[Medium | None, np.ndarray]:
+    """The light from behind's medium and length per channel from ``combined``'s arguments: the
+    material's walk (None without a method: Burley's law) and ``transmission_d_su``, else
+    ``mfp_su``, else ``d_su``."""
+    a = arguments
+    medium = None
+    if a["subsurface_method"] is not None:
+        color, ior, anisotropy = tuple(a["base_color"]), float(a["subsurface_ior"]), float(a["subsurface_anisotropy"])
+        medium = Medium(a["subsurface_method"], color, ior, anisotropy)
+    if a["transmission_d_su"] is not None:
+        return medium, _arrays.rgb_lengths(a["transmission_d_su"], "transmission_d_su")
+    if a["mfp_su"] is not None:
+        return medium, _arrays.rgb_lengths(a["mfp_su"], "mfp_su")
+    return medium, _arrays.rgb_lengths(a["d_su"], "d_su")
+
+
+def _back_light_arguments(arguments: dict, medium: Medium | None) -> dict:
+    """``back_light``'s arguments from ``combined``'s."""
+    a = arguments
+    keys = ("normal", "position", "thickness", "lights", "thickness_distance_su", "thickness_convention")
+    return {
+        **{k: a[k] for k in keys},
+        "mask": _arrays.mask_array(a["mask"], _arrays.image(a["diffuse"], "diffuse").shape[:2]),
+        "medium": medium,
+        "albedo": a["albedo"] if medium is not None else None,
+        "camera": a["camera"],
+        "albedo_mode": a["albedo_mode"],
+        "depth": a["depth"],
+        "object_id": a["object_id"],
+    }
+
+
+def light_from_behind(arguments: dict) -> tuple[BackLight, np.ndarray]:
+    """What ``combined`` called with ``arguments`` (all its keyword arguments, defaults included)
+    adds as light from behind, before its length, and that length per channel: ``combined`` adds
+    ``back.transmitted(length x its fitted factors, transmission_scale)``. ``core/fit.py`` tries
+    many lengths on one ``BackLight``."""
+    medium, length = _medium_and_length(arguments)
+    return back_light(**_back_light_arguments(arguments, medium)), length
 
 
 def _prepare(params: dict) -> list[str]:

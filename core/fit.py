@@ -42,14 +42,13 @@ import inspect
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from . import apply as core_apply
 from . import backend
 from . import mapping as _mapping
-from .combined import Medium, transmission
+from .combined import light_from_behind
 from .energy import apply_energy, energy_inputs
 from .errors import InputError
 from .fit_params import FIT_PARAMETERS, INFO, PARAMETERS
@@ -270,31 +269,17 @@ def _fit_material(passes, scene, reference, material, technique, *, box, holdout
                 f"material {name!r}: its thickness map has no bake distance, so the light from behind cannot be"
                 " fitted (bake thickness with SSS Lab first); left unchanged"
             )
-        t_raw = core_apply._clean(passes[scene.thickness_aov])
-        d_tr0 = np.asarray(params0.get("transmission_d_su", params0["mfp_su"]), np.float64)
+    diffusion = _Diffusion(passes, single, spec, keep, box)
+    if spec.adds_light:
         # The combined technique's light from behind exactly as it computes it (core/combined.py:
-        # the material's medium, exit weight, entry and lateral spread), at scale 1 with every
-        # channel's length times GRID[i]: trans[i] (N, 3).
-        keys = ("subsurface_method", "base_color", "subsurface_ior", "subsurface_anisotropy")
-        inputs: dict[str, Any] = {
-            "normal": core_apply._clean(passes["Normal"]),
-            "position": core_apply._clean(passes["Position"]),
-            "thickness": t_raw if t_raw.ndim == 2 else t_raw[..., 0],
-            "mask": mask,
-            "lights": scene.lights,
-            "thickness_distance_su": distance,
-            "thickness_convention": scene.thickness_convention,
-            "medium": Medium(*(params0[k] for k in keys)),
-            "albedo": albedo,
-            "camera": scene.camera,
-            "depth": core_apply._clean(passes["Depth"]),
-        }
-        trans = np.stack([_blocks(transmission(**inputs, d_su=tuple(d_tr0 * f)), keep, box) for f in GRID])
-        if float(np.sum(trans[:, train] ** 2)) <= _ABSENT * float(np.sum(y[train] ** 2)):
+        # the material's medium, exit weight, entry and lateral spread; what does not depend on the
+        # length once), at scale 1 with every channel's length times GRID[i]: trans[i] (N, 3).
+        back, d_tr0 = light_from_behind(diffusion.arguments)
+        if back.lit.any():
+            trans = np.stack([_blocks(back.transmitted(tuple(d_tr0 * f)), keep, box) for f in GRID])
+        if trans is None or float(np.sum(trans[:, train] ** 2)) <= _ABSENT * float(np.sum(y[train] ** 2)):
             trans = None
             notes.append("no light from behind on its pixels: transmission left at its defaults")
-
-    diffusion = _Diffusion(passes, single, spec, keep, box)
 
     solver = _Solver(y, train, trans, regularization)
     evaluated: dict[float, tuple] = {}
@@ -331,7 +316,6 @@ def _fit_material(passes, scene, reference, material, technique, *, box, holdout
     )
     params = {"gain": tuple(float(v) for v in g), "d_scale": float(best_k)}
     if spec.adds_light and trans is not None:
-        d_tr0 = np.asarray(params0.get("transmission_d_su", params0["mfp_su"]), np.float64)
         params["transmission_scale"] = tuple(float(v) for v in s)
         params["transmission_d_su"] = tuple(float(d_tr0[c] * GRID[f_idx[c]]) for c in range(3))
     _bounds(params, result)
@@ -375,8 +359,9 @@ class _Diffusion:
         own = {k: v for k, v in mp.params.items() if k in spec.keywords}
         bound = inspect.signature(spec.function).bind_partial(**own)
         bound.apply_defaults()
-        args = {**bound.arguments, **inputs, "mask": mask}
-        self.energy = energy_inputs(args)
+        #: The technique function's keyword arguments at k = 1, defaults included.
+        self.arguments = {**bound.arguments, **inputs, "mask": mask}
+        self.energy = energy_inputs(self.arguments)
         if spec.adds_light:  # the combined technique's diffusion leaves the lamps behind to its transmission
             self.energy["lamps_behind"] = False
         zeros = np.zeros(original.shape, np.float32)
