@@ -289,14 +289,7 @@ def _fit_material(passes, scene, reference, material, technique, *, box, holdout
             evaluated[k] = solver.solve(diffusion(k), k)
         return evaluated[k]
 
-    for k in GRID:
-        evaluate(k)
-    best_k = min(evaluated, key=lambda k: evaluated[k][0])
-    # Refine between the best grid point's neighbours (a quarter octave either side).
-    for k in (best_k * 2.0**-0.25, best_k * 2.0**0.25):
-        if GRID[0] <= k <= GRID[-1]:
-            evaluate(k)
-    best_k = min(evaluated, key=lambda k: evaluated[k][0])
+    best_k = _search(evaluate, evaluated)
     objective, g, s, f_idx, model = evaluated[best_k]
     if not (math.isfinite(objective) and np.all(np.isfinite(model)) and np.all(np.isfinite(g))):
         raise FitError(f"material {name!r} {technique}: the fit did not converge (non-finite error); left unchanged")
@@ -324,6 +317,40 @@ def _fit_material(passes, scene, reference, material, technique, *, box, holdout
     if trans is not None and any(i in (0, len(GRID) - 1) for i in f_idx):
         result.at_bounds.append("transmission_d_su")
     return _accept(result, params, samples, pixels, start)
+
+
+def _search(evaluate, evaluated: dict) -> float:
+    """The k of lowest objective, coarse to fine: 1/2, 1 and 2, then one octave further (1/4 or
+    4) while the best is at an end of what was tried, then the best's neighbours half an octave
+    either side (the rest of ``GRID``), then a quarter octave. Where the objective has one
+    minimum over ``GRID`` (its ridge on log2 k pulls towards 1) this finds the same k as trying
+    all of ``GRID`` and refining the best, with 7-8 technique runs instead of 11."""
+
+    lo, hi = round(4 * math.log2(GRID[0])), round(4 * math.log2(GRID[-1]))  # in quarter octaves
+
+    def run(q: int) -> None:
+        if lo <= q <= hi:
+            evaluate(2.0 ** (q / 4.0))
+
+    def best() -> int:
+        return round(4 * math.log2(min(evaluated, key=lambda k: evaluated[k][0])))
+
+    for q in (-4, 0, 4):
+        run(q)
+    while True:
+        q = best()
+        tried = sorted(round(4 * math.log2(k)) for k in evaluated)
+        further = q - 4 if q == tried[0] else q + 4 if q == tried[-1] else None
+        if further is None or not lo <= further <= hi:
+            break
+        run(further)
+        if best() == q:
+            break
+    for step in (2, 1):
+        q = best()
+        run(q - step)
+        run(q + step)
+    return 2.0 ** (best() / 4.0)
 
 
 class _Diffusion:
