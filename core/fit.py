@@ -21,7 +21,8 @@ Robust to Monte Carlo noise (docs/references.md §8):
   ones (halving the size, down to 2 x 2) before it is refused;
 - a random ``holdout`` share of the blocks (fixed seed) is left out of the fit and measures
   it: a fit that does not lower the held-out error over-fits the noise (or the model cannot
-  explain the material) and is rejected, the material left unchanged;
+  explain the material) and is rejected, the material left unchanged; a fit that holds is made
+  again on every block (the held-out ones too), which gives the values kept;
 - the parameters are bounded (``fit_params.PARAMETERS``; k and f searched on a grid of
   factors of sqrt(2) from 1/4 to 4, then k refined between its neighbours) and pulled towards
   "no change" by a ridge term of weight ``regularization`` relative to each basis' energy, so
@@ -289,10 +290,16 @@ def _fit_material(passes, scene, reference, material, technique, *, box, holdout
             evaluated[k] = solver.solve(diffusion(k), k)
         return evaluated[k]
 
-    best_k = _search(evaluate, evaluated)
-    objective, g, s, f_idx, model = evaluated[best_k]
-    if not (math.isfinite(objective) and np.all(np.isfinite(model)) and np.all(np.isfinite(g))):
-        raise FitError(f"material {name!r} {technique}: the fit did not converge (non-finite error); left unchanged")
+    def solved():
+        best_k = _search(evaluate, evaluated)
+        objective, g, s, f_idx, model = evaluated[best_k]
+        if not (math.isfinite(objective) and np.all(np.isfinite(model)) and np.all(np.isfinite(g))):
+            raise FitError(
+                f"material {name!r} {technique}: the fit did not converge (non-finite error); left unchanged"
+            )
+        return best_k, g, s, f_idx, model
+
+    best_k, g, s, f_idx, model = solved()
     default = solver.default_model()
     result = FitResult(
         material=name,
@@ -307,6 +314,12 @@ def _fit_material(passes, scene, reference, material, technique, *, box, holdout
         heldout_blocks=int(held.sum()),
         notes=notes,
     )
+    if result.heldout_after < result.heldout_before:
+        # The held-out blocks have judged the fit (and ``_accept`` refuses it when it did not
+        # hold); the values it keeps are then fitted on every block, as cross-validation does.
+        solver = _Solver(y, np.ones_like(train), trans, regularization)
+        evaluated.clear()
+        best_k, g, s, f_idx, model = solved()
     params = {"gain": tuple(float(v) for v in g), "d_scale": float(best_k)}
     if spec.adds_light and trans is not None:
         params["transmission_scale"] = tuple(float(v) for v in s)
@@ -402,6 +415,7 @@ class _Diffusion:
         # A few float32 roundings apart at most (the same products in another order).
         self.affine = bool(np.all(np.abs(full - affine)[mask] <= _AFFINE_TOL * max(scale, 1e-30)))
         self._first = _blocks(full, keep, box)
+        self._cache: dict[float, np.ndarray] = {}
 
     def scatter(self, k: float) -> np.ndarray:
         kwargs = {**self.kwargs, "d_su": tuple(self.d0 * k)}
@@ -411,6 +425,12 @@ class _Diffusion:
     def __call__(self, k: float) -> np.ndarray:
         if k == 1.0:
             return self._first
+        if k in self._cache:
+            return self._cache[k]
+        self._cache[k] = self._compute(k)
+        return self._cache[k]
+
+    def _compute(self, k: float) -> np.ndarray:
         light = self.scatter(k)
         if self.affine:
             return _blocks(self.factor * light + self.offset, self.keep, self.box)
@@ -456,8 +476,14 @@ def _finish_sta(material, name, base, basis, target, train, held, regularization
     if bb <= _ABSENT * float(np.sum(y[train] ** 2)):
         raise FitError(f"material {name!r} sta: no light from behind on its pixels, nothing to fit; left unchanged")
     _, lo, hi = PARAMETERS["scale"]
-    s = (float(np.sum(basis[train] * y[train])) + regularization * bb) / (bb * (1.0 + regularization))
-    s = min(max(s, lo), hi)
+
+    def solve(blocks):
+        b = float(np.sum(basis[blocks] ** 2))
+        return min(
+            max((float(np.sum(basis[blocks] * y[blocks])) + regularization * b) / (b * (1.0 + regularization)), lo), hi
+        )
+
+    s = solve(train)
     result = FitResult(
         material=name,
         index=material.index,
@@ -470,6 +496,8 @@ def _finish_sta(material, name, base, basis, target, train, held, regularization
         blocks=int(train.sum()),
         heldout_blocks=int(held.sum()),
     )
+    if result.heldout_after < result.heldout_before:  # it holds: made again on every block
+        s = solve(np.ones_like(train))
     if s in (lo, hi):
         result.at_bounds.append("scale")
     return _accept(result, {"scale": s}, samples, int(count), start)
