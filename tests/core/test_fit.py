@@ -94,20 +94,23 @@ def test_noisy_fit_is_close_and_holds(synthetic):
     assert r.heldout_after < 0.5 * r.heldout_before
 
 
+def _heldout_pixels(passes, material):
+    """The pixels of the 4 x 4 blocks ``fit_material`` holds out for ``material`` (its defaults)."""
+    mask = core_apply._index_map(passes) == material.index
+    keep = fit_mod.box_downsample(mask.astype(float), 4) >= 1.0
+    blocks = np.zeros(keep.shape, bool)
+    blocks[keep] = heldout_blocks(int(keep.sum()), holdout=0.25, seed=0)
+    return np.kron(blocks, np.ones((4, 4), bool))
+
+
 def test_a_fit_that_does_not_hold_is_rejected(synthetic):
     """Training blocks say "twice as bright", held-out blocks say "as it is": the fit follows the
     training blocks and is rejected by the held-out ones, with one line naming the material."""
     passes, scene = synthetic
     skin = _skin(scene)
     default = _reference(passes, scene, "burley", {})
-    mask = core_apply._index_map(passes) == skin.index
-    keep = fit_mod.box_downsample(mask.astype(float), 4) >= 1.0
-    held = heldout_blocks(int(keep.sum()), holdout=0.25, seed=0)
-    train_blocks = np.zeros(keep.shape, bool)
-    train_blocks[keep] = ~held
-    train_pixels = np.kron(train_blocks, np.ones((4, 4), bool))
     ref = default.copy()
-    ref[train_pixels, :3] *= 2.0
+    ref[~_heldout_pixels(passes, skin) & (core_apply._index_map(passes) == skin.index), :3] *= 2.0
     with pytest.raises(FitError, match="'Skin' burley: the fit does not hold on the held-out pixels"):
         fit_material(passes, scene, ref, skin, "burley")
 
@@ -119,15 +122,9 @@ def test_a_fit_that_holds_keeps_the_values_fitted_on_every_block(synthetic):
     passes, scene = synthetic
     skin = _skin(scene)
     default = _reference(passes, scene, "burley", {})
-    mask = core_apply._index_map(passes) == skin.index
-    keep = fit_mod.box_downsample(mask.astype(float), 4) >= 1.0
-    held = heldout_blocks(int(keep.sum()), holdout=0.25, seed=0)
-    held_blocks = np.zeros(keep.shape, bool)
-    held_blocks[keep] = held
-    held_pixels = np.kron(held_blocks, np.ones((4, 4), bool))
     ref = default.copy()
     ref[..., :3] *= 1.2
-    ref[held_pixels, :3] *= 1.3 / 1.2
+    ref[_heldout_pixels(passes, skin), :3] *= 1.3 / 1.2
     r = fit_material(passes, scene, ref, skin, "burley", regularization=0.0)
     # On every block: about sum(S y) / sum(S^2) with y = 1.2 S (training) or 1.3 S (held out), a
     # mean of 1.2 and 1.3 weighted by each set's share of sum(S^2) (near the held-out share, 25 %;
