@@ -24,7 +24,8 @@ Robust to Monte Carlo noise (docs/references.md §8):
   explain the material) and is rejected, the material left unchanged; a fit that holds is made
   again on every block (the held-out ones too), which gives the values kept;
 - the parameters are bounded (``fit_params.PARAMETERS``; k and f searched on a grid of
-  factors of sqrt(2) from 1/4 to 4, then k refined between its neighbours) and pulled towards
+  factors of sqrt(2) from 1/4 to 4, coarse to fine (``_search``, ``_Lengths``), then k refined
+  between its neighbours) and pulled towards
   "no change" by a ridge term of weight ``regularization`` relative to each basis' energy, so
   that a direction the pixels barely see (a channel with no light, no light from behind) stays
   at its default.
@@ -276,13 +277,17 @@ def _fit_material(passes, scene, reference, material, technique, *, box, holdout
         # the material's medium, exit weight, entry and lateral spread; what does not depend on the
         # length once), at scale 1 with every channel's length times GRID[i]: trans[i] (N, 3).
         back, d_tr0 = light_from_behind(diffusion.arguments)
+        lengths = _Lengths(back, d_tr0, keep, box)
         if back.lit.any():
-            trans = np.stack([_blocks(back.transmitted(tuple(d_tr0 * f)), keep, box) for f in GRID])
-        if trans is None or float(np.sum(trans[:, train] ** 2)) <= _ABSENT * float(np.sum(y[train] ** 2)):
+            trans = lengths.start()
+        # Absent: its energy over the whole grid of lengths (estimated from the first three) is
+        # at most _ABSENT of the target's.
+        energy = len(GRID) * float(np.mean(np.sum(trans[:, train] ** 2, axis=(1, 2)))) if trans is not None else 0.0
+        if energy <= _ABSENT * float(np.sum(y[train] ** 2)):
             trans = None
             notes.append("no light from behind on its pixels: transmission left at its defaults")
 
-    solver = _Solver(y, train, trans, regularization)
+    solver = _Solver(y, train, trans, regularization, lengths.exponents() if trans is not None else None)
     evaluated: dict[float, tuple] = {}
 
     def evaluate(k: float):
@@ -299,6 +304,15 @@ def _fit_material(passes, scene, reference, material, technique, *, box, holdout
             )
         return best_k, g, s, f_idx, model
 
+    best_k, g, s, f_idx, model = solved()
+    if trans is not None:
+        # The lengths of the light from behind, coarse to fine per channel (``_Lengths``), d's
+        # scale searched again on each new set (its technique runs are kept: only solves).
+        while (more := lengths.next(f_idx)) is not None:
+            trans = more
+            solver = _Solver(y, train, trans, regularization, lengths.exponents())
+            evaluated.clear()
+            best_k, g, s, f_idx, model = solved()
     best_k, g, s, f_idx, model = solved()
     default = solver.default_model()
     result = FitResult(
@@ -317,19 +331,87 @@ def _fit_material(passes, scene, reference, material, technique, *, box, holdout
     if result.heldout_after < result.heldout_before:
         # The held-out blocks have judged the fit (and ``_accept`` refuses it when it did not
         # hold); the values it keeps are then fitted on every block, as cross-validation does.
-        solver = _Solver(y, np.ones_like(train), trans, regularization)
+        solver = _Solver(
+            y, np.ones_like(train), trans, regularization, lengths.exponents() if trans is not None else None
+        )
         evaluated.clear()
         best_k, g, s, f_idx, model = solved()
     params = {"gain": tuple(float(v) for v in g), "d_scale": float(best_k)}
     if spec.adds_light and trans is not None:
         params["transmission_scale"] = tuple(float(v) for v in s)
-        params["transmission_d_su"] = tuple(float(d_tr0[c] * GRID[f_idx[c]]) for c in range(3))
+        params["transmission_d_su"] = lengths.values(f_idx)
     _bounds(params, result)
     if best_k in (GRID[0], GRID[-1]):
         result.at_bounds.append("d_scale")
-    if trans is not None and any(i in (0, len(GRID) - 1) for i in f_idx):
+    if trans is not None and lengths.at_bounds(f_idx):
         result.at_bounds.append("transmission_d_su")
     return _accept(result, params, samples, pixels, start)
+
+
+class _Lengths:
+    """The combined technique's light from behind at the lengths the fit tries (block means),
+    coarse to fine and per channel: each channel's length is d_tr x 2^(q/2) with q from -4 to 4
+    (``GRID``), and one transmission (a "slot") carries a q per channel, since the channels do not
+    mix. First q = -2, 0 and 2 for all; then, for a channel whose best q is at an end of what it
+    has tried, two steps further (up to twice); then the best's neighbours one step either side.
+    The fit's objective separates per channel once k is chosen, so where it has one minimum over
+    the grid per channel this finds the grid's lengths with 5-7 transmissions instead of 9."""
+
+    def __init__(self, back, d_tr0, keep, box):
+        self.back, self.d_tr0, self.keep, self.box = back, np.asarray(d_tr0, np.float64), keep, box
+        self.slots: list[tuple[int, int, int]] = []
+        self.blocks: list[np.ndarray] = []
+        self.phase = "expand"
+        self.expanded = 0
+        lo, hi = (round(2 * math.log2(v)) for v in (GRID[0], GRID[-1]))
+        self.lo, self.hi = lo, hi
+
+    def _add(self, q) -> bool:
+        q = tuple(int(min(max(v, self.lo), self.hi)) for v in q)
+        if q in self.slots:
+            return False
+        self.slots.append(q)
+        light = self.back.transmitted(tuple(self.d_tr0 * 2.0 ** (np.asarray(q) / 2.0)))
+        self.blocks.append(_blocks(light, self.keep, self.box))
+        return True
+
+    def start(self) -> np.ndarray:
+        for q in (-2, 0, 2):
+            self._add((q, q, q))
+        return np.stack(self.blocks)
+
+    def exponents(self) -> np.ndarray:
+        return np.asarray(self.slots, np.float64) / 2.0
+
+    def best(self, f_idx) -> list[int]:
+        return [self.slots[f_idx[c]][c] for c in range(3)]
+
+    def next(self, f_idx) -> np.ndarray | None:
+        """The slots with the next ones added after the solve chose ``f_idx``, or None when done."""
+        q = self.best(f_idx)
+        added = False
+        if self.phase == "expand":
+            step = []
+            for c in range(3):
+                tried = sorted({slot[c] for slot in self.slots})
+                end = -2 if q[c] == tried[0] else 2 if q[c] == tried[-1] else 0
+                step.append(end if self.lo <= q[c] + end <= self.hi else 0)
+            if any(step) and self.expanded < 2:
+                self.expanded += 1
+                added = self._add([q[c] + step[c] for c in range(3)])
+            if not added:
+                self.phase = "refine"
+        if not added and self.phase == "refine":
+            self.phase = "done"
+            added = self._add([v - 1 for v in q]) | self._add([v + 1 for v in q])
+        return np.stack(self.blocks) if added else None
+
+    def values(self, f_idx) -> tuple:
+        q = self.best(f_idx)
+        return tuple(float(self.d_tr0[c] * 2.0 ** (q[c] / 2.0)) for c in range(3))
+
+    def at_bounds(self, f_idx) -> bool:
+        return any(v in (self.lo, self.hi) for v in self.best(f_idx))
 
 
 def _search(evaluate, evaluated: dict) -> float:
@@ -506,13 +588,16 @@ def _finish_sta(material, name, base, basis, target, train, held, regularization
 class _Solver:
     """Per k: the gains g_c and transmission scales s_c minimizing, over the training blocks and
     for each channel c, |y_c - g_c S_c - s_c T_c(f_c)|^2 + lam |S_c|^2 (g_c - 1)^2
-    + lam |T_c|^2 (s_c - 1)^2 + lam_k (log2 f_c)^2 / 3, plus lam_k (log2 k)^2, for every f on the
-    grid (2 x 2 normal equations from dot products), bounded."""
+    + lam |T_c|^2 (s_c - 1)^2 + lam_k (log2 f_c)^2 / 3, plus lam_k (log2 k)^2, for every length
+    tried (``trans`` (F, N, 3), each slot's log2 f per channel in ``exponents`` (F, 3),
+    ``_Lengths``; 2 x 2 normal equations from dot products), bounded."""
 
-    def __init__(self, y, train, trans, regularization):
+    def __init__(self, y, train, trans, regularization, exponents=None):
         self.y = y
         self.train = train
         self.trans = trans
+        #: log2 of each slot's factor on the length, per channel (F, 3).
+        self.log_f = exponents
         self.lam = float(regularization)
         self.yy = np.sum(y[train] ** 2, axis=0)
         # A factor 2 on d costs as much as a residual of 5 % of the target's energy, times lam.
@@ -555,8 +640,7 @@ class _Solver:
         g = np.clip(g, glo, ghi)
         s = np.clip(s, slo, shi)
         sse = self.yy[None] - 2 * g * sy[None] - 2 * s * ty + g * g * ss[None] + 2 * g * s * st_f + s * s * tt
-        log_f = np.log2(np.asarray(GRID))[:, None]
-        obj_fc = sse + lam * ss[None] * (g - 1) ** 2 + lam * tt * (s - 1) ** 2 + self.lam_k * log_f**2 / 3.0
+        obj_fc = sse + lam * ss[None] * (g - 1) ** 2 + lam * tt * (s - 1) ** 2 + self.lam_k * self.log_f**2 / 3.0
         f_idx = tuple(int(v) for v in np.argmin(obj_fc, axis=0))
         cols = [0, 1, 2]
         g_best, s_best = g[list(f_idx), cols], s[list(f_idx), cols]
@@ -569,7 +653,8 @@ class _Solver:
         s1 = self._default  # k = 1 is on the grid, always evaluated
         if self.trans is None:
             return s1
-        return s1 + self.trans[GRID.index(1.0)]
+        one = int(np.flatnonzero(np.all(self.log_f == 0.0, axis=1))[0])  # every length as it is
+        return s1 + self.trans[one]
 
 
 def fit_scene(
