@@ -253,7 +253,37 @@ def _bound_ssss(args, reference):
         strength=args["strength"],
     )
     # Two passes of 2 samples per tap each (the second sums the first's rounded results).
-    return _gather_bound(args, reference, 2 * (2 * len(kernel) + 1), kernel.radius_su)
+    n = len(kernel)
+    per_pass = 2 * n + 1
+    if args.get("weighting", "surface") == "surface":
+        # Weighted by surface (core.ssss._pass), each pass's result is the weighted sum N times
+        # wsum / D, D = wsum + sum_k w_k sum_j a_j (rho_j - 1). The weights a_j rho_j are the same
+        # float32 operations on both backends (the surface of the column pass is each pixel's
+        # own, not a sum), so only the sums differ. N's terms are at most the largest light times
+        # D: N / D is within 2 (2 n + 1) u of it, as before. D's 2 n terms have either sign and
+        # magnitudes summing to at most sum w a (rho + 1) <= D + wsum, with D >= rho_min wsum
+        # (rho, a surface over another, is at least rho_min): D is within 2 (2 n) (1 + 1 /
+        # rho_min) u of itself, relatively. The quotient and its product: 2 roundings each.
+        per_pass += 2 * n * (1 + 1 / _least_surface_ratio(args["camera"], reference.shape[:2])) + 2
+    return _gather_bound(args, reference, 2 * per_pass, kernel.radius_su)
+
+
+def _least_surface_ratio(camera, shape) -> float:
+    """The smallest ratio of two pixels' surfaces (``core.burley.surface_area``) in a frame of
+    ``camera`` of ``shape`` (H, W): each is cos a / cos with cos <= 1 (at least cos a, the ray's angle a to the
+    axis, smallest at the frame's corners) and at most 1 / MIN_VIEW_COSINE."""
+    from .burley import MIN_VIEW_COSINE
+
+    if camera.type == "ORTHO":
+        least_axis = 1.0
+    else:
+        h, w = shape
+        f = camera.focal_px
+        cx, cy = w / 2 - camera.shift_x * max(w, h), h / 2 + camera.shift_y * max(w, h)
+        u = max(abs(0.5 - cx), abs(w - 0.5 - cx)) / f
+        v = max(abs(cy - 0.5), abs(cy - h + 0.5)) / f
+        least_axis = 1.0 / float(np.sqrt(1.0 + u * u + v * v))
+    return min(least_axis, 1.0) * MIN_VIEW_COSINE
 
 
 def _bound_burley(args, reference):

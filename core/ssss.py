@@ -16,6 +16,17 @@ still sum to one (no light is created or lost by the kernel).
 colour by s = min(1, |dz| / (2 R)), R the kernel radius in scene units. The reference code uses
 s = saturate(300 (1 / tan(fovy/2)) width |dz|), a screen-space constant; ours is the same idea
 stated in scene units, independent of the field of view (a documented difference).
+
+Weighting by surface (``weighting="surface"``, the default): the diffusion profile integrates
+over the surface, a convolution sums over pixels, and a pixel seen at a grazing angle covers
+more surface than one facing the camera (``core.burley.surface_area``: cos a / cos, at most 5,
+1 on a plane facing the camera's axis). Each pass weighs a tap's two samples by their pixels'
+surface relative to the centre pixel's and divides by the total weight, so that the kernel's
+weights still sum to one; the part of a tap that follow surface gives back to the centre keeps
+the centre's surface. Equal surfaces (a plane facing the camera, any flat surface under an
+orthographic camera) give the paper's unweighted result exactly. The row pass's results are
+weighted in the column pass by their own pixel's surface. ``weighting="screen"`` is the
+paper's filter (docs/references.md §3 and §17).
 """
 
 from __future__ import annotations
@@ -23,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _arrays, backend
+from .burley import MIN_VIEW_COSINE, surface_area
 from .energy import ENERGY_PARAM, apply_energy, energy_inputs
 from .extent import object_extent
 from .kernels import SeparableKernel, bounded, check_taps, make_kernel
@@ -32,6 +44,10 @@ from .spec import CALIBRATE_MAPPING, Param, Technique, profile_footprint
 
 #: Pixels (times taps) per block: small enough to stay in the cache, large enough to amortize calls.
 _BLOCK_ELEMENTS = 1 << 16
+
+#: How the taps are weighted: by the surface their pixels cover (the default), or by their
+#: screen area, as the paper's filter (docs/references.md §3).
+WEIGHTINGS = ("surface", "screen")
 
 #: A pixel and its right-hand neighbour along the pass, (r, g, b, key, r', g', b', key') as one
 #: 32-byte item: one gather fetches both samples of a linearly interpolated tap with their depths.
@@ -72,7 +88,7 @@ def _pairs(buf, length, key, rgb=None, zero=None, at=None, values=None) -> np.nd
     return buf.view(_PAIR).ravel()
 
 
-def _pass(packed, length, mask_idx, centre_key, scale, offsets, weights, result):
+def _pass(packed, length, mask_idx, centre_key, scale, offsets, weights, result, area=None):
     """One 1-D pass along lines of ``length`` pixels (``packed`` from ``_pairs``), into ``result``.
 
     For the pixels ``mask_idx`` (flat indices in the pass's layout) with their ``centre_key``
@@ -81,6 +97,15 @@ def _pass(packed, length, mask_idx, centre_key, scale, offsets, weights, result)
     + (1 - sum_k w_k (a0 + a1)) p[centre], a0 = (1 - f)(1 - g0), a1 = f (1 - g1), with
     g = min(1, |key - centre key|) the follow-surface blend. The zero-offset tap (f = 0, g = 0)
     only ever weights the centre, so it is left to the last term.
+
+    With ``area`` (the surface weight of every pixel in the pass's layout, count + 1 values, the
+    last a padding one): each sample's weight a is times rho = 1 + (area[i] - area[centre]) /
+    area[centre] (the sample's surface over the centre's; exactly 1 where they are equal), the
+    part that falls back to the centre keeps its weight (the centre's own surface), and the sum
+    is divided by its total weight relative to the kernel's, D = wsum + sum_k w_k (a0 (rho0 - 1)
+    + a1 (rho1 - 1)): result = (sum_k w_k (a0 rho0 p[i0] + a1 rho1 p[i1]) + (wsum - sum_k w_k (a0
+    + a1)) p[centre]) x wsum / D. Equal surfaces give D = wsum and the unweighted result to the
+    bit.
     """
     f32 = np.float32
     taps = offsets != 0
@@ -131,9 +156,28 @@ def _pass(packed, length, mask_idx, centre_key, scale, offsets, weights, result)
         res *= centre
         tmp = np.empty((b, n, 2), f32)
         tmp2 = tmp.reshape(b, 2 * n)
+        if area is not None:
+            # rho - 1 per sample (0 where its surface is the centre's), then a x (rho - 1): the
+            # change of the total weight; a becomes a x rho.
+            ac = area[idx]
+            inv = f32(1.0) / ac
+            rho = np.empty((b, n, 2), f32)
+            rho[..., 0] = np.take(area, j)
+            rho[..., 1] = np.take(area, j + 1)
+            rho -= ac[:, None, None]
+            rho *= inv[:, None, None]
+            rho *= a
+            total = rho.reshape(b, 2 * n) @ wt2
+            a += rho
+            total += wsum
         for c in range(3):
             np.multiply(a, g[..., c::4], out=tmp)
             res[:, c] += tmp2 @ cols[c]
+        if area is not None:
+            # Guarded: D >= the centre tap's weight, which may be 0 in a channel.
+            good = total > f32(0.0)
+            factor = np.divide(wsum, total, out=np.ones_like(total), where=good)
+            res *= factor
 
     _arrays.for_blocks(count, block, run)
 
@@ -191,6 +235,7 @@ def ssss(
     strength=None,
     follow_surface: bool = True,
     albedo_mode: str = "post",
+    weighting: str = "surface",
     energy: str = "object",
     subsurface_method: str | None = None,
     normal=None,
@@ -210,9 +255,11 @@ def ssss(
     footprint in pixels. The kernel is ``kernel`` or built by ``core.kernels.make_kernel`` from
     ``kernel_type``, ``n_taps`` (odd: 11, 17, 25), ``d_su`` (the Burley d per channel, scene
     units) and the artist parameters. ``albedo_mode`` "post": A x filter(E); "pre-post":
-    sqrt(A) x filter(sqrt(A) E). ``energy``, ``subsurface_method`` and the inputs of
-    the modelled energy (``normal``, ``position``, ``thickness``, ``lights``, ``mfp_su``,
-    ``thickness_distance_su``): as ``core.burley.burley``'s (``core.energy.apply_energy``).
+    sqrt(A) x filter(sqrt(A) E). ``weighting``: "surface" weighs each tap by the surface its
+    pixel covers (module docstring), "screen" by its screen area (the paper's). ``energy``,
+    ``subsurface_method`` and the inputs of the modelled energy (``normal``, ``position``,
+    ``thickness``, ``lights``, ``mfp_su``, ``thickness_distance_su``): as
+    ``core.burley.burley``'s (``core.energy.apply_energy``).
 
     Returns float32 (H, W, 3): on the mask, the filtered light times the albedo; elsewhere,
     albedo x diffuse unchanged (NaN/Inf pixels keep their value and give no light).
@@ -232,6 +279,7 @@ def ssss(
         strength=strength,
         follow_surface=follow_surface,
         albedo_mode=albedo_mode,
+        weighting=weighting,
     )
     return apply_energy(out, **energy_inputs(locals()))
 
@@ -252,11 +300,14 @@ def _filter(
     strength,
     follow_surface: bool,
     albedo_mode: str,
+    weighting: str,
 ) -> np.ndarray:
     """``ssss`` without the entry energy."""
     if not isinstance(camera, Camera):
         raise ValueError(f"camera: expected a core.scene.Camera, got {type(camera).__name__}")
     _arrays.check_albedo_mode(albedo_mode)
+    if weighting not in WEIGHTINGS:
+        raise ValueError(f"weighting: {weighting!r} is not one of {', '.join(WEIGHTINGS)}")
     e = _arrays.image(diffuse, "diffuse")
     shape = e.shape[:2]
     a = _arrays.image(albedo, "albedo")
@@ -286,7 +337,7 @@ def _filter(
         return bounded(given, extent_su)
 
     if len(kernel) > 1 and backend.active() == "numba":
-        return _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode)
+        return _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode, weighting)
     base = a * e
     ok = m & _arrays.finite_pixels(e, a, z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)
     if len(kernel) == 1 or not ok.any():
@@ -296,6 +347,9 @@ def _filter(
     if not ok.any():
         return base
     kernel = over_object(object_extent(ok, scale))
+    # The surface each pixel covers (over the pixels that take part, before the one-pixel rule:
+    # a pixel's neighbours on the material tell its slope whatever its kernel's size).
+    area = surface_area(z, ok, camera) if weighting == "surface" else None
     # Pixels whose whole kernel is within one pixel would not change: skip them (EEVEE Next does).
     ok &= kernel.radius_su * scale > 0.5
     if not ok.any():
@@ -315,19 +369,35 @@ def _filter(
     else:
         packed = _pairs(buf, w, key.ravel(), at=idx, values=light_rows[idx])
     once = np.empty((idx.size, 3), np.float32)
-    _pass(packed, w, idx, key.ravel()[idx], scale.ravel()[idx], kernel.offsets_su, kernel.weights, once)
-    # Pass 2, along columns: the same on the transposed image (flat index x h + y).
+    area1 = None if area is None else np.append(area.ravel(), np.float32(1.0))
+    _pass(packed, w, idx, key.ravel()[idx], scale.ravel()[idx], kernel.offsets_su, kernel.weights, once, area1)
+    # Pass 2, along columns: the same on the transposed image (flat index x h + y), each pixel's
+    # row result weighted by its own surface.
+    area2 = None if area is None else np.append(np.ascontiguousarray(area.T).ravel(), np.float32(1.0))
     packed = _pairs(buf, h, key.T.ravel(), at=(idx % w) * h + idx // w, values=once.view(_arrays.RGB_ITEM).ravel())
     del once
     idx_t = np.flatnonzero(ok.T)
     flat_of_t = (idx_t % h) * w + idx_t // h
     twice = np.empty((idx_t.size, 3), np.float32)
-    _pass(packed, h, idx_t, key.ravel()[flat_of_t], scale.ravel()[flat_of_t], kernel.offsets_su, kernel.weights, twice)
+    centre_key, centre_scale = key.ravel()[flat_of_t], scale.ravel()[flat_of_t]
+    _pass(packed, h, idx_t, centre_key, centre_scale, kernel.offsets_su, kernel.weights, twice, area2)
     del packed, buf
     twice *= _arrays.as_rows(_arrays.pixel_rows(post)[flat_of_t])
     out = base
     _arrays.pixel_rows(out)[flat_of_t] = twice.view(_arrays.RGB_ITEM).ravel()
     return out
+
+
+def _area_camera(camera: Camera, shape) -> tuple:
+    """``core.compiled.surface_area``'s parameters after ``ok``: the background depth, whether the
+    camera is orthographic, its pixels per unit (orthographic) or focal length in pixels, and
+    the principal point, as ``core.burley.surface_area`` unprojects pixels."""
+    h, w = shape
+    far = np.float32(_arrays.BACKGROUND_DEPTH)
+    if camera.type == "ORTHO":
+        return far, True, float(camera.ortho_px_per_unit), w / 2, h / 2, MIN_VIEW_COSINE
+    cx, cy = w / 2 - camera.shift_x * max(w, h), h / 2 + camera.shift_y * max(w, h)
+    return far, False, float(camera.focal_px), cx, cy, MIN_VIEW_COSINE
 
 
 def _follow(kernel: SeparableKernel, follow_surface: bool) -> np.float32:
@@ -339,7 +409,7 @@ def _follow(kernel: SeparableKernel, follow_surface: bool) -> np.float32:
         return np.float32(1.0 / (2.0 * kernel.radius_su))
 
 
-def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode):
+def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode, weighting):
     """The NumPy code above on the compiled backend: the pixels that take part in one pass over
     the frame (``_arrays.compiled_pixels``), then both passes as one kernel
     (``core.compiled.ssss_kernel``, which applies the one-pixel rule and the keys itself), into
@@ -353,6 +423,9 @@ def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode):
     pre, post = _arrays.split_albedo(a, albedo_mode)
     light = e if pre is None else pre * e
     taps = kernel.offsets_su != 0
+    surface = np.empty((0, 0), f32)
+    if weighting == "surface":
+        surface = np.empty(ok.shape, f32)  # the kernel writes each pixel's surface there, for its second pass
     backend.run_kernel(
         "ssss_kernel",
         c(light, dtype=f32),
@@ -366,6 +439,8 @@ def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode):
         kernel.weights.sum(axis=0).astype(f32),
         c(post, dtype=f32),
         np.array(box, np.int64),
+        _area_camera(camera, ok.shape),
+        surface,
         out,
     )
     return out
@@ -407,6 +482,21 @@ TECHNIQUE = Technique(
             choices=(
                 ("preintegrated", "Pre-integrated", "Kernel integrated from the material's diffusion profile"),
                 ("artist", "Artist", "Jimenez et al.'s artist-friendly kernel (strength and falloff per channel)"),
+            ),
+        ),
+        Param(
+            "weighting",
+            "Tap Weight",
+            "What each tap's weight stands for",
+            type=str,
+            choices=(
+                (
+                    "surface",
+                    "Surface",
+                    "The surface its pixel covers: a pixel seen at a grazing angle (a rim) covers more of the"
+                    " surface and takes less of the lit interior's light",
+                ),
+                ("screen", "Screen", "The paper's: the screen area of its pixel, the same for every pixel"),
             ),
         ),
         ENERGY_PARAM,

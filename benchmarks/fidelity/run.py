@@ -77,7 +77,7 @@ BOX = 2
 #: registered technique not listed here runs at its default only.
 QUALITIES: dict[str, tuple[dict, ...]] = {
     "sta": ({}, {"falloff": "map"}),
-    "ssss": ({}, {"n_taps": 25}),
+    "ssss": ({}, {"n_taps": 25}, {"weighting": "screen"}),
     "burley": ({}, {"n_samples": 64}, {"n_samples": 128}),
 }
 
