@@ -269,10 +269,11 @@ def _bound_ssss(args, reference):
 
 
 def _least_surface_ratio(camera, shape) -> float:
-    """The smallest ratio of two pixels' surfaces (``core.burley.surface_area``) in a frame of
-    ``camera`` of ``shape`` (H, W): each is cos a / cos with cos <= 1 (at least cos a, the ray's angle a to the
-    axis, smallest at the frame's corners) and at most 1 / MIN_VIEW_COSINE."""
-    from .burley import MIN_VIEW_COSINE
+    """The smallest ratio of two pixels' surface weights in SSSS (``core.burley.surface_area``,
+    at most ``core.ssss.MAX_SURFACE``) in a frame of ``camera`` of ``shape`` (H, W): each is
+    cos a / cos with cos <= 1 (at least cos a, the ray's angle a to the axis, smallest at the
+    frame's corners) and at most MAX_SURFACE."""
+    from .ssss import MAX_SURFACE
 
     if camera.type == "ORTHO":
         least_axis = 1.0
@@ -283,7 +284,7 @@ def _least_surface_ratio(camera, shape) -> float:
         u = max(abs(0.5 - cx), abs(w - 0.5 - cx)) / f
         v = max(abs(cy - 0.5), abs(cy - h + 0.5)) / f
         least_axis = 1.0 / float(np.sqrt(1.0 + u * u + v * v))
-    return min(least_axis, 1.0) * MIN_VIEW_COSINE
+    return min(least_axis, 1.0) / MAX_SURFACE
 
 
 def _bound_burley(args, reference):

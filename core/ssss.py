@@ -19,14 +19,14 @@ stated in scene units, independent of the field of view (a documented difference
 
 Weighting by surface (``weighting="surface"``, the default): the diffusion profile integrates
 over the surface, a convolution sums over pixels, and a pixel seen at a grazing angle covers
-more surface than one facing the camera (``core.burley.surface_area``: cos a / cos, at most 5,
-1 on a plane facing the camera's axis). Each pass weighs a tap's two samples by their pixels'
-surface relative to the centre pixel's and divides by the total weight, so that the kernel's
-weights still sum to one; the part of a tap that follow surface gives back to the centre keeps
-the centre's surface. Equal surfaces (a plane facing the camera, any flat surface under an
-orthographic camera) give the paper's unweighted result exactly. The row pass's results are
-weighted in the column pass by their own pixel's surface. ``weighting="screen"`` is the
-paper's filter (docs/references.md §3 and §17).
+more surface than one facing the camera (``core.burley.surface_area``: cos a / cos, 1 on a plane
+facing the camera's axis; at most ``MAX_SURFACE`` = 2 here, against Burley's 5). Each pass
+weighs a tap's two samples by their pixels' surface relative to the centre pixel's and divides
+by the total weight, so that the kernel's weights still sum to one; the part of a tap that
+follow surface gives back to the centre keeps the centre's surface. Equal surfaces (a plane
+facing the camera, any flat surface under an orthographic camera) give the paper's unweighted
+result exactly. The row pass's results are weighted in the column pass by their own pixel's
+surface. ``weighting="screen"`` is the paper's filter (docs/references.md §3 and §17).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _arrays, backend
-from .burley import MIN_VIEW_COSINE, surface_area
+from .burley import surface_area
 from .energy import ENERGY_PARAM, apply_energy, energy_inputs
 from .extent import object_extent
 from .kernels import SeparableKernel, bounded, check_taps, make_kernel
@@ -48,6 +48,15 @@ _BLOCK_ELEMENTS = 1 << 16
 #: How the taps are weighted: by the surface their pixels cover (the default), or by their
 #: screen area, as the paper's filter (docs/references.md §3).
 WEIGHTINGS = ("surface", "screen")
+
+#: The largest surface weight of a tap's sample (``weighting="surface"``): the surface a pixel
+#: covers over that of a pixel facing the camera, at most 2 (a view cosine of 0.5), where
+#: Burley's gather takes up to 5. SSSS reads the surface at each tap's sample pixel, and its
+#: outer taps are several pixels apart: a rim or a bevel one or two pixels wide weighing 5 turns
+#: into bands as the taps cross it (the 80 px wax block of the fidelity suite); Burley's rotated
+#: spiral and its clean-up average that out. Measured on the suite and the six scenes outside it
+#: with the caps 5, 4, 3 and 2 (docs/references.md §3).
+MAX_SURFACE = 2.0
 
 #: A pixel and its right-hand neighbour along the pass, (r, g, b, key, r', g', b', key') as one
 #: 32-byte item: one gather fetches both samples of a linearly interpolated tap with their depths.
@@ -349,7 +358,7 @@ def _filter(
     kernel = over_object(object_extent(ok, scale))
     # The surface each pixel covers (over the pixels that take part, before the one-pixel rule:
     # a pixel's neighbours on the material tell its slope whatever its kernel's size).
-    area = surface_area(z, ok, camera) if weighting == "surface" else None
+    area = np.minimum(surface_area(z, ok, camera), np.float32(MAX_SURFACE)) if weighting == "surface" else None
     # Pixels whose whole kernel is within one pixel would not change: skip them (EEVEE Next does).
     ok &= kernel.radius_su * scale > 0.5
     if not ok.any():
@@ -390,14 +399,15 @@ def _filter(
 
 def _area_camera(camera: Camera, shape) -> tuple:
     """``core.compiled.surface_area``'s parameters after ``ok``: the background depth, whether the
-    camera is orthographic, its pixels per unit (orthographic) or focal length in pixels, and
-    the principal point, as ``core.burley.surface_area`` unprojects pixels."""
+    camera is orthographic, its pixels per unit (orthographic) or focal length in pixels, the
+    principal point, as ``core.burley.surface_area`` unprojects pixels, and the smallest view
+    cosine, 1 / ``MAX_SURFACE``."""
     h, w = shape
     far = np.float32(_arrays.BACKGROUND_DEPTH)
     if camera.type == "ORTHO":
-        return far, True, float(camera.ortho_px_per_unit), w / 2, h / 2, MIN_VIEW_COSINE
+        return far, True, float(camera.ortho_px_per_unit), w / 2, h / 2, 1.0 / MAX_SURFACE
     cx, cy = w / 2 - camera.shift_x * max(w, h), h / 2 + camera.shift_y * max(w, h)
-    return far, False, float(camera.focal_px), cx, cy, MIN_VIEW_COSINE
+    return far, False, float(camera.focal_px), cx, cy, 1.0 / MAX_SURFACE
 
 
 def _follow(kernel: SeparableKernel, follow_surface: bool) -> np.float32:

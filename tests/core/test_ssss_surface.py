@@ -10,7 +10,7 @@ import pytest
 from sss_lab.core import backend, kernels
 from sss_lab.core.burley import surface_area
 from sss_lab.core.scene import Camera
-from sss_lab.core.ssss import ssss
+from sss_lab.core.ssss import MAX_SURFACE, ssss
 
 D_SU = (0.01, 0.005, 0.0025)
 
@@ -61,8 +61,8 @@ def test_equal_surfaces_give_the_papers_filter_to_the_bit(case):
 def test_each_pass_filters_surface_times_light_over_the_surface():
     # A cylinder along the image's columns under an orthographic camera (64 px per unit): depth
     # varies along rows only, so each row's pixels cover from 1 (its axis) to about 2.4 times
-    # (its sides) the surface of a pixel facing the camera, and every row is the same. The
-    # column pass then averages equal values and the result is the row pass's:
+    # (its sides, capped at MAX_SURFACE) the surface of a pixel facing the camera, and every row
+    # is the same. The column pass then averages equal values and the result is the row pass's:
     # wsum x sum_k w_k (A E)(x + s o_k) / sum_k w_k A(x + s o_k), linear interpolation along the
     # row, clipped at its ends, without follow surface (so the row's depths do not matter).
     h, w = 24, 64
@@ -76,8 +76,8 @@ def test_each_pass_filters_surface_times_light_over_the_surface():
     light = np.broadcast_to(e_row, (h, w, 3)).copy()
     albedo = np.ones((h, w, 3), np.float32)
     mask = np.ones((h, w), bool)
-    area = surface_area(z, mask, camera)[h // 2].astype(np.float64)
-    assert area.max() > 2.0 and area.min() == 1.0  # the premise: unequal surfaces
+    area = np.minimum(surface_area(z, mask, camera)[h // 2], np.float32(MAX_SURFACE)).astype(np.float64)
+    assert area.min() == 1.0 and area.max() == MAX_SURFACE  # the premise: unequal surfaces, the cap reached
 
     kernel = kernels.make_kernel("preintegrated", 17, d_su=D_SU)
     offsets_px = kernel.offsets_su * px
