@@ -578,6 +578,17 @@ def sta_kernel(
 SSSS_CHUNK = 256
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _ssss_pair(k0, k1, kc, f):
+    """A tap's two sample weights (core.ssss._pass's a0, a1): the interpolation weights 1 - ``f``
+    and ``f`` times 1 - the follow-surface blend min(1, |key - ``kc``|) of each sample's key."""
+    a0 = _ONE - abs(k0 - kc)
+    a0 = (a0 if a0 > _ZERO else _ZERO) * (_ONE - f)
+    a1 = _ONE - abs(k1 - kc)
+    a1 = (a1 if a1 > _ZERO else _ZERO) * f
+    return a0, a1
+
+
 @njit(cache=True, error_model="numpy")
 def _ssss_shifted(lr, lg, lb, lk, kc, fb, c0, ia, ib, d, w0, w1, w2, aw0, aw1, aw2, ag0, ag1, ag2):
     """One tap for the chunk's pixels ``ia``..``ib`` - 1 (from its first pixel ``c0``), all of
@@ -594,10 +605,7 @@ def _ssss_shifted(lr, lg, lb, lk, kc, fb, c0, ia, ib, d, w0, w1, w2, aw0, aw1, a
         j1 = j + _u64(1)
         f = fb[i]
         kcx = kc[q + ut]
-        a0 = _ONE - abs(lk[j] - kcx)
-        a0 = (a0 if a0 > _ZERO else _ZERO) * (_ONE - f)
-        a1 = _ONE - abs(lk[j1] - kcx)
-        a1 = (a1 if a1 > _ZERO else _ZERO) * f
+        a0, a1 = _ssss_pair(lk[j], lk[j1], kcx, f)
         aw = a0 + a1
         aw0[i] += aw * w0
         aw1[i] += aw * w1
@@ -615,7 +623,9 @@ def _ssss_shifted_area(
     weight a also times rho = 1 + (la[j] - la[centre]) x ``ib_`` (the centre's 1 / area) as the
     reference computes it, a x (rho - 1) summed into ``ad0``..``ad2`` (the change of the total
     weight) and a x rho into the weighted sums; ``aw0``..``aw2`` keep a's sum (the part that
-    falls back to the centre)."""
+    falls back to the centre). The same loop over the run as ``_ssss_shifted``'s, kept as a
+    loop of its own so that the paper's filter runs the loop it ran before, with no test per
+    pixel."""
     b = _u64(c0 + ia + d)
     q = _u64(c0 + ia)
     ua = _u64(ia)
@@ -628,10 +638,7 @@ def _ssss_shifted_area(
         kcx = kc[q + ut]
         lac = la[q + ut]
         inv = ib_[i]
-        a0 = _ONE - abs(lk[j] - kcx)
-        a0 = (a0 if a0 > _ZERO else _ZERO) * (_ONE - f)
-        a1 = _ONE - abs(lk[j1] - kcx)
-        a1 = (a1 if a1 > _ZERO else _ZERO) * f
+        a0, a1 = _ssss_pair(lk[j], lk[j1], kcx, f)
         p0 = (la[j] - lac) * inv * a0
         p1 = (la[j1] - lac) * inv * a1
         aw = a0 + a1
