@@ -13,7 +13,10 @@ really covers every pixel. Cases per technique and backend (compiled ``numba``, 
 - first call: in a fresh process with an empty JIT cache (compiling) and again with it filled
   (loading), at 64 x 48;
 - where the compiled backend's full-screen time goes: each kernel, and the NumPy work around
-  them (``profile, full screen``).
+  them (``profile, full screen``);
+- the diffusions' energy stage on its own (``energy_stage``: ``core.energy.apply_energy`` at its
+  default "object" on Burley's result, the Random Walk medium, full screen and 25 % mask at
+  1080p, two threads): NumPy only, it has no compiled version; the cases above leave it out.
 
 Parameters: Burley and SSSS with d = (4, 1.6, 0.8) mm in scene units of metres, so that the red
 kernel (16 d) spans about 30 pixels at the spheres' depth: a face in a close-up; SSSS with 17
@@ -49,6 +52,7 @@ from benchmarks._common import add_options, resolution, write_results
 from sss_lab.core import _arrays, backend, kernels
 from sss_lab.core.burley import burley
 from sss_lab.core.combined import combined
+from sss_lab.core.energy import apply_energy
 from sss_lab.core.ssss import ssss
 from sss_lab.core.sta import sta
 from sss_lab.core.synthetic import PLANE_Z, sphere_scene
@@ -149,6 +153,32 @@ def _cases(width: int, height: int):
         ),
     }
     return cases, masks
+
+
+def energy_stage(width: int, height: int, repeat: int) -> dict:
+    """Wall and CPU time of the energy stage alone (``core.energy.apply_energy``, "object") on
+    Burley's result, with the passes and medium of the combined case, fastest of ``repeat``."""
+    passes, scene, depth, normal, masks = _inputs(width, height)
+    diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]
+    albedo = passes["Diffuse Color"]
+    albedo[albedo.sum(axis=2) == 0] = 0.5
+    medium = {k: v for k, v in COMBINED_MEDIUM.items() if k != "base_color"}
+    out = {"implementation": "numpy (no compiled version)", "energy": "object"}
+    for label, mask in masks.items():
+        kw = dict(diffuse=diffuse, albedo=albedo, depth=depth, mask=mask, camera=scene.camera)
+        light = burley(**kw, d_su=D_SU, n_samples=32)
+        energy_kw = dict(
+            kw, normal=normal, position=passes["Position"], thickness=passes["Thickness"], lights=scene.lights
+        )
+        # It writes its result into the frame it is given: a copy of Burley's each time (a few ms).
+        seconds, cpu = _best(
+            lambda light=light, kw=energy_kw: apply_energy(
+                light.copy(), energy="object", albedo_mode="post", **kw, **medium
+            ),
+            repeat,
+        )
+        out[label] = _entry(seconds, cpu, int(mask.sum()), 1)
+    return out
 
 
 def _threads(n: int) -> None:
@@ -323,6 +353,9 @@ def run(width: int = 1920, height: int = 1080, repeat: int = 5, big: tuple[int, 
                     f" peak {peak / 1e6:.0f} MB allocated"
                     f" (inputs {input_bytes / 1e6:.0f} MB, frame {frame / 1e6:.0f} MB)"
                 )
+    _threads(2)
+    stage = energy_stage(width, height, max(1, min(repeat, 3)))
+    log(f"energy stage (NumPy): full {stage['full screen']['ms']:.1f} ms, 25 % mask {stage['25 % mask']['ms']:.1f} ms")
     default = names[0]
     for name, res in results.items():
         entry = res["backends"][default]
@@ -364,6 +397,7 @@ def run(width: int = 1920, height: int = 1080, repeat: int = 5, big: tuple[int, 
         "default_backend": default,
         "machine": machine,
         "techniques": results,
+        "energy_stage": stage,
     }
     if "numba" in names:
         import numba
