@@ -60,8 +60,8 @@ LIGHT_COLUMNS = 15
 ROWS_PER_CHUNK = 4
 
 #: Kernels whose parallel loop is over larger work items than rows, with their chunk size
-#: (Burley's tiles: one per chunk).
-CHUNKS = {"burley_kernel": 1, "sta_kernel": 1}
+#: (Burley's tiles and STA's groups of rows: one per chunk; the energy's table reads: entries).
+CHUNKS = {"burley_kernel": 1, "sta_kernel": 1, "table_lerp": 1 << 14}
 
 _LOG2E = f32(1.4426950408889634)
 _LN2_HI = f32(0.693359375)  # 9 significant bits: k ln2_hi is exact for |k| < 2^15
@@ -1278,6 +1278,45 @@ def _burley_clean(ok, cam, ids, group, reach, extents, depth, tol, r, min_px, po
                 if ok[y, x]:
                     v = f32(total[i] / max(count[i], 1.0)) if keep[i] else buf[c, y - ya, x - xa]
                     out[y, x, c] = post[y, x, c] * v
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _node_below(nodes, v):
+    """The index of the last of the ascending ``nodes`` <= ``v`` (``np.searchsorted`` "right"
+    minus 1), clipped to 0 .. len(nodes) - 2: the cell of a piecewise-linear table."""
+    n = nodes.size
+    i = 0
+    while i < n and nodes[i] <= v:
+        i += 1
+    i -= 1
+    return min(max(i, 0), n - 2)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def table_lerp(table, rows, cols, rv, cv, r_nan, c_nan, out):
+    """``core.energy``'s bilinear table reads (``_lerp2``): per entry q, ``rv[q]`` (NaN read as
+    ``r_nan``) and ``cv[q]`` (NaN: ``c_nan``) clipped to the ascending ``rows`` and ``cols``
+    nodes of ``table`` (float64), the table interpolated along the columns in both enclosing
+    rows, then between the rows, rounded to float32 into ``out[q]``: the reference's float64
+    operations in its order (equal to the bit)."""
+    r_lo = rows[0]
+    r_hi = rows[rows.size - 1]
+    c_lo = cols[0]
+    c_hi = cols[cols.size - 1]
+    for q in prange(out.size):
+        r = rv[q]
+        r = r_nan if r != r else r
+        r = min(max(r, r_lo), r_hi)
+        c = cv[q]
+        c = c_nan if c != c else c
+        c = min(max(c, c_lo), c_hi)
+        i = _node_below(rows, r)
+        j = _node_below(cols, c)
+        fr = (r - rows[i]) / (rows[i + 1] - rows[i])
+        fc = (c - cols[j]) / (cols[j + 1] - cols[j])
+        lo = table[i, j] * (1 - fc) + table[i, j + 1] * fc
+        hi = table[i + 1, j] * (1 - fc) + table[i + 1, j + 1] * fc
+        out[q] = f32(lo * (1 - fr) + hi * fr)
 
 
 #: Columns (vertical passes) or rows (horizontal ones) per work item of ``spread_light``'s box sums.
