@@ -16,7 +16,8 @@ really covers every pixel. Cases per technique and backend (compiled ``numba``, 
   them (``profile, full screen``);
 - the diffusions' energy stage on its own (``energy_stage``: ``core.energy.apply_energy`` at its
   default "object" on Burley's result, the Random Walk medium, full screen and 25 % mask at
-  1080p, two threads): NumPy only, it has no compiled version; the cases above leave it out.
+  1080p, two threads, on both backends: its table reads are compiled, the rest is NumPy); the
+  cases above leave it out.
 
 Parameters: Burley and SSSS with d = (4, 1.6, 0.8) mm in scene units of metres, so that the red
 kernel (16 d) spans about 30 pixels at the spheres' depth: a face in a close-up; SSSS with 17
@@ -155,29 +156,32 @@ def _cases(width: int, height: int):
     return cases, masks
 
 
-def energy_stage(width: int, height: int, repeat: int) -> dict:
+def energy_stage(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
     """Wall and CPU time of the energy stage alone (``core.energy.apply_energy``, "object") on
-    Burley's result, with the passes and medium of the combined case, fastest of ``repeat``."""
+    Burley's result, with the passes and medium of the combined case, fastest of ``repeat``, on
+    each backend of ``names``."""
     passes, scene, depth, normal, masks = _inputs(width, height)
     diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]
     albedo = passes["Diffuse Color"]
     albedo[albedo.sum(axis=2) == 0] = 0.5
     medium = {k: v for k, v in COMBINED_MEDIUM.items() if k != "base_color"}
-    out = {"implementation": "numpy (no compiled version)", "energy": "object"}
+    out: dict = {"energy": "object", "backends": {b: {} for b in names}}
     for label, mask in masks.items():
         kw = dict(diffuse=diffuse, albedo=albedo, depth=depth, mask=mask, camera=scene.camera)
         light = burley(**kw, d_su=D_SU, n_samples=32)
         energy_kw = dict(
             kw, normal=normal, position=passes["Position"], thickness=passes["Thickness"], lights=scene.lights
         )
-        # It writes its result into the frame it is given: a copy of Burley's each time (a few ms).
-        seconds, cpu = _best(
-            lambda light=light, kw=energy_kw: apply_energy(
-                light.copy(), energy="object", albedo_mode="post", **kw, **medium
-            ),
-            repeat,
-        )
-        out[label] = _entry(seconds, cpu, int(mask.sum()), 1)
+        for b in names:
+            with backend.use(b):
+                # It writes its result into the frame it is given: a copy of Burley's each time (a few ms).
+                seconds, cpu = _best(
+                    lambda light=light, kw=energy_kw: apply_energy(
+                        light.copy(), energy="object", albedo_mode="post", **kw, **medium
+                    ),
+                    repeat,
+                )
+            out["backends"][b][label] = _entry(seconds, cpu, int(mask.sum()), 1)
     return out
 
 
@@ -354,8 +358,9 @@ def run(width: int = 1920, height: int = 1080, repeat: int = 5, big: tuple[int, 
                     f" (inputs {input_bytes / 1e6:.0f} MB, frame {frame / 1e6:.0f} MB)"
                 )
     _threads(2)
-    stage = energy_stage(width, height, max(1, min(repeat, 3)))
-    log(f"energy stage (NumPy): full {stage['full screen']['ms']:.1f} ms, 25 % mask {stage['25 % mask']['ms']:.1f} ms")
+    stage = energy_stage(width, height, max(1, min(repeat, 3)), names)
+    for b, e in stage["backends"].items():
+        log(f"energy  {b:6s} full {e['full screen']['ms']:8.1f} ms  25 % mask {e['25 % mask']['ms']:8.1f} ms")
     default = names[0]
     for name, res in results.items():
         entry = res["backends"][default]
