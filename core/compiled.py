@@ -1319,6 +1319,115 @@ def table_lerp(table, rows, cols, rv, cv, r_nan, c_nan, out):
         out[q] = f32(lo * (1 - fr) + hi * fr)
 
 
+@njit(cache=True, parallel=True, error_model="numpy")
+def curvature_pixels(normal, position, mask, unit, mean, most, valid, on):
+    """``core.energy._curvature_per_pixel`` (the reference: its docstring) of ``normal`` and
+    ``position`` (H, W, 3 float32) on ``mask``: ``on`` the pixels of the mask with finite
+    inputs and a normal longer than 0.5, ``unit`` their unit normals (0 elsewhere); along each
+    image axis the normal curvature between the pixel's neighbours on ``on`` (or the pixel and
+    its one neighbour), summed over the axes in float64 into ``mean`` (then divided by their
+    number), their largest into ``most``, ``valid`` where there was one. The reference's float32
+    operations in its order (its einsum sums the three products one after the other): equal to
+    the bit."""
+    h, w = mask.shape
+    for y in prange(h):
+        for x in range(w):
+            n0 = normal[y, x, 0]
+            n1 = normal[y, x, 1]
+            n2 = normal[y, x, 2]
+            finite = np.isfinite(n0) and np.isfinite(n1) and np.isfinite(n2)
+            finite = finite and np.isfinite(position[y, x, 0]) and np.isfinite(position[y, x, 1])
+            finite = finite and np.isfinite(position[y, x, 2])
+            length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+            o = mask[y, x] and finite and length > f32(0.5)
+            on[y, x] = o
+            unit[y, x, 0] = n0 / length if o else _ZERO
+            unit[y, x, 1] = n1 / length if o else _ZERO
+            unit[y, x, 2] = n2 / length if o else _ZERO
+    for row in prange(h):
+        y = np.int64(row)  # a signed index: the neighbours' are y - 1 and x - 1
+        for x in range(w):
+            total = 0.0
+            count = 0.0
+            best = -np.inf
+            for axis in range(2):
+                dy = np.int64(1 if axis == 0 else 0)
+                dx = np.int64(1) - dy
+                yb, xb = y + dy, x + dx
+                ya, xa = y - dy, x - dx
+                ok_n = yb < h and xb < w and on[yb, xb]
+                ok_p = ya >= 0 and xa >= 0 and on[ya, xa]
+                if not ok_n:
+                    yb, xb = y, x
+                if not ok_p:
+                    ya, xa = y, x
+                d0 = position[yb, xb, 0] - position[ya, xa, 0]
+                d1 = position[yb, xb, 1] - position[ya, xa, 1]
+                d2 = position[yb, xb, 2] - position[ya, xa, 2]
+                dd = d0 * d0 + d1 * d1 + d2 * d2
+                if on[y, x] and (ok_n or ok_p) and dd > _ZERO:
+                    e0 = unit[yb, xb, 0] - unit[ya, xa, 0]
+                    e1 = unit[yb, xb, 1] - unit[ya, xa, 1]
+                    e2 = unit[yb, xb, 2] - unit[ya, xa, 2]
+                    k = (e0 * d0 + e1 * d1 + e2 * d2) / dd
+                    total += np.float64(k)
+                    count += 1.0
+                    best = max(best, np.float64(k))
+            v = count > 0.0
+            valid[y, x] = v
+            mean[y, x] = total / max(count, 1.0) if v else 0.0
+            most[y, x] = best if v else 0.0
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def smooth_curvature(mean, most, valid, on, r, out_mean, out_most):
+    """``core.energy._smoothed_curvature``: ``mean`` and ``most`` (float64) averaged over the
+    pixels of ``valid`` within the square of half-width ``r``, float32 into ``out_mean`` and
+    ``out_most`` on ``on`` (0 elsewhere and where no pixel of ``valid`` is near). The box sums
+    are the reference's (``_box_sum``): float64 running sums along the columns, then along the
+    rows, each difference taken from them as its cumulative sums do (equal to the bit)."""
+    h, w = valid.shape
+    planes = np.empty((3, h, w), np.float64)
+    for y in prange(h):
+        for x in range(w):
+            weight = 1.0 if valid[y, x] else 0.0
+            planes[0, y, x] = weight
+            planes[1, y, x] = mean[y, x] * weight
+            planes[2, y, x] = most[y, x] * weight
+    n_col = (w + SPREAD_STRIP - 1) // SPREAD_STRIP
+    for item in prange(3 * n_col):
+        p = item // n_col
+        x0 = (item % n_col) * SPREAD_STRIP
+        bw = min(x0 + SPREAD_STRIP, w) - x0
+        cum = np.zeros((h + 2 * r + 1, SPREAD_STRIP), np.float64)
+        for j in range(h):
+            for t in range(bw):
+                cum[r + 1 + j, t] = cum[r + j, t] + planes[p, j, x0 + t]
+        for j in range(r):
+            for t in range(bw):
+                cum[r + 1 + h + j, t] = cum[r + h + j, t]
+        for i in range(h):
+            for t in range(bw):
+                planes[p, i, x0 + t] = cum[2 * r + 1 + i, t] - cum[i, t]
+    for item in prange(3 * h):
+        p = item // h
+        line = planes[p, item % h]
+        cum = np.zeros(w + 2 * r + 1, np.float64)
+        for j in range(w):
+            cum[r + 1 + j] = cum[r + j] + line[j]
+        for j in range(r):
+            cum[r + 1 + w + j] = cum[r + w + j]
+        for i in range(w):
+            line[i] = cum[2 * r + 1 + i] - cum[i]
+    for y in prange(h):
+        for x in range(w):
+            near = planes[0, y, x]
+            keep = on[y, x] and near > 0.0
+            den = max(near, 1.0)
+            out_mean[y, x] = f32(planes[1, y, x] / den) if keep else _ZERO
+            out_most[y, x] = f32(planes[2, y, x] / den) if keep else _ZERO
+
+
 #: Columns (vertical passes) or rows (horizontal ones) per work item of ``spread_light``'s box sums.
 SPREAD_STRIP = 16
 

@@ -439,7 +439,32 @@ def surface_curvature(normal, position, mask, radius_px: int = 1) -> tuple[np.nd
 
 
 def _curvature_per_pixel(normal, position, mask):
-    """``surface_curvature`` before its average: (mean, largest, valid, on) per pixel."""
+    """``surface_curvature`` before its average: (mean, largest, valid, on) per pixel. On the
+    compiled backend ``core.compiled.curvature_pixels``, the same float32 and float64 operations
+    in the same order (equal to the bit: check mode compares with bound 0); the NumPy code is the
+    reference."""
+    mode = backend.active()
+    if mode == "numpy":
+        return _curvature_reference(normal, position, mask)
+    c = np.ascontiguousarray
+    n = c(np.asarray(normal, np.float32)[..., :3])
+    p = c(np.asarray(position, np.float32)[..., :3])
+    m = c(np.asarray(mask, dtype=bool))
+    shape = m.shape
+    parts = (np.empty(shape), np.empty(shape), np.empty(shape, bool), np.empty(shape, bool))
+    backend.run_kernel("curvature_pixels", n, p, m, np.empty(n.shape, np.float32), *parts)
+    if mode == "check":
+        for name, ref, got in zip(
+            ("mean", "largest", "valid", "on"), _curvature_reference(n, p, m), parts, strict=True
+        ):
+            backend.compare(
+                f"surface_curvature ({name})", np.asarray(ref, np.float64), got.astype(np.float64), np.zeros(shape)
+            )
+    return parts
+
+
+def _curvature_reference(normal, position, mask):
+    """``_curvature_per_pixel`` in NumPy: the reference."""
     n = np.asarray(normal, np.float32)[..., :3]
     p = np.asarray(position, np.float32)[..., :3]
     m = np.asarray(mask, dtype=bool) & np.isfinite(n).all(-1) & np.isfinite(p).all(-1)
@@ -474,7 +499,23 @@ def _curvature_per_pixel(normal, position, mask):
 
 
 def _smoothed_curvature(parts, radius_px: int) -> tuple[np.ndarray, np.ndarray]:
-    """``surface_curvature``'s average of ``_curvature_per_pixel``'s ``parts`` over ``radius_px``."""
+    """``surface_curvature``'s average of ``_curvature_per_pixel``'s ``parts`` over ``radius_px``;
+    on the compiled backend ``core.compiled.smooth_curvature`` (equal to the bit, as above)."""
+    mode = backend.active()
+    if mode == "numpy":
+        return _smoothed_reference(parts, radius_px)
+    c = np.ascontiguousarray
+    mean, most, valid, m = (c(v) for v in parts)
+    out = (np.empty(m.shape, np.float32), np.empty(m.shape, np.float32))
+    backend.run_kernel("smooth_curvature", mean, most, valid, m, max(1, int(radius_px)), *out)
+    if mode == "check":
+        for ref, got in zip(_smoothed_reference(parts, radius_px), out, strict=True):
+            backend.compare("surface_curvature (average)", ref, got, np.zeros(m.shape))
+    return out
+
+
+def _smoothed_reference(parts, radius_px: int) -> tuple[np.ndarray, np.ndarray]:
+    """``_smoothed_curvature`` in NumPy: the reference."""
     mean, most, valid, m = parts
     weight = valid.astype(np.float64)
     r = max(1, int(radius_px))
