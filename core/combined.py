@@ -485,6 +485,7 @@ class BackLight:
             view = None if self.view_cos is None else self.view_cos[lit]
             out[lit] = e[lit] * slab_transmittance_rgb(x, d_su, self.medium, view_cos=view)
         for part in self.parts:
+            assert self.ppu is not None  # parts are found only with a depth pass, which gives ppu
             out = _spread_part(out, part, spread_sigma(self.x[part], d_su, self.medium) * self.ppu[part][:, None])
         if self.weight is not None:
             out *= self.weight
