@@ -252,3 +252,42 @@ def test_sta_masks_of_every_shape_match_the_reference():
         camera=scene.camera, lights=scene.lights, mfp_su=(0.03, 0.01, 0.005), thickness_distance_su=0.1,
     )  # fmt: skip
     assert np.all(out[~mask] == 0) and np.any(out[mask] > 0)
+
+
+def test_spread_of_the_light_from_behind_matches_the_reference_to_the_bit():
+    # core.compiled.spread_light against core.combined's NumPy spread (check mode, bound 0): widths
+    # from 0 to beyond the last level, a NaN width, a mask with holes, a frame not square.
+    from sss_lab.core.combined import spread_back_light
+
+    rng = np.random.default_rng(4)
+    e = rng.random((37, 150, 3)).astype(np.float32)
+    mask = rng.random((37, 150)) < 0.8
+    sigma = (rng.random((37, 150, 3)) * 40.0).astype(np.float32)
+    sigma[3, 4] = (0.0, np.nan, 300.0)
+    out = spread_back_light(e, mask, sigma)
+    assert np.array_equal(out[~mask], e[~mask])
+    assert np.isnan(out[3, 4, 1]) == bool(mask[3, 4])
+
+
+def test_energy_table_reads_and_curvature_match_the_reference_to_the_bit():
+    # core.compiled.table_lerp, curvature_pixels and smooth_curvature against core.energy's NumPy
+    # code (check mode, bound 0), with values beyond the tables, NaN and infinite inputs.
+    from sss_lab.core import energy
+
+    rng = np.random.default_rng(6)
+    a = rng.random((500, 3)) * 1.2 - 0.1
+    a[:3] = (np.nan, np.inf, -np.inf)
+    k = rng.random((500, 3)) * 3.0 - 0.5
+    k[3:6] = (np.nan, np.inf, -np.inf)
+    mu = rng.random(500) * 1.2 - 0.1
+    mu[7] = np.nan
+    energy.entry_gain("RANDOM_WALK", a, mu)
+    energy.convex_gain("RANDOM_WALK_SKIN", a, k)
+    energy.slab_factors("RANDOM_WALK", a, np.abs(k) * 200.0)
+    passes, scene, _, normal = _scene(61, 43)
+    position = passes["Position"].copy()
+    position[5, 7] = np.nan
+    normal = normal.copy()
+    normal[9, 9] = 0.1
+    for radius in (1, 4):
+        energy.surface_curvature(normal, position, passes["Material Index"] > 0, radius_px=radius)
