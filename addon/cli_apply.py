@@ -44,8 +44,8 @@ def add_parser(subparsers):
         "--max-error",
         type=float,
         default=None,
-        help="with --method auto: how much worse than the best predicted error a cheaper choice may be (relative;"
-        " default 0.05)",
+        help="with --method auto: how much worse than the best predicted (or, with a fit, measured) error a"
+        " cheaper choice may be (relative; default 0.1)",
     )
     p.add_argument(
         "--param",

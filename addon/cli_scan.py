@@ -19,7 +19,7 @@ def add_parser(subparsers):
     )
     add_resolution(p, help="with --recommend: WIDTHxHEIGHT of that render (default: long side 160 px)")
     add_samples(p, default=16, help="with --recommend: samples of that render (default: 16)")
-    p.add_argument("--max-error", type=float, help="with --recommend: as apply --method auto (default 0.05)")
+    p.add_argument("--max-error", type=float, help="with --recommend: as apply --method auto (default 0.1)")
     p.set_defaults(run=run)
 
 
