@@ -179,8 +179,8 @@ def test_choose_takes_the_cheapest_within_the_margin():
         best = min(k.predicted for k in ok)
         chosen = next(k for k in ok if k.name == c.chosen)
         assert chosen.predicted <= best * 1.05 + 1e-12
-        # nothing cheaper was within the margin
-        assert all(k.cost >= chosen.cost or k.predicted > best * 1.05 for k in ok)
+        # nothing cheaper (beyond the costs that count as equal) was within the margin
+        assert all(k.cost * (1 + auto.COST_TOLERANCE) >= chosen.cost or k.predicted > best * 1.05 for k in ok)
     # Burley predicted at most 2.5 % better than SSSS (sqrt(0.19 / 0.2)) and costing about twice as
     # much; the light from behind counted alike for all three: SSSS, on both materials.
     even = auto.Model({"none": (1.0, 1.0, 0.0), "ssss": (0.2, 1.0, 0.0), "burley": (0.19, 1.0, 0.0)})
@@ -419,8 +419,10 @@ def test_a_fits_measured_errors_decide_over_the_prediction():
     arrays, scene = _scene()
     passes = Passes(arrays)
     # MODEL predicts Combined best (light from behind); the fit measured Burley within 4 % of it.
+    # Combined's light from behind costs it, per unit of work, three times Burley's rate.
+    model = dataclasses.replace(MODEL, seconds_per_work={"ssss": 1.0, "burley": 1.0, "combined": 3.0})
     measured = _measured(scene, {"burley": 0.100, "combined": 0.104})
-    plan = auto.choose(passes, measured, model=MODEL, max_error=0.05)
+    plan = auto.choose(passes, measured, model=model, max_error=0.05)
     for c in plan.choices:
         by = {k.name: k for k in c.candidates}
         assert c.chosen == "burley", plan.explain()
@@ -433,10 +435,10 @@ def test_a_fits_measured_errors_decide_over_the_prediction():
     assert "measured 0.1000 (its fit, held out)" in plan.explain()
     assert "the errors are predicted" not in plan.explain()
     # Combined measured 20 % better: beyond the margin, Combined.
-    better = auto.choose(passes, _measured(scene, {"burley": 0.100, "combined": 0.080}), model=MODEL, max_error=0.05)
+    better = auto.choose(passes, _measured(scene, {"burley": 0.100, "combined": 0.080}), model=model, max_error=0.05)
     assert [c.chosen for c in better.choices] == ["combined", "combined"]
     # The same measurements with a margin of 25 %: Burley again (0.100 <= 1.25 x 0.080).
-    wide = auto.choose(passes, _measured(scene, {"burley": 0.100, "combined": 0.080}), model=MODEL, max_error=0.25)
+    wide = auto.choose(passes, _measured(scene, {"burley": 0.100, "combined": 0.080}), model=model, max_error=0.25)
     assert [c.chosen for c in wide.choices] == ["burley", "burley"]
 
 
@@ -454,3 +456,23 @@ def test_measurements_from_renders_of_different_noise_or_of_one_technique_are_no
         assert plan.explain().count("the errors are predicted (calibrate") == 2
     m = _measured(scene, {"burley": 0.1, "ssss": 0.2}, (32,))
     assert auto.measured_errors(next(x for x in m.materials if x.scatters)) == {"burley": 0.1, "ssss": 0.2}
+
+
+def test_costs_within_the_tolerance_count_as_equal_and_the_lower_error_decides():
+    arrays, scene = _scene()
+    passes = Passes(arrays)
+    skin = next(m for m in scene.materials if m.name == "Skin")
+    pixels = auto.features(passes, scene, skin).pixels
+    work = {t: auto._work(t, skin, pixels, len(scene.lights), None) for t in ("ssss", "burley")}
+    coefficients = {"none": (1.0, 1.0, 0.0), "ssss": (0.2, 1.0, 0.0), "burley": (0.19, 1.0, 0.0)}
+
+    def chosen(burley_over_ssss: float) -> str:
+        # Rates such that Burley's estimated cost is burley_over_ssss times SSSS's on Skin.
+        rates = {"ssss": 1.0 / work["ssss"], "burley": burley_over_ssss / work["burley"]}
+        plan = auto.choose(passes, scene, model=auto.Model(coefficients, seconds_per_work=rates), max_error=0.05)
+        return next(c for c in plan.choices if c.features.name == "Skin").chosen
+
+    # Burley predicted lower (0.19 < 0.2 of D^2) and costing 5 % more: alike in cost, Burley.
+    assert chosen(1.0 + 0.5 * auto.COST_TOLERANCE) == "burley"
+    # Costing 20 % more (twice the tolerance): the cheaper SSSS, within the margin of 5 %.
+    assert chosen(1.0 + 2.0 * auto.COST_TOLERANCE) == "ssss"
