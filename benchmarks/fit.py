@@ -155,11 +155,13 @@ def run_scene(name: str, args, log) -> dict:
     for t in methods:  # untimed: a technique's first run compiles (or loads) its Numba kernels, once per install
         core_apply.apply(fit_passes, _unfitted(fit_desc), t)
     results, problems, fit_cpu_by = [], [], {}
+    # calibrate's options unless asked otherwise (to measure another setting of the fit).
+    options = {k: v for k, v in (("box", args.box), ("regularization", args.regularization)) if v is not None}
     start = time.perf_counter()
     for t in methods:  # one technique at a time: each one's CPU time
         cpu0 = time.process_time()
         got, missed = fit_scene(
-            fit_passes, _unfitted(fit_desc), noisy, techniques=(t,), samples=args.fit_samples, log=log
+            fit_passes, _unfitted(fit_desc), noisy, techniques=(t,), samples=args.fit_samples, log=log, **options
         )
         fit_cpu_by[t] = time.process_time() - cpu0
         results += got
@@ -254,6 +256,10 @@ def main(argv=None) -> int:
         "--timing-samples", type=int, default=1024, help="samples of the render the fit stands in for (timed)"
     )
     parser.add_argument("--methods", default="ssss,burley,combined,sta")
+    parser.add_argument("--box", type=int, default=None, help="the fit's block size (default: calibrate's)")
+    parser.add_argument(
+        "--regularization", type=float, default=None, help="the fit's ridge weight (default: core.fit's)"
+    )
     parser.add_argument("--no-frame-b", action="store_true", help="frame A only")
     parser.add_argument("--cache", default=os.path.join(ROOT, "out", "fidelity_cache"))
     parser.add_argument("--out", default=RESULTS)
