@@ -27,7 +27,7 @@ import bpy
 
 from ..core import exr
 from ..core.errors import InputError
-from ..core.fit import fit_scene
+from ..core.fit import BOX, fit_scene
 from ..core.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
 from ..core.sequence import load_scene
 from ..core.techniques import TECHNIQUES
@@ -111,13 +111,13 @@ def calibrate_job(
     pass_samples: int = 16,
     resolution=None,
     seed: int = 0,
-    box: int = 4,
+    box: int = BOX,
     log=print,
 ) -> Job:
     """``calibrate`` as a job (``blender/jobs.py``) of three steps: the random-walk render, the
-    passes (16 samples by default: the fit averages 4 x 4 blocks, and on the fidelity suite 16 and
-    64 samples give the same share of the error removed on frame A within 1 point, ``benchmarks/fit.py``), the
-    fit. Its checks raise before the first ``yield``; the materials are written only after the last
+    passes (16 samples by default: the fit averages blocks (``core.fit.BOX``), and on the fidelity
+    suite 16 and 64 samples give the same share of the error removed on frame A within 1 point,
+    ``benchmarks/fit.py``), the fit. Its checks raise before the first ``yield``; the materials are written only after the last
     step, so that a job closed between steps (Esc in the panel) leaves every material as it was
     (the scene itself is restored by the renders' own ``SceneState``)."""
     from ..core.scene import parse_resolution
