@@ -117,9 +117,9 @@ def calibrate_job(
     """``calibrate`` as a job (``blender/jobs.py``) of three steps: the random-walk render, the
     passes (16 samples by default: the fit averages blocks (``core.fit.BOX``), and on the fidelity
     suite 16 and 64 samples give the same share of the error removed on frame A within 1 point,
-    ``benchmarks/fit.py``), the fit. Its checks raise before the first ``yield``; the materials are written only after the last
-    step, so that a job closed between steps (Esc in the panel) leaves every material as it was
-    (the scene itself is restored by the renders' own ``SceneState``)."""
+    ``benchmarks/fit.py``), the fit. Its checks raise before the first ``yield``; the materials are
+    written only after the last step, so that a job closed between steps (Esc in the panel) leaves
+    every material as it was (the scene itself is restored by the renders' own ``SceneState``)."""
     from ..core.scene import parse_resolution
     from .reference_cache import _render_combined
     from .render_passes import render_passes

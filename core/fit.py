@@ -64,7 +64,7 @@ GRID = tuple(2.0 ** (i / 2.0) for i in range(-4, 5))
 #: Block size (pixels) of the means the fit compares: 2 x 2, the fidelity suite's error measure's
 #: (core/metrics.py), so that the pixels it judges near a material's edges count as well. On the
 #: suite (``python -m benchmarks.fit --box N``) 2, 4 and 8 gave on the diffusion scenes a median
-#: removed of 59.6 / 59.6 / 57.4 % on frame A and 54.3 / 53.9 / 53.9 % on frame B, on the back-lit
+#: removed of 59.6 / 59.6 / 57.5 % on frame A and 54.3 / 53.9 / 53.9 % on frame B, on the back-lit
 #: ones 89.5 / 89.2 / 89.2 % and 80.5 / 74.8 / 74.8 % (docs/references.md §16).
 BOX = 2
 #: Fewest blocks inside a material for a fit (with the default 25 % held out: 24 to fit, 8 to check).
@@ -162,11 +162,11 @@ def _check_inputs(passes, scene: SceneDescription, reference, technique: str) ->
 def _one_thread():
     """The compiled kernels on one thread while the fit runs. The fit's cost is its CPU time, and
     it runs each technique a dozen times on one frame: a second thread only adds the threads'
-    hand-overs and spin-waits. Measured on the synthetic spheres (``core.synthetic``), CPU time
-    per call of SSSS / Burley, two threads -> one, on the shared 2-core machine: 41 -> 6 / 16 -> 6
-    ms at 128 x 128, 53 -> 18 / 55 -> 19 ms at 256, 101 -> 73 / 121 -> 86 ms at 512 (the wall
-    time fell too there; on a quiet machine two threads take about half the wall time at 1080p,
-    README's speed table)."""
+    hand-overs and spin-waits. Measured per call of SSSS / Burley on the synthetic spheres
+    (``python -m benchmarks.fit_threads``, CPU time, the shared 2-core machine under load), two
+    threads -> one: 33 -> 7 / 52 -> 6 ms at 128 x 128, 54 -> 21 / 63 -> 21 ms at 256, 112 -> 82 /
+    133 -> 86 ms at 512, the wall time lower too; on a quiet machine two threads take about half
+    the wall time at 1080p (README's speed table)."""
     if backend.active() == "numpy":
         yield
         return
