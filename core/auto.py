@@ -55,7 +55,7 @@ the lowest measured one; the techniques the fit did not measure are not candidat
 prediction and a measurement are not on the same footing). The measurement holds the fit
 render's Monte Carlo noise, which adds alike to every technique's error (where the techniques
 differ by less than that noise, the cheapest is taken), and covers the blocks wholly inside the
-material (4 x 4 pixels by default), not its silhouette.
+material (``core.fit.BOX`` pixels across), not the pixels at its silhouette.
 
 ``apply_auto`` carries the choice out: each material gets its chosen technique's result
 (``core.apply.apply``), composited into ``SSSLab.auto.Image`` / ``SSSLab.auto.SSS``.
