@@ -161,8 +161,12 @@ def far_side(*, translucency, distance_su, normal, position, mask, camera=None, 
         return x, n
     p = _arrays.image(position, "position")
     m = _arrays.mask_array(mask, tau.shape) & _arrays.finite_pixels(n, p)
-    _, largest = surface_curvature(n, p, m, radius_px=1)
-    k = np.maximum(np.nan_to_num(np.asarray(largest, np.float64)), 0.0)
+    # The curvature on the mask's bounding box (it reads nothing else; 0 outside the mask).
+    k = np.zeros(tau.shape)
+    box = _bounding_box(m)
+    if box is not None:
+        _, largest = surface_curvature(n[box], p[box], m[box], radius_px=1)
+        k[box] = np.maximum(np.nan_to_num(np.asarray(largest, np.float64)), 0.0)
     chord = 2.0 / np.maximum(k, 2.0 / (CHORD_CAP * float(distance_su)))
     x = np.where(m & (tau <= 1e-6), np.maximum(x, chord), x)
     if medium is None or not medium.walks:
@@ -172,6 +176,15 @@ def far_side(*, translucency, distance_su, normal, position, mask, camera=None, 
     v = camera.view_vectors(p)
     blend = np.where(m[..., None], (1.0 - s) * np.nan_to_num(unit) + s * v, n)
     return x, blend.astype(np.float32)
+
+
+def _bounding_box(m: np.ndarray) -> tuple[slice, slice] | None:
+    """The rows and columns that hold the pixels of ``m`` (None when there are none)."""
+    rows = np.flatnonzero(m.any(axis=1))
+    if not rows.size:
+        return None
+    cols = np.flatnonzero(m.any(axis=0))
+    return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)
 
 
 @dataclass(frozen=True)
@@ -526,10 +539,16 @@ def back_light(
     )
     e = back_irradiance(normal=far_normal, position=position, mask=mask, lights=lights)
     _arrays.same_size(e.shape[:2], thickness=t)
+    lit = (e.max(axis=2) > 0) & ok
     view_cos = None
     if camera is not None and medium is not None and medium.walks:
-        view_cos = view_cosine(normal, position, camera)
-    lit = (e.max(axis=2) > 0) & ok
+        # Read on the lit pixels only: computed on their bounding box (0 elsewhere).
+        view_cos = np.zeros(lit.shape, np.float32)
+        box = _bounding_box(lit)
+        if box is not None:
+            view_cos[box] = view_cosine(
+                _arrays.image(normal, "normal")[box], _arrays.image(position, "position")[box], camera
+            )
     parts, ppu = [], None
     if depth is not None and camera is not None and lit.any():  # no light from behind: nothing to spread
         # The light a walk leaves with entered the far side up to about the thickness away.
