@@ -80,7 +80,8 @@ COMBINED_MEDIUM = {
     "subsurface_method": "RANDOM_WALK",
     "base_color": (0.8, 0.5, 0.4),
 }
-#: (technique, backend) whose calls take seconds: each case runs once, without a warm-up call.
+#: (technique, backend) whose calls take seconds: each case runs once, without a warm-up call (at
+#: 4K the one call is timed with tracemalloc on, for its peak).
 SLOW = {("combined", "numpy")}
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "speed.json")
 BACKENDS = ("numba", "numpy")
@@ -337,9 +338,16 @@ def run(width: int = 1920, height: int = 1080, repeat: int = 5, big: tuple[int, 
                     # The compiled kernels as many times as at 1080p: each 4K call faults in a fresh
                     # 100 MB output frame (glibc maps frames this large anew every time, where the
                     # 1080p ones are reused), which varies from call to call; NumPy's calls are long.
-                    runs = 1 if slow else repeat if b == "numba" else max(1, repeat // 2)
-                    seconds, cpu = _best(lambda fn=fn, mask=mask: fn(mask), runs)
-                    peak = _peak_bytes(lambda fn=fn, mask=mask: fn(mask))
+                    if slow:  # one call, timed and traced at once (tracemalloc adds little to big arrays)
+                        timed: dict = {}
+                        peak = _peak_bytes(
+                            lambda fn=fn, mask=mask, timed=timed: timed.update(t=_best(lambda: fn(mask), 1))
+                        )
+                        seconds, cpu = timed["t"]
+                    else:
+                        runs = repeat if b == "numba" else max(1, repeat // 2)
+                        seconds, cpu = _best(lambda fn=fn, mask=mask: fn(mask), runs)
+                        peak = _peak_bytes(lambda fn=fn, mask=mask: fn(mask))
                 entry["4k"] = {
                     "ms": round(seconds * 1e3, 1),
                     "cpu_ms": round(cpu * 1e3, 1),
