@@ -51,10 +51,11 @@ scores each technique it fitted against a Cycles render of the same view on held
 the material (its provenance, ``info["heldout_after"]``). When a material carries such a
 measurement for two or more techniques, made on renders of the same sample count, ``choose``
 takes the cheapest of the measured techniques whose measured error is within ``max_error`` of
-the lowest measured one; the techniques the fit did not measure are not candidates then (a
-prediction and a measurement are not on the same footing). The measurement holds the fit
-render's Monte Carlo noise, which adds alike to every technique's error (where the techniques
-differ by less than that noise, the cheapest is taken), and covers the blocks wholly inside the
+the lowest measured one and whose predicted error is within ``max_error`` of that technique's
+predicted error; the techniques the fit did not measure are not candidates then (a prediction and
+a measurement are not on the same footing). The measurement holds the fit render's Monte Carlo
+noise, which adds alike to every technique's error and so brings the measured errors closer
+together than the techniques are (hence the prediction's check as well), and covers the blocks wholly inside the
 material (``core.fit.BOX`` pixels across), not the pixels at its silhouette.
 
 ``apply_auto`` carries the choice out: each material gets its chosen technique's result
@@ -633,6 +634,11 @@ def choose(
         best = min(ok, key=lambda c: score[c.name])
         limit = score[best.name] * (1.0 + max_error)
         within = [c for c in ok if score[c.name] <= limit + 1e-12]
+        if what == "measured":
+            # The measurement holds the fit render's noise, which brings every technique's measured
+            # error closer to the best's: a cheaper technique must be within the margin of the best
+            # measured one by its prediction too.
+            within = [c for c in within if c.predicted <= best.predicted * (1.0 + max_error) + 1e-12]
         cheapest = min(c.cost for c in within)
         alike = [c for c in within if c.cost <= cheapest * (1.0 + COST_TOLERANCE) + 1e-12]
         pick = min(alike, key=lambda c: (score[c.name], c.cost))

@@ -418,9 +418,11 @@ def _measured(scene, errors: dict, samples=(32,)):
 def test_a_fits_measured_errors_decide_over_the_prediction():
     arrays, scene = _scene()
     passes = Passes(arrays)
-    # MODEL predicts Combined best (light from behind); the fit measured Burley within 4 % of it.
+    # Burley and Combined predicted alike; the fit measured Burley within 4 % of Combined.
     # Combined's light from behind costs it, per unit of work, three times Burley's rate.
-    model = dataclasses.replace(MODEL, seconds_per_work={"ssss": 1.0, "burley": 1.0, "combined": 3.0})
+    rates = {"ssss": 1.0, "burley": 1.0, "combined": 3.0}
+    alike = {"none": (1.0, 1.0, 0.0), "sta": (1.0, 0.3, 0.0), "ssss": (0.2, 1.0, 0.0), "burley": (0.19, 1.0, 0.0)}
+    model = auto.Model({**alike, "combined": (0.19, 1.0, 0.0)}, seconds_per_work=rates)
     measured = _measured(scene, {"burley": 0.100, "combined": 0.104})
     plan = auto.choose(passes, measured, model=model, max_error=0.05)
     for c in plan.choices:
@@ -440,6 +442,15 @@ def test_a_fits_measured_errors_decide_over_the_prediction():
     # The same measurements with a margin of 25 %: Burley again (0.100 <= 1.25 x 0.080).
     wide = auto.choose(passes, _measured(scene, {"burley": 0.100, "combined": 0.080}), model=model, max_error=0.25)
     assert [c.chosen for c in wide.choices] == ["burley", "burley"]
+    # Combined measured best, Burley within 4 % of it; MODEL predicts Combined 30 % better than
+    # Burley on Wax (its light from behind), 1 % on Skin: the cheaper Burley, measured within the
+    # margin, must be predicted within it too.
+    measured = _measured(scene, {"burley": 0.104, "combined": 0.100})
+    both = auto.choose(passes, measured, model=dataclasses.replace(MODEL, seconds_per_work=rates), max_error=0.05)
+    predicted = {c.features.name: {k.name: k.predicted for k in c.candidates} for c in both.choices}
+    assert predicted["Wax"]["burley"] > 1.05 * predicted["Wax"]["combined"]
+    assert predicted["Skin"]["burley"] <= 1.05 * predicted["Skin"]["combined"]
+    assert both.chosen == {"Skin": "burley", "Wax": "combined"}, both.explain()
 
 
 def test_measurements_from_renders_of_different_noise_or_of_one_technique_are_not_compared():
