@@ -252,18 +252,18 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
 
     add("no SSS", "baseline", passes["Combined"], timings["passes"], image_high=high and high[0]["Combined"])
     for technique in settings.techniques:
-        warm = False
         for quality in settings.qualities.get(technique, ({},)):
             label = TECHNIQUES[technique].quality_label(quality)
             yield steps.next(label)
             try:
-                if not warm:
-                    # Untimed first run: it compiles the technique's kernels (or loads them from
-                    # Numba's cache), seconds that are no part of what the technique costs a frame.
-                    core_apply.apply(
-                        passes, desc, technique, prepared=plan.plan(passes, desc, technique, **quality), **quality
-                    )
-                    warm = True
+                # Untimed first run of every quality: it compiles the kernels of the quality's own
+                # code path (or loads them from Numba's cache) and builds its one-off tables (STA's
+                # medium falloff: the walk's tables), seconds that are no part of what the
+                # technique costs a frame. Warming only a technique's first quality let STA's
+                # second quality report 0.4-19 s at 128 px where it takes milliseconds.
+                core_apply.apply(
+                    passes, desc, technique, prepared=plan.plan(passes, desc, technique, **quality), **quality
+                )
                 start = time.perf_counter()
                 prepared = plan.plan(passes, desc, technique, **quality)
                 layers = core_apply.apply(passes, desc, technique, prepared=prepared, **quality)

@@ -220,15 +220,18 @@ def load_scene(
 
 
 #: Techniques applied once already in this process: their compiled kernels are loaded.
-_WARM: set[str] = set()
+_WARM: set[tuple] = set()
 
 
 def _apply(passes, desc, technique, quality):
     from sss_lab.core import apply as core_apply
 
-    if technique not in _WARM:  # untimed: the first call compiles (or loads) the Numba kernels
+    # Untimed first call of each technique and quality: it compiles (or loads) the Numba kernels of
+    # that quality's code path and builds its one-off tables (STA's medium falloff: the walk's).
+    key = (technique, tuple(sorted((k, repr(v)) for k, v in quality.items())))
+    if key not in _WARM:
         core_apply.apply(passes, desc, technique, **quality)
-        _WARM.add(technique)
+        _WARM.add(key)
     start = time.perf_counter()
     layers = core_apply.apply(passes, desc, technique, **quality)
     seconds = time.perf_counter() - start
