@@ -32,6 +32,11 @@ Per kind (diffusion / back-lit), the median over the scenes of the share removed
 technique (per scene, the technique with the lowest error, unfitted or fitted: the suite's
 "best"), and by each technique alone. Renders are cached in ``out/fidelity_cache`` (with the
 CPU seconds they took). Writes ``benchmarks/results/fit.json`` and prints a table.
+
+``--keep-refused`` keeps the fits that fail their held-out check (``core.fit``'s
+``heldout_check=False``: the training blocks' values, a note says so) and scores them the same
+way, into ``benchmarks/results/fit_keep_refused.json``: whether what the check refuses on the
+noisy render would have been better against the converged references, on both frames.
 """
 
 from __future__ import annotations
@@ -47,6 +52,8 @@ import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, "benchmarks", "results", "fit.json")
+#: ``--keep-refused``'s results: never calibrate's fit, so never in RESULTS.
+REFUSED = os.path.join(ROOT, "benchmarks", "results", "fit_keep_refused.json")
 #: Seeds of the fit's render and passes, and of the render timed for the cost: none of the
 #: references' (0, 1) nor the scored passes' (7).
 FIT_SEED = 2
@@ -157,6 +164,8 @@ def run_scene(name: str, args, log) -> dict:
     results, problems, fit_cpu_by = [], [], {}
     # calibrate's options unless asked otherwise (to measure another setting of the fit).
     options = {k: v for k, v in (("box", args.box), ("regularization", args.regularization)) if v is not None}
+    if args.keep_refused:
+        options["heldout_check"] = False
     start = time.perf_counter()
     for t in methods:  # one technique at a time: each one's CPU time
         cpu0 = time.process_time()
@@ -260,10 +269,18 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--regularization", type=float, default=None, help="the fit's ridge weight (default: core.fit's)"
     )
+    parser.add_argument(
+        "--keep-refused",
+        action="store_true",
+        help="keep the fits that fail the held-out check (to measure what it refuses against the converged"
+        f" references; written to {os.path.basename(REFUSED)} unless --out is given)",
+    )
     parser.add_argument("--no-frame-b", action="store_true", help="frame A only")
     parser.add_argument("--cache", default=os.path.join(ROOT, "out", "fidelity_cache"))
-    parser.add_argument("--out", default=RESULTS)
+    parser.add_argument("--out", default=None, help=f"results file (default {os.path.relpath(RESULTS, ROOT)})")
     args = parser.parse_args(argv)
+    if args.out is None:
+        args.out = REFUSED if args.keep_refused else RESULTS
     import bpy
 
     from benchmarks._common import write_results

@@ -201,12 +201,16 @@ def fit_material(
     seed: int = 0,
     regularization: float = 0.05,
     samples: int | None = None,
+    heldout_check: bool = True,
 ) -> FitResult:
     """Fit ``technique``'s parameters of ``material`` (its pass index on ``passes``) to
     ``reference`` (H, W, 3 or 4, the Cycles render of the same view). Raises FitError with one
     line naming the material and the reason when it cannot be fitted: too few pixels, no bake
     distance for the combined technique, a fit that does not converge or does not hold on the
-    held-out blocks. ``samples``: the reference's sample count, kept in the provenance."""
+    held-out blocks. ``samples``: the reference's sample count, kept in the provenance.
+    ``heldout_check=False`` keeps a fit that does not hold (fitted on the training blocks, with a
+    note saying so), to measure what the check refuses against a converged reference
+    (``benchmarks.fit --keep-refused``); ``calibrate`` never does."""
     with _one_thread():
         return _fit_material(
             passes,
@@ -219,10 +223,13 @@ def fit_material(
             seed=seed,
             regularization=regularization,
             samples=samples,
+            heldout_check=heldout_check,
         )
 
 
-def _fit_material(passes, scene, reference, material, technique, *, box, holdout, seed, regularization, samples):
+def _fit_material(
+    passes, scene, reference, material, technique, *, box, holdout, seed, regularization, samples, heldout_check
+):
     start = time.perf_counter()
     ref = _check_inputs(passes, scene, reference, technique)
     if not 0.0 < holdout < 1.0:
@@ -259,7 +266,9 @@ def _fit_material(passes, scene, reference, material, technique, *, box, holdout
         base = _blocks(combined_rgb, keep, box)
         layers = core_apply.apply(passes, single, spec, scale=1.0)
         basis = _blocks(layers[core_apply.layer_names(spec.name)[1]], keep, box)
-        return _finish_sta(material, name, base, basis, target, train, held, regularization, samples, start, count)
+        return _finish_sta(
+            material, name, base, basis, target, train, held, regularization, samples, start, count, heldout_check
+        )
 
     albedo = core_apply._clean(passes["Diffuse Color"])
     original = albedo * (core_apply._clean(passes["Diffuse Direct"]) + core_apply._clean(passes["Diffuse Indirect"]))
@@ -351,7 +360,7 @@ def _fit_material(passes, scene, reference, material, technique, *, box, holdout
         result.at_bounds.append("d_scale")
     if trans is not None and lengths.at_bounds(f_idx):
         result.at_bounds.append("transmission_d_su")
-    return _accept(result, params, samples, pixels, start)
+    return _accept(result, params, samples, pixels, start, heldout_check)
 
 
 class _Lengths:
@@ -535,18 +544,20 @@ def _bounds(params: dict, result: FitResult) -> None:
             result.at_bounds.append(key)
 
 
-def _accept(result: FitResult, params: dict, samples, pixels: int, start: float) -> FitResult:
+def _accept(result: FitResult, params: dict, samples, pixels: int, start: float, check: bool = True) -> FitResult:
     if not (math.isfinite(result.heldout_after) and math.isfinite(result.heldout_before)):
         raise FitError(
             f"material {result.material!r} {result.technique}: the fit did not converge (no finite error on the"
             " held-out pixels); left unchanged"
         )
     if result.heldout_after >= result.heldout_before:
-        raise FitError(
-            f"material {result.material!r} {result.technique}: the fit does not hold on the held-out pixels (error"
-            f" {result.heldout_before:.4g} before, {result.heldout_after:.4g} after): it would fit the noise;"
-            " left unchanged (render the fit with more samples)"
-        )
+        if check:
+            raise FitError(
+                f"material {result.material!r} {result.technique}: the fit does not hold on the held-out pixels"
+                f" (error {result.heldout_before:.4g} before, {result.heldout_after:.4g} after): it would fit the"
+                " noise; left unchanged (render the fit with more samples)"
+            )
+        result.notes.append("kept although it does not hold on the held-out blocks (held-out check off)")
     result.seconds = time.perf_counter() - start
     params[INFO] = {
         "samples": samples,
@@ -558,7 +569,7 @@ def _accept(result: FitResult, params: dict, samples, pixels: int, start: float)
     return result
 
 
-def _finish_sta(material, name, base, basis, target, train, held, regularization, samples, start, count):
+def _finish_sta(material, name, base, basis, target, train, held, regularization, samples, start, count, check=True):
     y = target - base
     bb = float(np.sum(basis[train] ** 2))
     if bb <= _ABSENT * float(np.sum(y[train] ** 2)):
@@ -588,7 +599,7 @@ def _finish_sta(material, name, base, basis, target, train, held, regularization
         s = solve(np.ones_like(train))
     if s in (lo, hi):
         result.at_bounds.append("scale")
-    return _accept(result, {"scale": s}, samples, int(count), start)
+    return _accept(result, {"scale": s}, samples, int(count), start, check)
 
 
 class _Solver:

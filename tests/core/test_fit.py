@@ -119,6 +119,13 @@ def test_a_fit_that_does_not_hold_is_rejected(synthetic):
     ref[~_heldout_pixels(passes, skin) & (core_apply._index_map(passes) == skin.index), :3] *= 2.0
     with pytest.raises(FitError, match="'Skin' burley: the fit does not hold on the held-out pixels"):
         fit_material(passes, scene, ref, skin, "burley")
+    # With the check off (benchmarks.fit --keep-refused) the same fit is kept, and says so: the
+    # training blocks' values (twice as bright; the ridge of 0.05 pulls the gain to about
+    # (2 + 0.05) / 1.05 = 1.95 at k = 1), not refitted on the held-out blocks.
+    kept = fit_material(passes, scene, ref, skin, "burley", heldout_check=False)
+    assert kept.heldout_after >= kept.heldout_before
+    assert min(kept.params["gain"]) > 1.5
+    assert any("held-out check off" in n for n in kept.notes)
 
 
 def test_a_fit_that_holds_keeps_the_values_fitted_on_every_block(synthetic):
