@@ -161,21 +161,26 @@ def far_side(*, translucency, distance_su, normal, position, mask, camera=None, 
         return x, n
     p = _arrays.image(position, "position")
     m = _arrays.mask_array(mask, tau.shape) & _arrays.finite_pixels(n, p)
-    # The curvature on the mask's bounding box (it reads nothing else; 0 outside the mask).
-    k = np.zeros(tau.shape)
+    # Everything below on the mask's bounding box: it reads nothing outside it, and outside the
+    # mask x stays the map's and n the visible normal.
+    walks = medium is not None and medium.walks
     box = _bounding_box(m)
-    if box is not None:
-        _, largest = surface_curvature(n[box], p[box], m[box], radius_px=1)
-        k[box] = np.maximum(np.nan_to_num(np.asarray(largest, np.float64)), 0.0)
+    if box is None:
+        return x, (n.astype(np.float32) if walks else n)
+    mb, tb = m[box], tau[box]
+    _, largest = surface_curvature(n[box], p[box], mb, radius_px=1)
+    k = np.maximum(np.nan_to_num(np.asarray(largest, np.float64)), 0.0)
     chord = 2.0 / np.maximum(k, 2.0 / (CHORD_CAP * float(distance_su)))
-    x = np.where(m & (tau <= 1e-6), np.maximum(x, chord), x)
-    if medium is None or not medium.walks:
+    x[box] = np.where(mb & (tb <= 1e-6), np.maximum(x[box], chord), x[box])
+    if not walks:
         return x, n
-    s = np.clip(x * k / 2.0, 0.0, 1.0)[..., None]
-    unit = n / np.maximum(np.linalg.norm(n, axis=2, keepdims=True), np.float32(1e-20))
-    v = camera.view_vectors(p)
-    blend = np.where(m[..., None], (1.0 - s) * np.nan_to_num(unit) + s * v, n)
-    return x, blend.astype(np.float32)
+    s = np.clip(x[box] * k / 2.0, 0.0, 1.0)[..., None]
+    nb = n[box]
+    unit = nb / np.maximum(np.linalg.norm(nb, axis=2, keepdims=True), np.float32(1e-20))
+    v = camera.view_vectors(p[box])
+    blend = n.astype(np.float32)
+    blend[box] = np.where(mb[..., None], (1.0 - s) * np.nan_to_num(unit) + s * v, nb)
+    return x, blend
 
 
 def _bounding_box(m: np.ndarray) -> tuple[slice, slice] | None:
