@@ -280,7 +280,7 @@ def _least_surface_ratio(camera, shape) -> float:
     else:
         h, w = shape
         f = camera.focal_px
-        cx, cy = w / 2 - camera.shift_x * max(w, h), h / 2 + camera.shift_y * max(w, h)
+        cx, cy = camera.principal_point(w, h)
         u = max(abs(0.5 - cx), abs(w - 0.5 - cx)) / f
         v = max(abs(cy - 0.5), abs(cy - h + 0.5)) / f
         least_axis = 1.0 / float(np.sqrt(1.0 + u * u + v * v))

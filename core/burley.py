@@ -223,13 +223,24 @@ def surface_area(depth, ok, camera: Camera) -> np.ndarray:
     if camera.type != "ORTHO":
         h, w = ok.shape
         f = camera.focal_px
-        cx = w / 2 - camera.shift_x * max(w, h)
-        cy = h / 2 + camera.shift_y * max(w, h)
+        cx, cy = camera.principal_point(w, h)
         ys, xs = np.mgrid[box[0], box[1]].astype(np.float64)
         axis = 1.0 / np.sqrt(1.0 + ((xs + 0.5 - cx) / f) ** 2 + ((cy - ys - 0.5) / f) ** 2)
     ratio = np.minimum(axis / np.maximum(cos.astype(np.float64), 1e-30), 1.0 / MIN_VIEW_COSINE)
     out[box] = np.where(ok[box] & (cos < 1.0), ratio, 1.0).astype(np.float32)
     return out
+
+
+def surface_area_args(camera: Camera, shape, min_cos: float) -> tuple:
+    """The compiled kernels' parameters of ``surface_area`` after the depth and ``ok``
+    (``core.compiled._area_at``): the background depth, whether the camera is orthographic, its
+    pixels per unit (orthographic) or focal length in pixels, its principal point, as
+    ``surface_area`` unprojects pixels, and the smallest view cosine ``min_cos``."""
+    h, w = shape
+    ortho = camera.type == "ORTHO"
+    f = float(camera.ortho_px_per_unit if ortho else camera.focal_px)
+    cx, cy = camera.principal_point(w, h)
+    return np.float32(_arrays.BACKGROUND_DEPTH), ortho, f, cx, cy, min_cos
 
 
 def _gather(
@@ -445,15 +456,10 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
     if id_map.size > 1 and np.iinfo(np.int32).min <= id_map.min() and id_map.max() <= np.iinfo(np.int32).max:
         id_map = id_map.astype(np.int32)  # the same ids, gathered 16 per 512-bit register instead of 8
     z = c(z, dtype=f32)
-    h, w = ok.shape
-    if camera.type == "ORTHO":
-        ortho, f, cx, cy = True, float(camera.ortho_px_per_unit), w / 2, h / 2
-    else:
-        ortho, f = False, float(camera.focal_px)
-        cx, cy = w / 2 - camera.shift_x * max(w, h), h / 2 + camera.shift_y * max(w, h)
+    h = ok.shape[0]
     # The surface each pixel covers (``surface_area``), computed by ``burley_pack`` for the pixels
     # each band's samples reach.
-    area_args = (np.float32(_arrays.BACKGROUND_DEPTH), ortho, f, cx, cy, MIN_VIEW_COSINE)
+    area_args = surface_area_args(camera, ok.shape, MIN_VIEW_COSINE)
     light = c(light, dtype=f32)
     post = c(post, dtype=f32)
     reach = np.asarray(reach_c, np.float64)

@@ -581,8 +581,7 @@ def view_cosine(depth, mask, camera: Camera, *, origin=(0, 0), frame=None) -> np
         p = np.stack([(xs + 0.5 - w / 2) * s, (h / 2 - ys - 0.5) * s, -z], axis=-1)
     else:
         f = camera.focal_px
-        cx = w / 2 - camera.shift_x * max(w, h)
-        cy = h / 2 + camera.shift_y * max(w, h)
+        cx, cy = camera.principal_point(w, h)
         p = np.stack([(xs + 0.5 - cx) / f * z, (cy - ys - 0.5) / f * z, -z], axis=-1)
 
     def diff(axis):

@@ -130,6 +130,15 @@ class Camera:
         sensor_mm, pixels = self._fit_extent()
         return self.lens_mm / sensor_mm * pixels
 
+    def principal_point(self, width: int, height: int) -> tuple[float, float]:
+        """Where the camera's axis meets an image of ``width`` x ``height`` pixels (pixel
+        coordinates, x right, y down): the image's centre, moved by the lens shift (in units of
+        the larger side) for a perspective camera."""
+        if self.type == "ORTHO":
+            return width / 2, height / 2
+        side = max(width, height)
+        return width / 2 - self.shift_x * side, height / 2 + self.shift_y * side
+
     @property
     def ortho_px_per_unit(self) -> float:
         """Orthographic pixels per scene unit (constant over the image)."""

@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _arrays, backend
-from .burley import surface_area
+from .burley import surface_area, surface_area_args
 from .energy import ENERGY_PARAM, apply_energy, energy_inputs
 from .extent import object_extent
 from .kernels import SeparableKernel, bounded, check_taps, make_kernel
@@ -397,19 +397,6 @@ def _filter(
     return out
 
 
-def _area_camera(camera: Camera, shape) -> tuple:
-    """``core.compiled.surface_area``'s parameters after ``ok``: the background depth, whether the
-    camera is orthographic, its pixels per unit (orthographic) or focal length in pixels, the
-    principal point, as ``core.burley.surface_area`` unprojects pixels, and the smallest view
-    cosine, 1 / ``MAX_SURFACE``."""
-    h, w = shape
-    far = np.float32(_arrays.BACKGROUND_DEPTH)
-    if camera.type == "ORTHO":
-        return far, True, float(camera.ortho_px_per_unit), w / 2, h / 2, 1.0 / MAX_SURFACE
-    cx, cy = w / 2 - camera.shift_x * max(w, h), h / 2 + camera.shift_y * max(w, h)
-    return far, False, float(camera.focal_px), cx, cy, 1.0 / MAX_SURFACE
-
-
 def _follow(kernel: SeparableKernel, follow_surface: bool) -> np.float32:
     """Follow surface compares depths in units of 2 R: a pixel's key is z / (2 R) where it may
     give light, +inf elsewhere (so that it gives nothing); without it, 0 and +inf."""
@@ -449,7 +436,7 @@ def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode, weig
         kernel.weights.sum(axis=0).astype(f32),
         c(post, dtype=f32),
         np.array(box, np.int64),
-        _area_camera(camera, ok.shape),
+        surface_area_args(camera, ok.shape, 1.0 / MAX_SURFACE),
         surface,
         out,
     )
