@@ -103,12 +103,18 @@ def _inputs(width: int, height: int):
     return passes, scene, depth, normal, {"full screen": full, "25 % mask": quarter}
 
 
+def _light(passes):
+    """(diffuse light, albedo) as the techniques read them from ``_inputs``' passes, the albedo
+    0.5 where the pass has none (in place)."""
+    albedo = passes["Diffuse Color"]
+    albedo[albedo.sum(axis=2) == 0] = 0.5
+    return passes["Diffuse Direct"] + passes["Diffuse Indirect"], albedo
+
+
 def _cases(width: int, height: int):
     """{technique: (fn(mask), samples per pixel, the inputs' bytes)} and the masks."""
     passes, scene, depth, normal, masks = _inputs(width, height)
-    diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]
-    albedo = passes["Diffuse Color"]
-    albedo[albedo.sum(axis=2) == 0] = 0.5
+    diffuse, albedo = _light(passes)
     cam = scene.camera
     kernel = kernels.preintegrated_kernel(17, d_su=D_SU)
     position, thickness = passes["Position"], passes["Thickness"]
@@ -166,9 +172,7 @@ def energy_stage(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
     Burley's result, with the passes and medium of the combined case, fastest of ``repeat``, on
     each backend of ``names``."""
     passes, scene, depth, normal, masks = _inputs(width, height)
-    diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]
-    albedo = passes["Diffuse Color"]
-    albedo[albedo.sum(axis=2) == 0] = 0.5
+    diffuse, albedo = _light(passes)
     medium = {k: v for k, v in COMBINED_MEDIUM.items() if k != "base_color"}
     out: dict = {"energy": "object", "backends": {b: {} for b in names}}
     for label, mask in masks.items():

@@ -26,9 +26,7 @@ WEIGHTINGS = ("screen", "surface")
 
 def run(width: int, height: int, repeat: int) -> dict:
     passes, scene, depth, _, masks = speed._inputs(width, height)
-    diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]
-    albedo = passes["Diffuse Color"]
-    albedo[albedo.sum(axis=2) == 0] = 0.5
+    diffuse, albedo = speed._light(passes)
     kernel = kernels.preintegrated_kernel(17, d_su=speed.D_SU)
     speed._threads(2)
     load_before = os.getloadavg()
