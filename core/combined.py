@@ -427,53 +427,15 @@ def _spread_part(out: np.ndarray, part: np.ndarray, sigma: np.ndarray) -> np.nda
     return out
 
 
-def transmission(
-    *,
-    normal,
-    position,
-    thickness,
-    mask,
-    lights,
-    d_su,
-    thickness_distance_su: float,
-    transmission_scale=1.0,
-    thickness_convention: str = "translucency",
-    medium: Medium | None = None,
-    albedo=None,
-    camera: Camera | None = None,
-    albedo_mode: str = "post",
-    depth=None,
-    object_id=None,
-) -> np.ndarray:
+def transmission(*, d_su, transmission_scale=1.0, **inputs) -> np.ndarray:
     """The light from behind alone, float32 (H, W, 3): ``transmission_scale`` x ``exit_weight`` x
     ``back_irradiance`` x T_c(x), with x = ``slab_thickness`` of the map (scene units) and T_c
     from ``slab_transmittance_rgb`` (``d_su`` its length per channel: the walk's mean free path,
-    or Burley's d without a ``medium``).
-
-    ``thickness`` (H, W) baked map in ``thickness_convention`` ("translucency": 1 = thin);
-    ``thickness_distance_su`` the bake's distance D (> 0: without it the map cannot be read as a
-    thickness). ``albedo`` (the Diffuse Color pass) and ``camera`` (for the view cosine of the
-    walk's refracted entry) are optional: without them the exit weight is 1 and the entry normal.
-    ``depth`` (the Depth pass, with ``camera``) turns on the lateral spread, ``object_id`` keeps it
-    within each object."""
-    scale = _arrays.rgb_lengths(transmission_scale, "transmission_scale").astype(np.float32)
+    or Burley's d without a ``medium``). ``inputs``: ``back_light``'s arguments, the part that
+    does not depend on the length."""
+    _arrays.rgb_lengths(transmission_scale, "transmission_scale")
     _arrays.rgb_lengths(d_su, "transmission_d_su")
-    back = back_light(
-        normal=normal,
-        position=position,
-        thickness=thickness,
-        mask=mask,
-        lights=lights,
-        thickness_distance_su=thickness_distance_su,
-        thickness_convention=thickness_convention,
-        medium=medium,
-        albedo=albedo,
-        camera=camera,
-        albedo_mode=albedo_mode,
-        depth=depth,
-        object_id=object_id,
-    )
-    return back.transmitted(d_su, scale)
+    return back_light(**inputs).transmitted(d_su, transmission_scale)
 
 
 @dataclass
@@ -528,7 +490,14 @@ def back_light(
     depth=None,
     object_id=None,
 ) -> BackLight:
-    """The length-independent part of ``transmission`` (same arguments but ``d_su`` and the scale)."""
+    """The length-independent part of ``transmission``.
+
+    ``thickness`` (H, W) baked map in ``thickness_convention`` ("translucency": 1 = thin);
+    ``thickness_distance_su`` the bake's distance D (> 0: without it the map cannot be read as a
+    thickness). ``albedo`` (the Diffuse Color pass) and ``camera`` (for the view cosine of the
+    walk's refracted entry) are optional: without them the exit weight is 1 and the entry normal.
+    ``depth`` (the Depth pass, with ``camera``) turns on the lateral spread, ``object_id`` keeps it
+    within each object."""
     if thickness_convention not in THICKNESS_CONVENTIONS:
         raise ValueError(
             f"thickness_convention: {thickness_convention!r} is not one of {', '.join(THICKNESS_CONVENTIONS)}"
