@@ -189,6 +189,7 @@ def heldout_blocks(count: int, *, holdout: float, seed: int) -> np.ndarray:
     return held
 
 
+@_one_thread()
 def fit_material(
     passes,
     scene: SceneDescription,
@@ -211,25 +212,6 @@ def fit_material(
     ``heldout_check=False`` keeps a fit that does not hold (fitted on the training blocks, with a
     note saying so), to measure what the check refuses against a converged reference
     (``benchmarks.fit --keep-refused``); ``calibrate`` never does."""
-    with _one_thread():
-        return _fit_material(
-            passes,
-            scene,
-            reference,
-            material,
-            technique,
-            box=box,
-            holdout=holdout,
-            seed=seed,
-            regularization=regularization,
-            samples=samples,
-            heldout_check=heldout_check,
-        )
-
-
-def _fit_material(
-    passes, scene, reference, material, technique, *, box, holdout, seed, regularization, samples, heldout_check
-):
     start = time.perf_counter()
     ref = _check_inputs(passes, scene, reference, technique)
     if not 0.0 < holdout < 1.0:
@@ -328,7 +310,6 @@ def _fit_material(
             solver = _Solver(y, train, trans, regularization, lengths.exponents())
             evaluated.clear()
             best_k, g, s, f_idx, model = solved()
-    best_k, g, s, f_idx, model = solved()
     default = solver.default_model()
     result = FitResult(
         material=name,
