@@ -19,10 +19,12 @@ Robust to Monte Carlo noise (docs/references.md §8):
   material count (the noise of a block mean falls with its pixel count, the smooth SSS
   differences stay); a material with fewer than ``MIN_BLOCKS`` such blocks is fitted on smaller
   ones (halving the size, down to 2 x 2) before it is refused;
-- a random ``holdout`` share of the blocks (fixed seed) is left out of the fit and measures
-  it: a fit that does not lower the held-out error over-fits the noise (or the model cannot
-  explain the material) and is rejected, the material left unchanged; a fit that holds is made
-  again on every block (the held-out ones too), which gives the values kept;
+- the fit is judged by ``folds``-fold cross-validation: the blocks are dealt at random (fixed
+  seed) into ``FOLDS`` folds, and each fold is predicted by the fit made on the other folds, so
+  that every block is held out once and judges the fit; a fit whose held-out error over all
+  folds is not below the unfitted one over-fits the noise (or the model cannot explain the
+  material) and is rejected, the material left unchanged; a fit that holds is made again on
+  every block, which gives the values kept;
 - the parameters are bounded (``fit_params.PARAMETERS``; k and f searched on a grid of
   factors of sqrt(2) from 1/4 to 4, coarse to fine (``_search``, ``_Lengths``), then k refined
   between its neighbours) and pulled towards
@@ -67,8 +69,13 @@ GRID = tuple(2.0 ** (i / 2.0) for i in range(-4, 5))
 #: removed of 59.6 / 59.6 / 57.5 % on frame A and 54.3 / 53.9 / 53.9 % on frame B, on the back-lit
 #: ones 89.5 / 89.2 / 89.2 % and 80.5 / 74.8 / 74.8 % (docs/references.md §16).
 BOX = 2
-#: Fewest blocks inside a material for a fit (with the default 25 % held out: 24 to fit, 8 to check).
+#: Fewest blocks inside a material for a fit (with 4 folds: each fit on 24, checked on 8).
 MIN_BLOCKS = 32
+#: Folds of the cross-validation that judges a fit (module docstring). One random quarter of the
+#: blocks held out refused real gains on materials of few blocks, where which blocks fall in the
+#: quarter decides (``benchmarks.fit``; docs/references.md §16); four folds judge with every block
+#: at the cost of four more searches (the technique runs and transmissions are shared).
+FOLDS = 4
 #: Below this share of the target's energy a basis (light from behind, STA's term) counts as
 #: absent on the material: its parameters keep their defaults.
 _ABSENT = 1e-6
@@ -92,13 +99,15 @@ class FitResult:
     #: The fitted values (``core/fit_params.py`` names) plus ``info`` (provenance).
     params: dict
     #: Relative RMSE (block means, see the module docstring) before (the unfitted mapping) and
-    #: after the fit, on the blocks it was fitted on and on the held-out ones.
+    #: after the fit: on every block with the values kept (fitted on every block), and on each
+    #: block held out, predicted by the fit on the other folds (cross-validation).
     train_before: float
     train_after: float
     heldout_before: float
     heldout_after: float
     blocks: int
     heldout_blocks: int
+    folds: int = FOLDS
     at_bounds: list = field(default_factory=list)
     notes: list = field(default_factory=list)
     seconds: float = 0.0
@@ -110,7 +119,8 @@ class FitResult:
         values = ", ".join(f"{k}={_fmt(v)}" for k, v in self.params.items() if k != INFO)
         line = (
             f"{self.material!r} {self.technique}: {values}; held-out error {self.heldout_before:.4g} ->"
-            f" {self.heldout_after:.4g} ({self.blocks} blocks, {self.heldout_blocks} held out, {self.seconds:.1f} s)"
+            f" {self.heldout_after:.4g} ({self.blocks} blocks, each held out once in {self.folds} folds,"
+            f" {self.seconds:.1f} s)"
         )
         if self.at_bounds:
             line += f"; at its bound: {', '.join(self.at_bounds)}"
@@ -180,13 +190,13 @@ def _one_thread():
         numba.set_num_threads(before)
 
 
-def heldout_blocks(count: int, *, holdout: float, seed: int) -> np.ndarray:
-    """Which of ``count`` blocks (in row-major order of the material's blocks) are held out: a
-    random ``holdout`` share drawn with ``seed`` (every fourth block if the draw takes none or all)."""
-    held = np.random.default_rng(seed).random(count) < holdout
-    if held.all() or not held.any():
-        held = np.arange(count) % 4 == 0
-    return held
+def block_folds(count: int, *, folds: int, seed: int) -> np.ndarray:
+    """The fold (0 .. ``folds`` - 1) of each of ``count`` blocks (in row-major order of the
+    material's blocks): a random permutation drawn with ``seed``, dealt out in turn, so that the
+    folds differ in size by one block at most and every block is held out exactly once."""
+    fold = np.empty(count, np.int64)
+    fold[np.random.default_rng(seed).permutation(count)] = np.arange(count) % folds
+    return fold
 
 
 @_one_thread()
@@ -198,7 +208,7 @@ def fit_material(
     technique: str,
     *,
     box: int = BOX,
-    holdout: float = 0.25,
+    folds: int = FOLDS,
     seed: int = 0,
     regularization: float = 0.05,
     samples: int | None = None,
@@ -208,14 +218,15 @@ def fit_material(
     ``reference`` (H, W, 3 or 4, the Cycles render of the same view). Raises FitError with one
     line naming the material and the reason when it cannot be fitted: too few pixels, no bake
     distance for the combined technique, a fit that does not converge or does not hold on the
-    held-out blocks. ``samples``: the reference's sample count, kept in the provenance.
-    ``heldout_check=False`` keeps a fit that does not hold (fitted on the training blocks, with a
-    note saying so), to measure what the check refuses against a converged reference
-    (``benchmarks.fit --keep-refused``); ``calibrate`` never does."""
+    held-out blocks (``folds``-fold cross-validation, see the module docstring). ``samples``: the
+    reference's sample count, kept in the provenance. ``heldout_check=False`` keeps a fit that
+    does not hold (the values fitted on every block, with a note saying so), to measure what the
+    check refuses against a converged reference (``benchmarks.fit --keep-refused``); ``calibrate``
+    never does."""
     start = time.perf_counter()
     ref = _check_inputs(passes, scene, reference, technique)
-    if not 0.0 < holdout < 1.0:
-        raise FitError(f"holdout: expected a share between 0 and 1, got {holdout!r}")
+    if isinstance(folds, bool) or not isinstance(folds, (int, np.integer)) or not 2 <= folds <= MIN_BLOCKS // 2:
+        raise FitError(f"folds: expected a whole number from 2 to {MIN_BLOCKS // 2}, got {folds!r}")
     name = material.name or str(material.index)
     if not material.scatters:
         raise FitError(f"material {name!r}: no subsurface scattering (Subsurface Weight, Radius or Scale is 0)")
@@ -238,8 +249,8 @@ def fit_material(
         )
     plain = dataclasses.replace(material, fit={})
     single = dataclasses.replace(scene, materials=(plain,))
-    held = heldout_blocks(count, holdout=holdout, seed=seed)
-    train = ~held
+    fold = block_folds(count, folds=folds, seed=seed)
+    every = np.ones(count, bool)
 
     combined_rgb = passes["Combined"][..., :3]
     target = _blocks(ref, keep, box)
@@ -249,7 +260,7 @@ def fit_material(
         layers = core_apply.apply(passes, single, spec, scale=1.0)
         basis = _blocks(layers[core_apply.layer_names(spec.name)[1]], keep, box)
         return _finish_sta(
-            material, name, base, basis, target, train, held, regularization, samples, start, count, heldout_check
+            material, name, base, basis, target, fold, regularization, samples, start, count, heldout_check
         )
 
     albedo = core_apply._clean(passes["Diffuse Color"])
@@ -259,7 +270,7 @@ def fit_material(
     params0 = _mapping.technique_params(plain, technique)
 
     # Light from behind (combined only): E_back per channel and slab thickness, at full size.
-    trans = None
+    transmissions = None
     notes = []
     if spec.adds_light:
         distance = float(params0.get("thickness_distance_su") or 0.0)
@@ -272,76 +283,104 @@ def fit_material(
     if spec.adds_light:
         # The combined technique's light from behind exactly as it computes it (core/combined.py:
         # the material's medium, exit weight, entry and lateral spread; what does not depend on the
-        # length once), at scale 1 with every channel's length times GRID[i]: trans[i] (N, 3).
+        # length once), at scale 1 with each channel's length times 2^(q/2) (``_Transmissions``).
         back, d_tr0 = light_from_behind(diffusion.arguments)
-        lengths = _Lengths(back, d_tr0, keep, box)
         if back.lit.any():
-            trans = lengths.start()
-        # Absent: its energy over the whole grid of lengths (estimated from the first three) is
-        # at most _ABSENT of the target's.
-        energy = len(GRID) * float(np.mean(np.sum(trans[:, train] ** 2, axis=(1, 2)))) if trans is not None else 0.0
-        if energy <= _ABSENT * float(np.sum(y[train] ** 2)):
-            trans = None
+            transmissions = _Transmissions(back, d_tr0, keep, box)
+            # Absent: its energy over the whole grid of lengths (estimated from the first three)
+            # is at most _ABSENT of the target's.
+            first3 = _Lengths(transmissions).start()
+            energy = len(GRID) * float(np.mean(np.sum(first3**2, axis=(1, 2))))
+            if energy <= _ABSENT * float(np.sum(y**2)):
+                transmissions = None
+        if transmissions is None:
             notes.append("no light from behind on its pixels: transmission left at its defaults")
 
-    solver = _Solver(y, train, trans, regularization, lengths.exponents() if trans is not None else None)
-    evaluated: dict[float, tuple] = {}
+    def fit_on(blocks: np.ndarray) -> _Fitted:
+        """The fit's search on ``blocks`` (k coarse to fine; for the combined technique the
+        lengths of the light from behind coarse to fine per channel, ``_Lengths``, with k searched
+        again on each new set of lengths: its technique runs are kept, only solves)."""
+        lengths = _Lengths(transmissions) if transmissions is not None else None
+        trans = lengths.start() if lengths is not None else None
+        while True:
+            solver = _Solver(y, blocks, trans, regularization, lengths.exponents() if lengths else None)
+            evaluated: dict[float, tuple] = {}
 
-    def evaluate(k: float):
-        if k not in evaluated:
-            evaluated[k] = solver.solve(diffusion(k), k)
-        return evaluated[k]
+            def evaluate(k: float, solver=solver, evaluated=evaluated):
+                if k not in evaluated:
+                    evaluated[k] = solver.solve(diffusion(k), k)
+                return evaluated[k]
 
-    def solved():
-        best_k = _search(evaluate, evaluated)
-        objective, g, s, f_idx, model = evaluated[best_k]
-        if not (math.isfinite(objective) and np.all(np.isfinite(model)) and np.all(np.isfinite(g))):
-            raise FitError(
-                f"material {name!r} {technique}: the fit did not converge (non-finite error); left unchanged"
-            )
-        return best_k, g, s, f_idx, model
-
-    best_k, g, s, f_idx, model = solved()
-    if trans is not None:
-        # The lengths of the light from behind, coarse to fine per channel (``_Lengths``), d's
-        # scale searched again on each new set (its technique runs are kept: only solves).
-        while (more := lengths.next(f_idx)) is not None:
+            best_k = _search(evaluate, evaluated)
+            objective, g, s, f_idx, model = evaluated[best_k]
+            if not (math.isfinite(objective) and np.all(np.isfinite(model)) and np.all(np.isfinite(g))):
+                raise FitError(
+                    f"material {name!r} {technique}: the fit did not converge (non-finite error); left unchanged"
+                )
+            if lengths is None or (more := lengths.next(f_idx)) is None:
+                return _Fitted(best_k, g, s, f_idx, model, lengths)
             trans = more
-            solver = _Solver(y, train, trans, regularization, lengths.exponents())
-            evaluated.clear()
-            best_k, g, s, f_idx, model = solved()
-    default = solver.default_model()
+
+    # Cross-validation: each fold's blocks predicted by the fit on the other folds.
+    predicted = np.empty_like(y)
+    for j in range(folds):
+        out = fold == j
+        predicted[out] = fit_on(~out).model[out]
+    default = diffusion(1.0) + (transmissions.get((0, 0, 0)) if transmissions is not None else 0.0)
+    final = fit_on(every)
     result = FitResult(
         material=name,
         index=material.index,
         technique=technique,
         params={},
-        train_before=_rel_rmse((default - y)[train], target[train]),
-        train_after=_rel_rmse((model - y)[train], target[train]),
-        heldout_before=_rel_rmse((default - y)[held], target[held]),
-        heldout_after=_rel_rmse((model - y)[held], target[held]),
-        blocks=int(train.sum()),
-        heldout_blocks=int(held.sum()),
+        train_before=_rel_rmse(default - y, target),
+        train_after=_rel_rmse(final.model - y, target),
+        heldout_before=_rel_rmse(default - y, target),
+        heldout_after=_rel_rmse(predicted - y, target),
+        blocks=count,
+        heldout_blocks=count,
+        folds=folds,
         notes=notes,
     )
-    if result.heldout_after < result.heldout_before:
-        # The held-out blocks have judged the fit (and ``_accept`` refuses it when it did not
-        # hold); the values it keeps are then fitted on every block, as cross-validation does.
-        solver = _Solver(
-            y, np.ones_like(train), trans, regularization, lengths.exponents() if trans is not None else None
-        )
-        evaluated.clear()
-        best_k, g, s, f_idx, model = solved()
-    params = {"gain": tuple(float(v) for v in g), "d_scale": float(best_k)}
-    if spec.adds_light and trans is not None:
-        params["transmission_scale"] = tuple(float(v) for v in s)
-        params["transmission_d_su"] = lengths.values(f_idx)
+    params = {"gain": tuple(float(v) for v in final.g), "d_scale": float(final.k)}
+    if final.lengths is not None:
+        params["transmission_scale"] = tuple(float(v) for v in final.s)
+        params["transmission_d_su"] = final.lengths.values(final.f_idx)
     _bounds(params, result)
-    if best_k in (GRID[0], GRID[-1]):
+    if final.k in (GRID[0], GRID[-1]):
         result.at_bounds.append("d_scale")
-    if trans is not None and lengths.at_bounds(f_idx):
+    if final.lengths is not None and final.lengths.at_bounds(final.f_idx):
         result.at_bounds.append("transmission_d_su")
     return _accept(result, params, samples, pixels, start, heldout_check)
+
+
+@dataclass
+class _Fitted:
+    """One search's result: d's scale, the gains, the transmission scales and chosen lengths
+    (``f_idx`` into ``lengths``' slots; ``lengths`` None without light from behind), and the
+    model's block means on every block of the material."""
+
+    k: float
+    g: np.ndarray
+    s: np.ndarray
+    f_idx: tuple
+    model: np.ndarray
+    lengths: _Lengths | None
+
+
+class _Transmissions:
+    """The combined technique's light from behind (block means) with each channel's length
+    d_tr x 2^(q/2), computed once per (q_R, q_G, q_B) whatever search asks for it."""
+
+    def __init__(self, back, d_tr0, keep, box):
+        self.back, self.d_tr0, self.keep, self.box = back, np.asarray(d_tr0, np.float64), keep, box
+        self._cache: dict[tuple, np.ndarray] = {}
+
+    def get(self, q: tuple) -> np.ndarray:
+        if q not in self._cache:
+            light = self.back.transmitted(tuple(self.d_tr0 * 2.0 ** (np.asarray(q) / 2.0)))
+            self._cache[q] = _blocks(light, self.keep, self.box)
+        return self._cache[q]
 
 
 class _Lengths:
@@ -353,8 +392,9 @@ class _Lengths:
     The fit's objective separates per channel once k is chosen, so where it has one minimum over
     the grid per channel this finds the grid's lengths with 5-7 transmissions instead of 9."""
 
-    def __init__(self, back, d_tr0, keep, box):
-        self.back, self.d_tr0, self.keep, self.box = back, np.asarray(d_tr0, np.float64), keep, box
+    def __init__(self, transmissions: _Transmissions):
+        self.transmissions = transmissions
+        self.d_tr0 = transmissions.d_tr0
         self.slots: list[tuple[int, int, int]] = []
         self.blocks: list[np.ndarray] = []
         self.phase = "expand"
@@ -367,8 +407,7 @@ class _Lengths:
         if q in self.slots:
             return False
         self.slots.append(q)
-        light = self.back.transmitted(tuple(self.d_tr0 * 2.0 ** (np.asarray(q) / 2.0)))
-        self.blocks.append(_blocks(light, self.keep, self.box))
+        self.blocks.append(self.transmissions.get(q))
         return True
 
     def start(self) -> np.ndarray:
@@ -550,10 +589,10 @@ def _accept(result: FitResult, params: dict, samples, pixels: int, start: float,
     return result
 
 
-def _finish_sta(material, name, base, basis, target, train, held, regularization, samples, start, count, check=True):
+def _finish_sta(material, name, base, basis, target, fold, regularization, samples, start, count, check=True):
     y = target - base
-    bb = float(np.sum(basis[train] ** 2))
-    if bb <= _ABSENT * float(np.sum(y[train] ** 2)):
+    bb = float(np.sum(basis**2))
+    if bb <= _ABSENT * float(np.sum(y**2)):
         raise FitError(f"material {name!r} sta: no light from behind on its pixels, nothing to fit; left unchanged")
     _, lo, hi = PARAMETERS["scale"]
 
@@ -563,21 +602,24 @@ def _finish_sta(material, name, base, basis, target, train, held, regularization
             max((float(np.sum(basis[blocks] * y[blocks])) + regularization * b) / (b * (1.0 + regularization)), lo), hi
         )
 
-    s = solve(train)
+    predicted = np.empty_like(y)
+    for j in range(int(fold.max()) + 1):
+        out = fold == j
+        predicted[out] = solve(~out) * basis[out]
+    s = solve(np.ones(len(fold), bool))
     result = FitResult(
         material=name,
         index=material.index,
         technique="sta",
         params={},
-        train_before=_rel_rmse((basis - y)[train], target[train]),
-        train_after=_rel_rmse((s * basis - y)[train], target[train]),
-        heldout_before=_rel_rmse((basis - y)[held], target[held]),
-        heldout_after=_rel_rmse((s * basis - y)[held], target[held]),
-        blocks=int(train.sum()),
-        heldout_blocks=int(held.sum()),
+        train_before=_rel_rmse(basis - y, target),
+        train_after=_rel_rmse(s * basis - y, target),
+        heldout_before=_rel_rmse(basis - y, target),
+        heldout_after=_rel_rmse(predicted - y, target),
+        blocks=count,
+        heldout_blocks=count,
+        folds=int(fold.max()) + 1,
     )
-    if result.heldout_after < result.heldout_before:  # it holds: made again on every block
-        s = solve(np.ones_like(train))
     if s in (lo, hi):
         result.at_bounds.append("scale")
     return _accept(result, {"scale": s}, samples, int(count), start, check)
@@ -604,7 +646,6 @@ class _Solver:
             t = trans[:, train]  # (F, N, 3)
             self.tt = np.sum(t * t, axis=1)  # (F, 3)
             self.ty = np.sum(t * y[train][None], axis=1)  # (F, 3)
-        self._default = None
 
     def solve(self, s_blocks: np.ndarray, k: float):
         y, tr, lam = self.y, self.train, self.lam
@@ -613,8 +654,6 @@ class _Solver:
         sy = np.sum(st * y[tr], axis=0)
         glo, ghi = PARAMETERS["gain"][1:]
         penalty_k = self.lam_k * math.log2(k) ** 2
-        if k == 1.0:
-            self._default = s_blocks
         if self.trans is None:
             g = np.where(ss > 0, (sy + lam * ss) / np.maximum(ss * (1.0 + lam), 1e-300), 1.0)
             g = np.clip(g, glo, ghi)
@@ -645,14 +684,6 @@ class _Solver:
         trans_best = self.trans[list(f_idx), :, cols].T  # (N, 3)
         model = s_blocks * g_best + s_best * trans_best
         return float(obj_fc[list(f_idx), cols].sum()) + penalty_k, g_best, s_best, f_idx, model
-
-    def default_model(self) -> np.ndarray:
-        """The unfitted model (k = 1, g = 1, s = 1, f = 1) minus the rest: S(1) + T(1)."""
-        s1 = self._default  # k = 1 is on the grid, always evaluated
-        if self.trans is None:
-            return s1
-        one = int(np.flatnonzero(np.all(self.log_f == 0.0, axis=1))[0])  # every length as it is
-        return s1 + self.trans[one]
 
 
 def fit_scene(
