@@ -58,6 +58,22 @@ def test_noise_free_fit_finds_the_true_values(synthetic, technique):
     assert r.params["info"]["heldout_after"] == r.heldout_after
 
 
+def test_the_fitted_transmission_scale_stays_within_its_bound(synthetic):
+    """A reference with 8 x the light from behind: the fit keeps its scale at the fit's bound, 4
+    (the gains' factor), and says so; a scale of 8 set by hand (or stored by an earlier fit,
+    within the parameters' bounds) is still accepted and used."""
+    passes, scene = synthetic
+    truth = {**TRUTH["combined"], "transmission_scale": 8.0}
+    ref = _reference(passes, scene, "combined", truth)
+    r = fit_material(passes, scene, ref, _skin(scene), "combined", regularization=0.0)
+    assert max(r.params["transmission_scale"]) == fit_mod.TRANSMISSION_SCALE_MAX == 4.0
+    assert "transmission_scale" in r.at_bounds
+    # The light from behind it cannot reach leaves an error the true values do not.
+    assert r.train_after > 1e-3 * r.train_before
+    by_hand = dataclasses.replace(_skin(scene), fit={"combined": truth})
+    assert by_hand.fit["combined"]["transmission_scale"] == (8.0, 8.0, 8.0)
+
+
 @pytest.mark.parametrize("technique", ["burley", "ssss"])
 def test_a_fit_without_normal_and_position_passes_finds_the_true_values(synthetic, technique):
     """Without the Normal and Position passes the energy stage of a random-walk material
