@@ -1118,6 +1118,15 @@ def burley_angles(ok, seed, y0, x0, phi):
 #: 330 / 1430 ms, 128 x 128 331 / 1431 ms, 16 x 32 385 / 1894 ms.
 BLOCK_ROWS = 64
 TILE_COLS = 128
+#: Within a tile, the pixels are visited in strips of STRIP_COLS columns, each strip from its
+#: top row to its bottom one: the samples near a pixel (most of the spiral's: half lie within 1.6
+#: d) then land on lines that the pixels just above it read a strip's width earlier, still in
+#: the first-level cache, where a tile's whole row of pixels in between would have evicted them
+#: once the footprint spans a few dozen pixels. The pixels' results are the same in any order.
+#: Measured (CPU time, one thread, the speed benchmark's Burley case alternating 1080p and 4K,
+#: fastest of 8, machine loaded): 4K / 1080p 4.42-4.47 row by row, 4.24-4.28 in strips of 16
+#: (8: 4.27, 12: 4.24, 32: 4.36); on two threads 4.36-4.43 against 4.27.
+STRIP_COLS = 16
 
 
 @njit(cache=True, error_model="numpy")
@@ -1144,24 +1153,25 @@ def _burley_tile(
     sums = np.empty(6, np.float32)
     js = np.empty(tables.shape[2], np.int32)
     inside = np.empty(tables.shape[2], np.bool_)
-    for y in range(ya, yb):
-        for x in range(xa, xb):
-            if not ok[y, x]:
-                continue
-            s = _scale_of(flat[np.int32(np.int32(4) * np.int32((y - py0) * pw + x - px0) + np.int32(3))], cam)
-            rc = rot_cos[y - rot_y0, x - rot_x0] if rotate else rot_cos[0, 0]
-            rsn = rot_sin[y - rot_y0, x - rot_x0] if rotate else rot_sin[0, 0]
-            g = group[y, x] if grouped else 0
-            _burley_positions(f32(x), f32(y), s, rc, rsn, tables, g, wl, hl, py0, px0, ph, pw, js, inside)
-            q = (y - py0) * pw + x - px0
-            _burley_pixel(flat, area, ids, py0 * w, q, tables, g, js, inside, k0, k1, k2, sums)
-            for c in range(3):
-                den = sums[3 + c]
-                if reach[c] <= 0.0 or reach[c] * np.float64(s) <= 1.0 or den <= _TINY:
-                    v = light[y, x, c]
-                else:
-                    v = sums[c] / den
-                buf[c, y - ya, x - xa] = v
+    for xs in range(xa, xb, STRIP_COLS):
+        for y in range(ya, yb):
+            for x in range(xs, min(xs + STRIP_COLS, xb)):
+                if not ok[y, x]:
+                    continue
+                s = _scale_of(flat[np.int32(np.int32(4) * np.int32((y - py0) * pw + x - px0) + np.int32(3))], cam)
+                rc = rot_cos[y - rot_y0, x - rot_x0] if rotate else rot_cos[0, 0]
+                rsn = rot_sin[y - rot_y0, x - rot_x0] if rotate else rot_sin[0, 0]
+                g = group[y, x] if grouped else 0
+                _burley_positions(f32(x), f32(y), s, rc, rsn, tables, g, wl, hl, py0, px0, ph, pw, js, inside)
+                q = (y - py0) * pw + x - px0
+                _burley_pixel(flat, area, ids, py0 * w, q, tables, g, js, inside, k0, k1, k2, sums)
+                for c in range(3):
+                    den = sums[3 + c]
+                    if reach[c] <= 0.0 or reach[c] * np.float64(s) <= 1.0 or den <= _TINY:
+                        v = light[y, x, c]
+                    else:
+                        v = sums[c] / den
+                    buf[c, y - ya, x - xa] = v
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

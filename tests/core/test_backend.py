@@ -215,6 +215,39 @@ def test_burley_tiles_and_bands_match_the_reference(monkeypatch):
     assert np.isfinite(out).all()
 
 
+def test_burley_bands_reuse_the_rows_they_share(monkeypatch):
+    # Each band of the compiled gather packs the rows its samples reach; the rows it shares with
+    # the previous band are moved, not packed again. With bands of 8 rows and a reach of a few
+    # pixels (margins shorter than a band, so that bands share some rows and not all), the result
+    # is the one-band result to the bit (the same packed values), and the reference's (the
+    # autouse fixture compares each call with the NumPy code).
+    from sss_lab.core import burley as burley_module
+
+    passes, scene, albedo, _ = _scene(96, 64)
+    args = dict(
+        diffuse=passes["Diffuse Direct"] + passes["Diffuse Indirect"], albedo=albedo, depth=passes["Depth"],
+        mask=passes["Material Index"] > 0, camera=scene.camera, d_su=(0.012, 0.005, 0.0025), seed=3,
+    )  # fmt: skip
+    whole = burley(**args)
+    monkeypatch.setattr(burley_module, "_BAND_ROWS", 8)
+    packed = []
+    original = backend.run_kernel
+
+    def spy(name, *a):
+        if name == "burley_pack":
+            packed.append((a[-4], a[-2].shape[0]))  # first row packed, rows packed
+        original(name, *a)
+
+    monkeypatch.setattr(backend, "run_kernel", spy)
+    banded = burley(**args)
+    np.testing.assert_array_equal(banded, whole)
+    # Every row of the frame the samples reach is packed once: the bands shared rows.
+    assert len(packed) > 2
+    firsts = [first for first, _ in packed]
+    assert firsts == sorted(firsts)
+    assert all(a + n == b for (a, n), (b, _) in zip(packed, packed[1:], strict=False))
+
+
 def test_sta_mask_spans_read_32_bytes_at_a_time_give_each_rows_first_and_last():
     # The STA kernel finds each row's masked span 32 mask bytes at a time (core.compiled._bytes_span):
     # the same (first, last + 1) as one byte at a time, on rows shorter and longer than 32, empty
