@@ -269,7 +269,7 @@ def fit_material(
         layers = core_apply.apply(passes, single, spec, scale=1.0)
         basis = _blocks(layers[core_apply.layer_names(spec.name)[1]], keep, box)
         return _finish_sta(
-            material, name, base, basis, target, fold, regularization, samples, start, count, heldout_check
+            material, name, base, basis, target, fold, regularization, samples, start, pixels, heldout_check
         )
 
     albedo = core_apply._clean(passes["Diffuse Color"])
@@ -600,7 +600,7 @@ def _accept(result: FitResult, params: dict, samples, pixels: int, start: float,
     return result
 
 
-def _finish_sta(material, name, base, basis, target, fold, regularization, samples, start, count, check=True):
+def _finish_sta(material, name, base, basis, target, fold, regularization, samples, start, pixels, check=True):
     y = target - base
     bb = float(np.sum(basis**2))
     if bb <= _ABSENT * float(np.sum(y**2)):
@@ -627,13 +627,13 @@ def _finish_sta(material, name, base, basis, target, fold, regularization, sampl
         train_after=_rel_rmse(s * basis - y, target),
         heldout_before=_rel_rmse(basis - y, target),
         heldout_after=_rel_rmse(predicted - y, target),
-        blocks=count,
-        heldout_blocks=count,
+        blocks=len(fold),
+        heldout_blocks=len(fold),
         folds=int(fold.max()) + 1,
     )
     if s in (lo, hi):
         result.at_bounds.append("scale")
-    return _accept(result, {"scale": s}, samples, int(count), start, check)
+    return _accept(result, {"scale": s}, samples, pixels, start, check)
 
 
 class _Solver:

@@ -58,6 +58,19 @@ def test_noise_free_fit_finds_the_true_values(synthetic, technique):
     assert r.params["info"]["heldout_after"] == r.heldout_after
 
 
+def test_sta_scale_is_found_and_its_provenance_counts_pixels(synthetic):
+    passes, scene = synthetic
+    ref = _reference(passes, scene, "sta", {"scale": 2.0})
+    r = fit_material(passes, scene, ref, _skin(scene), "sta", regularization=0.0, samples=32)
+    # Solved in closed form: float32 rendering of the reference is the only error left.
+    assert r.params["scale"] == pytest.approx(2.0, rel=1e-6)
+    assert r.heldout_after < 1e-3 * r.heldout_before
+    # The provenance's pixels are the material's, as for the other techniques (not its blocks).
+    skin = int(np.count_nonzero(core_apply._index_map(passes) == 2))
+    assert r.params["info"] == {**r.params["info"], "samples": 32, "pixels": skin}
+    assert r.blocks == r.heldout_blocks < skin
+
+
 def test_the_fitted_transmission_scale_stays_within_its_bound(synthetic):
     """A reference with 8 x the light from behind: the fit keeps its scale at the fit's bound, 4
     (the gains' factor), and says so; a scale of 8 set by hand (or stored by an earlier fit,
