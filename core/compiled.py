@@ -994,12 +994,13 @@ def _camera_point(y, x, z, ortho, f, cx, cy):
     unprojects it (``f``: pixels per unit for an orthographic camera, the focal length in pixels
     otherwise; ``cx``, ``cy`` the principal point)."""
     if ortho:
-        return (x + 0.5 - cx) / f, (cy - y - 0.5) / f, -z
+        s = 1.0 / f  # the reference multiplies by the unit per pixel
+        return (x + 0.5 - cx) * s, (cy - y - 0.5) * s, -z
     return (x + 0.5 - cx) / f * z, (cy - y - 0.5) / f * z, -z
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _axis_step(depth, ok, far, y, x, dy, dx, px, py, pz, ortho, f, cx, cy):
+def _axis_step(depth, ok, far, y, x, dy, dx, px, py, pz, ortho, f, cx, cy, oy, ox):
     """The difference in camera space from pixel (``y``, ``x``) (at ``px``, ``py``, ``pz``) along
     one image axis (``dy``, ``dx`` the step), as ``core.energy.view_cosine`` takes it: to the next
     pixel of ``ok`` or from the previous one, whichever has the smaller depth step (the next on a
@@ -1009,12 +1010,16 @@ def _axis_step(depth, ok, far, y, x, dy, dx, px, py, pz, ortho, f, cx, cy):
     ex = ey = ez = 0.0
     ny, nx = y + dy, x + dx
     if 0 <= ny < h and 0 <= nx < w and ok[ny, nx] and 0.0 < depth[ny, nx] < far:
-        qx, qy, qz = _camera_point(np.float64(ny), np.float64(nx), np.float64(depth[ny, nx]), ortho, f, cx, cy)
+        qx, qy, qz = _camera_point(
+            np.float64(ny + oy), np.float64(nx + ox), np.float64(depth[ny, nx]), ortho, f, cx, cy
+        )
         ex, ey, ez = qx - px, qy - py, qz - pz
         best = abs(ez)
     ny, nx = y - dy, x - dx
     if 0 <= ny < h and 0 <= nx < w and ok[ny, nx] and 0.0 < depth[ny, nx] < far:
-        qx, qy, qz = _camera_point(np.float64(ny), np.float64(nx), np.float64(depth[ny, nx]), ortho, f, cx, cy)
+        qx, qy, qz = _camera_point(
+            np.float64(ny + oy), np.float64(nx + ox), np.float64(depth[ny, nx]), ortho, f, cx, cy
+        )
         if abs(pz - qz) < best:
             ex, ey, ez = px - qx, py - qy, pz - qz
             best = abs(ez)
@@ -1036,27 +1041,48 @@ def surface_area(depth, ok, far, ortho, f, cx, cy, min_cos, y0, y1, x0, x1, area
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _cos_at(depth, ok, far, ortho, f, cx, cy, oy, ox, y, x):
+    """``core.energy.view_cosine`` at pixel (``y``, ``x``) of a window whose first pixel is the
+    frame's (``oy``, ``ox``): float64 operations in the reference's order (on each axis the
+    difference to a neighbour of ``ok`` in the window with the smaller depth step, the next one
+    on a tie; the normal their cross product), the clipped cosine rounded to float32; 1 where the
+    pixel or a whole axis has no valid pixel (``ok`` with a depth in (0, ``far``))."""
+    if not ok[y, x] or not 0.0 < depth[y, x] < far:
+        return _ONE
+    px, py, pz = _camera_point(np.float64(y + oy), np.float64(x + ox), np.float64(depth[y, x]), ortho, f, cx, cy)
+    ax, ay, az, found_x = _axis_step(depth, ok, far, y, x, 0, 1, px, py, pz, ortho, f, cx, cy, oy, ox)
+    bx, by, bz, found_y = _axis_step(depth, ok, far, y, x, 1, 0, px, py, pz, ortho, f, cx, cy, oy, ox)
+    if not (found_x and found_y):
+        return _ONE
+    nx = ay * bz - az * by
+    ny = az * bx - ax * bz
+    nz = ax * by - ay * bx
+    vx, vy, vz = (0.0, 0.0, 1.0) if ortho else (-px, -py, -pz)
+    den = math.sqrt(nx * nx + ny * ny + nz * nz) * math.sqrt(vx * vx + vy * vy + vz * vz)
+    c = abs(nx * vx + ny * vy + nz * vz) / den if den > 0.0 else np.nan
+    if c != c:
+        return _ONE
+    return f32(min(max(c, 0.0), 1.0))
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def view_cosine(depth, ok, far, ortho, f, cx, cy, oy, ox, out):
+    """``core.energy.view_cosine`` of the window ``depth`` / ``ok`` (``_cos_at``) into ``out``
+    (float32, the window's shape), rows in parallel."""
+    for y in prange(ok.shape[0]):
+        for x in range(ok.shape[1]):
+            out[y, x] = _cos_at(depth, ok, far, ortho, f, cx, cy, oy, ox, y, x)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x):
     """``surface_area``'s value at pixel (``y``, ``x``)."""
     if not ok[y, x]:
         return _ONE
     if not 0.0 < depth[y, x] < far:
         return _ONE
-    px, py, pz = _camera_point(np.float64(y), np.float64(x), np.float64(depth[y, x]), ortho, f, cx, cy)
-    ax, ay, az, found_x = _axis_step(depth, ok, far, y, x, 0, 1, px, py, pz, ortho, f, cx, cy)
-    bx, by, bz, found_y = _axis_step(depth, ok, far, y, x, 1, 0, px, py, pz, ortho, f, cx, cy)
-    cos = 1.0
-    if found_x and found_y:
-        nx = ay * bz - az * by
-        ny = az * bx - ax * bz
-        nz = ax * by - ay * bx
-        vx, vy, vz = (0.0, 0.0, 1.0) if ortho else (-px, -py, -pz)
-        den = math.sqrt(nx * nx + ny * ny + nz * nz) * math.sqrt(vx * vx + vy * vy + vz * vz)
-        c = abs(nx * vx + ny * vy + nz * vz) / den if den > 0.0 else np.nan
-        if c == c:
-            cos = min(max(c, 0.0), 1.0)
     # The reference rounds the view cosine to float32 before the ratio.
-    cos = np.float64(f32(cos))
+    cos = np.float64(_cos_at(depth, ok, far, ortho, f, cx, cy, 0, 0, y, x))
     if cos >= 1.0:
         return _ONE
     axis = 1.0

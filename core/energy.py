@@ -571,7 +571,30 @@ def view_cosine(depth, mask, camera: Camera, *, origin=(0, 0), frame=None) -> np
     two one-sided differences to a neighbour of ``mask``, so that a silhouette does not bend it).
     1 (facing the camera) where no neighbour is on the mask. ``depth`` and ``mask`` may be a
     window of the frame: ``origin`` (row, column) its first pixel, ``frame`` (H, W) the frame's
-    size (default: the window's)."""
+    size (default: the window's).
+
+    On the compiled backend ``core.compiled.view_cosine``, the same float64 operations in the same
+    order per pixel (equal to the bit: check mode compares with bound 0); the NumPy code makes some
+    forty passes over float64 frames of three components (0.5 s at 1080p, loaded machine)."""
+    mode = backend.active()
+    if mode != "numpy":
+        h, w = np.shape(mask) if frame is None else frame
+        ortho = camera.type == "ORTHO"
+        cx, cy = camera.principal_point(w, h)
+        z = np.asarray(depth)
+        z = np.ascontiguousarray(z if z.dtype in (np.float32, np.float64) else z.astype(np.float64))
+        out = np.empty(z.shape, np.float32)
+        f = float(camera.ortho_px_per_unit if ortho else camera.focal_px)
+        far = float(_arrays.BACKGROUND_DEPTH)  # compared in float64, as the reference's
+        ok = np.ascontiguousarray(mask, dtype=bool)
+        backend.run_kernel(
+            "view_cosine", z, ok, far, ortho, f, float(cx), float(cy), int(origin[0]), int(origin[1]), out
+        )
+        if mode == "check":
+            with backend.use("numpy"):
+                reference = view_cosine(depth, mask, camera, origin=origin, frame=frame)
+            backend.compare("view_cosine", reference, out, np.zeros(out.shape))
+        return out
     z = np.asarray(depth, dtype=np.float64)
     m = np.asarray(mask, dtype=bool) & np.isfinite(z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)
     h, w = z.shape if frame is None else frame

@@ -302,6 +302,30 @@ def test_spread_of_the_light_from_behind_matches_the_reference_to_the_bit():
     assert np.isnan(out[3, 4, 1]) == bool(mask[3, 4])
 
 
+@pytest.mark.parametrize("kind", ("PERSP", "ORTHO"))
+def test_view_cosine_matches_the_reference_to_the_bit(kind):
+    # core.compiled.view_cosine against core.energy's NumPy code (check mode, bound 0): a sphere
+    # scene's depth with holes in the mask, NaN, infinite, negative and background depths, a
+    # lens shift, on the frame and on a window of it (origin and frame size).
+    import dataclasses
+
+    from sss_lab.core import energy
+
+    passes, scene, _, _ = _scene(61, 43)
+    camera = dataclasses.replace(scene.camera, type=kind, shift_x=0.07, shift_y=-0.03, ortho_scale=4.0)
+    depth = passes["Depth"].copy()
+    depth[4, 5], depth[6, 30], depth[20, 2], depth[30, 40] = np.nan, np.inf, -1.0, 2e9
+    mask = passes["Material Index"] > 0
+    mask[10:13, 20:40] = False
+    full = energy.view_cosine(depth, mask, camera)
+    assert (full < 1.0).any() and (full == 1.0).any()
+    window = (slice(3, 40), slice(7, 55))
+    part = energy.view_cosine(depth[window], mask[window], camera, origin=(3, 7), frame=mask.shape)
+    with backend.use("numpy"):
+        reference = energy.view_cosine(depth[window], mask[window], camera, origin=(3, 7), frame=mask.shape)
+    np.testing.assert_array_equal(part, reference)
+
+
 def test_energy_table_reads_and_curvature_match_the_reference_to_the_bit():
     # core.compiled.table_lerp, curvature_pixels and smooth_curvature against core.energy's NumPy
     # code (check mode, bound 0), with values beyond the tables, NaN and infinite inputs.
