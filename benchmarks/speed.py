@@ -9,7 +9,11 @@ really covers every pixel. Cases per technique and backend (compiled ``numba``, 
 - 25 % mask: the central rectangle of half the width and half the height;
 - 3840 x 2160 full screen: its time over the 1080p one, and the peak memory the call allocates
   (tracemalloc, which sees every NumPy array; the compiled kernels allocate nothing the size of
-  a frame themselves) against the technique's inputs and two output frames;
+  a frame themselves) against the technique's inputs and two output frames; for the compiled
+  kernels the ratio comes from calls alternating between the two sizes (``_interleaved``, as
+  many of each as ``--repeat``), so that the machine's speed drifting between the 1080p and the
+  4K cases, minutes apart, does not weigh on one size only (the ratio to the first 1080p runs is
+  kept beside it);
 - first call: in a fresh process with an empty JIT cache (compiling) and again with it filled
   (loading), at 64 x 48;
 - where the compiled backend's full-screen time goes: each kernel, and the NumPy work around
@@ -242,6 +246,17 @@ def _profile(fn, repeat: int) -> dict:
     return {k: round(v, 1) for k, v in (best or {}).items()}
 
 
+def _interleaved(small_fn, small_mask, big_fn, big_mask, repeat: int) -> dict:
+    """The fastest wall time of each of two calls made alternately ``repeat`` times (1080p, then
+    4K, then 1080p ...): the machine's speed, which drifts on a shared machine over the minutes
+    between the 1080p and the 4K cases, then weighs on both sizes alike."""
+    small = big = float("inf")
+    for _ in range(repeat):
+        small = min(small, _best(lambda: small_fn(small_mask), 1)[0])
+        big = min(big, _best(lambda: big_fn(big_mask), 1)[0])
+    return {"1080p_ms": round(small * 1e3, 1), "4k_ms": round(big * 1e3, 1), "calls_each": repeat}
+
+
 def _peak_bytes(fn) -> int:
     tracemalloc.start()
     try:
@@ -332,17 +347,20 @@ def run(width: int = 1920, height: int = 1080, repeat: int = 5, big: tuple[int, 
                 f" ({entry['thread_scaling']:.2f}x)"
             )
     if big is not None:
-        del cases, masks
+        small, small_mask = cases, masks["full screen"]
         cases, masks = _cases(*big)
         for name, (fn, _, input_bytes) in cases.items():
             frame = big[0] * big[1] * 3 * 4
             for b in names:
                 entry = results[name]["backends"][b]
+                interleaved = None
                 with backend.use(b):
                     mask = masks["full screen"]
                     slow = (name, b) in SLOW
                     if not slow and (name, b) not in SLOW_4K:
                         fn(mask)
+                    if b == "numba" and not slow and (name, b) not in SLOW_4K:
+                        interleaved = _interleaved(small[name][0], small_mask, fn, mask, repeat)
                     # The compiled kernels as many times as at 1080p: each 4K call faults in a fresh
                     # 100 MB output frame (glibc maps frames this large anew every time, where the
                     # 1080p ones are reused), which varies from call to call; NumPy's calls are long.
@@ -357,20 +375,36 @@ def run(width: int = 1920, height: int = 1080, repeat: int = 5, big: tuple[int, 
                         runs = min(runs, SLOW_4K.get((name, b), runs))
                         seconds, cpu = _best(lambda fn=fn, mask=mask: fn(mask), runs)
                         peak = _peak_bytes(lambda fn=fn, mask=mask: fn(mask))
+                ratio = seconds * 1e3 / entry["full screen"]["ms"]
                 entry["4k"] = {
                     "ms": round(seconds * 1e3, 1),
                     "cpu_ms": round(cpu * 1e3, 1),
-                    "ratio_to_1080p": round(seconds * 1e3 / entry["full screen"]["ms"], 2),
+                    "ratio_to_1080p": round(ratio, 2),
                     "ratio_to_1080p_cpu": round(cpu * 1e3 / entry["full screen"]["cpu_ms"], 2),
                     "peak_allocated_mb": round(peak / 1e6, 1),
                     "inputs_mb": round(input_bytes / 1e6, 1),
                     "output_frame_mb": round(frame / 1e6, 1),
                     # Inputs are allocated before the call: the call may add two output frames.
                     "meets_memory_goal": peak <= 2 * frame,
-                    "meets_scale_goal": seconds * 1e3 / entry["full screen"]["ms"] <= SCALE_4K_GOAL,
+                    "meets_scale_goal": ratio <= SCALE_4K_GOAL,
                 }
+                if interleaved is not None:
+                    # The ratio from calls alternating between the two sizes (``_interleaved``): the
+                    # one the goal is judged by where it exists. The ratio above compares calls made
+                    # minutes apart, between which this shared machine's speed drifts.
+                    ratio = interleaved["4k_ms"] / interleaved["1080p_ms"]
+                    entry["4k"]["interleaved"] = interleaved
+                    entry["4k"]["ratio_to_1080p_separate"] = entry["4k"]["ratio_to_1080p"]
+                    entry["4k"]["ratio_to_1080p"] = round(ratio, 2)
+                    entry["4k"]["meets_scale_goal"] = ratio <= SCALE_4K_GOAL
                 log(
-                    f"{name:7s} {b:6s} 4K {seconds * 1e3:8.1f} ms ({entry['4k']['ratio_to_1080p']:.2f}x 1080p),"
+                    f"{name:7s} {b:6s} 4K {seconds * 1e3:8.1f} ms ({entry['4k']['ratio_to_1080p']:.2f}x 1080p"
+                    + (
+                        f", alternating; {entry['4k']['ratio_to_1080p_separate']:.2f}x the first 1080p runs"
+                        if interleaved is not None
+                        else ""
+                    )
+                    + "),"
                     f" peak {peak / 1e6:.0f} MB allocated"
                     f" (inputs {input_bytes / 1e6:.0f} MB, frame {frame / 1e6:.0f} MB)"
                 )
