@@ -591,6 +591,8 @@ def view_cosine(depth, mask, camera: Camera, *, origin=(0, 0), frame=None) -> np
         f = float(camera.ortho_px_per_unit if ortho else camera.focal_px)
         far = float(_arrays.BACKGROUND_DEPTH)  # compared in float64, as the reference's
         ok = np.ascontiguousarray(mask, dtype=bool)
+        if ok.shape != z.shape or z.ndim != 2:
+            raise ValueError(f"depth {z.shape} and mask {ok.shape}: expected two images of the same size")
         backend.run_kernel(
             "view_cosine", z, ok, far, ortho, f, float(cx), float(cy), int(origin[0]), int(origin[1]), out
         )

@@ -324,6 +324,10 @@ def test_view_cosine_matches_the_reference_to_the_bit(kind):
     with backend.use("numpy"):
         reference = energy.view_cosine(depth[window], mask[window], camera, origin=(3, 7), frame=mask.shape)
     np.testing.assert_array_equal(part, reference)
+    # A mask of another size than the depth: an error naming both, on each backend.
+    for name in ("numba", "numpy"):
+        with backend.use(name), pytest.raises(ValueError):
+            energy.view_cosine(depth, mask[:, :-1], camera)
 
 
 def test_energy_table_reads_and_curvature_match_the_reference_to_the_bit():
