@@ -85,6 +85,27 @@ FOLDS = 4
 #: (the head lit from behind: the fitted combined technique 1.664 against 0.734 unfitted); within 4
 #: 0.512, with the suite's medians the same (``benchmarks.fit``, docs/references.md §16).
 TRANSMISSION_SCALE_MAX = 4.0
+
+
+def _fit_range(name: str) -> tuple[float, float]:
+    """The bounds the fit gives the parameter ``name``: ``fit_params.PARAMETERS``' own, the light
+    from behind's scale at most ``TRANSMISSION_SCALE_MAX``."""
+    _, lo, hi = PARAMETERS[name]
+    return lo, (min(hi, TRANSMISSION_SCALE_MAX) if name == "transmission_scale" else hi)
+
+
+def _cross_validated(fold: np.ndarray, predict) -> np.ndarray:
+    """Each block's prediction by the fit made without its fold: ``predict(blocks)`` fits on the
+    blocks ``blocks`` (bool, N) and returns the model's values on every block (N, ...)."""
+    out = None
+    for j in range(int(fold.max()) + 1):
+        held = fold == j
+        model = predict(~held)
+        out = np.empty_like(model) if out is None else out
+        out[held] = model[held]
+    return out
+
+
 #: Below this share of the target's energy a basis (light from behind, STA's term) counts as
 #: absent on the material: its parameters keep their defaults.
 _ABSENT = 1e-6
@@ -331,10 +352,7 @@ def fit_material(
             trans = more
 
     # Cross-validation: each fold's blocks predicted by the fit on the other folds.
-    predicted = np.empty_like(y)
-    for j in range(folds):
-        out = fold == j
-        predicted[out] = fit_on(~out).model[out]
+    predicted = _cross_validated(fold, lambda blocks: fit_on(blocks).model)
     default = diffusion(1.0) + (transmissions.get((0, 0, 0)) if transmissions is not None else 0.0)
     final = fit_on(every)
     result = FitResult(
@@ -567,9 +585,7 @@ def _bounds(params: dict, result: FitResult) -> None:
     for key in ("gain", "transmission_scale"):
         if key not in params:
             continue
-        _, lo, hi = PARAMETERS[key]
-        if key == "transmission_scale":
-            hi = TRANSMISSION_SCALE_MAX
+        lo, hi = _fit_range(key)
         values = params[key] if isinstance(params[key], tuple) else (params[key],)
         if any(v <= lo + 1e-9 or v >= hi - 1e-9 for v in values):
             result.at_bounds.append(key)
@@ -605,7 +621,7 @@ def _finish_sta(material, name, base, basis, target, fold, regularization, sampl
     bb = float(np.sum(basis**2))
     if bb <= _ABSENT * float(np.sum(y**2)):
         raise FitError(f"material {name!r} sta: no light from behind on its pixels, nothing to fit; left unchanged")
-    _, lo, hi = PARAMETERS["scale"]
+    lo, hi = _fit_range("scale")
 
     def solve(blocks):
         b = float(np.sum(basis[blocks] ** 2))
@@ -613,10 +629,7 @@ def _finish_sta(material, name, base, basis, target, fold, regularization, sampl
             max((float(np.sum(basis[blocks] * y[blocks])) + regularization * b) / (b * (1.0 + regularization)), lo), hi
         )
 
-    predicted = np.empty_like(y)
-    for j in range(int(fold.max()) + 1):
-        out = fold == j
-        predicted[out] = solve(~out) * basis[out]
+    predicted = _cross_validated(fold, lambda blocks: solve(blocks) * basis)
     s = solve(np.ones(len(fold), bool))
     result = FitResult(
         material=name,
@@ -663,7 +676,7 @@ class _Solver:
         st = s_blocks[tr]
         ss = np.sum(st * st, axis=0)  # (3,)
         sy = np.sum(st * y[tr], axis=0)
-        glo, ghi = PARAMETERS["gain"][1:]
+        glo, ghi = _fit_range("gain")
         penalty_k = self.lam_k * math.log2(k) ** 2
         if self.trans is None:
             g = np.where(ss > 0, (sy + lam * ss) / np.maximum(ss * (1.0 + lam), 1e-300), 1.0)
@@ -684,7 +697,7 @@ class _Solver:
         safe = np.where(ok, det, 1.0)
         g = np.where(ok, (b1 * a22 - b2 * st_f) / safe, np.where(ss[None] > 0, b1 / np.maximum(a11, 1e-300), 1.0))
         s = np.where(ok, (a11 * b2 - st_f * b1) / safe, 1.0)
-        slo, shi = PARAMETERS["transmission_scale"][1], TRANSMISSION_SCALE_MAX
+        slo, shi = _fit_range("transmission_scale")
         g = np.clip(g, glo, ghi)
         s = np.clip(s, slo, shi)
         sse = self.yy[None] - 2 * g * sy[None] - 2 * s * ty + g * g * ss[None] + 2 * g * s * st_f + s * s * tt
