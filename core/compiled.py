@@ -1076,11 +1076,8 @@ def view_cosine(depth, ok, far, ortho, f, cx, cy, oy, ox, out):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x):
-    """``surface_area``'s value at pixel (``y``, ``x``)."""
-    if not ok[y, x]:
-        return _ONE
-    if not 0.0 < depth[y, x] < far:
-        return _ONE
+    """``surface_area``'s value at pixel (``y``, ``x``): 1 where the view cosine is 1, which
+    ``_cos_at`` also gives a pixel off ``ok`` or without a valid depth."""
     # The reference rounds the view cosine to float32 before the ratio.
     cos = np.float64(_cos_at(depth, ok, far, ortho, f, cx, cy, 0, 0, y, x))
     if cos >= 1.0:
