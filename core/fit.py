@@ -97,11 +97,10 @@ def _fit_range(name: str) -> tuple[float, float]:
 def _cross_validated(fold: np.ndarray, predict) -> np.ndarray:
     """Each block's prediction by the fit made without its fold: ``predict(blocks)`` fits on the
     blocks ``blocks`` (bool, N) and returns the model's values on every block (N, ...)."""
-    out = None
-    for j in range(int(fold.max()) + 1):
-        held = fold == j
-        model = predict(~held)
-        out = np.empty_like(model) if out is None else out
+    folds = [fold == j for j in range(int(fold.max()) + 1)]
+    models = [predict(~held) for held in folds]
+    out = np.empty_like(models[0])
+    for held, model in zip(folds, models, strict=True):
         out[held] = model[held]
     return out
 
