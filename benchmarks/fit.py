@@ -37,6 +37,12 @@ CPU seconds they took). Writes ``benchmarks/results/fit.json`` and prints a tabl
 ``heldout_check=False``: the training blocks' values, a note says so) and scores them the same
 way, into ``benchmarks/results/fit_keep_refused.json``: whether what the check refuses on the
 noisy render would have been better against the converged references, on both frames.
+
+``--oracle`` fits on frame A's own passes and converged reference (no fit render, no held-out
+check, no ridge), into ``benchmarks/results/fit_oracle.json``: the least error per scene that the
+fit's parameters (gain per channel, d's scale, the light from behind's scale and lengths) can
+reach on the blocks it fits, scored as above; frame B shows how such a fit carries. A scene
+whose fitted error is near its oracle's is at the limit of the fit's model, not of its noise.
 """
 
 from __future__ import annotations
@@ -54,6 +60,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, "benchmarks", "results", "fit.json")
 #: ``--keep-refused``'s results: never calibrate's fit, so never in RESULTS.
 REFUSED = os.path.join(ROOT, "benchmarks", "results", "fit_keep_refused.json")
+#: ``--oracle``'s results: the fit's model fitted on the truth, a bound on what the fit can do.
+ORACLE = os.path.join(ROOT, "benchmarks", "results", "fit_oracle.json")
 #: Seeds of the fit's render and passes, and of the render timed for the cost: none of the
 #: references' (0, 1) nor the scored passes' (7).
 FIT_SEED = 2
@@ -152,20 +160,25 @@ def run_scene(name: str, args, log) -> dict:
     os.makedirs(cache, exist_ok=True)
     a = fidelity.load_scene(name, cache=args.cache, log=log)
     scene = bpy.context.scene  # the suite's scene as built, prepared and baked by load_scene
-    noisy, fit_render_cpu = _render(
-        scene, cache, samples=args.fit_samples, seed=FIT_SEED, fingerprint=a.fingerprint, log=log
-    )
-    _, timing_cpu = _render(
-        scene, cache, samples=args.timing_samples, seed=TIMING_SEED, fingerprint=a.fingerprint, log=log
-    )
-    fit_passes, fit_desc, passes_cpu = _fit_passes(scene, a.fingerprint, args.fit_pass_samples, cache, log)
+    if args.oracle:  # fitted on what it is scored against: the suite's passes and converged reference
+        noisy, fit_passes, fit_desc = a.reference, a.passes, a.desc
+    else:
+        noisy, fit_render_cpu = _render(
+            scene, cache, samples=args.fit_samples, seed=FIT_SEED, fingerprint=a.fingerprint, log=log
+        )
+        _, timing_cpu = _render(
+            scene, cache, samples=args.timing_samples, seed=TIMING_SEED, fingerprint=a.fingerprint, log=log
+        )
+        fit_passes, fit_desc, passes_cpu = _fit_passes(scene, a.fingerprint, args.fit_pass_samples, cache, log)
     for t in methods:  # untimed: a technique's first run compiles (or loads) its Numba kernels, once per install
         core_apply.apply(fit_passes, _unfitted(fit_desc), t)
     results, problems, fit_cpu_by = [], [], {}
     # calibrate's options unless asked otherwise (to measure another setting of the fit).
     options = {k: v for k, v in (("box", args.box), ("regularization", args.regularization)) if v is not None}
-    if args.keep_refused:
+    if args.keep_refused or args.oracle:
         options["heldout_check"] = False
+    if args.oracle and args.regularization is None:
+        options["regularization"] = 0.0
     start = time.perf_counter()
     for t in methods:  # one technique at a time: each one's CPU time
         cpu0 = time.process_time()
@@ -210,6 +223,8 @@ def run_scene(name: str, args, log) -> dict:
         f["best_unfitted"] = min(methods, key=lambda t: f["unfitted"][t])
         f["removed_best"] = 1.0 - both[f["best"]] / f["unfitted"]["none"]
         f["removed_best_unfitted"] = f["removed_unfitted"][f["best_unfitted"]]
+    if args.oracle:
+        return row
     # Cost: CPU seconds of the fit against those of the render it stands in for.
     row["cost"] = {
         "fit_render_cpu_s": fit_render_cpu,
@@ -246,6 +261,8 @@ def summarize(rows, methods) -> dict:
                 },
             }
         out[kind] = k
+    if any("cost" not in r for r in rows):  # --oracle: no fit render, no cost
+        return out
     out["cost"] = {
         "median_share": _median([r["cost"]["share"] for r in rows]),
         "max_share": max(r["cost"]["share"] for r in rows),
@@ -275,12 +292,18 @@ def main(argv=None) -> int:
         help="keep the fits that fail the held-out check (to measure what it refuses against the converged"
         f" references; written to {os.path.basename(REFUSED)} unless --out is given)",
     )
+    parser.add_argument(
+        "--oracle",
+        action="store_true",
+        help="fit on frame A's own passes and converged reference, without held-out check or ridge: the"
+        f" least error the fit's parameters can reach (written to {os.path.basename(ORACLE)} unless --out is given)",
+    )
     parser.add_argument("--no-frame-b", action="store_true", help="frame A only")
     parser.add_argument("--cache", default=os.path.join(ROOT, "out", "fidelity_cache"))
     parser.add_argument("--out", default=None, help=f"results file (default {os.path.relpath(RESULTS, ROOT)})")
     args = parser.parse_args(argv)
     if args.out is None:
-        args.out = REFUSED if args.keep_refused else RESULTS
+        args.out = ORACLE if args.oracle else REFUSED if args.keep_refused else RESULTS
     import bpy
 
     from benchmarks._common import write_results
@@ -305,10 +328,11 @@ def main(argv=None) -> int:
                     + ", ".join(f"{t} {f['unfitted'][t]:.3f} -> {f['fitted'][t]:.3f}" for t in methods)
                     + f"; best {f['best']} removes {f['removed_best']:.0%} (unfitted {f['removed_best_unfitted']:.0%})"
                 )
-        log(
-            f"  fit cost {r['cost']['share']:.1%} of {args.timing_samples} spp"
-            f" ({r['cost']['share_with_passes']:.1%} with its passes)"
-        )
+        if "cost" in r:
+            log(
+                f"  fit cost {r['cost']['share']:.1%} of {args.timing_samples} spp"
+                f" ({r['cost']['share_with_passes']:.1%} with its passes)"
+            )
     summary = summarize(rows, methods)
     data = {
         "command": "python -m benchmarks.fit " + " ".join(argv if argv is not None else __import__("sys").argv[1:]),
@@ -333,6 +357,8 @@ def main(argv=None) -> int:
                     f" unfitted -> {f['median_removed_best']:.0%} with the fit; fitted by technique "
                     + ", ".join(f"{t} {v:.0%}" for t, v in f["median_removed_fitted_by_technique"].items())
                 )
+    if "cost" not in summary:
+        return 0
     c = summary["cost"]
     log(
         f"fit cost: median {c['median_share']:.1%} (max {c['max_share']:.1%}) of a {args.timing_samples}-sample render,"
