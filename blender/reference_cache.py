@@ -44,9 +44,11 @@ def scene_fingerprint(scene) -> str:
         p.update(f"{obj.type}:{obj.name}:{obj.pass_index}".encode())
         _hash_floats(p, [v for row in inst.matrix_world for v in row])
         if obj.type == "MESH":
-            # The original mesh and its modifier stack, not the evaluated mesh: modifiers such as
-            # Subdivision Surface number their output vertices differently from run to run
-            # (threads), which would make every run a new reference.
+            # The original mesh and its modifier stack, not the evaluated mesh, and its faces in
+            # a canonical order: a mesh built by script can number its edges and faces otherwise
+            # on each run (bmesh's UV sphere follows memory addresses; the sample scenes'
+            # ``_canonical``), and Subdivision Surface numbers its output vertices after them,
+            # which would make every run a new reference.
             original = obj.original
             mesh = original.data
             co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)

@@ -152,16 +152,61 @@ def _object(scene, name, mesh, location=(0.0, 0.0, 0.0), rotation=(0.0, 0.0, 0.0
 
 
 def _mesh(name, build):
-    """A mesh from a bmesh builder ``build(bm)``."""
+    """A mesh from a bmesh builder ``build(bm)``, its edges and faces in a canonical order
+    (``_canonical``): the same mesh on every run."""
     import bmesh
     import bpy
 
     bm = bmesh.new()
-    build(bm)
+    try:
+        build(bm)
+        canonical = _canonical(bm)
+    finally:
+        bm.free()
     mesh = bpy.data.meshes.new(name)
-    bm.to_mesh(mesh)
-    bm.free()
+    canonical.to_mesh(mesh)
+    canonical.free()
     return mesh
+
+
+def _canonical(bm):
+    """A new bmesh with ``bm``'s vertices (same order, same coordinates) and faces (each from the
+    same corner), its edges as (lower, higher) vertex index sorted, its faces sorted by their
+    vertex indices.
+
+    Why: ``bmesh.ops.create_uvsphere`` lists the edges and faces of the same sphere in an order
+    that follows the memory addresses of its elements, so that it changes from one run to the
+    next (and within a run whenever other meshes are alive), and it turns some edges around. The
+    vertices are the same, but what is built on the numbering is not: the Subdivision Surface
+    modifier gave the ear of the fidelity suite's ``ear_backlit_skin`` its new vertices in
+    another order on each run and some at positions a few units in the last place apart, hence
+    another thickness bake (a new key for the cached passes), other passes (Combined up to 1e-6
+    apart) and other errors (no SSS 1.3705710087, then 1.3705710096).
+
+    Only the geometry is carried over: a builder that adds UVs, attributes or other layers is
+    refused here rather than losing them silently."""
+    import bmesh
+
+    layers = [
+        f"{domain} {kind} {name!r}"
+        for domain, elements in (("vertex", bm.verts), ("edge", bm.edges), ("face", bm.faces), ("corner", bm.loops))
+        for kind in dir(elements.layers)
+        if isinstance(getattr(elements.layers, kind), bmesh.types.BMLayerCollection)
+        for name in getattr(elements.layers, kind).keys()
+    ]
+    if layers:
+        raise ValueError(f"the built mesh has layers that would be lost: {', '.join(layers)}; expected geometry only")
+    bm.verts.index_update()
+    faces = [(tuple(v.index for v in f.verts), f.smooth, f.material_index) for f in bm.faces]
+    edges = {tuple(sorted(v.index for v in e.verts)) for e in bm.edges}
+    out = bmesh.new()
+    verts = [out.verts.new(v.co) for v in bm.verts]
+    for a, b in sorted(edges):
+        out.edges.new((verts[a], verts[b]))
+    for corners, smooth, material in sorted(faces, key=lambda f: (sorted(f[0]), f[0])):
+        face = out.faces.new([verts[i] for i in corners])
+        face.smooth, face.material_index = smooth, material
+    return out
 
 
 def _uv_sphere(name, radius, scale=(1.0, 1.0, 1.0), segments=32, rings=16):

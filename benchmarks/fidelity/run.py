@@ -16,6 +16,11 @@ scene module built with the suite's conventions is scored identically, ``--scene
    ``PASS_SAMPLES`` (what a user renders, ``compare``'s default) and at ``HIGH_SAMPLES``;
 3. apply every technique at each quality of ``QUALITIES`` to both sets of passes.
 
+Two runs of the same code give the same figures to the bit, whether the passes are rendered
+again (``--no-cache``) or read from the cache: the scenes' meshes are numbered the same way on
+every build (``sample_blends/build_scenes.py`` ``_canonical``), so the thickness bake, the cache
+key and Cycles' passes are too (docs/references.md §13 says what varied before).
+
 Definitions (every figure of the outputs uses them):
 
 - **relative RMSE** (``core/metrics.py``, what ``compare`` reports): the root mean square of the
@@ -100,15 +105,25 @@ def _load_scenes_module(name: str | None):
 
 
 def _thickness_digest(scene) -> str:
-    """A hash of the baked thickness of every mesh (the passes depend on it through STA's AOV)."""
+    """A hash of what the passes depend on beside the scene's fingerprint, for their cache key:
+    the baked thickness of every mesh (STA's AOV) and how each mesh is numbered (its edges' and
+    its faces' vertices, in order). The fingerprint reads the faces in a canonical order, while
+    Cycles follows the numbering to the last bits: passes rendered from the same mesh numbered
+    otherwise are not read back for it (docs/references.md §13)."""
     h = hashlib.sha256()
     for obj in sorted((o for o in scene.objects if o.type == "MESH"), key=lambda o: o.name):
-        attr = obj.data.attributes.get("Thickness")
+        mesh = obj.data
+        h.update(obj.name.encode())
+        for items, prop in ((mesh.edges, "vertices"), (mesh.loops, "vertex_index"), (mesh.polygons, "loop_total")):
+            width = 2 if prop == "vertices" else 1
+            numbers = np.empty(len(items) * width, dtype=np.int32)
+            items.foreach_get(prop, numbers)
+            h.update(numbers.tobytes())
+        attr = mesh.attributes.get("Thickness")
         if attr is None:
             continue
         values = np.empty(len(attr.data) * 4, dtype=np.float32)
         attr.data.foreach_get("color", values)
-        h.update(obj.name.encode())
         h.update(values.tobytes())
     return h.hexdigest()[:16]
 

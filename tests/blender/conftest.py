@@ -303,3 +303,27 @@ def modal(addon):
     """What the modal-operator tests drive with: ``Window()``, ``driver(operator_cls, **props)``,
     ``context(window)``, ``event(kind)`` (see above)."""
     return types.SimpleNamespace(Window=ModalWindow, driver=modal_driver, context=ModalContext, event=ModalEvent)
+
+
+@pytest.fixture
+def built_elsewhere_in_memory():
+    """``repeat(build, times)``: ``build()``'s results, each call made while one more bmesh (each a
+    different size) is alive, so that what each call allocates sits at other memory addresses.
+    bmesh's UV sphere numbers its edges and faces after those addresses: a result that follows
+    them differs between the calls."""
+    import bmesh
+
+    alive = []
+
+    def repeat(build, times=4):
+        results = []
+        for i in range(times):
+            bm = bmesh.new()
+            bmesh.ops.create_uvsphere(bm, u_segments=8 + 8 * i, v_segments=16, radius=1.0)
+            alive.append(bm)
+            results.append(build())
+        return results
+
+    yield repeat
+    for bm in alive:
+        bm.free()

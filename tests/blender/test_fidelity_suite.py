@@ -115,3 +115,46 @@ def test_held_out_scenes_are_rendered_and_scored_the_same_way(tmp_path, monkeypa
     scenes.prepare(scene)
     with pytest.raises(references.StaleReferenceError):
         references.load("dim_fins", references.fingerprint(scene), store=store)
+
+
+def test_a_scene_is_built_and_baked_the_same_way_every_time(built_elsewhere_in_memory):
+    # The ear is a UV sphere under a Subdivision Surface modifier. Its edges and faces once came
+    # in an order that followed memory addresses: each build subdivided and baked it otherwise (in
+    # the last bits), so that each run rendered new passes under a new cache key and its errors
+    # changed.
+    import numpy as np
+
+    def build():
+        scene = scenes.build("ear_backlit_skin")
+        scenes.prepare(scene)
+        ear = bpy.data.objects["Ear"]
+        edges = np.empty(len(ear.data.edges) * 2, np.int32)
+        ear.data.edges.foreach_get("vertices", edges)
+        subdivided = ear.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+        co = np.empty(len(subdivided.vertices) * 3, np.float32)
+        subdivided.vertices.foreach_get("co", co)
+        scenes.bake(scene)
+        return edges.tobytes(), co.tobytes(), run._thickness_digest(scene)
+
+    seen = built_elsewhere_in_memory(build)
+    assert all(s == seen[0] for s in seen[1:])
+
+
+def test_cached_passes_are_not_read_back_for_the_same_mesh_numbered_otherwise():
+    # The fingerprint reads faces in a canonical order (the same reference), but Cycles renders a
+    # mesh whose faces are listed otherwise differently in the last bits: the passes' cache key
+    # (fingerprint and _thickness_digest) must change.
+    import bmesh
+
+    scene = scenes.build("fins_backlit_jade")
+    scenes.prepare(scene)
+    fingerprint, digest = references.fingerprint(scene), run._thickness_digest(scene)
+    mesh = bpy.data.objects["Fin 1"].data
+    bm = bmesh.new()
+    bm.from_mesh(mesh)
+    bm.faces.index_update()
+    bm.faces.sort(key=lambda f: f.index, reverse=True)
+    bm.to_mesh(mesh)
+    bm.free()
+    assert references.fingerprint(scene) == fingerprint
+    assert run._thickness_digest(scene) != digest
