@@ -1465,6 +1465,141 @@ def smooth_curvature(mean, most, valid, on, r, out_mean, out_most):
 SPREAD_STRIP = 16
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _lamp_at(lights, k, px, py, pz):
+    """(lx, ly, lz, E_L) of light ``k`` of ``light_table``'s ``lights`` at the float32 point
+    (px, py, pz): ``core.sta.light_at``'s float32 operations in its order (a sun's direction and
+    irradiance are its table's)."""
+    kind = int(lights[k, 0])
+    if kind == SUN:
+        return lights[k, 1], lights[k, 2], lights[k, 3], lights[k, 7]
+    lx, ly, lz, dist = _unit(lights[k, 1] - px, lights[k, 2] - py, lights[k, 3] - pz)
+    r2 = dist * dist
+    r2 = r2 if r2 > _R2_MIN else _R2_MIN
+    if kind == AREA:
+        cos_l = lx * lights[k, 4]
+        cos_l += ly * lights[k, 5]
+        cos_l += lz * lights[k, 6]
+        cos_l = -cos_l
+        cos_l = cos_l if cos_l > _ZERO else _ZERO
+        return lx, ly, lz, lights[k, 7] * cos_l / r2
+    e = lights[k, 7] / r2
+    if kind == SPOT:
+        ca = lx * lights[k, 4]
+        ca += ly * lights[k, 5]
+        ca += lz * lights[k, 6]
+        tc = -ca - lights[k, 11]
+        cone = _ONE if tc > _ZERO else _ZERO
+        if lights[k, 13] != _ZERO:
+            u = _clip((tc - _ZERO) / lights[k, 12], _ONE)
+            cone = cone * (u * u * (_THREE - _TWO * u))
+        e = e * cone
+    return lx, ly, lz, e
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _lamp_cosine(lights, k, nx, ny, nz, px, py, pz):
+    """max(0, N . L) E_L / pi of light ``k`` at the float32 point (px, py, pz) for the float64
+    normal (nx, ny, nz), in float64: ``core.energy.mean_lamp_irradiance``'s per-row term."""
+    lx, ly, lz, e = _lamp_at(lights, k, px, py, pz)
+    c = nx * np.float64(lx) + ny * np.float64(ly)
+    c += nz * np.float64(lz)
+    c = 0.0 if c < 0.0 else c  # np.maximum(c, 0): NaN stays NaN
+    return c * np.float64(e) / np.pi
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def unseen_sums(
+    normal, position, diffuse, albedo, pre_post, mask, lights, cam, ortho, lamps, count, light, seen, unseen
+):
+    """Per row of ``mask``, the sums ``core.energy.unseen_irradiance`` takes the means of over the
+    pixels whose ``normal`` and ``position`` (H, W, 3 float32) are finite and whose normal is
+    longer than 0: their number into ``count`` (H,), their light (``diffuse``, over the albedo at
+    least 1e-6 with ``pre_post``) into ``light`` (H, 3), and per light k of ``lights``
+    (``light_table``) the unshadowed irradiance over pi on the unit normal into ``seen`` (H, L)
+    and, with ``lamps``, on the normal mirrored across the view direction into ``unseen``
+    (H, L); ``cam`` is the camera's position (float32; with ``ortho`` the direction towards the
+    camera). Each pixel's terms are the reference's float64 and float32 operations in its order;
+    the sums run along the row (the reference sums every pixel at once, pairwise)."""
+    h, w = mask.shape
+    n_lights = lights.shape[0]
+    for y in prange(h):
+        n_ok = 0
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for k in range(n_lights):
+            seen[y, k] = 0.0
+            unseen[y, k] = 0.0
+        for x in range(w):
+            if not mask[y, x]:
+                continue
+            nx = np.float64(normal[y, x, 0])
+            ny = np.float64(normal[y, x, 1])
+            nz = np.float64(normal[y, x, 2])
+            length = math.sqrt(nx * nx + ny * ny + nz * nz)
+            finite = np.isfinite(nx) and np.isfinite(ny) and np.isfinite(nz)
+            p0 = position[y, x, 0]  # tested in its own type, then read as float32 as the reference does
+            p1 = position[y, x, 1]
+            p2 = position[y, x, 2]
+            if not (finite and np.isfinite(p0) and np.isfinite(p1) and np.isfinite(p2) and length > 0.0):
+                continue
+            px = f32(p0)
+            py = f32(p1)
+            pz = f32(p2)
+            n_ok += 1
+            for c in range(3):
+                e = diffuse[y, x, c]
+                if pre_post:  # e / np.maximum(a, 1e-6): NaN stays NaN
+                    a = albedo[y, x, c]
+                    e = e / (_EPS if a < _EPS else a)
+                if c == 0:
+                    s0 += np.float64(e)
+                elif c == 1:
+                    s1 += np.float64(e)
+                else:
+                    s2 += np.float64(e)
+            inv = length if length > 1e-12 else 1e-12
+            nx = nx / inv
+            ny = ny / inv
+            nz = nz / inv
+            for k in range(n_lights):
+                seen[y, k] += _lamp_cosine(lights, k, nx, ny, nz, px, py, pz)
+            if not lamps:
+                continue
+            if ortho:
+                vx = cam[0]
+                vy = cam[1]
+                vz = cam[2]
+            else:
+                vx = cam[0] - px
+                vy = cam[1] - py
+                vz = cam[2] - pz
+                vn = vx * vx
+                vn += vy * vy
+                vn += vz * vz
+                vn = math.sqrt(vn)
+                vn = vn if vn > f32(1e-20) else f32(1e-20)
+                vx = vx / vn
+                vy = vy / vn
+                vz = vz / vn
+            v0 = np.float64(vx)
+            v1 = np.float64(vy)
+            v2 = np.float64(vz)
+            d = nx * v0 + ny * v1
+            d += nz * v2
+            d2 = 2.0 * d
+            mx = nx - d2 * v0
+            my = ny - d2 * v1
+            mz = nz - d2 * v2
+            for k in range(n_lights):
+                unseen[y, k] += _lamp_cosine(lights, k, mx, my, mz, px, py, pz)
+        count[y] = n_ok
+        light[y, 0] = s0
+        light[y, 1] = s1
+        light[y, 2] = s2
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def spread_light(e, mask, sigma, grid, radii, out):
     """``core.combined.spread_back_light`` (the reference: its docstring and ``_blur``) of ``e``

@@ -492,3 +492,102 @@ def test_burley_weighs_its_samples_by_the_surface_a_pixel_covers(kind, tilt):
     far = np.float32(1e9)  # the background depth (core._arrays.BACKGROUND_DEPTH)
     backend.run_kernel("surface_area", z, ok, far, *args, MIN_VIEW_COSINE, 0, h, 0, w, got)
     np.testing.assert_allclose(got, area, rtol=1e-6)
+
+
+def _lamps():
+    """A sun, a point, a spot with a soft edge, an area light and a light with no power, coloured."""
+    from sss_lab.core.scene import Light
+
+    def at(position, direction):
+        m = np.asarray(_sun(direction).matrix_world, np.float64).reshape(4, 4).copy()
+        m[:3, 3] = position
+        return tuple(m.ravel())
+
+    return [
+        _sun((0.3, -0.5, -0.8), strength=2.0),
+        Light(type="POINT", energy=40.0, color=(1.0, 0.8, 0.6), matrix_world=at((0.5, 0.4, 1.0), (0, 0, -1))),
+        Light(type="SPOT", energy=60.0, spot_blend=0.5, matrix_world=at((-0.4, 0.2, 1.5), (0.2, -0.1, -1.0))),
+        Light(type="AREA", energy=30.0, color=(0.5, 0.7, 1.0), matrix_world=at((0.0, -1.0, -0.2), (0.0, 1.0, 0.3))),
+        Light(type="POINT", energy=0.0, matrix_world=at((0.0, 0.0, 0.5), (0, 0, -1))),
+    ]
+
+
+@pytest.mark.parametrize("ortho", [False, True])
+@pytest.mark.parametrize(("pre_post", "lamps"), [(False, True), (True, True), (False, False)])
+def test_the_compiled_unseen_light_is_the_references_within_its_sums(ortho, pre_post, lamps):
+    from sss_lab.core import backend
+    from sss_lab.core.synthetic import sphere_scene
+
+    passes, scene = sphere_scene(40, 30)
+    camera = scene.camera
+    if ortho:
+        camera = Camera(type="ORTHO", width_px=40, height_px=30, ortho_scale=1.0, matrix_world=camera.matrix_world)
+    normal = passes["Normal"].copy()
+    normal[3, 5] = np.nan  # left out: not finite
+    normal[4, 6] = 0.0  # left out: no direction
+    position = passes["Position"].astype(np.float64)  # read as float32, as the reference does
+    mask = passes["Material Index"] > 1.5
+    mask[3, 5] = mask[4, 6] = True
+    kw = dict(
+        diffuse=passes["Diffuse Direct"] + np.float32(0.05),
+        albedo=passes["Diffuse Color"],
+        pre_post=pre_post,
+        normal=normal,
+        position=position,
+        camera=camera,
+        lights=_lamps(),
+        lamps=lamps,
+    )
+    with backend.use("numpy"):
+        expected = energy._unseen_light(mask, **kw)
+    with backend.use("numba"):
+        got = energy._unseen_light(mask, **kw)
+    # Only the order of the float64 sums differs: within (2 n + 8) u of the terms' mean magnitude
+    # (energy._U64's comment), here bounded by their largest: the light's, and each lamp's E_L / pi
+    # on the visible and on the mirrored unit normal (|N . L| <= 1) times its colour.
+    from sss_lab.core.sta import light_at
+
+    n = int(mask.sum()) - 2
+    p = passes["Position"][mask]
+    lamp = sum(
+        2.0 * float(np.max(light_at(light, p[:, 0], p[:, 1], p[:, 2])[3])) / math.pi * max(light.color)
+        for light in _lamps()
+    )
+    e = kw["diffuse"][mask] / (np.maximum(kw["albedo"][mask], np.float32(1e-6)) if pre_post else 1.0)
+    magnitude = float(np.abs(e).max()) + lamp
+    np.testing.assert_allclose(got, expected, rtol=0.0, atol=(2 * n + 8) * energy._U64 * magnitude)
+    assert np.all(np.isfinite(got)) and got.shape == (3,)
+    # Check mode runs both and compares them within that bound: a lamp dropped on one side is found.
+    with backend.use("check"):
+        energy._unseen_light(mask, **kw)
+    if lamps:
+        original = backend.compiled().light_table
+        try:
+            backend.compiled().light_table = lambda lights: original(lights[1:])
+            with backend.use("check"), pytest.raises(backend.BackendMismatch, match="unseen_light"):
+                energy._unseen_light(mask, **kw)
+        finally:
+            backend.compiled().light_table = original
+
+
+def test_the_unseen_light_needs_a_pixel_with_a_normal_and_a_position():
+    from sss_lab.core import backend
+    from sss_lab.core.synthetic import sphere_scene
+
+    passes, scene = sphere_scene(16, 12)
+    mask = passes["Material Index"] > 1.5
+    normal = passes["Normal"].copy()
+    normal[mask] = np.nan
+    kw = dict(
+        diffuse=passes["Diffuse Direct"],
+        albedo=passes["Diffuse Color"],
+        pre_post=False,
+        normal=normal,
+        position=passes["Position"],
+        camera=scene.camera,
+        lights=_lamps(),
+        lamps=True,
+    )
+    for mode in ("numpy", "numba", "check"):
+        with backend.use(mode):
+            assert energy._unseen_light(mask, **kw) is None
