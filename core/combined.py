@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -72,6 +73,9 @@ from .transmittance import (
     single_scattering_albedo,
     transmittance_rgb,
 )
+
+if TYPE_CHECKING:
+    from ._back_light import CompiledBackLight
 
 #: The diffusion part: Burley's spiral gather or the separable filter (faster at large kernels).
 DIFFUSIONS = ("burley", "ssss")
@@ -473,6 +477,11 @@ class BackLight:
             out *= scale
         return out
 
+    def add_to(self, out: np.ndarray, d_su, transmission_scale=1.0, *, last: bool = False) -> None:
+        """``out`` += ``transmitted(d_su, transmission_scale)`` (``out`` float32 (H, W, 3)).
+        ``last``: no call follows (the compiled backend may then reuse what it holds)."""
+        out += self.transmitted(d_su, transmission_scale)
+
 
 def back_light(
     *,
@@ -489,8 +498,9 @@ def back_light(
     albedo_mode: str = "post",
     depth=None,
     object_id=None,
-) -> BackLight:
-    """The length-independent part of ``transmission``.
+) -> BackLight | CompiledBackLight:
+    """The length-independent part of ``transmission`` (on the compiled backend, with a medium,
+    ``core._back_light.CompiledBackLight``: the same ``transmitted`` and ``add_to``).
 
     ``thickness`` (H, W) baked map in ``thickness_convention`` ("translucency": 1 = thin);
     ``thickness_distance_su`` the bake's distance D (> 0: without it the map cannot be read as a
@@ -504,6 +514,21 @@ def back_light(
         )
     distance = _arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
     t = _arrays.image(thickness, "thickness", None)
+    arguments = dict(
+        normal=normal, position=position, thickness=thickness, mask=mask, lights=lights,
+        thickness_distance_su=thickness_distance_su, thickness_convention=thickness_convention, medium=medium,
+        albedo=albedo, camera=camera, albedo_mode=albedo_mode, depth=depth, object_id=object_id,
+    )  # fmt: skip
+    mode = backend.active()
+    if mode != "numpy" and medium is not None:
+        from ._back_light import compiled_back_light
+
+        compiled = compiled_back_light(t, distance, **arguments)
+        if compiled is not None:
+            if mode == "check":
+                with backend.use("numpy"):
+                    compiled.reference = back_light(**arguments)
+            return compiled
     ok = np.isfinite(t)
     tt = np.where(ok, t, np.float32(0.0))
     if thickness_convention == "thickness":
@@ -641,7 +666,7 @@ def combined(
         out[m] *= g
     scale = _arrays.rgb_lengths(transmission_scale, "transmission_scale")
     if scale.max() > 0:
-        out += back_light(**_back_light_arguments(locals(), medium)).transmitted(tuple(d_tr), tuple(scale))
+        back_light(**_back_light_arguments(locals(), medium)).add_to(out, tuple(d_tr), tuple(scale), last=True)
     return out
 
 
@@ -677,7 +702,7 @@ def _back_light_arguments(arguments: dict, medium: Medium | None) -> dict:
     }
 
 
-def light_from_behind(arguments: dict) -> tuple[BackLight, np.ndarray]:
+def light_from_behind(arguments: dict) -> tuple[BackLight | CompiledBackLight, np.ndarray]:
     """What ``combined`` called with ``arguments`` (all its keyword arguments, defaults included)
     adds as light from behind, before its length, and that length per channel: ``combined`` adds
     ``back.transmitted(length x its fitted factors, transmission_scale)``. ``core/fit.py`` tries

@@ -1717,3 +1717,632 @@ def light_table(lights) -> np.ndarray:
         row[8:11] = color
         row[14] = 1.0 if color[0] == color[1] == color[2] else 0.0
     return table
+
+
+# The combined technique's light from behind (``core.combined``: ``back_light`` and
+# ``BackLight.transmitted``, the NumPy reference). Each kernel computes the reference's float32
+# and float64 operations in its order, per pixel, on the bounding box of the mask's pixels (the
+# region; frame rows and columns from ``y0``, ``x0``): equal to the bit, and check mode compares
+# the transmitted light with the reference's with a bound of 0.
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def back_light_spans(mask, normal, position, thickness, spans):
+    """Per row y, the first and last + 1 column of the pixels of ``mask`` whose normal and
+    position are finite (``spans[y, 0:2]``: ``core.combined.far_side``'s pixels) and of those
+    whose ``thickness`` is finite (``spans[y, 2:4]``: the pixels the light from behind is
+    computed and spread on); (W, 0) where there are none."""
+    h, w = mask.shape
+    for y in prange(h):
+        a0 = w
+        a1 = 0
+        b0 = w
+        b1 = 0
+        for x in range(w):
+            if not mask[y, x]:
+                continue
+            if np.isfinite(thickness[y, x]):
+                b0 = min(b0, x)
+                b1 = x + 1
+            ok = np.isfinite(normal[y, x, 0]) and np.isfinite(normal[y, x, 1]) and np.isfinite(normal[y, x, 2])
+            ok = ok and np.isfinite(position[y, x, 0]) and np.isfinite(position[y, x, 1])
+            if ok and np.isfinite(position[y, x, 2]):
+                a0 = min(a0, x)
+                a1 = x + 1
+        spans[y, 0] = a0
+        spans[y, 1] = a1
+        spans[y, 2] = b0
+        spans[y, 3] = b1
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _translucency(thickness, y, x, as_thickness):
+    """The map's translucency at a pixel, float32 (``core.combined.back_light``: 0 where not
+    finite; 1 - t in the "thickness" convention)."""
+    t = thickness[y, x]
+    t = t if np.isfinite(t) else _ZERO
+    return _ONE - t if as_thickness else t
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _far_x(tt, distance, curved, k, kmin):
+    """``core.combined.far_side``'s thickness x (float64) of a pixel of translucency ``tt``:
+    D sqrt(1 - tau), and where ``curved`` (the pixel is one of the far side's, with a camera) and
+    the map finds no far side (tau <= 1e-6), at least the chord 2 / max(k, ``kmin``) of the
+    curvature ``k`` (already max(nan_to_num(largest), 0))."""
+    tau = np.float64(tt)
+    tau = min(max(tau, 0.0), 1.0)
+    x = distance * math.sqrt(1.0 - tau)
+    if curved and tau <= 1e-6:
+        x = max(x, 2.0 / max(k, kmin))
+    return x
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _nan_to_num64(v):
+    """np.nan_to_num of a float64: NaN 0, infinities the largest finite numbers."""
+    if v != v:
+        return 0.0
+    if v == np.inf:
+        return 1.7976931348623157e308
+    if v == -np.inf:
+        return -1.7976931348623157e308
+    return v
+
+
+_F32_MAX = f32(3.4028234663852886e38)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _nan_to_num32(v):
+    """np.nan_to_num of a float32."""
+    if v != v:
+        return _ZERO
+    if v == _INF:
+        return _F32_MAX
+    if v == -_INF:
+        return -_F32_MAX
+    return v
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _norm3(a, b, c):
+    """np.linalg.norm of a float32 (..., 3) along its last axis: sqrt((a^2 + b^2) + c^2)."""
+    return np.sqrt(a * a + b * b + c * c)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _view_vector(px, py, pz, cam):
+    """``core.scene.Camera.view_vectors`` at one position (float32): ``cam`` = (1 for
+    orthographic else 0, then the camera's position as float32, then -forward as float32)."""
+    if cam[0] != _ZERO:
+        return cam[4], cam[5], cam[6]
+    vx = cam[1] - px
+    vy = cam[2] - py
+    vz = cam[3] - pz
+    n = _norm3(vx, vy, vz)
+    n = n if n > f32(1e-20) or n != n else f32(1e-20)
+    return vx / n, vy / n, vz / n
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def back_light_pixels(
+    mask, normal, position, thickness, as_thickness, distance, kmin, walks, cam, largest, cy0, cx0, lights,
+    y0, x0, e, lit_rows,
+):  # fmt: skip
+    """``core.combined.back_irradiance`` of ``far_side``'s normal on the region (``e``, (rows,
+    columns, 3) from frame row ``y0`` and column ``x0``), and per region row whether a pixel there
+    is lit (``lit_rows``: irradiance > 0 and a finite map).
+
+    ``largest`` the far side's largest curvature (``core.energy.surface_curvature`` on the box of
+    its pixels, from frame row ``cy0`` and column ``cx0``), or (0, 0) without a camera (then no
+    chord and the visible normal). With ``walks`` the far normal is the visible one blended
+    towards the view vector (``cam``: ``_view_vector``) by s = clip(x k / 2, 0, 1) in float64,
+    rounded to float32. ``lights``: ``light_table`` of the lights with energy > 0, in order; per
+    light max(-(N . L), 0) E_L / pi (float32: ``core.sta.light_at``'s operations) times its
+    colour, summed in float32 from 0."""
+    h, w = e.shape[0], e.shape[1]
+    ch, cw = largest.shape
+    inv_pi = f32(1.0 / math.pi)
+    n_lights = lights.shape[0]
+    for i in prange(h):
+        y = y0 + i
+        any_lit = False
+        for j in range(w):
+            x = x0 + j
+            e[i, j, 0] = _ZERO
+            e[i, j, 1] = _ZERO
+            e[i, j, 2] = _ZERO
+            if not mask[y, x]:
+                continue
+            nx = normal[y, x, 0]
+            ny = normal[y, x, 1]
+            nz = normal[y, x, 2]
+            px = position[y, x, 0]
+            py = position[y, x, 1]
+            pz = position[y, x, 2]
+            if not (np.isfinite(nx) and np.isfinite(ny) and np.isfinite(nz)):
+                continue
+            if not (np.isfinite(px) and np.isfinite(py) and np.isfinite(pz)):
+                continue
+            cy = y - cy0
+            cx = x - cx0
+            if 0 <= cy < ch and 0 <= cx < cw:  # the far side's pixels with a camera
+                k = max(_nan_to_num64(np.float64(largest[cy, cx])), 0.0)
+                xs = _far_x(_translucency(thickness, y, x, as_thickness), distance, True, k, kmin)
+                if walks:
+                    s = min(max(xs * k / 2.0, 0.0), 1.0)
+                    length = _norm3(nx, ny, nz)
+                    length = length if length > f32(1e-20) or length != length else f32(1e-20)
+                    ux = _nan_to_num32(nx / length)
+                    uy = _nan_to_num32(ny / length)
+                    uz = _nan_to_num32(nz / length)
+                    vx, vy, vz = _view_vector(px, py, pz, cam)
+                    nx = f32((1.0 - s) * np.float64(ux) + s * np.float64(vx))
+                    ny = f32((1.0 - s) * np.float64(uy) + s * np.float64(vy))
+                    nz = f32((1.0 - s) * np.float64(uz) + s * np.float64(vz))
+                    if not (np.isfinite(nx) and np.isfinite(ny) and np.isfinite(nz)):
+                        continue
+            nx, ny, nz, _ = _unit(nx, ny, nz)
+            a0 = _ZERO
+            a1 = _ZERO
+            a2 = _ZERO
+            for q in range(n_lights):
+                kind = int(lights[q, 0])
+                if kind == SUN:
+                    lx = lights[q, 1]
+                    ly = lights[q, 2]
+                    lz = lights[q, 3]
+                    el = lights[q, 7]
+                else:
+                    lx, ly, lz, dist = _unit(lights[q, 1] - px, lights[q, 2] - py, lights[q, 3] - pz)
+                    r2 = dist * dist
+                    r2 = r2 if r2 > _R2_MIN or r2 != r2 else _R2_MIN
+                    if kind == AREA:
+                        cos_l = -(lx * lights[q, 4] + ly * lights[q, 5] + lz * lights[q, 6])
+                        cos_l = cos_l if cos_l > _ZERO or cos_l != cos_l else _ZERO
+                        el = lights[q, 7] * cos_l / r2
+                    else:
+                        el = lights[q, 7] / r2
+                        if kind == SPOT:
+                            tc = -(lx * lights[q, 4] + ly * lights[q, 5] + lz * lights[q, 6]) - lights[q, 11]
+                            cone = _ONE if tc > _ZERO else _ZERO
+                            if lights[q, 13] != _ZERO:
+                                u = tc / lights[q, 12]
+                                u = u if u > _ZERO or u != u else _ZERO
+                                u = u if u < _ONE or u != u else _ONE
+                                cone = cone * (u * u * (_THREE - _TWO * u))
+                            el = el * cone
+                back = -(nx * lx + ny * ly + nz * lz)
+                back = back if back > _ZERO or back != back else _ZERO
+                back = back * el * inv_pi
+                a0 += back * lights[q, 8]
+                a1 += back * lights[q, 9]
+                a2 += back * lights[q, 10]
+            e[i, j, 0] = a0
+            e[i, j, 1] = a1
+            e[i, j, 2] = a2
+            if np.isfinite(thickness[y, x]):
+                most = a0 if a0 > a1 or a0 != a0 else a1
+                most = most if most > a2 or most != most else a2
+                any_lit |= most > _ZERO
+        lit_rows[i] = any_lit
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _interp(v, xp, fp, right):
+    """np.interp of one float64 value (left: ``fp[0]``), with NumPy's operations: the node
+    below found by bisection, the value at a node itself, slope x (v - node) + value, and the
+    same from the node above where that is NaN."""
+    n = xp.size
+    if v != v:
+        return v
+    if v < xp[0]:
+        return fp[0]
+    if v > xp[n - 1]:
+        return right
+    if v == xp[n - 1]:
+        return fp[n - 1]
+    lo = 0
+    hi = n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if xp[mid] <= v:
+            lo = mid
+        else:
+            hi = mid
+    if xp[lo] == v:
+        return fp[lo]
+    slope = (fp[lo + 1] - fp[lo]) / (xp[lo + 1] - xp[lo])
+    r = slope * (v - xp[lo]) + fp[lo]
+    if r != r:
+        r = slope * (v - xp[lo + 1]) + fp[lo + 1]
+        if r != r and fp[lo] == fp[lo + 1]:
+            r = fp[lo]
+    return r
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _entry_lerp(tau, m, grid, columns, c, nodes, first):
+    """``core.transmittance._interp_entry`` / ``_interp_rough`` of one pixel: the columns
+    ``columns[c, first + g]`` (one per entry cosine ``grid[g]``) read at ``tau``, then linear in
+    ``m`` between the two enclosing entries (the last entry's value where none encloses it)."""
+    n = grid.size
+    for g in range(n - 1):
+        lo = grid[g]
+        hi = grid[g + 1]
+        if m >= lo and m < hi:
+            wt = (m - lo) / (hi - lo)
+            a = _interp(tau, nodes, columns[c, first + g], 0.0)
+            b = _interp(tau, nodes, columns[c, first + g + 1], 0.0)
+            return (1.0 - wt) * a + wt * b
+    return _interp(tau, nodes, columns[c, first + n - 1], 0.0)
+
+
+#: How ``transmit_pixels`` reads the transmittance: a random walk, the Skin method's walk, and
+#: Christensen-Burley's disk probes.
+WALK, SKIN, DISK = 0, 1, 2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _transmittance(kind, x, mu_v, ior2, ell, grid, columns, nodes, c):
+    """``core.combined.slab_transmittance_rgb`` of one pixel and channel, float64 (``kind``
+    ``WALK``, ``SKIN`` or ``DISK``; ``ell`` the channel's length: the walk's reduced mean free
+    path or Burley's d)."""
+    if ell <= 0.0:
+        return 1.0 if x == 0.0 else 0.0
+    if kind == DISK:
+        return _interp(x / ell, nodes, columns[c, 0], 0.0)
+    tau = x / ell
+    if kind == SKIN:
+        m = min(max(mu_v, grid[0]), 1.0)
+        rough = _entry_lerp(tau, m, grid, columns, c, nodes, 0)
+        return (1.0 - 0.5) * rough + 0.5 * _interp(tau, nodes, columns[c, grid.size], 0.0)
+    mu0 = math.sqrt(min(max(1.0 - (1.0 - mu_v * mu_v) / ior2, 0.0), 1.0))
+    mu0 = min(max(mu0, grid[0]), 1.0)
+    return _entry_lerp(tau, mu0, grid, columns, c, nodes, 0)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _pixel_x(mask, normal, position, thickness, as_thickness, distance, kmin, largest, cy0, cx0, y, x):
+    """(x, k): ``core.combined.far_side``'s thickness of a pixel and its curvature (float64; the
+    chord and k only for a pixel of the far side, the mask's pixels with a finite normal and
+    position, within ``largest``'s box: with a camera)."""
+    ch, cw = largest.shape
+    cy = y - cy0
+    cx = x - cx0
+    k = 0.0
+    curved = False
+    if 0 <= cy < ch and 0 <= cx < cw and mask[y, x]:
+        curved = np.isfinite(normal[y, x, 0]) and np.isfinite(normal[y, x, 1]) and np.isfinite(normal[y, x, 2])
+        curved = curved and np.isfinite(position[y, x, 0]) and np.isfinite(position[y, x, 1])
+        curved = curved and np.isfinite(position[y, x, 2])
+        if curved:
+            k = max(_nan_to_num64(np.float64(largest[cy, cx])), 0.0)
+    return _far_x(_translucency(thickness, y, x, as_thickness), distance, curved, k, kmin), k
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _view_cos(normal, position, y, x, cam):
+    """``core.combined.view_cosine`` of one pixel: |nan_to_num(N / |N| . V)|, float32."""
+    nx = normal[y, x, 0]
+    ny = normal[y, x, 1]
+    nz = normal[y, x, 2]
+    length = _norm3(nx, ny, nz)
+    length = length if length > f32(1e-20) or length != length else f32(1e-20)
+    vx, vy, vz = _view_vector(position[y, x, 0], position[y, x, 1], position[y, x, 2], cam)
+    return abs(_nan_to_num32(nx / length * vx + ny / length * vy + nz / length * vz))
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def transmit_pixels(
+    e, mask, normal, position, thickness, as_thickness, distance, kmin, largest, cy0, cx0, y0, x0, view, cam,
+    kind, ior2, ell, grid, columns, nodes, spread, spread_len, spread_counts, spread_nodes, spread_values, ids,
+    part_ids, light, sig, part_rows,
+):  # fmt: skip
+    """``core.combined.BackLight.transmitted`` before its spread: ``light`` = ``e`` x T_c(x) on the
+    lit pixels of the region (irradiance > 0, finite map), 0 elsewhere, float32 (T_c
+    ``_transmittance``, x ``_pixel_x``; with ``view`` the view cosine of the visible normal
+    (``_view_cos``), else 1). ``light`` may be ``e`` itself (each pixel reads its own first).
+
+    With ``spread`` (a Depth pass and a camera), per pixel of the mask with a finite map: its
+    part (``part_ids``, ascending, holding the pixel's object id ``ids``; a single part when
+    ``ids`` is (1, 1)) and its spread's width before the pixel's scale, float32 into ``sig``:
+    ``core.combined.spread_sigma``'s value, NaN where the walk's table ends (the reference puts
+    the part's largest there; 0 for a pixel in no part); per region row and part
+    (``part_rows``): the first and last + 1 region column of the part's pixels and, per channel,
+    the largest width (at least 0)."""
+    h, w = light.shape[0], light.shape[1]
+    one_part = ids.shape[0] == 1 and ids.shape[1] == 1 and part_ids.size == 1
+    root2 = math.sqrt(2.0)
+    n_parts = part_ids.size if spread else 0
+    for i in prange(h):
+        y = y0 + i
+        for p in range(n_parts):
+            part_rows[i, p, 0] = w
+            part_rows[i, p, 1] = 0
+            part_rows[i, p, 2] = 0.0
+            part_rows[i, p, 3] = 0.0
+            part_rows[i, p, 4] = 0.0
+        for j in range(w):
+            x = x0 + j
+            a0 = e[i, j, 0]
+            a1 = e[i, j, 1]
+            a2 = e[i, j, 2]
+            finite = np.isfinite(thickness[y, x])
+            most = a0 if a0 > a1 or a0 != a0 else a1
+            most = most if most > a2 or most != most else a2
+            lit = finite and most > _ZERO
+            in_mask = spread and finite and mask[y, x]
+            if not lit:
+                light[i, j, 0] = _ZERO
+                light[i, j, 1] = _ZERO
+                light[i, j, 2] = _ZERO
+            if not (lit or in_mask):
+                continue
+            xs, _ = _pixel_x(mask, normal, position, thickness, as_thickness, distance, kmin, largest, cy0, cx0, y, x)
+            if lit:
+                mu_v = 1.0
+                if view:
+                    mu_v = min(max(np.float64(_view_cos(normal, position, y, x, cam)), 0.0), 1.0)
+                light[i, j, 0] = a0 * f32(_transmittance(kind, xs, mu_v, ior2, ell[0], grid, columns, nodes, 0))
+                light[i, j, 1] = a1 * f32(_transmittance(kind, xs, mu_v, ior2, ell[1], grid, columns, nodes, 1))
+                light[i, j, 2] = a2 * f32(_transmittance(kind, xs, mu_v, ior2, ell[2], grid, columns, nodes, 2))
+            if not in_mask:
+                continue
+            p = 0
+            if not one_part:
+                v = ids[y, x]
+                p = np.searchsorted(part_ids, v)
+                if p >= part_ids.size or part_ids[p] != v:
+                    sig[i, j, 0] = _ZERO
+                    sig[i, j, 1] = _ZERO
+                    sig[i, j, 2] = _ZERO
+                    continue
+            part_rows[i, p, 0] = min(part_rows[i, p, 0], j)
+            part_rows[i, p, 1] = j + 1
+            for c in range(3):
+                d = spread_len[c]
+                n = spread_counts[c]
+                if d <= 0.0 or n == 0:
+                    s = _ZERO
+                elif kind == DISK:
+                    s = f32(math.sqrt(_interp(xs / d, spread_nodes[:n], spread_values[c, :n], 0.0)) * d / root2)
+                else:
+                    s = f32(_interp(xs / d, spread_nodes[:n], spread_values[c, :n], np.nan) * d / root2)
+                sig[i, j, c] = s
+                if s == s:
+                    part_rows[i, p, 2 + c] = max(part_rows[i, p, 2 + c], np.float64(s))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _in_part(mask, thickness, ids, part_ids, p, one_part, y, x):
+    """Whether frame pixel (``y``, ``x``) is one of part ``p``'s (the mask's pixels with a finite
+    map and, with ids, the part's object id)."""
+    if not (mask[y, x] and np.isfinite(thickness[y, x])):
+        return False
+    return one_part or ids[y, x] == part_ids[p]
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def part_sigma(sig, mask, thickness, ids, part_ids, p, one_part, depth, ortho, focal, fill, y0, x0, box, row_range):
+    """The spread's width in pixels of part ``p``'s pixels within ``box`` (region rows ``box[0]``..
+    ``box[1]`` - 1, columns ``box[2]``..``box[3]`` - 1), in place in ``sig``: its NaN replaced by
+    ``fill`` (float32, per channel), times the pixel's ``core.scene.Camera.pixels_per_unit`` of
+    ``depth`` (float32: ``focal`` / z, or ``focal`` for an orthographic camera; 0 where that is not
+    finite or z <= 0 (orthographic: z not finite)); per region row of the box and channel, the
+    smallest and the largest into ``row_range[i, c]`` (+inf and 0 without a pixel)."""
+    for i in prange(box[0], box[1]):
+        y = y0 + i
+        for c in range(3):
+            row_range[i, c, 0] = _INF
+            row_range[i, c, 1] = _ZERO
+        for j in range(box[2], box[3]):
+            x = x0 + j
+            if not _in_part(mask, thickness, ids, part_ids, p, one_part, y, x):
+                continue
+            z = depth[y, x]
+            if ortho:
+                scale = focal if np.isfinite(z) else _ZERO
+            else:
+                scale = focal / z
+                scale = scale if np.isfinite(scale) and not z <= _ZERO else _ZERO
+            for c in range(3):
+                s = sig[i, j, c]
+                s = fill[c] if s != s else s
+                s = s * scale
+                sig[i, j, c] = s
+                row_range[i, c, 0] = min(row_range[i, c, 0], s)
+                row_range[i, c, 1] = max(row_range[i, c, 1], s)
+
+
+@njit(cache=True, error_model="numpy")
+def _running_box(buf, cum, lo, hi, out_lo, out_hi, r, bw):
+    """One box sum of half-width ``r`` along the first axis of the first ``bw`` columns of
+    ``buf``, whose rows ``lo``..``hi`` - 1 hold the values (zero beyond them, where the
+    reference's values are zero or its box ends): the float64 running sum of the values from
+    ``lo``, and for the rows ``out_lo``..``out_hi`` - 1 the float32 of the difference of its values
+    2 r + 1 apart, as ``core.combined._box``'s cumulative sums give it (zeros before the first
+    value add nothing). Vectorized across the columns."""
+    n = hi - lo
+    for t in range(bw):
+        cum[0, t] = 0.0
+    for j in range(n):
+        for t in range(bw):
+            cum[j + 1, t] = cum[j, t] + np.float64(buf[j, t])
+    for i in range(out_lo, out_hi):
+        a = min(max(i + r + 1 - lo, 0), n)
+        b = min(max(i - r - lo, 0), n)
+        for t in range(bw):
+            buf[i - lo, t] = f32(cum[a, t] - cum[b, t])
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def part_pixels(mask, thickness, ids, part_ids, p, one_part, y0, x0, part, on):
+    """``on`` (part rows, part columns): 1 at part ``p``'s pixels (``_in_part``), else 0."""
+    for i in prange(part[0], part[1]):
+        for j in range(part[2], part[3]):
+            inside = _in_part(mask, thickness, ids, part_ids, p, one_part, y0 + i, x0 + j)
+            on[i - part[0], j - part[2]] = 1 if inside else 0
+
+
+#: Rows of a part ``spread_part``'s horizontal passes sum together (their four planes side by side:
+#: the running sums' chains of additions are independent, 16 float64 lanes).
+SPREAD_ROWS = 4
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def spread_part(light, sig, on, part, box, grid, radii, needed, planes, out):
+    """``core.combined._spread_part`` of one part (its pixels ``on``, from region row ``part[0]``
+    and column ``part[2]``; region rows ``part[0]``..``part[1]`` - 1 and columns ``part[2]``..
+    ``part[3]`` - 1 hold them all), its blurs confined to ``box`` (region coordinates, the
+    reference's box: the part's widened by the widest blur's reach and clipped to the frame),
+    into ``out`` at the part's pixels: ``light`` blurred per pixel and channel by ``sig``
+    (pixels) as ``spread_light`` does it, each level's three box sums per axis as the
+    reference's float64 cumulative sums (``_running_box``).
+
+    Only what the part's pixels read is computed, in the reference's order: the light on the
+    part is zero outside its rows and columns, so a column outside them sums to zero, and so does
+    a running sum before its first value; a channel's level is blurred only where a pixel's width
+    lies next to it (``needed[k, c]``; ``needed[k, 3]``: the mask, for any channel). Along the
+    columns (strips of ``SPREAD_STRIP``), the first two box sums over the rows the third reads
+    from (the part's rows and 2 r beyond, within the box; every one of their values is summed,
+    as in the reference's running sums), the third over the part's rows into ``planes`` (4,
+    part rows, part columns: R, G, B and the mask); along the rows the same, ``SPREAD_ROWS``
+    rows at a time. A pixel's result is (1 - w) times the level below its width plus w times
+    the level above, written when the upper level is done (the lower one's share kept in
+    ``out`` meanwhile); level 0 is ``light``."""
+    n_levels = grid.size
+    top = grid[n_levels - 1]
+    ph = part[1] - part[0]
+    pw = part[3] - part[2]
+    # Level 0: the lower share of the pixels whose width lies below the first blur.
+    for i in prange(part[0], part[1]):
+        for j in range(part[2], part[3]):
+            if on[i - part[0], j - part[2]] == 0:
+                continue
+            for c in range(3):
+                s = min(max(np.float64(sig[i, j, c]), 0.0), top)
+                if not grid[1] >= s:
+                    continue
+                wt = f32((s - grid[0]) / (grid[1] - grid[0]))
+                out[i, j, c] = (_ONE - wt) * light[i, j, c]
+    n_col = (pw + SPREAD_STRIP - 1) // SPREAD_STRIP
+    n_groups = (ph + SPREAD_ROWS - 1) // SPREAD_ROWS
+    which = np.empty(4, np.int64)
+    for k in range(1, n_levels):
+        if not needed[k, 3]:
+            continue
+        n_planes = 0
+        for q in range(4):
+            if needed[k, q]:
+                which[n_planes] = q
+                n_planes += 1
+        r = radii[k - 1]
+        lo = max(part[0] - 2 * r, box[0])
+        hi = min(part[1] + 2 * r, box[1])
+        for item in prange(n_planes * n_col):
+            q = which[item // n_col]
+            xs = part[2] + (item % n_col) * SPREAD_STRIP
+            bw = min(xs + SPREAD_STRIP, part[3]) - xs
+            buf = np.zeros((hi - lo, SPREAD_STRIP), np.float32)
+            cum = np.empty((hi - lo + 1, SPREAD_STRIP), np.float64)
+            for i in range(part[0], part[1]):
+                row = on[i - part[0]]
+                for t in range(bw):
+                    mk = _ONE if row[xs + t - part[2]] != 0 else _ZERO
+                    buf[i - lo, t] = light[i, xs + t, q] * mk if q < 3 else mk
+            _running_box(buf, cum, lo, hi, lo, hi, r, bw)
+            _running_box(buf, cum, lo, hi, lo, hi, r, bw)
+            _running_box(buf, cum, lo, hi, part[0], part[1], r, bw)
+            for i in range(part[0], part[1]):
+                for t in range(bw):
+                    planes[q, i - part[0], xs + t - part[2]] = buf[i - lo, t]
+        left = max(part[2] - 2 * r, box[2])
+        right = min(part[3] + 2 * r, box[3])
+        g_lo = grid[k - 1]
+        g_k = grid[k]
+        g_hi = grid[k + 1] if k + 1 < n_levels else top
+        for group in prange(n_groups):
+            i0 = part[0] + group * SPREAD_ROWS
+            rows = min(SPREAD_ROWS, part[1] - i0)
+            line = np.zeros((right - left, 4 * SPREAD_ROWS), np.float32)
+            cum = np.empty((right - left + 1, 4 * SPREAD_ROWS), np.float64)
+            for j in range(part[2], part[3]):
+                for g in range(rows):
+                    for q in range(4):
+                        line[j - left, 4 * g + q] = planes[q, i0 + g - part[0], j - part[2]] if needed[k, q] else _ZERO
+            lanes = 4 * SPREAD_ROWS
+            _running_box(line, cum, left, right, left, right, r, lanes)
+            _running_box(line, cum, left, right, left, right, r, lanes)
+            _running_box(line, cum, left, right, part[2], part[3], r, lanes)
+            for g in range(rows):
+                i = i0 + g
+                for j in range(part[2], part[3]):
+                    if on[i - part[0], j - part[2]] == 0:
+                        continue
+                    den = line[j - left, 4 * g + 3]
+                    den = den if den > f32(1e-6) or den != den else f32(1e-6)
+                    for c in range(3):
+                        if not needed[k, c]:
+                            continue
+                        s = min(max(np.float64(sig[i, j, c]), 0.0), top)
+                        # Its levels (the reference's searchsorted): the first of grid >= s, at least 1.
+                        if s <= g_k and (k == 1 or s > g_lo):
+                            cur = line[j - left, 4 * g + c] / den
+                            wt = f32((s - g_lo) / (g_k - g_lo))
+                            out[i, j, c] = out[i, j, c] + wt * cur
+                        elif k + 1 < n_levels and s > g_k and s <= g_hi:
+                            cur = line[j - left, 4 * g + c] / den
+                            wt = f32((s - g_k) / (g_hi - g_k))
+                            out[i, j, c] = (_ONE - wt) * cur
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _exit_weight(a, pre_post, walks, base):
+    """``core.combined.exit_weight`` of one albedo value (float32)."""
+    if pre_post:
+        a = a * a
+    if not walks:
+        return a
+    if base > _ZERO:
+        a = a / (base if base > f32(1e-6) else f32(1e-6))
+    else:
+        a = _ZERO
+    a = a if a > _ZERO or a != a else _ZERO
+    return a if a < _ONE or a != a else _ONE
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def finish_light(light, y0, x0, albedo, pre_post, walks, base, has_weight, scale, scaled, add, out):
+    """``core.combined.BackLight.transmitted``'s last steps into the frame ``out``: the light
+    (``light``, the region from frame row ``y0`` and column ``x0``; 0 elsewhere) times the exit
+    weight (with ``has_weight``: ``_exit_weight`` of ``albedo``) and, where ``scaled``, times
+    ``scale``; written (``out`` holds zeros) or, with ``add``, added to ``out``. Outside the
+    region 0 x weight changes nothing but where the weight is not finite (NaN)."""
+    h, w = out.shape[0], out.shape[1]
+    rh, rw = light.shape[0], light.shape[1]
+    for y in prange(h):
+        inside_rows = y0 <= y < y0 + rh
+        if inside_rows:
+            for x in range(x0, x0 + rw):
+                for c in range(3):
+                    v = light[y - y0, x - x0, c]
+                    if has_weight:
+                        v = v * _exit_weight(albedo[y, x, c], pre_post, walks, base[c])
+                    if scaled:
+                        v = v * scale[c]
+                    out[y, x, c] = out[y, x, c] + v if add else v
+        if not has_weight:
+            continue
+        for x in range(w):
+            if inside_rows and x0 <= x < x0 + rw:
+                continue
+            for c in range(3):
+                a = albedo[y, x, c]
+                if np.isfinite(a) and (walks or np.isfinite(a * a)):
+                    continue  # 0 x a finite weight: nothing changes
+                v = _ZERO * _exit_weight(a, pre_post, walks, base[c])
+                if scaled:
+                    v = v * scale[c]
+                out[y, x, c] = out[y, x, c] + v if add else v

@@ -279,6 +279,15 @@ def lateral_spread(tau, alpha) -> np.ndarray:
     """RMS lateral distance (optical units) between where a walk of single-scattering albedo
     ``alpha`` enters along the normal and where it first crosses depth ``tau``, weighted by the
     light it carries (``spread_table``); float64, same shape as ``tau``; 0 at tau = 0."""
+    t = np.asarray(tau, np.float64)
+    rms = lateral_table(alpha)
+    return np.interp(t, TAUS[: rms.size], rms, right=np.nan) if rms.size else np.zeros_like(t)
+
+
+def lateral_table(alpha) -> np.ndarray:
+    """``lateral_spread``'s RMS distance at ``TAUS[:n]`` for albedo ``alpha`` (n of them, float64;
+    none when only depth 0 carries light): up to the last depth any walk still carries light
+    to (beyond it ``lateral_spread`` gives NaN)."""
     a = max(float(alpha), MIN_ALPHA)
     powers = a ** np.arange(MAX_SEGMENTS, dtype=np.float64)
     p, s = spread_table()
@@ -286,22 +295,26 @@ def lateral_spread(tau, alpha) -> np.ndarray:
     rms = np.sqrt(np.where(light > 1e-12, moment / np.maximum(light, 1e-300), 0.0))
     # Beyond the last depth any walk still carries: its spread grows with depth like tau.
     last = int(np.max(np.flatnonzero(light > 1e-9)))
-    t = np.asarray(tau, np.float64)
-    return np.interp(t, TAUS[: last + 1], rms[: last + 1], right=np.nan) if last > 0 else np.zeros_like(t)
+    return rms[: last + 1] if last > 0 else rms[:0]
 
 
 def slab_transmittance(tau, alpha, entry) -> np.ndarray:
     """T(tau) for one channel: the light a walk of single-scattering albedo ``alpha`` entering
     with ``entry`` carries through optical depth ``tau`` (array), with Cycles' alpha floor;
     float64, same shape as ``tau``. T(0) = 1 (above the floor); beyond the table, 0."""
+    t = np.asarray(tau, np.float64)
+    return np.interp(t, TAUS, passage_column(alpha, entry), right=0.0)
+
+
+def passage_column(alpha, entry) -> np.ndarray:
+    """T at every depth of ``TAUS`` for albedo ``alpha`` and ``entry`` (``slab_transmittance``
+    reads it), float64: the passage table's polynomial in alpha, with Cycles' floor."""
     a = float(alpha)
     scale = 1.0
     if a < MIN_ALPHA:
         scale, a = a / MIN_ALPHA, MIN_ALPHA
     powers = a ** np.arange(MAX_SEGMENTS, dtype=np.float64)
-    column = passage_table(entry) @ powers * scale
-    t = np.asarray(tau, np.float64)
-    return np.interp(t, TAUS, column, right=0.0)
+    return passage_table(entry) @ powers * scale
 
 
 def transmittance_rgb(
@@ -325,17 +338,9 @@ def transmittance_rgb(
     ``legacy``: Random Walk (Legacy)'s medium (Chiang et al.'s albedo fit and, for g >= 0,
     extinction 1 / (l (1 - g))). A channel with length 0 passes light only where x = 0."""
     x = np.asarray(x_su, np.float64)
-    ell = _arrays.rgb_lengths(mfp_su, "mfp_su").astype(np.float64)
-    if legacy and anisotropy >= 0:
-        alpha = legacy_single_scattering_albedo(base_color, anisotropy)
-        ell = ell * (1.0 - anisotropy)
-    else:
-        alpha = single_scattering_albedo(base_color, anisotropy)
-    ell, alpha = reduced_medium(ell, alpha, anisotropy)
-    if not (np.isfinite(ior) and ior >= 1.0):
-        raise ValueError(f"ior: expected a finite number >= 1, got {ior!r}")
-    if not 0.0 <= cosine_share <= 1.0:
-        raise ValueError(f"cosine_share: expected a number in [0, 1], got {cosine_share!r}")
+    ell, alpha = walk_medium(
+        mfp_su, base_color, ior=ior, anisotropy=anisotropy, cosine_share=cosine_share, legacy=legacy
+    )
     if view_cos is None:
         mu0 = np.ones_like(x)
         mu_v = np.ones_like(x)
@@ -357,6 +362,23 @@ def transmittance_rgb(
         else:
             out[..., c] = _interp_entry(tau, mu0, alpha[c])
     return out
+
+
+def walk_medium(mfp_su, base_color, *, ior, anisotropy, cosine_share, legacy) -> tuple[np.ndarray, np.ndarray]:
+    """(length, single-scattering albedo) per channel, float64 (3,) each, of the isotropic walk
+    ``transmittance_rgb`` reads its tables with (its arguments, checked)."""
+    ell = _arrays.rgb_lengths(mfp_su, "mfp_su").astype(np.float64)
+    if legacy and anisotropy >= 0:
+        alpha = legacy_single_scattering_albedo(base_color, anisotropy)
+        ell = ell * (1.0 - anisotropy)
+    else:
+        alpha = single_scattering_albedo(base_color, anisotropy)
+    ell, alpha = reduced_medium(ell, alpha, anisotropy)
+    if not (np.isfinite(ior) and ior >= 1.0):
+        raise ValueError(f"ior: expected a finite number >= 1, got {ior!r}")
+    if not 0.0 <= cosine_share <= 1.0:
+        raise ValueError(f"cosine_share: expected a number in [0, 1], got {cosine_share!r}")
+    return ell, alpha
 
 
 #: View cosines the Skin method's rough entry is tabulated at (linear in between).

@@ -301,3 +301,78 @@ def test_a_map_with_no_far_side_within_its_distance_reads_the_spheres_chord():
     inner[mask] = np.hypot(*(np.argwhere(mask) - 23.5).T) < 0.3 * 48
     assert np.allclose(np.median(x[inner]), 0.8, rtol=0.05)  # 2 R
     assert x[mask].max() <= CHORD_CAP * 0.5 + 1e-9 and x[mask].min() >= 0.5
+
+
+def _lamps_behind(z_behind):
+    """A point, a spot and an area lamp behind the scene (at depth ``z_behind``, facing the
+    camera) and a sun shining towards the camera, of different colours."""
+    m = np.eye(4)
+    m[:3, 3] = (0.05, -0.02, z_behind)
+    towards_camera = m.copy()
+    towards_camera[:3, 2] = (0.0, 0.0, -1.0)  # local -Z is the direction: +Z, towards the camera
+    towards_camera[:3, 1] = (0.0, -1.0, 0.0)
+    return (
+        Light(type="POINT", energy=40.0, color=(1.0, 0.8, 0.6), matrix_world=tuple(m.ravel())),
+        Light(type="SPOT", energy=60.0, color=(0.7, 1.0, 0.9), spot_size=1.2, spot_blend=0.3,
+              matrix_world=tuple(towards_camera.ravel())),
+        Light(type="AREA", energy=30.0, matrix_world=tuple(towards_camera.ravel())),
+        _sun((0.1, 0.05, 1.0), energy=2.0, color=(0.9, 0.9, 1.0)),
+        Light(type="POINT", energy=0.0, matrix_world=tuple(m.ravel())),  # no light: skipped
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "method", ("RANDOM_WALK", "RANDOM_WALK_SKIN", "RANDOM_WALK_LEGACY", "BURLEY", None)
+)  # fmt: skip
+@pytest.mark.parametrize("camera_type", ("PERSP", "ORTHO"))
+def test_compiled_light_from_behind_equals_the_reference_to_the_bit(method, camera_type):
+    # core._back_light's kernels against core.combined's NumPy code (equal to the bit; in check
+    # mode each call also compares them with bound 0): three objects and the plane with a mask with
+    # holes, an object index that is NaN on some pixels, a thickness map with NaN, zeros (the
+    # curvature's chord) and the "thickness" convention, lamps of every kind behind, a
+    # Diffuse Color with NaN outside the mask, several lengths on one BackLight (as the fit
+    # calls it) with a channel of length 0, a scale per channel, and ``add_to``.
+    import dataclasses
+
+    from sss_lab.core import backend
+    from sss_lab.core._back_light import CompiledBackLight
+    from sss_lab.core.combined import Medium, back_light
+    from sss_lab.core.synthetic import sphere_scene
+
+    passes, scene = sphere_scene(96, 64)
+    cam = scene.camera
+    if camera_type == "ORTHO":
+        cam = dataclasses.replace(cam, type="ORTHO", ortho_scale=0.6)
+    depth = passes["Depth"].copy()
+    mask = depth < 1e9
+    rng = np.random.default_rng(7)
+    mask &= rng.random(mask.shape) > 0.1
+    ids = passes["Object Index"].astype(np.float32)
+    ids[5:9, 40:44] = np.nan
+    thickness = passes["Thickness"].copy()
+    thickness[rng.random(thickness.shape) < 0.03] = np.nan
+    albedo = passes["Diffuse Color"].copy()
+    albedo[0, 0] = np.nan
+    z_behind = float(np.nanmin(passes["Position"][..., 2][mask])) - 0.3
+    medium = None
+    if method is not None:
+        medium = Medium(method, (0.8, 0.5, 0.3), 1.33, 0.3 if method == "RANDOM_WALK_LEGACY" else 0.0)
+    for convention, tmap, object_id in (("translucency", thickness, ids), ("thickness", 1.0 - thickness, None)):
+        kw = dict(
+            normal=passes["Normal"], position=passes["Position"], thickness=tmap, mask=mask,
+            lights=(*scene.lights, *_lamps_behind(z_behind)), thickness_distance_su=0.3,
+            thickness_convention=convention, medium=medium, albedo=albedo, camera=cam, depth=depth,
+            object_id=object_id, albedo_mode="pre-post" if object_id is None else "post",
+        )  # fmt: skip
+        with backend.use("numpy"):
+            reference = back_light(**kw)
+        back = back_light(**kw)
+        assert isinstance(back, CompiledBackLight) == (method is not None)
+        for d_su in ((0.02, 0.008, 0.004), (0.05, 0.0, 0.01), (0.2, 0.1, 0.05)):
+            want = reference.transmitted(d_su, (1.0, 0.5, 2.0))
+            got = back.transmitted(d_su, (1.0, 0.5, 2.0))
+            assert np.array_equal(got, want, equal_nan=True)
+            assert np.nanmax(want[mask]) > 0
+        out = np.full(want.shape, 0.25, np.float32)
+        back.add_to(out, d_su)
+        assert np.array_equal(out, np.float32(0.25) + reference.transmitted(d_su), equal_nan=True)
