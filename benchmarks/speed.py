@@ -31,14 +31,17 @@ falloff, ``STA_MEDIUM``); the combined technique as Burley's case plus its light
 through the same Random Walk medium (``COMBINED_MEDIUM``: ``core.combined.transmission``, with its
 lateral spread), with the energy stage left out as in the other cases (``energy="lambert"``: the
 kernels' time). Each case runs ``--repeat`` times, the 1080p ones also until they have taken
-``FLOOR_S`` (4K: fewer for NumPy, and twice for the compiled combined technique, whose NumPy
-parts take seconds there; the NumPy combined technique, 10 s a call at 1080p, once per case, so
-that the whole run stays within minutes);
+``FLOOR_S`` (4K: fewer for NumPy; the NumPy combined technique, 10 s a call at 1080p, once per
+case, so that the whole run stays within minutes);
 the fastest run is reported (these machines are noisy), with the throughput in
 pixel-samples per second (pixels x taps x 2 passes for SSSS, pixels x samples for Burley,
 pixels x lights for STA), and the load average before and after. Writes
 ``benchmarks/results/speed.json``; the keys of each technique outside ``backends`` are the
 default backend's.
+
+``--techniques combined`` (names separated by commas) and ``--backends numba`` time some of the
+cases only, for a quick check: such a run leaves out the energy stage and the first calls, and
+writes only where ``--out`` says (never over ``speed.json``).
 """
 
 from __future__ import annotations
@@ -89,9 +92,9 @@ COMBINED_MEDIUM = {
 #: (technique, backend) whose calls take seconds: each case runs once, without a warm-up call (at
 #: 4K the one call is timed with tracemalloc on, for its peak).
 SLOW = {("combined", "numpy")}
-#: (technique, backend) whose 4K calls take seconds (the combined technique's NumPy parts: 16 s of
-#: CPU a call on this machine, loaded): fewer runs there than ``--repeat``, no warm-up call.
-SLOW_4K = {("combined", "numba"): 2}
+#: (technique, backend) whose 4K calls take seconds: fewer runs there than ``--repeat``, no warm-up
+#: call (none since the combined technique's light from behind is compiled).
+SLOW_4K: dict[tuple[str, str], int] = {}
 #: Each 1080p case (but the one-call ``SLOW`` ones) runs ``--repeat`` times and at least this long (seconds):
 #: STA's 15 ms calls then run some sixty times, where five best-of draws varied 14.6-15.7 ms
 #: between runs of the benchmark on the quiet machine.
@@ -315,10 +318,23 @@ def _entry(seconds: float, cpu: float, pixels: int, per_pixel: int) -> dict:
     }
 
 
-def run(width: int = 1920, height: int = 1080, repeat: int = 5, big: tuple[int, int] | None = (3840, 2160), log=print):
+def run(
+    width: int = 1920,
+    height: int = 1080,
+    repeat: int = 5,
+    big: tuple[int, int] | None = (3840, 2160),
+    log=print,
+    techniques: tuple[str, ...] | None = None,
+    backends: tuple[str, ...] = BACKENDS,
+):
+    """The whole benchmark (``techniques`` None, both backends), or some of its cases only
+    (then without the energy stage and the first calls)."""
     load_before = os.getloadavg()
-    names = [b for b in BACKENDS if b == "numpy" or backend.compiled() is not None]
+    partial = techniques is not None or tuple(backends) != BACKENDS
+    names = [b for b in backends if b == "numpy" or backend.compiled() is not None]
     cases, masks = _cases(width, height)
+    if techniques is not None:
+        cases = {k: v for k, v in cases.items() if k in techniques}
     results = {name: {"goal_ms": GOALS_MS[name], "backends": {}} for name in cases}
     for name, (fn, per_pixel, _) in cases.items():
         for b in names:
@@ -422,7 +438,7 @@ def run(width: int = 1920, height: int = 1080, repeat: int = 5, big: tuple[int, 
                     f" (inputs {input_bytes / 1e6:.0f} MB, frame {frame / 1e6:.0f} MB)"
                 )
     _threads(2)
-    stage = energy_stage(width, height, max(1, min(repeat, 2)), names)
+    stage = {"backends": {}} if partial else energy_stage(width, height, max(1, min(repeat, 2)), names)
     for b, e in stage["backends"].items():
         log(f"energy  {b:6s} full {e['full screen']['ms']:8.1f} ms  25 % mask {e['25 % mask']['ms']:8.1f} ms")
     default = names[0]
@@ -473,7 +489,7 @@ def run(width: int = 1920, height: int = 1080, repeat: int = 5, big: tuple[int, 
 
         machine["numba"] = numba.__version__
         machine["threading_layer"] = numba.threading_layer()
-        data["first_call_s"] = first_calls()
+        data["first_call_s"] = {} if partial else first_calls()
         log(f"first call: {data['first_call_s']}")
     else:
         data["numba_unavailable"] = backend.unavailable_reason()
@@ -484,10 +500,24 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.speed", description=__doc__.split("\n\n")[0])
     add_options(parser, repeat=5, results=RESULTS)
     parser.add_argument("--big", default="3840x2160", help="WxH of the scale and memory case, or 'none'")
+    parser.add_argument(
+        "--techniques", default=None, help=f"some of {','.join(GOALS_MS)} only (a partial run, needs --out)"
+    )
+    parser.add_argument("--backends", default=",".join(BACKENDS), help="some of numba,numpy only (likewise)")
     args = parser.parse_args(argv)
     width, height = resolution(parser, args.resolution)
     big = None if args.big == "none" else resolution(parser, args.big)
-    data = run(width, height, args.repeat, big)
+    techniques = None if args.techniques is None else tuple(args.techniques.split(","))
+    backends = tuple(args.backends.split(","))
+    for name in techniques or ():
+        if name not in GOALS_MS:
+            parser.error(f"--techniques: {name!r} is not one of {', '.join(GOALS_MS)}")
+    for name in backends:
+        if name not in BACKENDS:
+            parser.error(f"--backends: {name!r} is not one of {', '.join(BACKENDS)}")
+    if (techniques is not None or backends != BACKENDS) and os.path.abspath(args.out) == RESULTS:
+        parser.error("--techniques / --backends: a partial run needs --out (it does not replace speed.json)")
+    data = run(width, height, args.repeat, big, techniques=techniques, backends=backends)
     write_results(args.out, data)
     return 0
 

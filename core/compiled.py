@@ -1726,6 +1726,17 @@ def light_table(lights) -> np.ndarray:
 # the transmitted light with the reference's with a bound of 0.
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _far_pixel(mask, normal, position, y, x):
+    """Whether a pixel is one of ``core.combined.far_side``'s: on the mask, normal and position
+    finite."""
+    if not mask[y, x]:
+        return False
+    ok = np.isfinite(normal[y, x, 0]) and np.isfinite(normal[y, x, 1]) and np.isfinite(normal[y, x, 2])
+    ok = ok and np.isfinite(position[y, x, 0]) and np.isfinite(position[y, x, 1])
+    return ok and np.isfinite(position[y, x, 2])
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def back_light_spans(mask, normal, position, thickness, spans):
     """Per row y, the first and last + 1 column of the pixels of ``mask`` whose normal and
@@ -1744,9 +1755,7 @@ def back_light_spans(mask, normal, position, thickness, spans):
             if np.isfinite(thickness[y, x]):
                 b0 = min(b0, x)
                 b1 = x + 1
-            ok = np.isfinite(normal[y, x, 0]) and np.isfinite(normal[y, x, 1]) and np.isfinite(normal[y, x, 2])
-            ok = ok and np.isfinite(position[y, x, 0]) and np.isfinite(position[y, x, 1])
-            if ok and np.isfinite(position[y, x, 2]):
+            if _far_pixel(mask, normal, position, y, x):
                 a0 = min(a0, x)
                 a1 = x + 1
         spans[y, 0] = a0
@@ -1853,7 +1862,7 @@ def back_light_pixels(
             e[i, j, 0] = _ZERO
             e[i, j, 1] = _ZERO
             e[i, j, 2] = _ZERO
-            if not mask[y, x]:
+            if not _far_pixel(mask, normal, position, y, x):
                 continue
             nx = normal[y, x, 0]
             ny = normal[y, x, 1]
@@ -1861,10 +1870,6 @@ def back_light_pixels(
             px = position[y, x, 0]
             py = position[y, x, 1]
             pz = position[y, x, 2]
-            if not (np.isfinite(nx) and np.isfinite(ny) and np.isfinite(nz)):
-                continue
-            if not (np.isfinite(px) and np.isfinite(py) and np.isfinite(pz)):
-                continue
             cy = y - cy0
             cx = x - cx0
             if 0 <= cy < ch and 0 <= cx < cw:  # the far side's pixels with a camera
@@ -2013,12 +2018,9 @@ def _pixel_x(mask, normal, position, thickness, as_thickness, distance, kmin, la
     cx = x - cx0
     k = 0.0
     curved = False
-    if 0 <= cy < ch and 0 <= cx < cw and mask[y, x]:
-        curved = np.isfinite(normal[y, x, 0]) and np.isfinite(normal[y, x, 1]) and np.isfinite(normal[y, x, 2])
-        curved = curved and np.isfinite(position[y, x, 0]) and np.isfinite(position[y, x, 1])
-        curved = curved and np.isfinite(position[y, x, 2])
-        if curved:
-            k = max(_nan_to_num64(np.float64(largest[cy, cx])), 0.0)
+    if 0 <= cy < ch and 0 <= cx < cw and _far_pixel(mask, normal, position, y, x):
+        curved = True
+        k = max(_nan_to_num64(np.float64(largest[cy, cx])), 0.0)
     return _far_x(_translucency(thickness, y, x, as_thickness), distance, curved, k, kmin), k
 
 
