@@ -378,6 +378,7 @@ def run(
     if big is not None:
         small, small_mask = cases, masks["full screen"]
         cases, masks = _cases(*big)
+        cases = {k: v for k, v in cases.items() if k in results}
         for name, (fn, _, input_bytes) in cases.items():
             frame = big[0] * big[1] * 3 * 4
             for b in names:

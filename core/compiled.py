@@ -1935,10 +1935,26 @@ def back_light_pixels(
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _interp(v, xp, fp, right):
-    """np.interp of one float64 value (left: ``fp[0]``), with NumPy's operations: the node
-    below found by bisection, the value at a node itself, slope x (v - node) + value, and the
-    same from the node above where that is NaN."""
+def _below(v, xp):
+    """The node of the ascending ``xp`` below ``v`` (xp[i] <= v < xp[i + 1], by bisection as
+    np.interp finds it) for xp[0] <= v < xp[-1]; the same for any of ``xp``'s first nodes that
+    still hold ``v`` below their last."""
+    lo = 0
+    hi = xp.size - 1
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if xp[mid] <= v:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _interp(v, xp, fp, right, lo):
+    """np.interp of one float64 value (left: ``fp[0]``) with NumPy's operations, ``lo`` the node
+    below ``v`` (``_below``; read only for xp[0] <= v < xp[-1]): the value at a node itself, else
+    slope x (v - node) + value, and the same from the node above where that is NaN."""
     n = xp.size
     if v != v:
         return v
@@ -1948,14 +1964,6 @@ def _interp(v, xp, fp, right):
         return right
     if v == xp[n - 1]:
         return fp[n - 1]
-    lo = 0
-    hi = n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) >> 1
-        if xp[mid] <= v:
-            lo = mid
-        else:
-            hi = mid
     if xp[lo] == v:
         return fp[lo]
     slope = (fp[lo + 1] - fp[lo]) / (xp[lo + 1] - xp[lo])
@@ -1973,15 +1981,16 @@ def _entry_lerp(tau, m, grid, columns, c, nodes, first):
     ``columns[c, first + g]`` (one per entry cosine ``grid[g]``) read at ``tau``, then linear in
     ``m`` between the two enclosing entries (the last entry's value where none encloses it)."""
     n = grid.size
+    lo = _below(tau, nodes)
     for g in range(n - 1):
-        lo = grid[g]
-        hi = grid[g + 1]
-        if m >= lo and m < hi:
-            wt = (m - lo) / (hi - lo)
-            a = _interp(tau, nodes, columns[c, first + g], 0.0)
-            b = _interp(tau, nodes, columns[c, first + g + 1], 0.0)
-            return (1.0 - wt) * a + wt * b
-    return _interp(tau, nodes, columns[c, first + n - 1], 0.0)
+        a = grid[g]
+        b = grid[g + 1]
+        if m >= a and m < b:
+            wt = (m - a) / (b - a)
+            va = _interp(tau, nodes, columns[c, first + g], 0.0, lo)
+            vb = _interp(tau, nodes, columns[c, first + g + 1], 0.0, lo)
+            return (1.0 - wt) * va + wt * vb
+    return _interp(tau, nodes, columns[c, first + n - 1], 0.0, lo)
 
 
 #: How ``transmit_pixels`` reads the transmittance: a random walk, the Skin method's walk, and
@@ -1997,12 +2006,13 @@ def _transmittance(kind, x, mu_v, ior2, ell, grid, columns, nodes, c):
     if ell <= 0.0:
         return 1.0 if x == 0.0 else 0.0
     if kind == DISK:
-        return _interp(x / ell, nodes, columns[c, 0], 0.0)
+        v = x / ell
+        return _interp(v, nodes, columns[c, 0], 0.0, _below(v, nodes))
     tau = x / ell
     if kind == SKIN:
         m = min(max(mu_v, grid[0]), 1.0)
         rough = _entry_lerp(tau, m, grid, columns, c, nodes, 0)
-        return (1.0 - 0.5) * rough + 0.5 * _interp(tau, nodes, columns[c, grid.size], 0.0)
+        return (1.0 - 0.5) * rough + 0.5 * _interp(tau, nodes, columns[c, grid.size], 0.0, _below(tau, nodes))
     mu0 = math.sqrt(min(max(1.0 - (1.0 - mu_v * mu_v) / ior2, 0.0), 1.0))
     mu0 = min(max(mu0, grid[0]), 1.0)
     return _entry_lerp(tau, mu0, grid, columns, c, nodes, 0)
@@ -2109,9 +2119,15 @@ def transmit_pixels(
                 if d <= 0.0 or n == 0:
                     s = _ZERO
                 elif kind == DISK:
-                    s = f32(math.sqrt(_interp(xs / d, spread_nodes[:n], spread_values[c, :n], 0.0)) * d / root2)
+                    v = xs / d
+                    s = f32(
+                        math.sqrt(_interp(v, spread_nodes, spread_values[c], 0.0, _below(v, spread_nodes))) * d / root2
+                    )
                 else:
-                    s = f32(_interp(xs / d, spread_nodes[:n], spread_values[c, :n], np.nan) * d / root2)
+                    v = xs / d
+                    s = f32(
+                        _interp(v, spread_nodes[:n], spread_values[c, :n], np.nan, _below(v, spread_nodes)) * d / root2
+                    )
                 sig[i, j, c] = s
                 if s == s:
                     part_rows[i, p, 2 + c] = max(part_rows[i, p, 2 + c], np.float64(s))
