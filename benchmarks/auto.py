@@ -19,7 +19,11 @@ timed the same way (its features and choice included). Per scene:
   every technique at default quality, known only from the reference) - 1;
 - **time saved** = 1 - auto's time (its features and choice included) / the time of the most
   expensive technique (the one with the largest total time over the scenes, run on every scene),
-  per scene and over the suite (1 - sum of auto's times / sum of that technique's).
+  per scene and over the suite (1 - sum of auto's times / sum of that technique's);
+- **the most a chooser could save** (``oracle_time_saved_total``): per scene the cheapest choice
+  whose true error is within ``--max-error`` of the best (known only from the reference), over
+  the suite against the same most expensive technique: how much the techniques' measured costs
+  leave to save at all.
 
 With ``--fit``, the same again with each scene fitted as ``calibrate`` fits it (``benchmarks/fit.py``'s
 render and passes: Cycles random walk of the same view at 32 samples and passes at 16, its own
@@ -331,10 +335,26 @@ def run(scenes, *, techniques, repeat: int, max_error: float, time_scale: int = 
             "most_expensive": priciest,
             "total_seconds": {**totals, "auto": t_auto},
             "always_one_technique": always,
-            **({"with_fit": _fit_summary(rows)} if fit_rows else {}),
+            "oracle_time_saved_total": _oracle_saved(rows, max_error, lambda r: r["errors"]),
+            **({"with_fit": _fit_summary(rows, max_error)} if fit_rows else {}),
         },
         "model": full,
     }
+
+
+def _oracle_saved(rows, max_error: float, errors_of) -> float | None:
+    """The time a chooser knowing every choice's true error would save over the suite: per scene
+    the cheapest choice (measured time; a fitted technique takes its technique's) whose error is
+    within ``max_error`` of the scene's best, against the most expensive technique. What auto
+    could save at best with the techniques' costs as measured."""
+    t_chosen = t_max = 0.0
+    for r in rows:
+        errors = errors_of(r)
+        best = min(errors.values())
+        within = [c for c, e in errors.items() if e <= (1.0 + max_error) * best]
+        t_chosen += min(r["seconds"][c.removesuffix(" fitted")] for c in within)
+        t_max += r["seconds"][r["most_expensive"]]
+    return 1.0 - t_chosen / t_max if t_max > 0 else None
 
 
 def _regret_and_time(regrets, saved, t_auto: float, t_max: float) -> dict:
@@ -372,7 +392,7 @@ def _with_fit(s: Scene, m: dict, choose_and_apply, priciest: str, repeat: int) -
     }
 
 
-def _fit_summary(rows) -> dict:
+def _fit_summary(rows, max_error: float) -> dict:
     """Regret and time saved with the fit, and always one fitted technique's regret (against the
     same best, unfitted or fitted)."""
     fit = [r["with_fit"] for r in rows]
@@ -387,6 +407,11 @@ def _fit_summary(rows) -> dict:
         **_regret_and_time(regrets, [w["time_saved"] for w in fit], t_auto, t_max),
         "total_seconds": t_auto,
         "always_one_fitted_technique": always,
+        "oracle_time_saved_total": _oracle_saved(
+            rows,
+            max_error,
+            lambda r: {**r["errors"], **{f"{t} fitted": e for t, e in r["with_fit"]["fitted_errors"].items()}},
+        ),
     }
 
 
@@ -425,7 +450,7 @@ def _print_summary(title: str, s: dict, always: dict, suffix: str) -> None:
     print(
         f"{title}: regret mean {s['mean_regret']:+.1%}, median {s['median_regret']:+.1%}, max {s['max_regret']:+.1%};"
         f" time saved against the most expensive technique {s['time_saved_total']:.0%} (total),"
-        f" {s['time_saved_median']:.0%} (median)"
+        f" {s['time_saved_median']:.0%} (median); knowing every true error, at most {s['oracle_time_saved_total']:.0%}"
     )
     for t, v in always.items():
         print(f"  always {t}{suffix}: mean regret {v['mean_regret']:+.1%}")
