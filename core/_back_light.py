@@ -62,12 +62,35 @@ def _camera_vector(camera) -> np.ndarray:
     return cam
 
 
+def _largest_curvature(mask, normal, position, box) -> np.ndarray:
+    """``core.energy.surface_curvature``'s largest curvature (radius 1) on ``box`` (rows y0..y1 - 1,
+    columns x0..x1 - 1) of the far side's pixels (``mask`` with finite normal and position), as
+    ``core.combined.far_side`` reads it: ``core.compiled.largest_pixels``, ``box_planes`` and
+    ``largest_out``, the energy stage's kernels' operations without their frames of unit normals
+    and mean curvature (equal to the bit; in check mode compared with ``surface_curvature``)."""
+    from .energy import surface_curvature
+
+    y0, y1, x0, x1 = box
+    planes = np.empty((2, y1 - y0, x1 - x0), np.float64)
+    backend.run_kernel("largest_pixels", normal, position, mask, y0, x0, planes)
+    backend.run_kernel("box_planes", planes, 2, 1)
+    out = np.empty((y1 - y0, x1 - x0), np.float32)
+    backend.run_kernel("largest_out", planes, normal, position, mask, y0, x0, out)
+    if backend.active() == "check":
+        window = slice(y0, y1), slice(x0, x1)
+        far = mask[window] & _arrays.finite_pixels(normal[window], position[window])
+        with backend.use("numpy"):
+            reference = surface_curvature(normal[window], position[window], far, radius_px=1)[1]
+        backend.compare("largest curvature", reference, out, np.zeros(out.shape))
+    return out
+
+
 def compiled_back_light(t, distance, **a) -> CompiledBackLight | None:
     """``core.combined.back_light(**a)`` on the compiled backend (``t`` the thickness map as
     float32 (H, W), ``distance`` the bake's distance, both checked), or None where the NumPy code
     must run (no medium, or inputs whose shapes it rejects)."""
     from . import compiled as kernels
-    from .energy import CHORD_CAP, surface_curvature
+    from .energy import CHORD_CAP
 
     medium, camera = a["medium"], a["camera"]
     if medium is None:
@@ -109,9 +132,7 @@ def compiled_back_light(t, distance, **a) -> CompiledBackLight | None:
     cy0 = cx0 = 0
     if camera is not None and far is not None:
         fy0, fy1, fx0, fx1 = far
-        box = slice(fy0, fy1), slice(fx0, fx1)
-        mb = m[box] & _arrays.finite_pixels(n[box], p[box])
-        largest = _c(surface_curvature(n[box], p[box], mb, radius_px=1)[1], np.float32)
+        largest = _largest_curvature(mc, n, p, far)
         cy0, cx0 = fy0, fx0
     kmin = 2.0 / (CHORD_CAP * float(distance))
     walks = camera is not None and medium.walks
@@ -206,6 +227,8 @@ class CompiledBackLight:
     part_ids: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
     ids_c: np.ndarray = field(default_factory=lambda: np.zeros((1, 1), np.int64))
     reference: Any = None
+    #: The medium's tables (the transmittance's columns, the lateral spread's), read at the first call.
+    tables: dict = field(default_factory=dict)
 
     def transmitted(self, d_su, transmission_scale=1.0) -> np.ndarray:
         """``core.combined.BackLight.transmitted``."""
@@ -246,11 +269,14 @@ class CompiledBackLight:
             else:
                 grid = np.asarray(ENTRY_COSINES, np.float64)
                 entries = list(ENTRY_COSINES)
-            columns = np.zeros((3, len(entries), TAUS.size), np.float64)
-            for c in range(3):
-                if ell[c] > 0:
+            # The tables depend on the medium, not on the length: read once per BackLight.
+            columns = self.tables.get("columns")
+            if columns is None:
+                columns = np.zeros((3, len(entries), TAUS.size), np.float64)
+                for c in range(3):
                     for g, entry in enumerate(entries):
                         columns[c, g] = passage_column(alpha[c], entry)
+                self.tables["columns"] = columns
             nodes = TAUS
             kind = 1 if skin else 0
         else:
@@ -284,14 +310,16 @@ class CompiledBackLight:
         light = e if last else np.empty(e.shape, np.float32)
         n_parts = self.part_ids.size if self.spread else 0
         if self.spread and medium.walks:
-            alpha = single_scattering_albedo(medium.base_color, medium.anisotropy)
-            if medium.method == "RANDOM_WALK_LEGACY" and medium.anisotropy >= 0:
-                alpha = legacy_single_scattering_albedo(medium.base_color, medium.anisotropy)
-            tables = [lateral_table(alpha[c]) for c in range(3)]
-            counts = np.array([v.size for v in tables], np.int64)
-            values = np.zeros((3, TAUS.size), np.float64)
-            for c, v in enumerate(tables):
-                values[c, : v.size] = v
+            if "lateral" not in self.tables:
+                alpha = single_scattering_albedo(medium.base_color, medium.anisotropy)
+                if medium.method == "RANDOM_WALK_LEGACY" and medium.anisotropy >= 0:
+                    alpha = legacy_single_scattering_albedo(medium.base_color, medium.anisotropy)
+                tables = [lateral_table(alpha[c]) for c in range(3)]
+                values = np.zeros((3, TAUS.size), np.float64)
+                for c, v in enumerate(tables):
+                    values[c, : v.size] = v
+                self.tables["lateral"] = (np.array([v.size for v in tables], np.int64), values)
+            counts, values = self.tables["lateral"]
             spread_nodes = TAUS
         elif self.spread:
             m2 = disk_table()[1]
@@ -315,7 +343,7 @@ class CompiledBackLight:
         )  # fmt: skip
         if not self.spread:
             return light
-        out = light.copy()
+        scratch = np.empty(light.shape, np.float32)  # spread_part's, written at the parts' pixels
         planes = None
         h, w = self.shape
         one_part = self.ids is None
@@ -361,6 +389,7 @@ class CompiledBackLight:
             )
             grid = np.asarray(sigmas, np.float64)
             backend.run_kernel(
-                "spread_part", light, sig, on, part, wide, grid, radii, _needed_levels(grid, least, most), planes, out
-            )
-        return out
+                "spread_part", light, sig, on, part, wide, grid, radii, _needed_levels(grid, least, most), planes,
+                scratch,
+            )  # fmt: skip
+        return light

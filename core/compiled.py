@@ -1413,6 +1413,40 @@ def curvature_pixels(normal, position, mask, unit, mean, most, valid, on):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
+def box_planes(planes, n, r):
+    """The first ``n`` float64 planes of ``planes`` (P, H, W) replaced, each, by its sums over the
+    square of half-width ``r`` (zero outside the frame) as ``core.energy._box_sum`` computes them:
+    float64 running sums along the columns (strips of ``SPREAD_STRIP``), then along the rows,
+    each sum the difference of two of them 2 r + 1 apart (equal to the bit)."""
+    h, w = planes.shape[1], planes.shape[2]
+    n_col = (w + SPREAD_STRIP - 1) // SPREAD_STRIP
+    for item in prange(n * n_col):
+        p = item // n_col
+        x0 = (item % n_col) * SPREAD_STRIP
+        bw = min(x0 + SPREAD_STRIP, w) - x0
+        cum = np.zeros((h + 2 * r + 1, SPREAD_STRIP), np.float64)
+        for j in range(h):
+            for t in range(bw):
+                cum[r + 1 + j, t] = cum[r + j, t] + planes[p, j, x0 + t]
+        for j in range(r):
+            for t in range(bw):
+                cum[r + 1 + h + j, t] = cum[r + h + j, t]
+        for i in range(h):
+            for t in range(bw):
+                planes[p, i, x0 + t] = cum[2 * r + 1 + i, t] - cum[i, t]
+    for item in prange(n * h):
+        p = item // h
+        line = planes[p, item % h]
+        cum = np.zeros(w + 2 * r + 1, np.float64)
+        for j in range(w):
+            cum[r + 1 + j] = cum[r + j] + line[j]
+        for j in range(r):
+            cum[r + 1 + w + j] = cum[r + w + j]
+        for i in range(w):
+            line[i] = cum[2 * r + 1 + i] - cum[i]
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
 def smooth_curvature(mean, most, valid, on, r, out_mean, out_most):
     """``core.energy._smoothed_curvature``: ``mean`` and ``most`` (float64) averaged over the
     pixels of ``valid`` within the square of half-width ``r``, float32 into ``out_mean`` and
@@ -1427,31 +1461,7 @@ def smooth_curvature(mean, most, valid, on, r, out_mean, out_most):
             planes[0, y, x] = weight
             planes[1, y, x] = mean[y, x] * weight
             planes[2, y, x] = most[y, x] * weight
-    n_col = (w + SPREAD_STRIP - 1) // SPREAD_STRIP
-    for item in prange(3 * n_col):
-        p = item // n_col
-        x0 = (item % n_col) * SPREAD_STRIP
-        bw = min(x0 + SPREAD_STRIP, w) - x0
-        cum = np.zeros((h + 2 * r + 1, SPREAD_STRIP), np.float64)
-        for j in range(h):
-            for t in range(bw):
-                cum[r + 1 + j, t] = cum[r + j, t] + planes[p, j, x0 + t]
-        for j in range(r):
-            for t in range(bw):
-                cum[r + 1 + h + j, t] = cum[r + h + j, t]
-        for i in range(h):
-            for t in range(bw):
-                planes[p, i, x0 + t] = cum[2 * r + 1 + i, t] - cum[i, t]
-    for item in prange(3 * h):
-        p = item // h
-        line = planes[p, item % h]
-        cum = np.zeros(w + 2 * r + 1, np.float64)
-        for j in range(w):
-            cum[r + 1 + j] = cum[r + j] + line[j]
-        for j in range(r):
-            cum[r + 1 + w + j] = cum[r + w + j]
-        for i in range(w):
-            line[i] = cum[2 * r + 1 + i] - cum[i]
+    box_planes(planes, 3, r)
     for y in prange(h):
         for x in range(w):
             near = planes[0, y, x]
@@ -2229,7 +2239,8 @@ def spread_part(light, sig, on, part, box, grid, radii, needed, planes, out):
     part rows, part columns: R, G, B and the mask); along the rows the same, ``SPREAD_ROWS``
     rows at a time. A pixel's result is (1 - w) times the level below its width plus w times
     the level above, written when the upper level is done (the lower one's share kept in
-    ``out`` meanwhile); level 0 is ``light``."""
+    ``out`` meanwhile); level 0 is ``light``. At the end the part's pixels of ``light`` take
+    their results (``out`` is scratch)."""
     n_levels = grid.size
     top = grid[n_levels - 1]
     ph = part[1] - part[0]
@@ -2314,6 +2325,12 @@ def spread_part(light, sig, on, part, box, grid, radii, needed, planes, out):
                             cur = line[j - left, 4 * g + c] / den
                             wt = f32((s - g_k) / (g_hi - g_k))
                             out[i, j, c] = (_ONE - wt) * cur
+    # The part's light is read no more: its pixels take their results (other parts read theirs only).
+    for i in prange(part[0], part[1]):
+        for j in range(part[2], part[3]):
+            if on[i - part[0], j - part[2]] != 0:
+                for c in range(3):
+                    light[i, j, c] = out[i, j, c]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -2364,3 +2381,85 @@ def finish_light(light, y0, x0, albedo, pre_post, walks, base, has_weight, scale
                 if scaled:
                     v = v * scale[c]
                 out[y, x, c] = out[y, x, c] + v if add else v
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _curvature_unit(normal, position, mask, y, x):
+    """(on, unit normal) of a pixel as ``curvature_pixels`` finds them: on the mask, its normal
+    and position finite and the normal longer than 0.5."""
+    n0 = normal[y, x, 0]
+    n1 = normal[y, x, 1]
+    n2 = normal[y, x, 2]
+    finite = np.isfinite(n0) and np.isfinite(n1) and np.isfinite(n2)
+    finite = finite and np.isfinite(position[y, x, 0]) and np.isfinite(position[y, x, 1])
+    finite = finite and np.isfinite(position[y, x, 2])
+    length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if not (mask[y, x] and finite and length > f32(0.5)):
+        return False, _ZERO, _ZERO, _ZERO
+    return True, n0 / length, n1 / length, n2 / length
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def largest_pixels(normal, position, mask, y0, x0, planes):
+    """``curvature_pixels``' largest curvature and validity on the window of ``planes`` (2, rows,
+    columns) from frame row ``y0`` and column ``x0`` (``mask``: the far side's pixels), without
+    its frames of unit normals and mean curvature: ``planes[0]`` 1 where valid (else 0),
+    ``planes[1]`` the largest times that (``smooth_curvature``'s planes). The same float32 and
+    float64 operations in the same order, the neighbours' unit normals computed again where
+    they are read; neighbours outside the window count as off the mask, as on the window the
+    reference is given."""
+    h, w = planes.shape[1], planes.shape[2]
+    for row in prange(h):
+        i = np.int64(row)
+        for j in range(w):
+            y = y0 + i
+            x = x0 + j
+            on, u0, u1, u2 = _curvature_unit(normal, position, mask, y, x)
+            count = 0.0
+            best = -np.inf
+            for axis in range(2):
+                di = np.int64(1 if axis == 0 else 0)
+                dj = np.int64(1) - di
+                ib, jb = i + di, j + dj
+                ia, ja = i - di, j - dj
+                ok_n = False
+                b0 = b1 = b2 = _ZERO
+                if ib < h and jb < w:
+                    ok_n, b0, b1, b2 = _curvature_unit(normal, position, mask, y0 + ib, x0 + jb)
+                ok_p = False
+                a0 = a1 = a2 = _ZERO
+                if ia >= 0 and ja >= 0:
+                    ok_p, a0, a1, a2 = _curvature_unit(normal, position, mask, y0 + ia, x0 + ja)
+                if not ok_n:
+                    ib, jb, b0, b1, b2 = i, j, u0, u1, u2
+                if not ok_p:
+                    ia, ja, a0, a1, a2 = i, j, u0, u1, u2
+                d0 = position[y0 + ib, x0 + jb, 0] - position[y0 + ia, x0 + ja, 0]
+                d1 = position[y0 + ib, x0 + jb, 1] - position[y0 + ia, x0 + ja, 1]
+                d2 = position[y0 + ib, x0 + jb, 2] - position[y0 + ia, x0 + ja, 2]
+                dd = d0 * d0 + d1 * d1 + d2 * d2
+                if on and (ok_n or ok_p) and dd > _ZERO:
+                    e0 = b0 - a0
+                    e1 = b1 - a1
+                    e2 = b2 - a2
+                    k = (e0 * d0 + e1 * d1 + e2 * d2) / dd
+                    count += 1.0
+                    best = max(best, np.float64(k))
+            v = count > 0.0
+            weight = 1.0 if v else 0.0
+            planes[0, i, j] = weight
+            planes[1, i, j] = (best if v else 0.0) * weight
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def largest_out(planes, normal, position, mask, y0, x0, out):
+    """``smooth_curvature``'s largest curvature from ``box_planes``' sums of ``largest_pixels``'
+    planes: float32 on the pixels ``_curvature_unit`` finds on (0 elsewhere and where no valid
+    pixel is near)."""
+    h, w = out.shape
+    for i in prange(h):
+        for j in range(w):
+            near = planes[0, i, j]
+            on, _, _, _ = _curvature_unit(normal, position, mask, y0 + i, x0 + j)
+            keep = on and near > 0.0
+            out[i, j] = f32(planes[1, i, j] / max(near, 1.0)) if keep else _ZERO
