@@ -36,7 +36,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
 f32 = np.float32
 _ZERO = f32(0.0)
@@ -241,17 +241,20 @@ _u64 = np.uint64
 
 
 @njit(cache=True, error_model="numpy")
-def _sta_light(k, lights, position, y, x0, m, distortion, nxr, nyr, nzr, vxr, vyr, vzr, vd, lens, er):
-    """Light ``k`` over the row's span: V . normalize(L + d_T N) negated into ``vd``,
-    |L + d_T N| into ``lens`` and, for other lights than suns, the irradiance into ``er``
-    (a sun's is ``lights[k, 7]``). One loop per kind of light, so that each vectorizes."""
+def _sta_light(k, lights, pf, p3, m, distortion, t, nxr, nyr, nzr, vxr, vyr, vzr, vd, lens, er):
+    """Light ``k`` over the row's span (row ``t`` of the per-thread buffers; the span's first
+    pixel at ``p3`` in the flat positions ``pf``): V . normalize(L + d_T N) negated into ``vd``,
+    |L + d_T N| into ``lens`` and, for other lights than suns, the irradiance into ``er`` (a
+    sun's is ``lights[k, 7]``). One loop per kind of light, so that each vectorizes."""
     kind = int(lights[k, 0])
     if kind == SUN:
         lx = lights[k, 1]
         ly = lights[k, 2]
         lz = lights[k, 3]
         for i in range(m):
-            vd[i], lens[i] = _sta_half(lx, ly, lz, distortion, nxr[i], nyr[i], nzr[i], vxr[i], vyr[i], vzr[i])
+            vd[t, i], lens[t, i] = _sta_half(
+                lx, ly, lz, distortion, nxr[t, i], nyr[t, i], nzr[t, i], vxr[t, i], vyr[t, i], vzr[t, i]
+            )
         return
     cx = lights[k, 1]
     cy = lights[k, 2]
@@ -263,10 +266,9 @@ def _sta_light(k, lights, position, y, x0, m, distortion, nxr, nyr, nzr, vxr, vy
     half = lights[k, 11]
     width = lights[k, 12]
     smooth = lights[k, 13] != _ZERO
-    prow = position[y]
     for i in range(m):
-        q = _u64(x0) + _u64(i)  # unsigned: no wrap-around test, the loads stay vector loads
-        lx, ly, lz, dist = _unit(cx - prow[q, 0], cy - prow[q, 1], cz - prow[q, 2])
+        q = p3 + _u64(3) * _u64(i)  # unsigned: no wrap-around test, the loads stay vector loads
+        lx, ly, lz, dist = _unit(cx - pf[q], cy - pf[q + _u64(1)], cz - pf[q + _u64(2)])
         r2 = dist * dist
         r2 = r2 if r2 > _R2_MIN else _R2_MIN
         if kind == AREA:
@@ -288,33 +290,69 @@ def _sta_light(k, lights, position, y, x0, m, distortion, nxr, nyr, nzr, vxr, vy
                     u = _clip((tc - _ZERO) / width, _ONE)
                     cone = cone * (u * u * (_THREE - _TWO * u))
                 e = e * cone
-        er[i] = e
-        vd[i], lens[i] = _sta_half(lx, ly, lz, distortion, nxr[i], nyr[i], nzr[i], vxr[i], vyr[i], vzr[i])
+        er[t, i] = e
+        vd[t, i], lens[t, i] = _sta_half(
+            lx, ly, lz, distortion, nxr[t, i], nyr[t, i], nzr[t, i], vxr[t, i], vyr[t, i], vzr[t, i]
+        )
 
 
 @njit(cache=True, error_model="numpy")
-def _sta_lobe(power, m, vd, lens):
+def _sta_lobe(power, m, t, vd, lens):
     """max(0, vd)^power in place (power 0: 1 where vd > 0), 0 where the direction vanished;
     the common powers without a call to pow, so that the loop vectorizes."""
     if power == _ZERO:
         for i in range(m):
-            vd[i] = _ONE if vd[i] > _ZERO and lens[i] > _EPS else _ZERO
+            vd[t, i] = _ONE if vd[t, i] > _ZERO and lens[t, i] > _EPS else _ZERO
     elif power == _TWO:
         for i in range(m):
-            v = vd[i] if vd[i] > _ZERO else _ZERO
-            vd[i] = v * v if lens[i] > _EPS else _ZERO  # x^2 rounded once, as NumPy's square gives it
+            v = vd[t, i] if vd[t, i] > _ZERO else _ZERO
+            vd[t, i] = v * v if lens[t, i] > _EPS else _ZERO  # x^2 rounded once, as NumPy's square gives it
     elif power == _ONE:
         for i in range(m):
-            v = vd[i] if vd[i] > _ZERO else _ZERO
-            vd[i] = v if lens[i] > _EPS else _ZERO
+            v = vd[t, i] if vd[t, i] > _ZERO else _ZERO
+            vd[t, i] = v if lens[t, i] > _EPS else _ZERO
     else:
         for i in range(m):
-            v = vd[i] if vd[i] > _ZERO else _ZERO
-            vd[i] = v**power if lens[i] > _EPS else _ZERO
+            v = vd[t, i] if vd[t, i] > _ZERO else _ZERO
+            vd[t, i] = v**power if lens[t, i] > _EPS else _ZERO
 
 
-#: Rows per work item of ``sta_kernel``: one set of row buffers serves them all.
+@njit(cache=True, error_model="numpy")
+def _sta_spans(mask_flat, w, ya, yb, flat, spans):
+    """The masked span of rows ``ya``..``yb`` into ``spans`` ((w, w) for a row without any),
+    and the zeros of those rows off their span written as contiguous runs (a memset each);
+    returns the widest span."""
+    widest = 0
+    for y in range(ya, yb):
+        x0, x1 = _bytes_span(mask_flat[y * w : (y + 1) * w])
+        if x0 >= x1:
+            x0 = w
+            x1 = w
+        spans[y, 0] = x0
+        spans[y, 1] = x1
+        widest = max(widest, x1 - x0)
+        row = y * 3 * w
+        flat[row : row + 3 * x0] = _ZERO
+        flat[row + 3 * x1 : row + 3 * w] = _ZERO
+    return widest
+
+
+#: Rows per work item of ``sta_kernel``.
 STA_ROWS = 16
+#: ``sta_kernel``'s slots per thread: a slot takes every n-th work item with one set of row
+#: buffers; the threads share out the slots (several each, so that they finish together).
+STA_SLOTS_PER_THREAD = 8
+
+
+def sta_slots() -> int:
+    """The ``slots`` argument of ``sta_kernel`` for the threads Numba runs now (asked here, in
+    Python: the kernel itself would not be cached if it asked)."""
+    return STA_SLOTS_PER_THREAD * get_num_threads()
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _sta_rows(n, w):
+    return np.empty((n, w), np.float32)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -339,6 +377,7 @@ def sta_kernel(
     table,
     inv_base,
     wclip,
+    slots,
     out,
 ):
     """core.sta.sta's per-pixel arithmetic (its docstring has the formulas) into ``out``
@@ -350,15 +389,24 @@ def sta_kernel(
     cosine) interpolated as ``core.sta._lookup`` does, and the albedo times ``inv_base`` (clipped
     to [0, 1] with ``wclip``) in place of the albedo.
 
-    Work items are ``STA_ROWS`` rows: each writes the zeros of its rows off the mask as
-    contiguous runs (a memset each, where per-pixel stores took longer than the masked pixels'
-    arithmetic with a quarter of the frame masked), then takes one set of row buffers for its
-    rows (an allocation per row and buffer cost as much again). Per row, loops over the masked
+    Work items are ``STA_ROWS`` rows: each first writes the zeros of its rows off the mask as
+    contiguous runs (``_sta_spans``: a memset each, where per-pixel stores took longer than the
+    masked pixels' arithmetic with a quarter of the frame masked). Per row, loops over the masked
     span that each do one thing for all its pixels (the pixel's vectors; per light its lobe,
-    ``_sta_light`` and ``_sta_lobe``, then its sum), with the values kept in row buffers, so
-    that every loop vectorizes over the pixels; the medium's table is read one pixel at a time,
-    its three channels together (vectorized over the pixels with a gather per corner it was
-    slower: 37 against 31 ms of CPU at 1080p)."""
+    ``_sta_light`` and ``_sta_lobe``, then its sum; the medium's table coordinates; its reads,
+    one pixel at a time, ``_sta_table``; the products), with the values kept in row buffers, so
+    that every loop but the table's reads vectorizes over the pixels. ``slots`` (``sta_slots``)
+    sets of row buffers, each an argument of the parallel loop's body, which runs over the slots;
+    a slot takes every ``slots``-th work item.
+
+    What lets LLVM vectorize these loops (docs/references.md §11): the (H, W, 3) frames are read
+    and written through flat views, the pixel's three values at 3 x + c (a constant stride: a
+    3-D index scales x by the array's run-time shape, and the loop then gathers or stays
+    scalar); and Numba marks every array the parallel loop's body receives as aliasing no other
+    (``noalias``), because the body makes no view of any array and sets no flag in two places:
+    without that, a loop writing several buffers needed more run-time overlap checks than LLVM
+    makes, and stayed scalar. With both, 1080p, the synthetic benchmark's STA call, one thread:
+    28.5 -> 16.0 ms, to the bit the same output."""
     h, w = mask.shape
     n_lights = lights.shape[0]
     has_grey = False
@@ -368,209 +416,222 @@ def sta_kernel(
             has_grey = True
         else:
             has_col = True
+    # No flag is set inside the parallel loop's body (Numba takes a variable assigned there in
+    # several places for a possible alias, and then marks no argument as not aliasing).
+    first_grey_k = -1
+    for k in range(n_lights - 1, -1, -1):
+        if lights[k, 14] != _ZERO:
+            first_grey_k = k
+    sum_grey = has_col and (has_grey or medium or burley)
     flat = out.reshape(-1)
-    mask_bytes = mask.view(np.uint8)
+    af = albedo.reshape(-1)
+    nf = normal.reshape(-1)
+    pf = position.reshape(-1)
+    tf = thickness.reshape(-1)
+    mf = mask.reshape(-1).view(np.uint8)
+    tab = table.reshape(-1)
+    step = 3 * table.shape[1]
+    dtab = np.zeros_like(tab)
+    for c in range(tab.size - step):
+        dtab[c] = tab[c + step] - tab[c]
+    spans = np.empty((h, 2), np.int64)
     n_items = (h + STA_ROWS - 1) // STA_ROWS
-    for item in prange(n_items):
-        ya = item * STA_ROWS
-        yb = min(ya + STA_ROWS, h)
-        spans = np.empty((yb - ya, 2), np.int64)
-        widest = 0
-        for y in range(ya, yb):
-            x0, x1 = _bytes_span(mask_bytes[y])
-            if x0 >= x1:
-                x0 = w
-                x1 = w
-            spans[y - ya, 0] = x0
-            spans[y - ya, 1] = x1
-            widest = max(widest, x1 - x0)
-            row = y * 3 * w
-            flat[row : row + 3 * x0] = _ZERO
-            flat[row + 3 * x1 : row + 3 * w] = _ZERO
-        if widest == 0:
-            continue
-        # One contiguous buffer per value (views of rows of one 2-D buffer would be strided
-        # arrays to Numba: gathers and scatters instead of vector loads and stores).
-        nxr, nyr, nzr = np.empty(widest, np.float32), np.empty(widest, np.float32), np.empty(widest, np.float32)
-        vxr, vyr, vzr = np.empty(widest, np.float32), np.empty(widest, np.float32), np.empty(widest, np.float32)
-        tr, grey, c0 = np.empty(widest, np.float32), np.empty(widest, np.float32), np.empty(widest, np.float32)
-        c1, c2 = np.empty(widest, np.float32), np.empty(widest, np.float32)
-        vd, lens, er = np.empty(widest, np.float32), np.empty(widest, np.float32), np.empty(widest, np.float32)
-        okr = np.empty(widest, np.bool_)
-        for y in range(ya, yb):
-            x0 = spans[y - ya, 0]
-            x1 = spans[y - ya, 1]
-            m = x1 - x0
-            if m <= 0:
+    n_slots = max(1, min(slots, n_items))
+    # One array per buffer, a row of it per slot, each its own argument of the parallel loop's
+    # body (rows of one array would be one object to LLVM, with run-time overlap checks).
+    nxr, nyr, nzr = _sta_rows(n_slots, w), _sta_rows(n_slots, w), _sta_rows(n_slots, w)
+    vxr, vyr, vzr = _sta_rows(n_slots, w), _sta_rows(n_slots, w), _sta_rows(n_slots, w)
+    tr, okr, grey = _sta_rows(n_slots, w), _sta_rows(n_slots, w), _sta_rows(n_slots, w)
+    c0, c1, c2 = _sta_rows(n_slots, w), _sta_rows(n_slots, w), _sta_rows(n_slots, w)
+    vd, lens, er = _sta_rows(n_slots, w), _sta_rows(n_slots, w), _sta_rows(n_slots, w)
+    t0, t1, t2 = _sta_rows(n_slots, w), _sta_rows(n_slots, w), _sta_rows(n_slots, w)
+    cell = np.empty((n_slots, w), np.int32)
+    vx0 = view[0]
+    vy0 = view[1]
+    vz0 = view[2]
+    ib0 = inv_base[0]
+    ib1 = inv_base[1]
+    ib2 = inv_base[2]
+    nxs = table.shape[0]
+    nmu = table.shape[1]
+    for t in prange(n_slots):
+        for item in range(t, n_items, n_slots):
+            ya = item * STA_ROWS
+            yb = min(ya + STA_ROWS, h)
+            if _sta_spans(mf, w, ya, yb, flat, spans) == 0:
                 continue
-            # Rows indexed with unsigned offsets: no wrap-around tests, so the loops keep vector loads.
-            arow = albedo[y]
-            nrow = normal[y]
-            prow = position[y]
-            trow = thickness[y]
-            mrow = mask[y]
-            ux0 = _u64(x0)
-            for i in range(m):
-                x = ux0 + _u64(i)
-                a0 = arow[x, 0]
-                s = a0 + arow[x, 1]
-                s += arow[x, 2]
-                nx = nrow[x, 0]
-                ny = nrow[x, 1]
-                nz = nrow[x, 2]
-                px = prow[x, 0]
-                py = prow[x, 1]
-                pz = prow[x, 2]
-                t = trow[x]
-                s += nx
-                s += ny
-                s += nz
-                s += px
-                s += py
-                s += pz
-                s += t
-                okr[i] = mrow[x] & np.isfinite(s)
-                t = _clip(t, _ONE)
-                tr[i] = _ONE - t if flip else t
-                nxr[i], nyr[i], nzr[i], _ = _unit(nx, ny, nz)
-                if ortho:
-                    vxr[i] = view[0]
-                    vyr[i] = view[1]
-                    vzr[i] = view[2]
-                else:
-                    vxr[i], vyr[i], vzr[i], _ = _unit(view[0] - px, view[1] - py, view[2] - pz)
-                grey[i] = _ZERO
-                c0[i] = _ZERO
-                c1[i] = _ZERO
-                c2[i] = _ZERO
-            first_grey = True
-            for k in range(n_lights):
-                sun = int(lights[k, 0]) == SUN
-                is_grey = lights[k, 14] != _ZERO
-                _sta_light(k, lights, position, y, x0, m, distortion, nxr, nyr, nzr, vxr, vyr, vzr, vd, lens, er)
-                _sta_lobe(power, m, vd, lens)
-                e_sun_pi = lights[k, 7] * f32(1.0 / math.pi)
-                sun_scale = scale * e_sun_pi
-                sun_ambient = ambient * e_sun_pi
-                col0 = lights[k, 8]
-                col1 = lights[k, 9]
-                col2 = lights[k, 10]
-                tint = is_grey and col0 != _ONE
+            for y in range(ya, yb):
+                x0 = spans[y, 0]
+                m = spans[y, 1] - x0
+                if m <= 0:
+                    continue
+                # Flat indices, unsigned: no wrap-around tests, so the loops keep vector loads.
+                p1 = _u64(y * w + x0)
+                p3 = _u64(3) * p1
                 for i in range(m):
-                    lobe = vd[i]
-                    if sun:
-                        lobe *= sun_scale
-                        if ambient != _ZERO:
-                            lobe += sun_ambient
+                    q = p3 + _u64(3) * _u64(i)
+                    a0 = af[q]
+                    s = a0 + af[q + _u64(1)]
+                    s += af[q + _u64(2)]
+                    nx = nf[q]
+                    ny = nf[q + _u64(1)]
+                    nz = nf[q + _u64(2)]
+                    px = pf[q]
+                    py = pf[q + _u64(1)]
+                    pz = pf[q + _u64(2)]
+                    th = tf[p1 + _u64(i)]
+                    s += nx
+                    s += ny
+                    s += nz
+                    s += px
+                    s += py
+                    s += pz
+                    s += th
+                    okr[t, i] = _ONE if (mf[p1 + _u64(i)] != 0) & np.isfinite(s) else _ZERO
+                    th = _clip(th, _ONE)
+                    tr[t, i] = _ONE - th if flip else th
+                    nxr[t, i], nyr[t, i], nzr[t, i], _ = _unit(nx, ny, nz)
+                    if ortho:
+                        vxr[t, i] = vx0
+                        vyr[t, i] = vy0
+                        vzr[t, i] = vz0
                     else:
-                        lobe *= scale
-                        lobe += ambient
-                        lobe *= er[i] * f32(1.0 / math.pi)
-                    if is_grey:
-                        if tint:
-                            lobe *= col0
-                        grey[i] = lobe if first_grey else grey[i] + lobe
-                    else:
-                        c0[i] += col0 * lobe
-                        c1[i] += col1 * lobe
-                        c2[i] += col2 * lobe
-                if is_grey:
-                    first_grey = False
-            if medium:
-                # The table's coordinates first (a loop that vectorizes), then its reads per channel.
-                nxs = table.shape[0]
-                nmu = table.shape[1]
+                        vxr[t, i], vyr[t, i], vzr[t, i], _ = _unit(vx0 - px, vy0 - py, vz0 - pz)
                 for i in range(m):
-                    xs = _ONE - tr[i]
-                    sx = math.sqrt(math.sqrt(xs if xs > _ZERO else _ZERO)) * f32(nxs - 1)
-                    fl = np.floor(sx)
-                    fl = fl if fl < f32(nxs - 2) else f32(nxs - 2)
-                    tr[i] = sx - fl  # tr now holds the fraction along x, lens its node
-                    lens[i] = fl
-                    mu = nxr[i] * vxr[i]
-                    mu += nyr[i] * vyr[i]
-                    mu += nzr[i] * vzr[i]
-                    mu = abs(mu)
-                    sm = (mu if mu < _ONE else _ONE) * f32(nmu - 1)
-                    fm = np.floor(sm)
-                    fm = fm if fm < f32(nmu - 2) else f32(nmu - 2)
-                    vd[i] = sm - fm
-                    er[i] = fm
-            if medium:
-                orow = out[y]
-                ib0 = inv_base[0]
-                ib1 = inv_base[1]
-                ib2 = inv_base[2]
-                for i in range(m):
-                    x = ux0 + _u64(i)
-                    if has_col:
-                        g = grey[i] if has_grey else _ZERO
-                        l0 = c0[i] + g
-                        l1 = c1[i] + g
-                        l2 = c2[i] + g
-                    else:
-                        l0 = grey[i]
-                        l1 = l0
-                        l2 = l0
-                    ix = _u64(np.int32(lens[i]))
-                    jm = _u64(np.int32(er[i]))
-                    fx = tr[i]
-                    fm = vd[i]
-                    p00 = table[ix, jm]
-                    p01 = table[ix, jm + _u64(1)]
-                    p10 = table[ix + _u64(1), jm]
-                    p11 = table[ix + _u64(1), jm + _u64(1)]
-                    lo0 = p00[0] + fx * (p10[0] - p00[0])
-                    lo1 = p00[1] + fx * (p10[1] - p00[1])
-                    lo2 = p00[2] + fx * (p10[2] - p00[2])
-                    hi0 = p01[0] + fx * (p11[0] - p01[0])
-                    hi1 = p01[1] + fx * (p11[1] - p01[1])
-                    hi2 = p01[2] + fx * (p11[2] - p01[2])
-                    t0 = lo0 + fm * (hi0 - lo0)
-                    t1 = lo1 + fm * (hi1 - lo1)
-                    t2 = lo2 + fm * (hi2 - lo2)
-                    w0 = arow[x, 0] * ib0
-                    w1 = arow[x, 1] * ib1
-                    w2 = arow[x, 2] * ib2
-                    if wclip:
-                        w0 = _clip(w0, _ONE)
-                        w1 = _clip(w1, _ONE)
-                        w2 = _clip(w2, _ONE)
-                    o = okr[i]
-                    orow[x, 0] = w0 * l0 * t0 if o else _ZERO
-                    orow[x, 1] = w1 * l1 * t1 if o else _ZERO
-                    orow[x, 2] = w2 * l2 * t2 if o else _ZERO
-                continue
-            for i in range(m):
-                x = x0 + i
-                t = tr[i]
-                if burley:
-                    xs = _ONE - t
-                    xs = distance * math.sqrt(xs if xs > _ZERO else _ZERO)
-                    for c in range(3):
+                    grey[t, i] = _ZERO
+                if has_col:
+                    for i in range(m):
+                        c0[t, i] = _ZERO
+                        c1[t, i] = _ZERO
+                        c2[t, i] = _ZERO
+                for k in range(n_lights):
+                    sun = int(lights[k, 0]) == SUN
+                    is_grey = lights[k, 14] != _ZERO
+                    first_grey = k == first_grey_k
+                    _sta_light(k, lights, pf, p3, m, distortion, t, nxr, nyr, nzr, vxr, vyr, vzr, vd, lens, er)
+                    _sta_lobe(power, m, t, vd, lens)
+                    e_sun_pi = lights[k, 7] * f32(1.0 / math.pi)
+                    sun_scale = scale * e_sun_pi
+                    sun_ambient = ambient * e_sun_pi
+                    col0 = lights[k, 8]
+                    col1 = lights[k, 9]
+                    col2 = lights[k, 10]
+                    tint = is_grey & (col0 != _ONE)
+                    for i in range(m):
+                        lobe = vd[t, i]
+                        if sun:
+                            lobe *= sun_scale
+                            if ambient != _ZERO:
+                                lobe += sun_ambient
+                        else:
+                            lobe *= scale
+                            lobe += ambient
+                            lobe *= er[t, i] * f32(1.0 / math.pi)
+                        if is_grey:
+                            if tint:
+                                lobe *= col0
+                            grey[t, i] = lobe if first_grey else grey[t, i] + lobe
+                        else:
+                            c0[t, i] += col0 * lobe
+                            c1[t, i] += col1 * lobe
+                            c2[t, i] += col2 * lobe
+                if sum_grey:  # the light per channel into c0, c1, c2
+                    for i in range(m):
+                        g = grey[t, i] if has_grey else _ZERO
+                        c0[t, i] += g
+                        c1[t, i] += g
+                        c2[t, i] += g
+                if medium:
+                    # The table's coordinates (a loop that vectorizes), its reads one pixel at a time
+                    # (vector gathers were slower), then the products (which vectorize).
+                    for i in range(m):
+                        xs = _ONE - tr[t, i]
+                        sx = math.sqrt(math.sqrt(xs if xs > _ZERO else _ZERO)) * f32(nxs - 1)
+                        fl = np.floor(sx)
+                        fl = fl if fl < f32(nxs - 2) else f32(nxs - 2)
+                        tr[t, i] = sx - fl  # tr now holds the fraction along x
+                        mu = nxr[t, i] * vxr[t, i]
+                        mu += nyr[t, i] * vyr[t, i]
+                        mu += nzr[t, i] * vzr[t, i]
+                        mu = abs(mu)
+                        sm = (mu if mu < _ONE else _ONE) * f32(nmu - 1)
+                        fm = np.floor(sm)
+                        fm = fm if fm < f32(nmu - 2) else f32(nmu - 2)
+                        vd[t, i] = sm - fm
+                        cell[t, i] = np.int32(3) * (np.int32(fl) * np.int32(nmu) + np.int32(fm))
+                    _sta_table(tab, dtab, m, t, cell, tr, vd, t0, t1, t2)
+                    for i in range(m):
+                        q = p3 + _u64(3) * _u64(i)
                         if has_col:
-                            light = (c0[i] if c == 0 else c1[i] if c == 1 else c2[i]) + (grey[i] if has_grey else _ZERO)
+                            l0 = c0[t, i]
+                            l1 = c1[t, i]
+                            l2 = c2[t, i]
                         else:
-                            light = grey[i]
-                        if three_d[c] > _ZERO:
-                            e3 = _exp(-xs / three_d[c])
-                            tm = _QUARTER * (e3 * e3 * e3 + _THREE * e3)
-                        else:
-                            tm = _ONE if xs == _ZERO else _ZERO
-                        v = albedo[y, x, c] * light * tm
-                        out[y, x, c] = v if okr[i] else _ZERO
-                elif not has_col:
-                    g = grey[i] * t
-                    out[y, x, 0] = albedo[y, x, 0] * g if okr[i] else _ZERO
-                    out[y, x, 1] = albedo[y, x, 1] * g if okr[i] else _ZERO
-                    out[y, x, 2] = albedo[y, x, 2] * g if okr[i] else _ZERO
-                else:
-                    for c in range(3):
-                        light = c0[i] if c == 0 else c1[i] if c == 1 else c2[i]
-                        if has_grey:
-                            light += grey[i]
-                        light *= t
-                        out[y, x, c] = albedo[y, x, c] * light if okr[i] else _ZERO
+                            l0 = grey[t, i]
+                            l1 = l0
+                            l2 = l0
+                        w0 = af[q] * ib0
+                        w1 = af[q + _u64(1)] * ib1
+                        w2 = af[q + _u64(2)] * ib2
+                        if wclip:
+                            w0 = _clip(w0, _ONE)
+                            w1 = _clip(w1, _ONE)
+                            w2 = _clip(w2, _ONE)
+                        o = okr[t, i] != _ZERO
+                        flat[q] = w0 * l0 * t0[t, i] if o else _ZERO
+                        flat[q + _u64(1)] = w1 * l1 * t1[t, i] if o else _ZERO
+                        flat[q + _u64(2)] = w2 * l2 * t2[t, i] if o else _ZERO
+                    continue
+                for i in range(m):
+                    q = p3 + _u64(3) * _u64(i)
+                    th = tr[t, i]
+                    o = okr[t, i] != _ZERO
+                    if burley:
+                        xs = _ONE - th
+                        xs = distance * math.sqrt(xs if xs > _ZERO else _ZERO)
+                        for c in range(3):
+                            if has_col:
+                                light = c0[t, i] if c == 0 else c1[t, i] if c == 1 else c2[t, i]
+                            else:
+                                light = grey[t, i]
+                            if three_d[c] > _ZERO:
+                                e3 = _exp(-xs / three_d[c])
+                                tm = _QUARTER * (e3 * e3 * e3 + _THREE * e3)
+                            else:
+                                tm = _ONE if xs == _ZERO else _ZERO
+                            v = af[q + _u64(c)] * light * tm
+                            flat[q + _u64(c)] = v if o else _ZERO
+                    elif not has_col:
+                        g = grey[t, i] * th
+                        flat[q] = af[q] * g if o else _ZERO
+                        flat[q + _u64(1)] = af[q + _u64(1)] * g if o else _ZERO
+                        flat[q + _u64(2)] = af[q + _u64(2)] * g if o else _ZERO
+                    else:
+                        flat[q] = af[q] * (c0[t, i] * th) if o else _ZERO
+                        flat[q + _u64(1)] = af[q + _u64(1)] * (c1[t, i] * th) if o else _ZERO
+                        flat[q + _u64(2)] = af[q + _u64(2)] * (c2[t, i] * th) if o else _ZERO
+
+
+@njit(cache=True, error_model="numpy")
+def _sta_table(tab, dtab, m, t, cell, fxr, fmr, t0, t1, t2):
+    """The medium's table (flat, (x, mu, 3)) read bilinearly at each pixel of the row's span
+    (the first of its four nodes at ``cell``, fractions ``fxr`` and ``fmr``; row ``t`` of each
+    buffer) into ``t0``, ``t1``, ``t2``: ``core.sta._lookup``'s operations in its order, with
+    the differences along x read from ``dtab`` (``tab`` one x further minus ``tab``: the same
+    float32 subtractions, made once per node instead of once per pixel)."""
+    for i in range(m):
+        c = _u64(cell[t, i])
+        fx = fxr[t, i]
+        fm = fmr[t, i]
+        lo0 = tab[c] + fx * dtab[c]
+        lo1 = tab[c + _u64(1)] + fx * dtab[c + _u64(1)]
+        lo2 = tab[c + _u64(2)] + fx * dtab[c + _u64(2)]
+        hi0 = tab[c + _u64(3)] + fx * dtab[c + _u64(3)]
+        hi1 = tab[c + _u64(4)] + fx * dtab[c + _u64(4)]
+        hi2 = tab[c + _u64(5)] + fx * dtab[c + _u64(5)]
+        t0[t, i] = lo0 + fm * (hi0 - lo0)
+        t1[t, i] = lo1 + fm * (hi1 - lo1)
+        t2[t, i] = lo2 + fm * (hi2 - lo2)
 
 
 #: Pixels per chunk of a line in SSSS's passes: the chunk's sums (6 x 4 bytes each) and the part
