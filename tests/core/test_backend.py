@@ -287,6 +287,42 @@ def test_sta_masks_of_every_shape_match_the_reference():
     assert np.all(out[~mask] == 0) and np.any(out[mask] > 0)
 
 
+def test_sta_rows_wider_than_a_segment_match_the_reference_to_the_bit():
+    # core.compiled.sta_kernel takes a row's masked span STA_SEGMENT pixels at a time: spans
+    # that fill a row, cross the segments' border, start or end beside it, or lie beyond it,
+    # against the reference (the same float32 operations in the same order: equal to the bit).
+    seg = backend.compiled().STA_SEGMENT
+    w = seg + 77
+    passes, scene, _, _ = _scene(w, 6)
+    rng = np.random.default_rng(12)
+    albedo = rng.random((6, w, 3), dtype=np.float32)
+    normal = rng.normal(size=(6, w, 3)).astype(np.float32)
+    thickness = rng.random((6, w), dtype=np.float32)
+    # Points around one in the frame's middle (its edges are background, which no light reaches).
+    position = (passes["Position"][3, w // 2] + rng.normal(scale=0.1, size=(6, w, 3))).astype(np.float32)
+    mask = np.zeros((6, w), bool)
+    mask[0] = True
+    mask[1, 5 : seg + 3] = True
+    mask[2, seg + 10 : w - 4] = True
+    mask[3, seg - 1 : seg + 1] = True
+    mask[5, 300:seg] = True
+    kw = dict(
+        albedo=albedo, normal=normal, position=position, thickness=thickness, mask=mask,
+        camera=scene.camera, lights=scene.lights,
+    )  # fmt: skip
+    medium = dict(
+        falloff="medium", mfp_su=(0.03, 0.01, 0.005), thickness_distance_su=0.1, subsurface_method="RANDOM_WALK"
+    )
+    for falloff in (dict(falloff="map"), medium):
+        with backend.use("numpy"):
+            reference = sta(**kw, **falloff)
+        with backend.use("numba"):
+            out = sta(**kw, **falloff)
+        np.testing.assert_array_equal(out, reference)
+        assert np.all(out[~mask] == 0)
+        assert np.any(out[:, :seg][mask[:, :seg]] > 0) and np.any(out[:, seg:][mask[:, seg:]] > 0)
+
+
 def test_spread_of_the_light_from_behind_matches_the_reference_to_the_bit():
     # core.compiled.spread_light against core.combined's NumPy spread (check mode, bound 0): widths
     # from 0 to beyond the last level, a NaN width, a mask with holes, a frame not square.
