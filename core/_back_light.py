@@ -196,6 +196,21 @@ def _needed_levels(grid: np.ndarray, least: np.ndarray, most: np.ndarray) -> np.
     return needed
 
 
+def _row_levels(grid: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """(rows, 2) int64: per row the first and last blur level of ``grid`` its pixels interpolate
+    between, from its widths' range per channel ``rows`` (rows, 3, (least, most); least > most
+    where the row has no pixel: then none)."""
+    top = grid[-1]
+    least = np.clip(np.nan_to_num(rows[..., 0], posinf=top), 0.0, top)
+    most = np.clip(rows[..., 1], 0.0, top)
+    lo = np.clip(np.searchsorted(grid, least, side="left"), 1, grid.size - 1) - 1
+    hi = np.clip(np.searchsorted(grid, most, side="left"), 1, grid.size - 1)
+    empty = ~(rows[..., 0] <= rows[..., 1])
+    lo = np.where(empty, grid.size, np.maximum(lo, 1)).min(axis=1)
+    hi = np.where(empty, -1, hi).max(axis=1)
+    return np.ascontiguousarray(np.stack([lo, hi], axis=1), np.int64)
+
+
 @dataclass
 class CompiledBackLight:
     """``core.combined.BackLight`` on the compiled backend: the irradiance from behind on the
@@ -389,7 +404,7 @@ class CompiledBackLight:
             )
             grid = np.asarray(sigmas, np.float64)
             backend.run_kernel(
-                "spread_part", light, sig, on, part, wide, grid, radii, _needed_levels(grid, least, most), planes,
-                scratch,
+                "spread_part", light, sig, on, part, wide, grid, radii, _needed_levels(grid, least, most),
+                _row_levels(grid, rows), planes, scratch,
             )  # fmt: skip
         return light

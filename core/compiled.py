@@ -2287,7 +2287,7 @@ SPREAD_ROWS = 4
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def spread_part(light, sig, on, part, box, grid, radii, needed, planes, out):
+def spread_part(light, sig, on, part, box, grid, radii, needed, row_levels, planes, out):
     """``core.combined._spread_part`` of one part (its pixels ``on``, from region row ``part[0]``
     and column ``part[2]``; region rows ``part[0]``..``part[1]`` - 1 and columns ``part[2]``..
     ``part[3]`` - 1 hold them all), its blurs confined to ``box`` (region coordinates, the
@@ -2300,12 +2300,14 @@ def spread_part(light, sig, on, part, box, grid, radii, needed, planes, out):
     part is zero outside its rows and columns, so a column outside them sums to zero, and so does
     a running sum before its first value; a channel's level is blurred only where a pixel's width
     lies next to it (``needed[k, c]``; ``needed[k, 3]``: the mask, for any channel). Along the
-    columns (strips of ``SPREAD_STRIP``), the first two box sums over the rows the third reads
-    from (the part's rows and 2 r beyond, within the box; every one of their values is summed,
-    as in the reference's running sums), the third over the part's rows into ``planes`` (4,
-    part rows, part columns: R, G, B and the mask); along the rows the same, ``SPREAD_ROWS``
-    rows at a time. A pixel's result is (1 - w) times the level below its width plus w times
-    the level above, written when the upper level is done (the lower one's share kept in
+    columns (strips of ``SPREAD_STRIP``; every column, as the horizontal running sums read whole
+    rows), the first two box sums over the rows the third reads from (the part's rows and 2 r
+    beyond, within the box; every one of their values is summed, as in the reference's running
+    sums), the third over the part's rows into ``planes`` (4, part rows, part columns: R, G, B
+    and the mask); along the rows the same, ``SPREAD_ROWS`` rows at a time, for the rows with a
+    pixel whose width lies next to the level (the part's row i: levels ``row_levels[i, 0]``..
+    ``row_levels[i, 1]``). A pixel's result is (1 - w) times the level below its width plus w
+    times the level above, written when the upper level is done (the lower one's share kept in
     ``out`` meanwhile); level 0 is ``light``. At the end the part's pixels of ``light`` take
     their results (``out`` is scratch)."""
     n_levels = grid.size
@@ -2362,6 +2364,11 @@ def spread_part(light, sig, on, part, box, grid, radii, needed, planes, out):
         for group in prange(n_groups):
             i0 = part[0] + group * SPREAD_ROWS
             rows = min(SPREAD_ROWS, part[1] - i0)
+            wanted = False
+            for g in range(rows):
+                wanted |= row_levels[i0 + g - part[0], 0] <= k <= row_levels[i0 + g - part[0], 1]
+            if not wanted:
+                continue
             line = np.zeros((right - left, 4 * SPREAD_ROWS), np.float32)
             cum = np.empty((right - left + 1, 4 * SPREAD_ROWS), np.float64)
             for j in range(part[2], part[3]):
