@@ -367,7 +367,8 @@ def test_compiled_light_from_behind_equals_the_reference_to_the_bit(method, came
         with backend.use("numpy"):
             reference = back_light(**kw)
         back = back_light(**kw)
-        assert isinstance(back, CompiledBackLight) == (method is not None)
+        # Where Numba cannot load (Blender 4.5's environment) both are the NumPy code.
+        assert isinstance(back, CompiledBackLight) == (method is not None and backend.active() != "numpy")
         for d_su in ((0.02, 0.008, 0.004), (0.05, 0.0, 0.01), (0.2, 0.1, 0.05)):
             want = reference.transmitted(d_su, (1.0, 0.5, 2.0))
             got = back.transmitted(d_su, (1.0, 0.5, 2.0))
