@@ -1419,6 +1419,22 @@ def table_lerp(table, rows, cols, rv, cv, r_nan, c_nan, out):
         out[q] = f32(lo * (1 - fr) + hi * fr)
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _curvature_unit(normal, position, mask, y, x):
+    """(on, unit normal) of a pixel as ``curvature_pixels`` finds them: on the mask, its normal
+    and position finite and the normal longer than 0.5."""
+    n0 = normal[y, x, 0]
+    n1 = normal[y, x, 1]
+    n2 = normal[y, x, 2]
+    finite = np.isfinite(n0) and np.isfinite(n1) and np.isfinite(n2)
+    finite = finite and np.isfinite(position[y, x, 0]) and np.isfinite(position[y, x, 1])
+    finite = finite and np.isfinite(position[y, x, 2])
+    length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if not (mask[y, x] and finite and length > f32(0.5)):
+        return False, _ZERO, _ZERO, _ZERO
+    return True, n0 / length, n1 / length, n2 / length
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def curvature_pixels(normal, position, mask, unit, mean, most, valid, on):
     """``core.energy._curvature_per_pixel`` (the reference: its docstring) of ``normal`` and
@@ -1432,18 +1448,11 @@ def curvature_pixels(normal, position, mask, unit, mean, most, valid, on):
     h, w = mask.shape
     for y in prange(h):
         for x in range(w):
-            n0 = normal[y, x, 0]
-            n1 = normal[y, x, 1]
-            n2 = normal[y, x, 2]
-            finite = np.isfinite(n0) and np.isfinite(n1) and np.isfinite(n2)
-            finite = finite and np.isfinite(position[y, x, 0]) and np.isfinite(position[y, x, 1])
-            finite = finite and np.isfinite(position[y, x, 2])
-            length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-            o = mask[y, x] and finite and length > f32(0.5)
+            o, u0, u1, u2 = _curvature_unit(normal, position, mask, y, x)
             on[y, x] = o
-            unit[y, x, 0] = n0 / length if o else _ZERO
-            unit[y, x, 1] = n1 / length if o else _ZERO
-            unit[y, x, 2] = n2 / length if o else _ZERO
+            unit[y, x, 0] = u0
+            unit[y, x, 1] = u1
+            unit[y, x, 2] = u2
     for row in prange(h):
         y = np.int64(row)  # a signed index: the neighbours' are y - 1 and x - 1
         for x in range(w):
@@ -1545,30 +1554,26 @@ SPREAD_STRIP = 16
 @njit(cache=True, inline="always", error_model="numpy")
 def _lamp_at(lights, k, px, py, pz):
     """(lx, ly, lz, E_L) of light ``k`` of ``light_table``'s ``lights`` at the float32 point
-    (px, py, pz): ``core.sta.light_at``'s float32 operations in its order (a sun's direction and
-    irradiance are its table's)."""
+    (px, py, pz): ``core.sta.light_at``'s float32 operations in its order, NaN carried through its
+    maxima and clip as NumPy's do (a sun's direction and irradiance are its table's)."""
     kind = int(lights[k, 0])
     if kind == SUN:
         return lights[k, 1], lights[k, 2], lights[k, 3], lights[k, 7]
     lx, ly, lz, dist = _unit(lights[k, 1] - px, lights[k, 2] - py, lights[k, 3] - pz)
     r2 = dist * dist
-    r2 = r2 if r2 > _R2_MIN else _R2_MIN
+    r2 = r2 if r2 > _R2_MIN or r2 != r2 else _R2_MIN
     if kind == AREA:
-        cos_l = lx * lights[k, 4]
-        cos_l += ly * lights[k, 5]
-        cos_l += lz * lights[k, 6]
-        cos_l = -cos_l
-        cos_l = cos_l if cos_l > _ZERO else _ZERO
+        cos_l = -(lx * lights[k, 4] + ly * lights[k, 5] + lz * lights[k, 6])
+        cos_l = cos_l if cos_l > _ZERO or cos_l != cos_l else _ZERO
         return lx, ly, lz, lights[k, 7] * cos_l / r2
     e = lights[k, 7] / r2
     if kind == SPOT:
-        ca = lx * lights[k, 4]
-        ca += ly * lights[k, 5]
-        ca += lz * lights[k, 6]
-        tc = -ca - lights[k, 11]
+        tc = -(lx * lights[k, 4] + ly * lights[k, 5] + lz * lights[k, 6]) - lights[k, 11]
         cone = _ONE if tc > _ZERO else _ZERO
         if lights[k, 13] != _ZERO:
-            u = _clip((tc - _ZERO) / lights[k, 12], _ONE)
+            u = tc / lights[k, 12]
+            u = u if u > _ZERO or u != u else _ZERO
+            u = u if u < _ONE or u != u else _ONE
             cone = cone * (u * u * (_THREE - _TWO * u))
         e = e * cone
     return lx, ly, lz, e
@@ -1970,31 +1975,7 @@ def back_light_pixels(
             a1 = _ZERO
             a2 = _ZERO
             for q in range(n_lights):
-                kind = int(lights[q, 0])
-                if kind == SUN:
-                    lx = lights[q, 1]
-                    ly = lights[q, 2]
-                    lz = lights[q, 3]
-                    el = lights[q, 7]
-                else:
-                    lx, ly, lz, dist = _unit(lights[q, 1] - px, lights[q, 2] - py, lights[q, 3] - pz)
-                    r2 = dist * dist
-                    r2 = r2 if r2 > _R2_MIN or r2 != r2 else _R2_MIN
-                    if kind == AREA:
-                        cos_l = -(lx * lights[q, 4] + ly * lights[q, 5] + lz * lights[q, 6])
-                        cos_l = cos_l if cos_l > _ZERO or cos_l != cos_l else _ZERO
-                        el = lights[q, 7] * cos_l / r2
-                    else:
-                        el = lights[q, 7] / r2
-                        if kind == SPOT:
-                            tc = -(lx * lights[q, 4] + ly * lights[q, 5] + lz * lights[q, 6]) - lights[q, 11]
-                            cone = _ONE if tc > _ZERO else _ZERO
-                            if lights[q, 13] != _ZERO:
-                                u = tc / lights[q, 12]
-                                u = u if u > _ZERO or u != u else _ZERO
-                                u = u if u < _ONE or u != u else _ONE
-                                cone = cone * (u * u * (_THREE - _TWO * u))
-                            el = el * cone
+                lx, ly, lz, el = _lamp_at(lights, q, px, py, pz)
                 back = -(nx * lx + ny * ly + nz * lz)
                 back = back if back > _ZERO or back != back else _ZERO
                 back = back * el * inv_pi
@@ -2455,22 +2436,6 @@ def finish_light(light, y0, x0, albedo, pre_post, walks, base, has_weight, scale
                 if scaled:
                     v = v * scale[c]
                 out[y, x, c] = out[y, x, c] + v if add else v
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _curvature_unit(normal, position, mask, y, x):
-    """(on, unit normal) of a pixel as ``curvature_pixels`` finds them: on the mask, its normal
-    and position finite and the normal longer than 0.5."""
-    n0 = normal[y, x, 0]
-    n1 = normal[y, x, 1]
-    n2 = normal[y, x, 2]
-    finite = np.isfinite(n0) and np.isfinite(n1) and np.isfinite(n2)
-    finite = finite and np.isfinite(position[y, x, 0]) and np.isfinite(position[y, x, 1])
-    finite = finite and np.isfinite(position[y, x, 2])
-    length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-    if not (mask[y, x] and finite and length > f32(0.5)):
-        return False, _ZERO, _ZERO, _ZERO
-    return True, n0 / length, n1 / length, n2 / length
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
