@@ -63,7 +63,7 @@ def _caller(kernel, named: dict, chunk: int):
     names = list(inspect.signature(kernel.py_func).parameters)
     missing = [n for n in names if n not in named]
     if missing:
-        raise SystemExit(f"kernel_ab: the base kernel takes {missing}, which this tree's does not pass")
+        raise SystemExit(f"kernel_ab: the base kernel takes {missing}, which this tree's does not pass (--arg)")
 
     def call(out):
         args = [out if n == "out" else named[n] for n in names]
@@ -81,6 +81,9 @@ def main(argv=None) -> int:
     parser.add_argument("--mask", default="full screen", help="'full screen' or '25 %% mask'")
     parser.add_argument("--threads", type=int, default=0, help="Numba threads (default: Numba's)")
     parser.add_argument("--calls", type=int, default=30, help="calls of each kernel (default 30)")
+    parser.add_argument(
+        "--arg", action="append", default=[], metavar="NAME=INT", help="an integer argument this tree's kernel lacks"
+    )
     args = parser.parse_args(argv)
     import numba
 
@@ -106,6 +109,9 @@ def main(argv=None) -> int:
         backend.run_kernel = run_kernel
     new = getattr(backend.compiled(), name)
     named = dict(zip(inspect.signature(new.py_func).parameters, captured["args"], strict=True))
+    for item in args.arg:
+        key, _, value = item.partition("=")
+        named.setdefault(key, int(value))
     chunk = backend.compiled().CHUNKS.get(name, backend.compiled().ROWS_PER_CHUNK)
     with tempfile.TemporaryDirectory() as folder:
         base = _load_revision(args.base, folder)

@@ -36,7 +36,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import get_num_threads, njit, prange
+from numba import njit, prange
 
 f32 = np.float32
 _ZERO = f32(0.0)
@@ -342,15 +342,6 @@ STA_ROWS = 16
 #: Pixels of a row that ``sta_kernel``'s loops take at a time: its row buffers (19 x 4 KB) stay
 #: in the second-level cache whatever the frame's width (4K, one thread: 5 % faster than whole rows).
 STA_SEGMENT = 1024
-#: ``sta_kernel``'s slots per thread: a slot takes every n-th work item with one set of row
-#: buffers; the threads share out the slots (several each, so that they finish together).
-STA_SLOTS_PER_THREAD = 8
-
-
-def sta_slots() -> int:
-    """The ``slots`` argument of ``sta_kernel`` for the threads Numba runs now (asked here, in
-    Python: the kernel itself would not be cached if it asked)."""
-    return STA_SLOTS_PER_THREAD * get_num_threads()
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -380,7 +371,6 @@ def sta_kernel(
     table,
     inv_base,
     wclip,
-    slots,
     out,
 ):
     """core.sta.sta's per-pixel arithmetic (its docstring has the formulas) into ``out``
@@ -399,9 +389,8 @@ def sta_kernel(
     pixel's vectors; per light its lobe, ``_sta_light`` and ``_sta_lobe``, then its sum; the
     medium's table coordinates; its reads, one pixel at a time, ``_sta_table``; the products),
     with the values kept in row buffers, so that every loop but the table's reads vectorizes
-    over the pixels. ``slots`` (``sta_slots``)
-    sets of row buffers, each an argument of the parallel loop's body, which runs over the slots;
-    a slot takes every ``slots``-th work item.
+    over the pixels. Each work item has its row of each buffer (the buffers, allocated
+    before the parallel loop, are arguments of its body).
 
     What lets LLVM vectorize these loops (docs/references.md §11): the (H, W, 3) frames are read
     and written through flat views, the pixel's three values at 3 x + c (a constant stride: a
@@ -440,17 +429,16 @@ def sta_kernel(
         dtab[c] = tab[c + step] - tab[c]
     spans = np.empty((h, 2), np.int64)
     n_items = (h + STA_ROWS - 1) // STA_ROWS
-    n_slots = max(1, min(slots, n_items))
     seg = min(w, STA_SEGMENT)
-    # One array per buffer, a row of it per slot, each its own argument of the parallel loop's
+    # One array per buffer, a row of it per work item, each its own argument of the parallel loop's
     # body (rows of one array would be one object to LLVM, with run-time overlap checks).
-    nxr, nyr, nzr = _sta_rows(n_slots, seg), _sta_rows(n_slots, seg), _sta_rows(n_slots, seg)
-    vxr, vyr, vzr = _sta_rows(n_slots, seg), _sta_rows(n_slots, seg), _sta_rows(n_slots, seg)
-    tr, okr, grey = _sta_rows(n_slots, seg), _sta_rows(n_slots, seg), _sta_rows(n_slots, seg)
-    c0, c1, c2 = _sta_rows(n_slots, seg), _sta_rows(n_slots, seg), _sta_rows(n_slots, seg)
-    vd, lens, er = _sta_rows(n_slots, seg), _sta_rows(n_slots, seg), _sta_rows(n_slots, seg)
-    t0, t1, t2 = _sta_rows(n_slots, seg), _sta_rows(n_slots, seg), _sta_rows(n_slots, seg)
-    cell = np.empty((n_slots, seg), np.int32)
+    nxr, nyr, nzr = _sta_rows(n_items, seg), _sta_rows(n_items, seg), _sta_rows(n_items, seg)
+    vxr, vyr, vzr = _sta_rows(n_items, seg), _sta_rows(n_items, seg), _sta_rows(n_items, seg)
+    tr, okr, grey = _sta_rows(n_items, seg), _sta_rows(n_items, seg), _sta_rows(n_items, seg)
+    c0, c1, c2 = _sta_rows(n_items, seg), _sta_rows(n_items, seg), _sta_rows(n_items, seg)
+    vd, lens, er = _sta_rows(n_items, seg), _sta_rows(n_items, seg), _sta_rows(n_items, seg)
+    t0, t1, t2 = _sta_rows(n_items, seg), _sta_rows(n_items, seg), _sta_rows(n_items, seg)
+    cell = np.empty((n_items, seg), np.int32)
     vx0 = view[0]
     vy0 = view[1]
     vz0 = view[2]
@@ -459,163 +447,163 @@ def sta_kernel(
     ib2 = inv_base[2]
     nxs = table.shape[0]
     nmu = table.shape[1]
-    for t in prange(n_slots):
-        for item in range(t, n_items, n_slots):
-            ya = item * STA_ROWS
-            yb = min(ya + STA_ROWS, h)
-            if _sta_spans(mf, w, ya, yb, flat, spans) == 0:
-                continue
-            for y in range(ya, yb):
-                xe = spans[y, 1]
-                for x0 in range(spans[y, 0], xe, STA_SEGMENT):
-                    m = min(STA_SEGMENT, xe - x0)
-                    if m <= 0:
-                        continue
-                    # Flat indices, unsigned: no wrap-around tests, so the loops keep vector loads.
-                    p1 = _u64(y * w + x0)
-                    p3 = _u64(3) * p1
+    for item in prange(n_items):
+        t = item  # its row of each buffer
+        ya = item * STA_ROWS
+        yb = min(ya + STA_ROWS, h)
+        if _sta_spans(mf, w, ya, yb, flat, spans) == 0:
+            continue
+        for y in range(ya, yb):
+            xe = spans[y, 1]
+            for x0 in range(spans[y, 0], xe, STA_SEGMENT):
+                m = min(STA_SEGMENT, xe - x0)
+                if m <= 0:
+                    continue
+                # Flat indices, unsigned: no wrap-around tests, so the loops keep vector loads.
+                p1 = _u64(y * w + x0)
+                p3 = _u64(3) * p1
+                for i in range(m):
+                    q = p3 + _u64(3) * _u64(i)
+                    a0 = af[q]
+                    s = a0 + af[q + _u64(1)]
+                    s += af[q + _u64(2)]
+                    nx = nf[q]
+                    ny = nf[q + _u64(1)]
+                    nz = nf[q + _u64(2)]
+                    px = pf[q]
+                    py = pf[q + _u64(1)]
+                    pz = pf[q + _u64(2)]
+                    th = tf[p1 + _u64(i)]
+                    s += nx
+                    s += ny
+                    s += nz
+                    s += px
+                    s += py
+                    s += pz
+                    s += th
+                    okr[t, i] = _ONE if (mf[p1 + _u64(i)] != 0) & np.isfinite(s) else _ZERO
+                    th = _clip(th, _ONE)
+                    tr[t, i] = _ONE - th if flip else th
+                    nxr[t, i], nyr[t, i], nzr[t, i], _ = _unit(nx, ny, nz)
+                    if ortho:
+                        vxr[t, i] = vx0
+                        vyr[t, i] = vy0
+                        vzr[t, i] = vz0
+                    else:
+                        vxr[t, i], vyr[t, i], vzr[t, i], _ = _unit(vx0 - px, vy0 - py, vz0 - pz)
+                for i in range(m):
+                    grey[t, i] = _ZERO
+                if has_col:
                     for i in range(m):
-                        q = p3 + _u64(3) * _u64(i)
-                        a0 = af[q]
-                        s = a0 + af[q + _u64(1)]
-                        s += af[q + _u64(2)]
-                        nx = nf[q]
-                        ny = nf[q + _u64(1)]
-                        nz = nf[q + _u64(2)]
-                        px = pf[q]
-                        py = pf[q + _u64(1)]
-                        pz = pf[q + _u64(2)]
-                        th = tf[p1 + _u64(i)]
-                        s += nx
-                        s += ny
-                        s += nz
-                        s += px
-                        s += py
-                        s += pz
-                        s += th
-                        okr[t, i] = _ONE if (mf[p1 + _u64(i)] != 0) & np.isfinite(s) else _ZERO
-                        th = _clip(th, _ONE)
-                        tr[t, i] = _ONE - th if flip else th
-                        nxr[t, i], nyr[t, i], nzr[t, i], _ = _unit(nx, ny, nz)
-                        if ortho:
-                            vxr[t, i] = vx0
-                            vyr[t, i] = vy0
-                            vzr[t, i] = vz0
+                        c0[t, i] = _ZERO
+                        c1[t, i] = _ZERO
+                        c2[t, i] = _ZERO
+                for k in range(n_lights):
+                    sun = int(lights[k, 0]) == SUN
+                    is_grey = lights[k, 14] != _ZERO
+                    first_grey = k == first_grey_k
+                    _sta_light(k, lights, pf, p3, m, distortion, t, nxr, nyr, nzr, vxr, vyr, vzr, vd, lens, er)
+                    _sta_lobe(power, m, t, vd, lens)
+                    e_sun_pi = lights[k, 7] * f32(1.0 / math.pi)
+                    sun_scale = scale * e_sun_pi
+                    sun_ambient = ambient * e_sun_pi
+                    col0 = lights[k, 8]
+                    col1 = lights[k, 9]
+                    col2 = lights[k, 10]
+                    tint = is_grey & (col0 != _ONE)
+                    for i in range(m):
+                        lobe = vd[t, i]
+                        if sun:
+                            lobe *= sun_scale
+                            if ambient != _ZERO:
+                                lobe += sun_ambient
                         else:
-                            vxr[t, i], vyr[t, i], vzr[t, i], _ = _unit(vx0 - px, vy0 - py, vz0 - pz)
+                            lobe *= scale
+                            lobe += ambient
+                            lobe *= er[t, i] * f32(1.0 / math.pi)
+                        if is_grey:
+                            if tint:
+                                lobe *= col0
+                            grey[t, i] = lobe if first_grey else grey[t, i] + lobe
+                        else:
+                            c0[t, i] += col0 * lobe
+                            c1[t, i] += col1 * lobe
+                            c2[t, i] += col2 * lobe
+                if sum_grey:  # the light per channel into c0, c1, c2
                     for i in range(m):
-                        grey[t, i] = _ZERO
-                    if has_col:
-                        for i in range(m):
-                            c0[t, i] = _ZERO
-                            c1[t, i] = _ZERO
-                            c2[t, i] = _ZERO
-                    for k in range(n_lights):
-                        sun = int(lights[k, 0]) == SUN
-                        is_grey = lights[k, 14] != _ZERO
-                        first_grey = k == first_grey_k
-                        _sta_light(k, lights, pf, p3, m, distortion, t, nxr, nyr, nzr, vxr, vyr, vzr, vd, lens, er)
-                        _sta_lobe(power, m, t, vd, lens)
-                        e_sun_pi = lights[k, 7] * f32(1.0 / math.pi)
-                        sun_scale = scale * e_sun_pi
-                        sun_ambient = ambient * e_sun_pi
-                        col0 = lights[k, 8]
-                        col1 = lights[k, 9]
-                        col2 = lights[k, 10]
-                        tint = is_grey & (col0 != _ONE)
-                        for i in range(m):
-                            lobe = vd[t, i]
-                            if sun:
-                                lobe *= sun_scale
-                                if ambient != _ZERO:
-                                    lobe += sun_ambient
-                            else:
-                                lobe *= scale
-                                lobe += ambient
-                                lobe *= er[t, i] * f32(1.0 / math.pi)
-                            if is_grey:
-                                if tint:
-                                    lobe *= col0
-                                grey[t, i] = lobe if first_grey else grey[t, i] + lobe
-                            else:
-                                c0[t, i] += col0 * lobe
-                                c1[t, i] += col1 * lobe
-                                c2[t, i] += col2 * lobe
-                    if sum_grey:  # the light per channel into c0, c1, c2
-                        for i in range(m):
-                            g = grey[t, i] if has_grey else _ZERO
-                            c0[t, i] += g
-                            c1[t, i] += g
-                            c2[t, i] += g
-                    if medium:
-                        # The table's coordinates (a loop that vectorizes), its reads one pixel at a time
-                        # (vector gathers were slower), then the products (which vectorize).
-                        for i in range(m):
-                            xs = _ONE - tr[t, i]
-                            sx = math.sqrt(math.sqrt(xs if xs > _ZERO else _ZERO)) * f32(nxs - 1)
-                            fl = np.floor(sx)
-                            fl = fl if fl < f32(nxs - 2) else f32(nxs - 2)
-                            tr[t, i] = sx - fl  # tr now holds the fraction along x
-                            mu = nxr[t, i] * vxr[t, i]
-                            mu += nyr[t, i] * vyr[t, i]
-                            mu += nzr[t, i] * vzr[t, i]
-                            mu = abs(mu)
-                            sm = (mu if mu < _ONE else _ONE) * f32(nmu - 1)
-                            fm = np.floor(sm)
-                            fm = fm if fm < f32(nmu - 2) else f32(nmu - 2)
-                            vd[t, i] = sm - fm
-                            cell[t, i] = np.int32(3) * (np.int32(fl) * np.int32(nmu) + np.int32(fm))
-                        _sta_table(tab, dtab, m, t, cell, tr, vd, t0, t1, t2)
-                        for i in range(m):
-                            q = p3 + _u64(3) * _u64(i)
-                            if has_col:
-                                l0 = c0[t, i]
-                                l1 = c1[t, i]
-                                l2 = c2[t, i]
-                            else:
-                                l0 = grey[t, i]
-                                l1 = l0
-                                l2 = l0
-                            w0 = af[q] * ib0
-                            w1 = af[q + _u64(1)] * ib1
-                            w2 = af[q + _u64(2)] * ib2
-                            if wclip:
-                                w0 = _clip(w0, _ONE)
-                                w1 = _clip(w1, _ONE)
-                                w2 = _clip(w2, _ONE)
-                            o = okr[t, i] != _ZERO
-                            flat[q] = w0 * l0 * t0[t, i] if o else _ZERO
-                            flat[q + _u64(1)] = w1 * l1 * t1[t, i] if o else _ZERO
-                            flat[q + _u64(2)] = w2 * l2 * t2[t, i] if o else _ZERO
-                        continue
+                        g = grey[t, i] if has_grey else _ZERO
+                        c0[t, i] += g
+                        c1[t, i] += g
+                        c2[t, i] += g
+                if medium:
+                    # The table's coordinates (a loop that vectorizes), its reads one pixel at a time
+                    # (vector gathers were slower), then the products (which vectorize).
+                    for i in range(m):
+                        xs = _ONE - tr[t, i]
+                        sx = math.sqrt(math.sqrt(xs if xs > _ZERO else _ZERO)) * f32(nxs - 1)
+                        fl = np.floor(sx)
+                        fl = fl if fl < f32(nxs - 2) else f32(nxs - 2)
+                        tr[t, i] = sx - fl  # tr now holds the fraction along x
+                        mu = nxr[t, i] * vxr[t, i]
+                        mu += nyr[t, i] * vyr[t, i]
+                        mu += nzr[t, i] * vzr[t, i]
+                        mu = abs(mu)
+                        sm = (mu if mu < _ONE else _ONE) * f32(nmu - 1)
+                        fm = np.floor(sm)
+                        fm = fm if fm < f32(nmu - 2) else f32(nmu - 2)
+                        vd[t, i] = sm - fm
+                        cell[t, i] = np.int32(3) * (np.int32(fl) * np.int32(nmu) + np.int32(fm))
+                    _sta_table(tab, dtab, m, t, cell, tr, vd, t0, t1, t2)
                     for i in range(m):
                         q = p3 + _u64(3) * _u64(i)
-                        th = tr[t, i]
+                        if has_col:
+                            l0 = c0[t, i]
+                            l1 = c1[t, i]
+                            l2 = c2[t, i]
+                        else:
+                            l0 = grey[t, i]
+                            l1 = l0
+                            l2 = l0
+                        w0 = af[q] * ib0
+                        w1 = af[q + _u64(1)] * ib1
+                        w2 = af[q + _u64(2)] * ib2
+                        if wclip:
+                            w0 = _clip(w0, _ONE)
+                            w1 = _clip(w1, _ONE)
+                            w2 = _clip(w2, _ONE)
                         o = okr[t, i] != _ZERO
-                        if burley:
-                            xs = _ONE - th
-                            xs = distance * math.sqrt(xs if xs > _ZERO else _ZERO)
-                            for c in range(3):
-                                if has_col:
-                                    light = c0[t, i] if c == 0 else c1[t, i] if c == 1 else c2[t, i]
-                                else:
-                                    light = grey[t, i]
-                                if three_d[c] > _ZERO:
-                                    e3 = _exp(-xs / three_d[c])
-                                    tm = _QUARTER * (e3 * e3 * e3 + _THREE * e3)
-                                else:
-                                    tm = _ONE if xs == _ZERO else _ZERO
-                                v = af[q + _u64(c)] * light * tm
-                                flat[q + _u64(c)] = v if o else _ZERO
-                        elif not has_col:
-                            g = grey[t, i] * th
-                            flat[q] = af[q] * g if o else _ZERO
-                            flat[q + _u64(1)] = af[q + _u64(1)] * g if o else _ZERO
-                            flat[q + _u64(2)] = af[q + _u64(2)] * g if o else _ZERO
-                        else:
-                            flat[q] = af[q] * (c0[t, i] * th) if o else _ZERO
-                            flat[q + _u64(1)] = af[q + _u64(1)] * (c1[t, i] * th) if o else _ZERO
-                            flat[q + _u64(2)] = af[q + _u64(2)] * (c2[t, i] * th) if o else _ZERO
+                        flat[q] = w0 * l0 * t0[t, i] if o else _ZERO
+                        flat[q + _u64(1)] = w1 * l1 * t1[t, i] if o else _ZERO
+                        flat[q + _u64(2)] = w2 * l2 * t2[t, i] if o else _ZERO
+                    continue
+                for i in range(m):
+                    q = p3 + _u64(3) * _u64(i)
+                    th = tr[t, i]
+                    o = okr[t, i] != _ZERO
+                    if burley:
+                        xs = _ONE - th
+                        xs = distance * math.sqrt(xs if xs > _ZERO else _ZERO)
+                        for c in range(3):
+                            if has_col:
+                                light = c0[t, i] if c == 0 else c1[t, i] if c == 1 else c2[t, i]
+                            else:
+                                light = grey[t, i]
+                            if three_d[c] > _ZERO:
+                                e3 = _exp(-xs / three_d[c])
+                                tm = _QUARTER * (e3 * e3 * e3 + _THREE * e3)
+                            else:
+                                tm = _ONE if xs == _ZERO else _ZERO
+                            v = af[q + _u64(c)] * light * tm
+                            flat[q + _u64(c)] = v if o else _ZERO
+                    elif not has_col:
+                        g = grey[t, i] * th
+                        flat[q] = af[q] * g if o else _ZERO
+                        flat[q + _u64(1)] = af[q + _u64(1)] * g if o else _ZERO
+                        flat[q + _u64(2)] = af[q + _u64(2)] * g if o else _ZERO
+                    else:
+                        flat[q] = af[q] * (c0[t, i] * th) if o else _ZERO
+                        flat[q + _u64(1)] = af[q + _u64(1)] * (c1[t, i] * th) if o else _ZERO
+                        flat[q + _u64(2)] = af[q + _u64(2)] * (c2[t, i] * th) if o else _ZERO
 
 
 @njit(cache=True, error_model="numpy")

@@ -443,7 +443,6 @@ def _compiled(
         _NO_TABLE if through is None else through[0],
         np.ones(3, f32) if through is None else through[1],
         through is not None and through[2],
-        backend.compiled().sta_slots(),
         out,
     )
 
