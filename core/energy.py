@@ -573,6 +573,12 @@ def unseen_irradiance(*, irradiance, normal, position, camera: Camera, lights, l
     return mean_lamp_irradiance(lights, mirrored, pos) + other
 
 
+def _float_frame(a) -> np.ndarray:
+    """``a`` contiguous for a kernel, float32 or float64 as it is (other types as float64)."""
+    a = np.asarray(a)
+    return np.ascontiguousarray(a if a.dtype in (np.float32, np.float64) else a.astype(np.float64))
+
+
 def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, camera: Camera, lights, lamps):
     """``apply_energy``'s light of the surfaces the camera does not see: ``unseen_irradiance`` of
     the pixels of ``mask`` whose normal and position are finite and whose normal is longer than 0
@@ -582,7 +588,7 @@ def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, camera: 
     On the compiled backend ``core.compiled.unseen_sums`` sums each row's terms (every pixel's
     terms the reference's operations in its order) without gathering the pixels into float64
     arrays (0.8 s of the energy stage's 1.4 s at 1080p, loaded machine); the means differ from
-    the reference's only in the order of their float64 sums (``_UNSEEN_BOUND``)."""
+    the reference's only in the order of their float64 sums (the bound: ``_U64``'s comment)."""
     mode = backend.active()
 
     def reference():
@@ -603,10 +609,6 @@ def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, camera: 
         return reference()[0]
     from .compiled import light_table
 
-    def frame(a):
-        a = np.asarray(a)
-        return np.ascontiguousarray(a if a.dtype in (np.float32, np.float64) else a.astype(np.float64))
-
     active = [light for light in lights if light.energy > 0]
     table = light_table(active)
     m = np.ascontiguousarray(mask, dtype=bool)
@@ -617,7 +619,18 @@ def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, camera: 
     seen, mirrored = np.zeros((h, len(active)), np.float64), np.zeros((h, len(active)), np.float64)
     diffuse32 = np.ascontiguousarray(diffuse, np.float32)
     albedo32 = np.ascontiguousarray(albedo, np.float32) if pre_post else diffuse32
-    args = (frame(normal), frame(position), diffuse32, albedo32, bool(pre_post), m, table, cam, ortho, bool(lamps))
+    args = (
+        _float_frame(normal),
+        _float_frame(position),
+        diffuse32,
+        albedo32,
+        bool(pre_post),
+        m,
+        table,
+        cam,
+        ortho,
+        bool(lamps),
+    )
     backend.run_kernel("unseen_sums", *args, count, light, seen, mirrored)
     n = int(count.sum())
     if n == 0:
@@ -671,8 +684,7 @@ def view_cosine(depth, mask, camera: Camera, *, origin=(0, 0), frame=None) -> np
         h, w = np.shape(mask) if frame is None else frame
         ortho = camera.type == "ORTHO"
         cx, cy = camera.principal_point(w, h)
-        z = np.asarray(depth)
-        z = np.ascontiguousarray(z if z.dtype in (np.float32, np.float64) else z.astype(np.float64))
+        z = _float_frame(depth)
         out = np.empty(z.shape, np.float32)
         f = float(camera.ortho_px_per_unit if ortho else camera.focal_px)
         far = float(_arrays.BACKGROUND_DEPTH)  # compared in float64, as the reference's
