@@ -199,3 +199,13 @@ def for_blocks(count: int, block: int, func) -> None:
         _POOL = ThreadPoolExecutor(max_workers=_WORKERS, thread_name_prefix="sss_lab")
     # list() re-raises the first error of any block.
     list(_POOL.map(lambda s: func(s, min(s + block, count)), starts))
+
+
+def bounding_box(m: np.ndarray) -> tuple[slice, slice] | None:
+    """The rows and columns that hold the pixels of the (H, W) bool array ``m`` (None when there
+    are none)."""
+    rows = np.flatnonzero(m.any(axis=1))
+    if not rows.size:
+        return None
+    cols = np.flatnonzero(m.any(axis=0))
+    return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)

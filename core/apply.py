@@ -42,7 +42,14 @@ def layer_names(technique: str) -> tuple[str, str]:
 def _finite(a: np.ndarray) -> np.ndarray:
     """Per-pixel finiteness of an (H, W) or (H, W, C) array."""
     ok = np.isfinite(a)
-    return ok.all(axis=-1) if a.ndim == 3 else ok
+    if a.ndim == 2:
+        return ok
+    if ok.all():  # the usual case, found in one pass: a reduction over the short last axis is slow
+        return np.ones(a.shape[:2], bool)
+    out = ok[..., 0].copy()
+    for c in range(1, a.shape[2]):
+        out &= ok[..., c]
+    return out
 
 
 def _clean(a: np.ndarray) -> np.ndarray:
@@ -147,7 +154,9 @@ def apply(
         mask = index == mp.material.index
         nonfinite += int((mask & ~ok).sum())
         mask &= ok
-        if not mask.any():
+        # The material's pixels lie in its mask's bounding box: the compositing reads nothing else.
+        box = _arrays.bounding_box(mask)
+        if box is None:
             continue
         kwargs = dict(inputs)
         kwargs.update(mp.params)
@@ -161,22 +170,23 @@ def apply(
             out = np.asarray(_call(spec.function, kwargs), dtype=np.float32)
         if out.shape != rgb.shape:
             raise ValueError(f"{spec.name} returned shape {out.shape}; expected {rgb.shape}")
+        out = out[box]
         if gain is not None:
             # The fitted per-channel energy (core/fit_params.py): on the material's light after the
             # technique (for STA, on the light it adds).
             out = out * np.asarray(gain, np.float32)
+        m = mask[box]
         with np.errstate(over="ignore", invalid="ignore"):
-            good = mask & _finite(out)
-        overflow += int((mask & ~good).sum())
+            good = m & _finite(out)
+        overflow += int(m.sum() - good.sum())
         if not spec.scatters:
             term = out
         else:
-            term = out - original
+            term = out - original[box]
             if mp.unchanged_channels:
-                term = term.copy()
                 term[..., list(mp.unchanged_channels)] = 0.0
-        image[..., :3][good] = rgb[good] + term[good]
-        sss[good] = term[good]
+        image[box][..., :3][good] = rgb[box][good] + term[good]
+        sss[box][good] = term[good]
     p.nonfinite_pixels = nonfinite
     p.overflow_pixels = overflow
     name_image, name_sss = layer_names(spec.name)

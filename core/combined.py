@@ -168,7 +168,7 @@ def far_side(*, translucency, distance_su, normal, position, mask, camera=None, 
     # Everything below on the mask's bounding box: it reads nothing outside it, and outside the
     # mask x stays the map's and n the visible normal.
     walks = medium is not None and medium.walks
-    box = _bounding_box(m)
+    box = _arrays.bounding_box(m)
     if box is None:
         return x, (n.astype(np.float32) if walks else n)
     mb, tb = m[box], tau[box]
@@ -185,15 +185,6 @@ def far_side(*, translucency, distance_su, normal, position, mask, camera=None, 
     blend = n.astype(np.float32)
     blend[box] = np.where(mb[..., None], (1.0 - s) * np.nan_to_num(unit) + s * v, nb)
     return x, blend
-
-
-def _bounding_box(m: np.ndarray) -> tuple[slice, slice] | None:
-    """The rows and columns that hold the pixels of ``m`` (None when there are none)."""
-    rows = np.flatnonzero(m.any(axis=1))
-    if not rows.size:
-        return None
-    cols = np.flatnonzero(m.any(axis=0))
-    return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)
 
 
 @dataclass(frozen=True)
@@ -543,7 +534,7 @@ def back_light(
     if camera is not None and medium is not None and medium.walks:
         # Read on the lit pixels only: computed on their bounding box (0 elsewhere).
         view_cos = np.zeros(lit.shape, np.float32)
-        box = _bounding_box(lit)
+        box = _arrays.bounding_box(lit)
         if box is not None:
             view_cos[box] = view_cosine(
                 _arrays.image(normal, "normal")[box], _arrays.image(position, "position")[box], camera

@@ -803,15 +803,14 @@ def apply_energy(
     if energy == "lambert" or method is None:
         return out
     m = np.asarray(mask, dtype=bool)
-    if not m.any():
+    box = _arrays.bounding_box(m)
+    if box is None:
         return out
     a = np.asarray(albedo, dtype=np.float32)[m]
     if albedo_mode == "pre-post":
         a = a * a
     light = out[m]
     # The view cosine and the curvature on the mask's bounding box only (they read nothing else).
-    rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
-    box = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
     mb = m[box]
     origin = (box[0].start, box[1].start)
     mu = view_cosine(np.asarray(depth)[box], mb, camera, origin=origin, frame=m.shape)[mb]

@@ -193,6 +193,8 @@ def _index_map(passes: Passes) -> np.ndarray:
     """Material Index as integers; -1 where the pass is not finite (never matches a material)."""
     raw = passes["Material Index"]
     finite = np.isfinite(raw)
+    if finite.all():  # the usual case: no pixel to mark
+        return np.rint(raw).astype(np.int64)
     out = np.full(raw.shape, -1, dtype=np.int64)
     out[finite] = np.rint(raw[finite]).astype(np.int64)
     return out
