@@ -55,7 +55,9 @@ def _finite(a: np.ndarray) -> np.ndarray:
 def _clean(a: np.ndarray) -> np.ndarray:
     """A float32 copy with NaN and +-Inf replaced by 0 (no other value changes; nothing clamped)."""
     out = np.array(a, dtype=np.float32)
-    out[~np.isfinite(out)] = 0.0
+    finite = np.isfinite(out)
+    if not finite.all():
+        out[~finite] = 0.0
     return out
 
 
