@@ -1387,24 +1387,111 @@ def table_lerp(table, rows, cols, rv, cv, r_nan, c_nan, out):
     nodes of ``table`` (float64), the table interpolated along the columns in both enclosing
     rows, then between the rows, rounded to float32 into ``out[q]``: the reference's float64
     operations in its order (equal to the bit)."""
-    r_lo = rows[0]
-    r_hi = rows[rows.size - 1]
-    c_lo = cols[0]
-    c_hi = cols[cols.size - 1]
     for q in prange(out.size):
-        r = rv[q]
-        r = r_nan if r != r else r
-        r = min(max(r, r_lo), r_hi)
-        c = cv[q]
-        c = c_nan if c != c else c
-        c = min(max(c, c_lo), c_hi)
-        i = _node_below(rows, r)
-        j = _node_below(cols, c)
-        fr = (r - rows[i]) / (rows[i + 1] - rows[i])
-        fc = (c - cols[j]) / (cols[j + 1] - cols[j])
-        lo = table[i, j] * (1 - fc) + table[i, j + 1] * fc
-        hi = table[i + 1, j] * (1 - fc) + table[i + 1, j + 1] * fc
-        out[q] = f32(lo * (1 - fr) + hi * fr)
+        out[q] = _lerp_at(table, rows, cols, rv[q], cv[q], r_nan, c_nan)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _lerp_at(table, rows, cols, r, c, r_nan, c_nan):
+    """``table_lerp`` of one entry: the float32 of ``table`` (float64) read bilinearly at ``r``
+    (NaN read as ``r_nan``) and ``c`` (NaN: ``c_nan``), both clipped to the ascending ``rows`` and
+    ``cols`` nodes."""
+    r = r_nan if r != r else r
+    r = min(max(r, rows[0]), rows[rows.size - 1])
+    c = c_nan if c != c else c
+    c = min(max(c, cols[0]), cols[cols.size - 1])
+    i = _node_below(rows, r)
+    j = _node_below(cols, c)
+    fr = (r - rows[i]) / (rows[i + 1] - rows[i])
+    fc = (c - cols[j]) / (cols[j + 1] - cols[j])
+    lo = table[i, j] * (1 - fc) + table[i, j + 1] * fc
+    hi = table[i + 1, j] * (1 - fc) + table[i + 1, j + 1] * fc
+    return f32(lo * (1 - fr) + hi * fr)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def energy_thickness(mb, y0, x0, thickness, as_thickness, distance, least, largest, out):
+    """``core.energy.apply_energy``'s slab thickness x (scene units, float64) at each pixel of the
+    window ``mb`` (from frame row ``y0`` and column ``x0``; ``thickness`` the frame's baked map,
+    ``largest`` the window's largest curvature, float32): the map read as a slab, NaN as 0 and
+    clipped to 0..1 (1 - it with ``as_thickness``), D sqrt(1 - tau) with D ``distance``, and where
+    the map finds no far side (tau <= 1e-6) at least the sphere's chord 2 / max(largest,
+    ``least``), NaN carried through the maxima as NumPy's. The reference's float64 operations in
+    its order (equal to the bit); ``out`` is not written off ``mb``."""
+    bh, bw = mb.shape
+    for i in prange(bh):
+        for j in range(bw):
+            if not mb[i, j]:
+                continue
+            tau = np.float64(thickness[y0 + i, x0 + j])
+            tau = 0.0 if tau != tau else tau
+            tau = min(max(tau, 0.0), 1.0)
+            if as_thickness:
+                tau = 1.0 - tau
+            x = distance * math.sqrt(1.0 - tau)
+            if tau <= 1e-6:
+                k = np.float64(largest[i, j])
+                k = k if k > least or k != k else least
+                chord = 2.0 / k
+                x = chord if chord > x or chord != chord else x
+            out[i, j] = x
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def energy_object(
+    out, albedo, y0, x0, mb, pre_post, mu, mean_r, mean_g, mean_b, ell, largest, entry, entry_rows, entry_cols,
+    convex, convex_rows, convex_cols, finite, x, lt, above, below, slab_rows, slab_cols, unseen, has_unseen,
+):  # fmt: skip
+    """``core.energy.apply_energy``'s "object" light in place of ``out`` (the frame) at the pixels
+    of the window ``mb`` (from frame row ``y0`` and column ``x0``): per channel the entry's gain
+    (``entry``, read at the view cosine ``mu`` and the albedo), the convex gain (``convex``, at
+    the albedo and the mean curvature ``mean_*`` times ``ell``) and with ``finite`` the slab's
+    factors (``above``, ``below``, at the albedo and ``lt``, log2 of the thickness in mean free
+    paths clipped to the table), the light through the far side (with ``has_unseen``: albedo x
+    f_below x ``unseen``) and the convex gain faded towards 1 on a shell (x ``largest`` / 2,
+    clipped to 0..1). An empty table (0 rows) reads 1. The albedo is ``albedo``'s float32
+    (squared with ``pre_post``); the reference's float32 and float64 operations in its order
+    (equal to the bit)."""
+    bh, bw = mb.shape
+    for i in prange(bh):
+        for j in range(bw):
+            if not mb[i, j]:
+                continue
+            y = y0 + i
+            xx = x0 + j
+            shell = _ONE
+            if finite:
+                k = np.float64(largest[i, j])
+                k = k if k > 0.0 or k != k else 0.0
+                s = x[i, j] * k / 2.0
+                if s == s:
+                    s = 0.0 if s < 0.0 else (1.0 if s > 1.0 else s)
+                shell = f32(s)
+            for c in range(3):
+                a = albedo[y, xx, c]
+                if pre_post:
+                    a = a * a
+                a64 = np.float64(a)
+                light = out[y, xx, c]
+                gain = _ONE
+                if entry.shape[0] > 0:
+                    gain = _lerp_at(entry, entry_rows, entry_cols, np.float64(mu[i, j]), a64, 1.0, entry_cols[0])
+                cv = _ONE
+                if convex.shape[0] > 0:
+                    m = mean_r[i, j] if c == 0 else (mean_g[i, j] if c == 1 else mean_b[i, j])
+                    cv = _lerp_at(convex, convex_rows, convex_cols, a64, np.float64(m) * ell[c], convex_rows[0], 0.0)
+                if finite:
+                    if has_unseen:
+                        l2 = lt[i, j, c]
+                        f_above = _lerp_at(
+                            above, slab_rows, slab_cols, a64, l2, slab_rows[0], slab_cols[slab_cols.size - 1]
+                        )
+                        f_below = _lerp_at(
+                            below, slab_rows, slab_cols, a64, l2, slab_rows[0], slab_cols[slab_cols.size - 1]
+                        )
+                        light = light * f_above + a * f_below * unseen[c]
+                    cv = _ONE + (cv - _ONE) * shell
+                out[y, xx, c] = light * gain * cv
 
 
 @njit(cache=True, inline="always", error_model="numpy")

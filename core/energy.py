@@ -47,6 +47,8 @@ is fitted to a scene.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from . import _arrays, backend
@@ -806,18 +808,17 @@ def apply_energy(
     box = _arrays.bounding_box(m)
     if box is None:
         return out
-    a = np.asarray(albedo, dtype=np.float32)[m]
-    if albedo_mode == "pre-post":
-        a = a * a
-    light = out[m]
     # The view cosine and the curvature on the mask's bounding box only (they read nothing else).
     mb = m[box]
     origin = (box[0].start, box[1].start)
-    mu = view_cosine(np.asarray(depth)[box], mb, camera, origin=origin, frame=m.shape)[mb]
-    a64 = a.astype(np.float64)  # what the three table reads below take: converted once
-    gain = entry_gain(method, a64, mu)
+    mu = view_cosine(np.asarray(depth)[box], mb, camera, origin=origin, frame=m.shape)
     shaped = energy == "object" and normal is not None and position is not None and mfp_su is not None
     if not shaped:
+        a = np.asarray(albedo, dtype=np.float32)[m]
+        if albedo_mode == "pre-post":
+            a = a * a
+        light = out[m]
+        gain = entry_gain(method, a.astype(np.float64), mu[mb])
         # The entry's dependence on the view angle, each channel's total over the mask kept.
         before = light.astype(np.float64).sum(axis=0)
         after = (light * gain).astype(np.float64).sum(axis=0)
@@ -833,19 +834,9 @@ def apply_energy(
     nb, pb = np.asarray(normal)[box], np.asarray(position)[box]
     parts = _curvature_per_pixel(nb, pb, mb)
     maps = {r: _smoothed_curvature(parts, r) for r in sorted(set(reach))}
-    mean = np.stack([maps[r][0][mb] for r in reach], axis=1).astype(np.float64)
-    largest = maps[max(reach)][1][mb].astype(np.float64)
-    convex = convex_gain(method, a64, mean * ell[None, :])
     finite = thickness is not None and thickness_distance_su > 0 and method in SLAB_ABOVE
+    unseen = None
     if finite:
-        tau = np.clip(np.nan_to_num(np.asarray(thickness, np.float64)[m]), 0.0, 1.0)
-        if thickness_convention == "thickness":
-            tau = 1.0 - tau
-        x = thickness_distance_su * np.sqrt(1.0 - tau)  # the slab law of core/thickness.py
-        # No far side within D: the sphere's chord along the normal, within the object's size.
-        chord = 2.0 / np.maximum(largest, 2.0 / (CHORD_CAP * thickness_distance_su))
-        x = np.where(tau <= 1e-6, np.maximum(x, chord), x)
-        f_above, f_below = slab_factors(method, a64, x[:, None] / ell[None, :])
         unseen = _unseen_light(
             m,
             diffuse=diffuse,
@@ -857,10 +848,123 @@ def apply_energy(
             lights=lights,
             lamps=lamps_behind,
         )
-        if unseen is not None:
-            light = light * f_above + a * f_below * unseen.astype(np.float32)[None, :]
+    shape = _ObjectShape(m, box, mu, [maps[r][0] for r in reach], maps[max(reach)][1], ell, finite, unseen)
+    kw = dict(
+        method=method,
+        albedo=albedo,
+        pre_post=albedo_mode == "pre-post",
+        thickness=thickness,
+        distance=float(thickness_distance_su),
+        as_thickness=thickness_convention == "thickness",
+    )
+    mode = backend.active()
+    frame = isinstance(out, np.ndarray) and out.dtype == np.float32 and out.ndim == 3 and out.flags.c_contiguous
+    if mode == "numpy" or not frame:  # the kernel writes into a float32 frame
+        _object_reference(out, shape, **kw)
+        return out
+    expected = None
+    if mode == "check":
+        expected = out.copy()
+        _object_reference(expected, shape, **kw)
+    _object_compiled(out, shape, **kw)
+    if expected is not None:
+        backend.compare("energy (object)", expected, out, np.zeros(out.shape))
+    return out
+
+
+@dataclass
+class _ObjectShape:
+    """What ``apply_energy``'s "object" light reads besides the passes: the mask ``m``, its
+    bounding box ``box``, on the box the view cosine ``mu``, the mean curvature per channel
+    (``mean``, at each channel's reach) and the largest (``largest``), float32; the mean free
+    paths ``ell`` (3,); whether the slab is modelled (``finite``) and the unseen side's light
+    (``unseen``, float64 (3,), or None)."""
+
+    m: np.ndarray
+    box: tuple[slice, slice]
+    mu: np.ndarray
+    mean: list
+    largest: np.ndarray
+    ell: np.ndarray
+    finite: bool
+    unseen: np.ndarray | None
+
+
+def _object_reference(out, s: _ObjectShape, *, method, albedo, pre_post, thickness, distance, as_thickness) -> None:
+    """``apply_energy``'s "object" light in NumPy (the reference): ``out`` on the mask, in place."""
+    m, mb = s.m, s.m[s.box]
+    a = np.asarray(albedo, dtype=np.float32)[m]
+    if pre_post:
+        a = a * a
+    light = out[m]
+    a64 = a.astype(np.float64)  # what the three table reads below take: converted once
+    gain = entry_gain(method, a64, s.mu[mb])
+    mean = np.stack([v[mb] for v in s.mean], axis=1).astype(np.float64)
+    largest = s.largest[mb].astype(np.float64)
+    convex = convex_gain(method, a64, mean * s.ell[None, :])
+    if s.finite:
+        tau = np.clip(np.nan_to_num(np.asarray(thickness, np.float64)[m]), 0.0, 1.0)
+        if as_thickness:
+            tau = 1.0 - tau
+        x = distance * np.sqrt(1.0 - tau)  # the slab law of core/thickness.py
+        # No far side within D: the sphere's chord along the normal, within the object's size.
+        chord = 2.0 / np.maximum(largest, 2.0 / (CHORD_CAP * distance))
+        x = np.where(tau <= 1e-6, np.maximum(x, chord), x)
+        f_above, f_below = slab_factors(method, a64, x[:, None] / s.ell[None, :])
+        if s.unseen is not None:
+            light = light * f_above + a * f_below * s.unseen.astype(np.float32)[None, :]
         # A shell thinner than its curvature's sphere is a slab: the slab tables hold its light.
         shell = np.clip(x * np.maximum(largest, 0.0) / 2.0, 0.0, 1.0).astype(np.float32)[:, None]
         convex = 1.0 + (convex - 1.0) * shell
     out[m] = light * gain * convex
-    return out
+
+
+def _object_compiled(out, s: _ObjectShape, *, method, albedo, pre_post, thickness, distance, as_thickness) -> None:
+    """``_object_reference`` on the compiled backend: ``core.compiled.energy_object`` at the
+    pixels of the box, without gathering them (the thickness's logarithm, whose NumPy
+    implementation differs in the last bit from the kernel's, taken in NumPy on the box); the
+    same float32 and float64 operations in the same order (equal to the bit)."""
+    c = np.ascontiguousarray
+    mb = c(s.m[s.box])
+    y0, x0 = s.box[0].start, s.box[1].start
+    none = np.zeros((0, 2), np.float64)
+    nodes = np.zeros(2, np.float64)
+    table = SEMI_INFINITE.get(method)
+    if table is None:
+        entry, mus, albedos = none, nodes, nodes
+    else:
+        entry = c(_nodes(table)[::-1])
+        mus = c(np.cos(np.radians(_nodes(VIEW_DEG)))[::-1])
+        albedos = _nodes(ALBEDO)
+    if method in CONVEX:
+        convex = c(np.concatenate([np.ones((len(ALBEDO), 1)), _nodes(CONVEX[method])], axis=1))
+        curvatures = np.concatenate([[0.0], 1.0 / _nodes(CONVEX_RADII)])
+    else:
+        convex, curvatures = none, nodes
+    above = below = none
+    slab_albedos, logs = nodes, nodes
+    x = np.zeros((1, 1), np.float64)
+    lt = np.zeros((1, 1, 3), np.float64)
+    if s.finite:
+        above, below = _nodes(SLAB_ABOVE[method]), _nodes(SLAB_BELOW[method])
+        thick = above[:, -1:]
+        above, below = c(above / thick), c(below / thick)
+        slab_albedos, logs = _nodes(SLAB_ALBEDO), np.log2(_nodes(SLAB_MFPS))
+        x = np.zeros(mb.shape, np.float64)  # read on the whole box below
+        least = 2.0 / (CHORD_CAP * distance)
+        largest = c(s.largest)
+        backend.run_kernel(
+            "energy_thickness", mb, y0, x0, _float_frame(thickness), as_thickness, distance, least, largest, x
+        )
+        # slab_factors' read of the thickness, NaN and +inf as the thickest slab.
+        lt = x[..., None] / s.ell
+        np.fmin(lt, SLAB_MFPS[-1], out=lt)
+        np.fmax(lt, SLAB_MFPS[0], out=lt)
+        np.log2(lt, out=lt)
+    unseen = np.zeros(3, np.float32) if s.unseen is None else s.unseen.astype(np.float32)
+    mean = [c(v, np.float32) for v in s.mean]
+    backend.run_kernel(
+        "energy_object", out, c(albedo, np.float32), y0, x0, mb, bool(pre_post), c(s.mu, np.float32), *mean,
+        c(s.ell, np.float64), c(s.largest, np.float32), entry, mus, albedos, convex, _nodes(ALBEDO), curvatures,
+        s.finite, x, lt, above, below, slab_albedos, logs, unseen, s.unseen is not None,
+    )  # fmt: skip

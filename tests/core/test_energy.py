@@ -591,3 +591,73 @@ def test_the_unseen_light_needs_a_pixel_with_a_normal_and_a_position():
     for mode in ("numpy", "numba", "check"):
         with backend.use(mode):
             assert energy._unseen_light(mask, **kw) is None
+
+
+@pytest.mark.parametrize(
+    ("method", "pre_post", "convention", "lights"),
+    [
+        ("RANDOM_WALK", False, "translucency", True),
+        ("RANDOM_WALK_SKIN", True, "thickness", True),
+        ("RANDOM_WALK_LEGACY", False, "translucency", False),
+        ("CHRISTENSEN_BURLEY", False, "translucency", True),
+    ],
+)
+def test_the_compiled_object_light_is_the_references_to_the_bit(method, pre_post, convention, lights):
+    """``apply_energy``'s "object" light on the compiled backend (``core.compiled.energy_object``)
+    against the NumPy reference, every value equal: maps with NaN, +-inf, no far side and values
+    beyond 0..1, a mask with a hole, albedos beyond the tables, each subsurface method (Christensen-
+    Burley has no table: its light stays), both thickness conventions and albedo modes, with and
+    without lamps; and without a thickness map (no slab)."""
+    from sss_lab.core import backend
+
+    args, light = _object_inputs("sphere", thickness_distance_su=0.3)
+    m = args["mask"].copy()
+    m[m.shape[0] // 2, m.shape[1] // 2] = False  # a hole
+    h, w = m.shape
+    rng = np.random.default_rng(11)
+    thickness = rng.uniform(-0.2, 1.2, (h, w)).astype(np.float32)
+    thickness[rng.uniform(size=(h, w)) < 0.2] = 0.0  # no far side: the chord
+    thickness[2, :] = np.nan
+    thickness[3, ::2], thickness[3, 1::2] = np.inf, -np.inf
+    albedo = rng.uniform(0.0, 1.0, (h, w, 3)).astype(np.float32)
+    args = dict(
+        args,
+        mask=m,
+        albedo=albedo,
+        subsurface_method=method,
+        albedo_mode="pre-post" if pre_post else "post",
+        thickness=thickness,
+        thickness_convention=convention,
+        lights=_lamps() if lights else [],
+    )
+    for kw in (args, dict(args, thickness=None)):
+        with backend.use("numpy"):
+            expected = energy.apply_energy(light.copy(), **kw)
+        with backend.use("numba"):
+            got = energy.apply_energy(light.copy(), **kw)
+        np.testing.assert_array_equal(got, expected)
+        assert not np.array_equal(expected[m], light[m]) or method == "CHRISTENSEN_BURLEY"
+
+
+def test_check_mode_finds_a_compiled_object_light_that_differs():
+    """Check mode compares the compiled "object" light with the reference's with bound 0: one
+    pixel's last bit changed is found."""
+    from sss_lab.core import backend
+
+    args, light = _object_inputs("sphere", thickness_distance_su=0.3, thickness=None)
+    with backend.use("check"):
+        energy.apply_energy(light.copy(), **args)
+    kernels = backend.compiled()
+    original = kernels.energy_object
+
+    def one_bit_off(out, *rest):
+        original(out, *rest)
+        y, x = np.argwhere(args["mask"])[0]
+        out[y, x, 0] = np.nextafter(out[y, x, 0], np.float32(np.inf))
+
+    try:
+        kernels.energy_object = one_bit_off
+        with backend.use("check"), pytest.raises(backend.BackendMismatch, match="energy"):
+            energy.apply_energy(light.copy(), **args)
+    finally:
+        kernels.energy_object = original
