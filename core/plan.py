@@ -8,6 +8,7 @@ in scene units and in pixels, and why every other material is left as it is;
 
 from __future__ import annotations
 
+import functools
 import inspect
 from dataclasses import dataclass, field
 
@@ -224,9 +225,11 @@ def _changes_level(technique: Technique, params: dict, material: MaterialSSS) ->
     return energy != "lambert" and material.method in CONVEX
 
 
-def _accepted(func) -> tuple[set[str], bool]:
+@functools.lru_cache(maxsize=64)
+def _accepted(func) -> tuple[frozenset[str], bool]:
+    """(the keyword arguments ``func`` takes, whether it takes any): read once per function."""
     sig = inspect.signature(func)
-    names = {p.name for p in sig.parameters.values() if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
+    names = frozenset(p.name for p in sig.parameters.values() if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD))
     var_kw = any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values())
     return names, var_kw
 
