@@ -1396,14 +1396,25 @@ def _lerp_at(table, rows, cols, r, c, r_nan, c_nan):
     """``table_lerp`` of one entry: the float32 of ``table`` (float64) read bilinearly at ``r``
     (NaN read as ``r_nan``) and ``c`` (NaN: ``c_nan``), both clipped to the ascending ``rows`` and
     ``cols`` nodes."""
-    r = r_nan if r != r else r
-    r = min(max(r, rows[0]), rows[rows.size - 1])
-    c = c_nan if c != c else c
-    c = min(max(c, cols[0]), cols[cols.size - 1])
-    i = _node_below(rows, r)
-    j = _node_below(cols, c)
-    fr = (r - rows[i]) / (rows[i + 1] - rows[i])
-    fc = (c - cols[j]) / (cols[j + 1] - cols[j])
+    i, fr = _cell(rows, r, r_nan)
+    j, fc = _cell(cols, c, c_nan)
+    return _bilinear(table, i, fr, j, fc)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _cell(nodes, v, v_nan):
+    """(the cell, the fraction across it) of ``v`` (NaN read as ``v_nan``) clipped to the ascending
+    ``nodes``: the reference's float64 operations (``_node_below``'s cell)."""
+    v = v_nan if v != v else v
+    v = min(max(v, nodes[0]), nodes[nodes.size - 1])
+    i = _node_below(nodes, v)
+    return i, (v - nodes[i]) / (nodes[i + 1] - nodes[i])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _bilinear(table, i, fr, j, fc):
+    """The float32 of ``table`` between rows ``i`` and ``i`` + 1 (fraction ``fr``) and columns ``j``
+    and ``j`` + 1 (``fc``): along the columns first, as the reference."""
     lo = table[i, j] * (1 - fc) + table[i, j + 1] * fc
     hi = table[i + 1, j] * (1 - fc) + table[i + 1, j + 1] * fc
     return f32(lo * (1 - fr) + hi * fr)
@@ -1439,20 +1450,23 @@ def energy_thickness(mb, y0, x0, thickness, as_thickness, distance, least, large
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def energy_object(
-    out, albedo, y0, x0, mb, pre_post, mu, mean_r, mean_g, mean_b, ell, largest, entry, entry_rows, entry_cols,
-    convex, convex_rows, convex_cols, finite, x, lt, above, below, slab_rows, slab_cols, unseen, has_unseen,
+    out, albedo, y0, x0, mb, pre_post, mu, mean_r, mean_g, mean_b, ell, largest, albedos, entry, views, convex,
+    curvatures, finite, x, lt, above, below, slab_albedos, logs, unseen, has_unseen,
 ):  # fmt: skip
     """``core.energy.apply_energy``'s "object" light in place of ``out`` (the frame) at the pixels
     of the window ``mb`` (from frame row ``y0`` and column ``x0``): per channel the entry's gain
-    (``entry``, read at the view cosine ``mu`` and the albedo), the convex gain (``convex``, at
-    the albedo and the mean curvature ``mean_*`` times ``ell``) and with ``finite`` the slab's
-    factors (``above``, ``below``, at the albedo and ``lt``, log2 of the thickness in mean free
-    paths clipped to the table), the light through the far side (with ``has_unseen``: albedo x
-    f_below x ``unseen``) and the convex gain faded towards 1 on a shell (x ``largest`` / 2,
-    clipped to 0..1). An empty table (0 rows) reads 1. The albedo is ``albedo``'s float32
-    (squared with ``pre_post``); the reference's float32 and float64 operations in its order
-    (equal to the bit)."""
+    (``entry``: rows the view cosines ``views``, columns ``albedos``; read at ``mu`` and the
+    albedo), the convex gain (``convex``: rows ``albedos``, columns ``curvatures``; at the albedo
+    and the mean curvature ``mean_*`` times ``ell``) and with ``finite`` the slab's factors
+    (``above``, ``below``: rows ``slab_albedos``, columns ``logs``; at the albedo and ``lt``, log2
+    of the thickness in mean free paths clipped to the table), the light through the far side
+    (with ``has_unseen``: albedo x f_below x ``unseen``) and the convex gain faded towards 1 on a
+    shell (x ``largest`` / 2, clipped to 0..1). An empty table (0 rows) reads 1. The albedo is
+    ``albedo``'s float32 (squared with ``pre_post``). Each value is the reference's float32 and
+    float64 operations in its order (equal to the bit); a cell and its fraction, the same numbers
+    for the tables read at the same value on the same nodes, are found once."""
     bh, bw = mb.shape
+    slab_last = logs[logs.size - 1]
     for i in prange(bh):
         for j in range(bw):
             if not mb[i, j]:
@@ -1467,28 +1481,26 @@ def energy_object(
                 if s == s:
                     s = 0.0 if s < 0.0 else (1.0 if s > 1.0 else s)
                 shell = f32(s)
+            iv, fv = _cell(views, np.float64(mu[i, j]), 1.0)
             for c in range(3):
                 a = albedo[y, xx, c]
                 if pre_post:
                     a = a * a
                 a64 = np.float64(a)
                 light = out[y, xx, c]
-                gain = _ONE
-                if entry.shape[0] > 0:
-                    gain = _lerp_at(entry, entry_rows, entry_cols, np.float64(mu[i, j]), a64, 1.0, entry_cols[0])
+                ia, fa = _cell(albedos, a64, albedos[0])
+                gain = _bilinear(entry, iv, fv, ia, fa) if entry.shape[0] > 0 else _ONE
                 cv = _ONE
                 if convex.shape[0] > 0:
                     m = mean_r[i, j] if c == 0 else (mean_g[i, j] if c == 1 else mean_b[i, j])
-                    cv = _lerp_at(convex, convex_rows, convex_cols, a64, np.float64(m) * ell[c], convex_rows[0], 0.0)
+                    ik, fk = _cell(curvatures, np.float64(m) * ell[c], 0.0)
+                    cv = _bilinear(convex, ia, fa, ik, fk)
                 if finite:
                     if has_unseen:
-                        l2 = lt[i, j, c]
-                        f_above = _lerp_at(
-                            above, slab_rows, slab_cols, a64, l2, slab_rows[0], slab_cols[slab_cols.size - 1]
-                        )
-                        f_below = _lerp_at(
-                            below, slab_rows, slab_cols, a64, l2, slab_rows[0], slab_cols[slab_cols.size - 1]
-                        )
+                        js, fs = _cell(slab_albedos, a64, slab_albedos[0])
+                        jl, fl = _cell(logs, lt[i, j, c], slab_last)
+                        f_above = _bilinear(above, js, fs, jl, fl)
+                        f_below = _bilinear(below, js, fs, jl, fl)
                         light = light * f_above + a * f_below * unseen[c]
                     cv = _ONE + (cv - _ONE) * shell
                 out[y, xx, c] = light * gain * cv

@@ -929,13 +929,11 @@ def _object_compiled(out, s: _ObjectShape, *, method, albedo, pre_post, thicknes
     y0, x0 = s.box[0].start, s.box[1].start
     none = np.zeros((0, 2), np.float64)
     nodes = np.zeros(2, np.float64)
+    albedos = _nodes(ALBEDO)  # the entry's columns and the convex gain's rows
     table = SEMI_INFINITE.get(method)
-    if table is None:
-        entry, mus, albedos = none, nodes, nodes
-    else:
-        entry = c(_nodes(table)[::-1])
-        mus = c(np.cos(np.radians(_nodes(VIEW_DEG)))[::-1])
-        albedos = _nodes(ALBEDO)
+    entry, views = (
+        (none, nodes) if table is None else (c(_nodes(table)[::-1]), c(np.cos(np.radians(_nodes(VIEW_DEG)))[::-1]))
+    )
     if method in CONVEX:
         convex = c(np.concatenate([np.ones((len(ALBEDO), 1)), _nodes(CONVEX[method])], axis=1))
         curvatures = np.concatenate([[0.0], 1.0 / _nodes(CONVEX_RADII)])
@@ -965,6 +963,6 @@ def _object_compiled(out, s: _ObjectShape, *, method, albedo, pre_post, thicknes
     mean = [c(v, np.float32) for v in s.mean]
     backend.run_kernel(
         "energy_object", out, c(albedo, np.float32), y0, x0, mb, bool(pre_post), c(s.mu, np.float32), *mean,
-        c(s.ell, np.float64), c(s.largest, np.float32), entry, mus, albedos, convex, _nodes(ALBEDO), curvatures,
-        s.finite, x, lt, above, below, slab_albedos, logs, unseen, s.unseen is not None,
+        c(s.ell, np.float64), c(s.largest, np.float32), albedos, entry, views, convex, curvatures, s.finite, x, lt,
+        above, below, slab_albedos, logs, unseen, s.unseen is not None,
     )  # fmt: skip
