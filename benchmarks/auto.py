@@ -23,7 +23,8 @@ timed the same way (its features and choice included). Per scene:
 - **the most a chooser could save** (``oracle_time_saved_total``): per scene the cheapest choice
   whose true error is within ``--max-error`` of the best (known only from the reference), over
   the suite against the same most expensive technique: how much the techniques' measured costs
-  leave to save at all.
+  leave to save at all; with ``--quality-oracle`` the same over every rung of each technique's
+  quality ladder and each diffusion without its energy stage (``quality_oracle``).
 
 With ``--fit``, the same again with each scene fitted as ``calibrate`` fits it (``benchmarks/fit.py``'s
 render and passes: Cycles random walk of the same view at 32 samples and passes at 16, its own
@@ -446,6 +447,81 @@ def sweep(scenes, technique: str, parameter: str, values, log=print) -> dict:
     return per_value
 
 
+def quality_oracle(scenes, techniques, *, max_error: float, repeat: int, time_scale: int, log=print) -> dict:
+    """What a chooser knowing every true error could save if it chose each technique's quality too:
+    every rung of each technique's quality ladder (its spec's ``qualities``, the ladder ``compare``
+    sweeps), and each diffusion's rungs with its energy stage off (``energy`` "lambert"), scored and
+    timed as ``measure`` does the defaults. Per scene the cheapest variant whose error is within
+    ``max_error`` of the best variant's, against the most expensive technique at its default
+    (largest total time over the scenes), over the suite; the same with the default qualities
+    only, from the same run, for comparison."""
+    from sss_lab.core import apply as core_apply
+    from sss_lab.core.techniques import get_spec
+
+    variants: list[tuple[str, dict]] = []
+    for t in techniques:
+        spec = get_spec(t)
+        for k, quality in enumerate(spec.qualities):
+            variants.append((t, {"_default": k == spec.default_quality, **quality}))
+            if "energy" in spec.keywords:
+                variants.append((t, {"_default": False, **quality, "energy": "lambert"}))
+    rows = []
+    for s in scenes:
+        big, big_desc = upscaled(s.passes, s.desc, time_scale)
+        measured = []
+        for t, v in variants:
+            options = {k: x for k, x in v.items() if k != "_default"}
+            try:
+                layers = core_apply.apply(s.passes, s.desc, t, **options)
+            except KeyError:  # its passes are missing on this scene
+                continue
+            image = layers[core_apply.layer_names(t)[0]] if layers else s.passes["Combined"]
+            _, seconds = _fastest(lambda t=t, o=options, b=big, d=big_desc: core_apply.apply(b, d, t, **o), repeat)
+            label = t + "".join(f" {k}={x}" for k, x in options.items())
+            measured.append(
+                {
+                    "variant": label,
+                    "technique": t,
+                    "default": v["_default"],
+                    "error": s.error(image),
+                    "seconds": seconds,
+                }
+            )
+        rows.append({"scene": s.name, "variants": measured})
+        log(f"{s.name}: {len(measured)} variants")
+    totals: dict = {}
+    for r in rows:
+        for m in r["variants"]:
+            if m["default"]:
+                totals[m["technique"]] = totals.get(m["technique"], 0.0) + m["seconds"]
+    priciest = max(totals, key=totals.get)
+
+    def saved(keep) -> tuple[float, dict]:
+        chosen, t_chosen, t_max = {}, 0.0, 0.0
+        for r in rows:
+            pool = [m for m in r["variants"] if keep(m)]
+            best = min(m["error"] for m in pool)
+            pick = min((m for m in pool if m["error"] <= (1.0 + max_error) * best), key=lambda m: m["seconds"])
+            chosen[r["scene"]] = pick["variant"]
+            t_chosen += pick["seconds"]
+            t_max += next(m["seconds"] for m in r["variants"] if m["default"] and m["technique"] == priciest)
+        return 1.0 - t_chosen / t_max, chosen
+
+    with_quality, chosen = saved(lambda m: True)
+    defaults, _ = saved(lambda m: m["default"])
+    log(
+        f"knowing every true error: choosing the quality and the energy stage too saves {with_quality:.0%}, "
+        f"the techniques at their defaults {defaults:.0%}, against always {priciest}"
+    )
+    return {
+        "most_expensive": priciest,
+        "oracle_time_saved_total": with_quality,
+        "oracle_time_saved_total_defaults": defaults,
+        "chosen": chosen,
+        "scenes": rows,
+    }
+
+
 def _print_summary(title: str, s: dict, always: dict, suffix: str) -> None:
     print(
         f"{title}: regret mean {s['mean_regret']:+.1%}, median {s['median_regret']:+.1%}, max {s['max_regret']:+.1%};"
@@ -489,6 +565,12 @@ def main(argv=None) -> int:
         help="with --fit: the techniques fitted, comma-separated (default: every technique that has a fit;"
         " calibrate's own default is burley,combined)",
     )
+    parser.add_argument(
+        "--quality-oracle",
+        action="store_true",
+        help="also measure every technique's quality ladder, and each diffusion without its energy stage, and"
+        " report what a chooser knowing every true error could save choosing those too",
+    )
     parser.add_argument("--out", default=RESULTS)
     args = parser.parse_args(argv)
     import bpy
@@ -525,6 +607,11 @@ def main(argv=None) -> int:
         values = [float(v) for v in args.sweep_transmission.split(",")]
         swept = sweep(scenes, "combined", "transmission_scale", values)
     out = run(scenes, techniques=list(TECHNIQUES), repeat=args.repeat, max_error=max_error, time_scale=args.time_scale)
+    qualities = None
+    if args.quality_oracle:
+        qualities = quality_oracle(
+            scenes, list(TECHNIQUES), max_error=max_error, repeat=args.repeat, time_scale=args.time_scale
+        )
     command = " ".join(["python -m benchmarks.auto", *(argv if argv is not None else sys.argv[1:])])
     model = dataclasses.replace(out.pop("model"), command=command)
     if args.write_model:
@@ -546,6 +633,8 @@ def main(argv=None) -> int:
     }
     if swept is not None:
         data["combined_transmission_scale_sweep"] = swept
+    if qualities is not None:
+        data["quality_oracle"] = qualities
     write_results(args.out, data)
     s = out["summary"]
     _print_summary(f"{s['scenes']} scenes, leave-one-scene-out", s, s["always_one_technique"], "")

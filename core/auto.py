@@ -82,7 +82,6 @@ from .errors import InputError
 from .exr import Passes
 from .fit_params import INFO, fitted
 from .mapping import burley_d, mean_free_path, technique_params
-from .metrics import box_downsample
 from .plan import Plan, _index_map, plan, required_passes
 from .scene import MaterialSSS, SceneDescription
 from .techniques import TECHNIQUES, get_spec
@@ -265,12 +264,27 @@ class _Shared:
             self.position = passes["Position"]
 
 
+def _block_means(a: np.ndarray, size: int) -> np.ndarray:
+    """The means of ``a`` (float32, (H, W) or (H, W, C)) over ``size`` x ``size`` blocks (cropped to
+    a multiple of ``size``), float32: the blocks of ``core.metrics.box_downsample``, summed in
+    float64 one offset within the block at a time (``size``^2 vectorized additions, where a mean
+    over the blocks' two short axes costs NumPy some ten times as much: the features' largest
+    cost at 512 px)."""
+    h, w = a.shape[0] // size * size, a.shape[1] // size * size
+    total = np.zeros((h // size, w // size) + a.shape[2:], np.float64)
+    for dy in range(size):
+        for dx in range(size):
+            total += a[dy:h:size, dx:w:size]
+    return (total / (size * size)).astype(np.float32)
+
+
 def _crop(mask: np.ndarray) -> tuple[slice, slice]:
     """The bounding box of ``mask``, its start on even rows and columns (so that the 2 x 2 blocks
     inside it are the blocks of the whole image, as the error measure takes them)."""
-    ys, xs = np.nonzero(mask)
-    y0, x0 = int(ys.min()) // BOX * BOX, int(xs.min()) // BOX * BOX
-    return slice(y0, int(ys.max()) + 1), slice(x0, int(xs.max()) + 1)
+    box = _arrays.bounding_box(mask)
+    assert box is not None, "a window of no pixel"
+    rows, cols = box
+    return slice(rows.start // BOX * BOX, rows.stop), slice(cols.start // BOX * BOX, cols.stop)
 
 
 def _rms(term: np.ndarray, keep: np.ndarray, base: np.ndarray) -> float:
@@ -341,14 +355,14 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
     # resolution (at 128 px, the fidelity suite's size, the blocks are those of the error measure).
     size = BOX * max(1, math.ceil(max(mask.shape) / (BOX * GRID)))
     if min(mask.shape) >= size:
-        blocks = box_downsample(mask.astype(np.float32), size) >= 1.0
+        blocks = _block_means(mask.astype(np.float32), size) >= 1.0
         if blocks.any():
             keep, step = blocks, size
 
     def at(a):
         """``a`` on the window, NaN/Inf as 0, as block means when measured on blocks."""
         w = core_apply._clean(a[win])
-        return w if step == 1 else box_downsample(w, step)
+        return w if step == 1 else _block_means(w, step)
 
     combined = at(sh.combined)
     albedo = at(sh.albedo)

@@ -15,6 +15,7 @@ from sss_lab.core import auto
 from sss_lab.core.errors import InputError
 from sss_lab.core.exr import Passes
 from sss_lab.core.mapping import burley_d
+from sss_lab.core.metrics import box_downsample
 from sss_lab.core.scene import Camera, MaterialSSS, SceneDescription
 from sss_lab.core.synthetic import sphere_scene
 
@@ -142,10 +143,10 @@ def test_light_from_behind_is_the_combined_techniques_transmission():
 
     mask = np.rint(arrays["Material Index"]) == wax.index
     # On the 2 x 2 block means wholly inside the material (the whole image's blocks).
-    keep = auto.box_downsample(mask.astype(float), 2) >= 1
+    keep = box_downsample(mask.astype(float), 2) >= 1
 
     def blocks(name):
-        return auto.box_downsample(arrays[name].astype(np.float64), 2)
+        return box_downsample(arrays[name].astype(np.float64), 2)
 
     term = transmission(
         normal=blocks("Normal"),
@@ -385,10 +386,10 @@ def test_view_energy_is_what_the_techniques_energy_convention_changes():
     f = auto.features(passes, scene, skin)
     # Independently, on the 2 x 2 blocks wholly inside the material.
     mask = np.rint(arrays["Material Index"]) == skin.index
-    keep = auto.box_downsample(mask.astype(float), 2) >= 1
+    keep = box_downsample(mask.astype(float), 2) >= 1
 
     def blocks(name):
-        return auto.box_downsample(arrays[name].astype(np.float64), 2)
+        return box_downsample(arrays[name].astype(np.float64), 2)
 
     albedo = blocks("Diffuse Color")[..., :3]
     lit = (albedo * (blocks("Diffuse Direct")[..., :3] + blocks("Diffuse Indirect")[..., :3]))[keep]
@@ -487,3 +488,21 @@ def test_costs_within_the_tolerance_count_as_equal_and_the_lower_error_decides()
     assert chosen(1.0 + 0.5 * auto.COST_TOLERANCE) == "burley"
     # Costing 20 % more (twice the tolerance): the cheaper SSSS, within the margin of 5 %.
     assert chosen(1.0 + 2.0 * auto.COST_TOLERANCE) == "ssss"
+
+
+@pytest.mark.parametrize("size", [2, 3, 6])
+def test_the_features_block_means_are_the_error_measures_blocks(size):
+    """``auto._block_means`` (the features' block means) takes the blocks ``core.metrics.box_downsample``
+    takes, cropped alike, and their means to float32's rounding: its float64 sum of at most 36
+    float32 values is exact to 2^-53 relative, NumPy's float32 mean to some 2^-24 times the block's
+    size, and both are rounded to float32 (a few units in the last place)."""
+    rng = np.random.default_rng(3)
+    a = rng.uniform(0.0, 4.0, (37, 50, 3)).astype(np.float32)
+    got = auto._block_means(a, size)
+    expected = box_downsample(a, size)
+    assert got.shape == expected.shape and got.dtype == np.float32
+    np.testing.assert_allclose(got, expected, rtol=8 * 2.0**-24 * size, atol=0.0)
+    mask = rng.uniform(size=(37, 50)) < 0.9
+    assert np.array_equal(
+        auto._block_means(mask.astype(np.float32), size) >= 1.0, box_downsample(mask.astype(np.float32), size) >= 1.0
+    )
