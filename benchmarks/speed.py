@@ -21,7 +21,10 @@ really covers every pixel. Cases per technique and backend (compiled ``numba``, 
 - the diffusions' energy stage on its own (``energy_stage``: ``core.energy.apply_energy`` at its
   default "object" on Burley's result, the Random Walk medium, full screen and 25 % mask at
   1080p, two threads, on both backends, fastest of two: its table reads and curvature are
-  compiled, the rest is NumPy); the cases above leave it out.
+  compiled, the rest is NumPy); the cases above leave it out;
+- what ``core.apply.apply`` costs per frame with each technique at its defaults on the synthetic
+  scene's own description (``whole_frame``: the energy stage, the passes' checks, one call per
+  material and the compositing included), compiled backend, two threads.
 
 Parameters: Burley and SSSS with d = (4, 1.6, 0.8) mm in scene units of metres, so that the red
 kernel (16 d) spans about 30 pixels at the spheres' depth: a face in a close-up; SSSS with 17
@@ -205,6 +208,36 @@ def energy_stage(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
                     repeat,
                 )
             out["backends"][b][label] = _entry(seconds, cpu, int(mask.sum()), 1)
+    return out
+
+
+def whole_frame(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
+    """What ``core.apply.apply`` costs per frame with each technique at its defaults, on the
+    compiled backend (the default): the synthetic passes and scene description of
+    ``core.synthetic.sphere_scene`` (a Christensen-Burley skin sphere and a Random Walk wax one
+    on a plain plane), two threads, fastest of ``repeat`` calls and at least ``FLOOR_S``; with
+    the energy stage at its default ("object": without a bake distance, the entry's and the
+    convex surface's gains), the passes' checks, one call per material and the compositing.
+    ``profile``: where the time goes (each kernel, and the NumPy work around them)."""
+    from sss_lab.core.apply import apply
+    from sss_lab.core.exr import Passes
+    from sss_lab.core.synthetic import sphere_scene
+
+    if "numba" not in names or backend.compiled() is None:
+        return {}
+    arrays, scene = sphere_scene(width, height)
+    passes = Passes(arrays)
+    out: dict = {"resolution": [width, height], "backend": "numba", "techniques": {}}
+    with backend.use("numba"):
+        for name in GOALS_MS:
+            fn = lambda name=name: apply(passes, scene, name)  # noqa: E731
+            fn()  # warm-up
+            seconds, cpu = _best(fn, repeat, FLOOR_S)
+            out["techniques"][name] = {
+                "ms": round(seconds * 1e3, 1),
+                "cpu_ms": round(cpu * 1e3, 1),
+                "profile": _profile(fn, repeat),
+            }
     return out
 
 
@@ -442,6 +475,9 @@ def run(
     stage = {"backends": {}} if partial else energy_stage(width, height, max(1, min(repeat, 2)), names)
     for b, e in stage["backends"].items():
         log(f"energy  {b:6s} full {e['full screen']['ms']:8.1f} ms  25 % mask {e['25 % mask']['ms']:8.1f} ms")
+    frame = {} if partial else whole_frame(width, height, repeat, names)
+    for name, e in frame.get("techniques", {}).items():
+        log(f"apply   {name:8s} {e['ms']:8.1f} ms per frame (CPU {e['cpu_ms']:8.1f} ms)")
     default = names[0]
     for name, res in results.items():
         entry = res["backends"][default]
@@ -484,6 +520,7 @@ def run(
         "machine": machine,
         "techniques": results,
         "energy_stage": stage,
+        "apply_per_frame": frame,
     }
     if "numba" in names:
         import numba
