@@ -215,7 +215,7 @@ def whole_frame(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
     """What ``core.apply.apply`` costs per frame with each technique at its defaults, on the
     compiled backend (the default): the synthetic passes and scene description of
     ``core.synthetic.sphere_scene`` (a Christensen-Burley skin sphere and a Random Walk wax one
-    on a plain plane), two threads, fastest of ``repeat`` calls and at least ``FLOOR_S``; with
+    on a plain plane), two threads and one, fastest of ``repeat`` calls and at least ``FLOOR_S``; with
     the energy stage at its default ("object": without a bake distance, the entry's and the
     convex surface's gains), the passes' checks, one call per material and the compositing.
     ``profile``: where the time goes (each kernel, and the NumPy work around them)."""
@@ -233,9 +233,13 @@ def whole_frame(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
             fn = lambda name=name: apply(passes, scene, name)  # noqa: E731
             fn()  # warm-up
             seconds, cpu = _best(fn, repeat, FLOOR_S)
+            _threads(1)
+            one, _ = _best(fn, repeat, FLOOR_S)
+            _threads(2)
             out["techniques"][name] = {
                 "ms": round(seconds * 1e3, 1),
                 "cpu_ms": round(cpu * 1e3, 1),
+                "ms_1_thread": round(one * 1e3, 1),
                 "profile": _profile(fn, repeat),
             }
     return out
@@ -477,7 +481,10 @@ def run(
         log(f"energy  {b:6s} full {e['full screen']['ms']:8.1f} ms  25 % mask {e['25 % mask']['ms']:8.1f} ms")
     frame = {} if partial else whole_frame(width, height, repeat, names)
     for name, e in frame.get("techniques", {}).items():
-        log(f"apply   {name:8s} {e['ms']:8.1f} ms per frame (CPU {e['cpu_ms']:8.1f} ms)")
+        log(
+            f"apply   {name:8s} {e['ms']:8.1f} ms per frame (CPU {e['cpu_ms']:8.1f} ms),"
+            f" 1 thread {e['ms_1_thread']:8.1f} ms"
+        )
     default = names[0]
     for name, res in results.items():
         entry = res["backends"][default]
