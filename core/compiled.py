@@ -1610,28 +1610,31 @@ def box_planes(planes, n, r):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def smooth_curvature(mean, most, valid, on, r, out_mean, out_most):
-    """``core.energy._smoothed_curvature``: ``mean`` and ``most`` (float64) averaged over the
-    pixels of ``valid`` within the square of half-width ``r``, float32 into ``out_mean`` and
-    ``out_most`` on ``on`` (0 elsewhere and where no pixel of ``valid`` is near). The box sums
-    are the reference's (``_box_sum``): float64 running sums along the columns, then along the
-    rows, each difference taken from them as its cumulative sums do (equal to the bit)."""
+def smooth_curvature(mean, most, valid, on, r, largest, out_mean, out_most):
+    """``core.energy._smoothed_curvature``: ``mean`` and, with ``largest``, ``most`` (float64)
+    averaged over the pixels of ``valid`` within the square of half-width ``r``, float32 into
+    ``out_mean`` and ``out_most`` on ``on`` (0 elsewhere and where no pixel of ``valid`` is near).
+    The box sums are the reference's (``_box_sum``): float64 running sums along the columns, then
+    along the rows, each difference taken from them as its cumulative sums do (equal to the bit)."""
     h, w = valid.shape
-    planes = np.empty((3, h, w), np.float64)
+    n = 3 if largest else 2
+    planes = np.empty((n, h, w), np.float64)
     for y in prange(h):
         for x in range(w):
             weight = 1.0 if valid[y, x] else 0.0
             planes[0, y, x] = weight
             planes[1, y, x] = mean[y, x] * weight
-            planes[2, y, x] = most[y, x] * weight
-    box_planes(planes, 3, r)
+            if largest:
+                planes[2, y, x] = most[y, x] * weight
+    box_planes(planes, n, r)
     for y in prange(h):
         for x in range(w):
             near = planes[0, y, x]
             keep = on[y, x] and near > 0.0
             den = max(near, 1.0)
             out_mean[y, x] = f32(planes[1, y, x] / den) if keep else _ZERO
-            out_most[y, x] = f32(planes[2, y, x] / den) if keep else _ZERO
+            if largest:
+                out_most[y, x] = f32(planes[2, y, x] / den) if keep else _ZERO
 
 
 #: Columns (vertical passes) or rows (horizontal ones) per work item of ``spread_light``'s box sums.

@@ -442,7 +442,9 @@ def surface_curvature(normal, position, mask, radius_px: int = 1) -> tuple[np.nd
     image axis crosses it). Each is then averaged over the pixels on the mask within
     ``radius_px`` (a square of 2 radius_px + 1; a flat-shaded mesh's edges spread over the faces
     beside them, as far as a walk reaches); 0 where no neighbour is on the mask."""
-    return _smoothed_curvature(_curvature_per_pixel(normal, position, mask), radius_px)
+    mean, largest = _smoothed_curvature(_curvature_per_pixel(normal, position, mask), radius_px)
+    assert largest is not None
+    return mean, largest
 
 
 def _curvature_per_pixel(normal, position, mask):
@@ -505,32 +507,35 @@ def _curvature_reference(normal, position, mask):
     return np.where(valid, total / np.maximum(count, 1), 0.0), np.where(valid, most, 0.0), valid, m
 
 
-def _smoothed_curvature(parts, radius_px: int) -> tuple[np.ndarray, np.ndarray]:
-    """``surface_curvature``'s average of ``_curvature_per_pixel``'s ``parts`` over ``radius_px``;
-    on the compiled backend ``core.compiled.smooth_curvature`` (equal to the bit, as above)."""
+def _smoothed_curvature(parts, radius_px: int, largest: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """``surface_curvature``'s average of ``_curvature_per_pixel``'s ``parts`` over ``radius_px``
+    (the largest curvature's only with ``largest``, else None); on the compiled backend
+    ``core.compiled.smooth_curvature`` (equal to the bit, as above)."""
     mode = backend.active()
     if mode == "numpy":
-        return _smoothed_reference(parts, radius_px)
+        return _smoothed_reference(parts, radius_px, largest)
     c = np.ascontiguousarray
     mean, most, valid, m = (c(v) for v in parts)
-    out = (np.empty(m.shape, np.float32), np.empty(m.shape, np.float32))
-    backend.run_kernel("smooth_curvature", mean, most, valid, m, max(1, int(radius_px)), *out)
+    out = (np.empty(m.shape, np.float32), np.empty(m.shape if largest else (1, 1), np.float32))
+    backend.run_kernel("smooth_curvature", mean, most, valid, m, max(1, int(radius_px)), largest, *out)
+    result = (out[0], out[1] if largest else None)
     if mode == "check":
-        for ref, got in zip(_smoothed_reference(parts, radius_px), out, strict=True):
-            backend.compare("surface_curvature (average)", ref, got, np.zeros(m.shape))
-    return out
+        for ref, got in zip(_smoothed_reference(parts, radius_px, largest), result, strict=True):
+            if ref is not None and got is not None:
+                backend.compare("surface_curvature (average)", ref, got, np.zeros(m.shape))
+    return result
 
 
-def _smoothed_reference(parts, radius_px: int) -> tuple[np.ndarray, np.ndarray]:
+def _smoothed_reference(parts, radius_px: int, largest: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """``_smoothed_curvature`` in NumPy: the reference."""
     mean, most, valid, m = parts
     weight = valid.astype(np.float64)
     r = max(1, int(radius_px))
     near = _box_sum(weight, r)
-    out = []
-    for h in (mean, most):
+    out: list = []
+    for h in (mean, most) if largest else (mean,):
         out.append(np.where(m & (near > 0), _box_sum(h * weight, r) / np.maximum(near, 1.0), 0.0).astype(np.float32))
-    return out[0], out[1]
+    return out[0], out[1] if largest else None
 
 
 def mean_lamp_irradiance(lights, normal, position) -> np.ndarray:
@@ -833,7 +838,8 @@ def apply_energy(
     reach = [int(np.clip(round(v * ppu), 1, CURVATURE_REACH_PX)) for v in ell]
     nb, pb = np.asarray(normal)[box], np.asarray(position)[box]
     parts = _curvature_per_pixel(nb, pb, mb)
-    maps = {r: _smoothed_curvature(parts, r) for r in sorted(set(reach))}
+    # The largest curvature is read at the widest reach only.
+    maps = {r: _smoothed_curvature(parts, r, largest=r == max(reach)) for r in sorted(set(reach))}
     finite = thickness is not None and thickness_distance_su > 0 and method in SLAB_ABOVE
     unseen = None
     if finite:
@@ -848,7 +854,9 @@ def apply_energy(
             lights=lights,
             lamps=lamps_behind,
         )
-    shape = _ObjectShape(m, box, mu, [maps[r][0] for r in reach], maps[max(reach)][1], ell, finite, unseen)
+    widest = maps[max(reach)][1]
+    assert widest is not None
+    shape = _ObjectShape(m, box, mu, [maps[r][0] for r in reach], widest, ell, finite, unseen)
     kw = dict(
         method=method,
         albedo=albedo,
