@@ -5,9 +5,11 @@ the same computation runs as fused per-pixel kernels on the bounding box of the 
 (the region), parallel over rows, with nothing the size of a frame in float64: the far side's
 thickness and normal, the irradiance from behind (``back_light_pixels``), the transmittance's
 table reads, the view cosine and the spread's widths (``transmit_pixels``), the spread per
-object confined to what its pixels read (``part_sigma``, ``spread_part``) and the exit weight
-and scale (``finish_light``). Each kernel computes the reference's float32 and float64
-operations in its order, so the result is the reference's to the bit: in check mode
+object confined to what its pixels read (``part_sigma``, ``spread_part``; its wide levels on
+the reference's pyramid: ``spread_blocks``, ``halve_sums``, ``blur_reduced``,
+``spread_reduced_part``, then ``part_results``) and the exit weight and scale
+(``finish_light``). Each kernel computes the reference's float32 and float64 operations in its
+order, so the result is the reference's to the bit: in check mode
 (``core.backend``) every ``transmitted`` and ``add_to`` is compared with the reference's with
 a bound of 0.
 
@@ -316,7 +318,7 @@ class CompiledBackLight:
 
     def _light(self, kind, ell, grid, columns, nodes, spread_len, last) -> np.ndarray:
         """The transmitted light on the region after its spread, float32 (rows, columns, 3)."""
-        from .combined import _box_radius, _spread_levels
+        from .combined import _box_radius, _full_levels, _reduced_levels, _spread_factor, _spread_levels
 
         assert self.region is not None and self.e is not None
         medium = self.medium
@@ -359,7 +361,6 @@ class CompiledBackLight:
         if not self.spread:
             return light
         scratch = np.empty(light.shape, np.float32)  # spread_part's, written at the parts' pixels
-        planes = None
         h, w = self.shape
         one_part = self.ids is None
         camera = self.camera
@@ -395,16 +396,39 @@ class CompiledBackLight:
                 np.int64,
             )
             ph, pw = box[1] - box[0], box[3] - box[2]
-            if planes is None or planes.shape[1] < ph or planes.shape[2] < pw:
-                planes = np.empty((4, ph, pw), np.float32)
+            planes = np.empty((4, ph, pw), np.float32)
             radii = np.array([_box_radius(sg) for sg in sigmas[1:]], np.int64)
             on = np.empty((ph, pw), np.uint8)
             backend.run_kernel(
                 "part_pixels", self.mask, self.thickness, self.ids_c, self.part_ids, p, one_part, y0, x0, part, on
             )
             grid = np.asarray(sigmas, np.float64)
+            needed = _needed_levels(grid, least, most)
             backend.run_kernel(
-                "spread_part", light, sig, on, part, wide, grid, radii, _needed_levels(grid, least, most),
+                "spread_part", light, sig, on, part, wide, grid, _full_levels(sigmas), radii, needed,
                 _row_levels(grid, rows), planes, scratch,
             )  # fmt: skip
+            del planes  # the reduced levels' grids take its place, not its size again
+            n_full = _full_levels(sigmas)
+            if n_full < len(sigmas):
+                # The reduced levels' grids side by side in one buffer, read in one pass.
+                levels = np.zeros((len(sigmas) - n_full, 4), np.int64)
+                size = 0
+                for k in range(n_full, len(sigmas)):
+                    f = _spread_factor(sigmas[k])
+                    hc, wc = -(-(wide[1] - wide[0]) // f), -(-(wide[3] - wide[2]) // f)
+                    levels[k - n_full] = (f if needed[k, 3] else 0, size, hc, wc)
+                    size += 4 * hc * wc if needed[k, 3] else 0
+                flat = np.empty(size, np.float32)
+
+                def into(k, flat=flat, levels=levels, n_full=n_full):
+                    _, off, hc, wc = levels[k - n_full]
+                    return flat[off : off + 4 * hc * wc].reshape(4, hc, wc)
+
+                for _ in _reduced_levels(light, on, part, wide, sigmas, needed[:, 3], into):
+                    pass
+                backend.run_kernel(
+                    "spread_reduced_part", light, sig, on, part, wide, grid, n_full, flat, levels, scratch
+                )
+            backend.run_kernel("part_results", light, on, part, scratch)
         return light

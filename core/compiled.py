@@ -1772,8 +1772,29 @@ def unseen_sums(
         light[y, 2] = s2
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _frame_level(mask, sigma, grid, k, y, x, c, cur, prev, out):
+    """``spread_light``'s step at level ``k`` for pixel (``y``, ``x``) and channel ``c`` of the
+    level's value ``cur``: where the pixel is on the mask and its width's upper level (the
+    reference's searchsorted, clipped to 1.. the last) is ``k``, ``out`` = (1 - w) ``prev`` + w
+    ``cur``; then ``prev`` = ``cur``."""
+    n_levels = grid.size
+    if mask[y, x]:
+        s = np.float64(sigma[y, x, c])
+        s = _ZERO if s < 0.0 else s
+        s = grid[n_levels - 1] if s > grid[n_levels - 1] else s
+        hi = 0
+        while hi < n_levels and not grid[hi] >= s:
+            hi += 1
+        hi = min(max(hi, 1), n_levels - 1)
+        if hi == k:
+            wt = f32((s - grid[k - 1]) / (grid[k] - grid[k - 1]))
+            out[y, x, c] = (_ONE - wt) * prev[c, y, x] + wt * cur
+    prev[c, y, x] = cur
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
-def spread_light(e, mask, sigma, grid, radii, out):
+def spread_light(e, mask, sigma, grid, n_full, radii, prev, out):
     """``core.combined.spread_back_light`` (the reference: its docstring and ``_blur``) of ``e``
     (H, W, 3) over ``mask`` with per-pixel and channel widths ``sigma`` (H, W, 3) into ``out``:
     level k (1 <= k < len(``grid``)) is the light on the mask (``e`` x mask) and the mask itself,
@@ -1788,11 +1809,10 @@ def spread_light(e, mask, sigma, grid, radii, out):
     values, 2 r + 1 apart, so the same float64 sums in the same order and the same roundings
     (equal to the bit). Levels are computed one after the other, each pixel's result written
     when its upper level is done: two levels and the four planes being summed are held, not the
-    reference's stack of every level."""
+    reference's stack of every level. Only the levels below ``n_full`` are blurred here; ``prev``
+    (3, H, W) is left holding the last of them, for the wider ones on reduced grids
+    (``spread_blocks``, ``blur_reduced``, ``spread_reduced_frame``)."""
     h, w, _ = e.shape
-    n_levels = grid.size
-    top = grid[n_levels - 1]
-    prev = np.empty((3, h, w), np.float32)
     planes = np.empty((4, h, w), np.float32)
     for y in prange(h):
         for x in range(w):
@@ -1801,7 +1821,7 @@ def spread_light(e, mask, sigma, grid, radii, out):
                 out[y, x, c] = e[y, x, c]
     n_col = (w + SPREAD_STRIP - 1) // SPREAD_STRIP
     n_row = (h + SPREAD_STRIP - 1) // SPREAD_STRIP
-    for k in range(1, n_levels):
+    for k in range(1, n_full):
         r = radii[k - 1]
         for y in prange(h):
             for x in range(w):
@@ -1838,26 +1858,12 @@ def spread_light(e, mask, sigma, grid, radii, out):
                         cum[r + 1 + w + j] = cum[r + w + j]
                     for i in range(w):
                         line[i] = f32(cum[2 * r + 1 + i] - cum[i])
-        lo_w = grid[k - 1]
-        span = grid[k] - grid[k - 1]
         for y in prange(h):
             for x in range(w):
                 den = planes[3, y, x]
                 den = den if den > f32(1e-6) or den != den else f32(1e-6)
                 for c in range(3):
-                    cur = planes[c, y, x] / den
-                    if mask[y, x]:
-                        s = np.float64(sigma[y, x, c])
-                        s = _ZERO if s < 0.0 else s
-                        s = top if s > top else s
-                        hi = 0
-                        while hi < n_levels and not grid[hi] >= s:
-                            hi += 1
-                        hi = min(max(hi, 1), n_levels - 1)
-                        if hi == k:
-                            wt = f32((s - lo_w) / span)
-                            out[y, x, c] = (_ONE - wt) * prev[c, y, x] + wt * cur
-                    prev[c, y, x] = cur
+                    _frame_level(mask, sigma, grid, k, y, x, c, planes[c, y, x] / den, prev, out)
 
 
 def light_table(lights) -> np.ndarray:
@@ -2322,6 +2328,16 @@ def part_sigma(sig, mask, thickness, ids, part_ids, p, one_part, depth, ortho, f
                 row_range[i, c, 1] = max(row_range[i, c, 1], s)
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _ring(r):
+    """Rows of ``_running_box``'s ring of running sums for half-width ``r``: a power of two
+    holding the 2 r + 2 it reads at once."""
+    n = 1
+    while n < 2 * r + 2:
+        n *= 2
+    return n
+
+
 @njit(cache=True, error_model="numpy")
 def _running_box(buf, cum, lo, hi, out_lo, out_hi, r, bw):
     """One box sum of half-width ``r`` along the first axis of the first ``bw`` columns of
@@ -2329,18 +2345,27 @@ def _running_box(buf, cum, lo, hi, out_lo, out_hi, r, bw):
     reference's values are zero or its box ends): the float64 running sum of the values from
     ``lo``, and for the rows ``out_lo``..``out_hi`` - 1 the float32 of the difference of its values
     2 r + 1 apart, as ``core.combined._box``'s cumulative sums give it (zeros before the first
-    value add nothing). Vectorized across the columns."""
+    value add nothing). Vectorized across the columns. The running sums are kept in ``cum``, a
+    ring of ``_ring(r)`` rows (the sum of the first k values in row k mod its size), which stays
+    in the cache where a whole line's would not; a row of ``buf`` is overwritten once summed."""
     n = hi - lo
+    mask = cum.shape[0] - 1
     for t in range(bw):
         cum[0, t] = 0.0
-    for j in range(n):
-        for t in range(bw):
-            cum[j + 1, t] = cum[j, t] + np.float64(buf[j, t])
+    done = 0
     for i in range(out_lo, out_hi):
         a = min(max(i + r + 1 - lo, 0), n)
         b = min(max(i - r - lo, 0), n)
+        while done < a:
+            src = done & mask
+            dst = (done + 1) & mask
+            for t in range(bw):
+                cum[dst, t] = cum[src, t] + np.float64(buf[done, t])
+            done += 1
+        ra = a & mask
+        rb = b & mask
         for t in range(bw):
-            buf[i - lo, t] = f32(cum[a, t] - cum[b, t])
+            buf[i - lo, t] = f32(cum[ra, t] - cum[rb, t])
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -2358,7 +2383,7 @@ SPREAD_ROWS = 4
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def spread_part(light, sig, on, part, box, grid, radii, needed, row_levels, planes, out):
+def spread_part(light, sig, on, part, box, grid, n_full, radii, needed, row_levels, planes, out):
     """``core.combined._spread_part`` of one part (its pixels ``on``, from region row ``part[0]``
     and column ``part[2]``; region rows ``part[0]``..``part[1]`` - 1 and columns ``part[2]``..
     ``part[3]`` - 1 hold them all), its blurs confined to ``box`` (region coordinates, the
@@ -2379,8 +2404,9 @@ def spread_part(light, sig, on, part, box, grid, radii, needed, row_levels, plan
     pixel whose width lies next to the level (the part's row i: levels ``row_levels[i, 0]``..
     ``row_levels[i, 1]``). A pixel's result is (1 - w) times the level below its width plus w
     times the level above, written when the upper level is done (the lower one's share kept in
-    ``out`` meanwhile); level 0 is ``light``. At the end the part's pixels of ``light`` take
-    their results (``out`` is scratch)."""
+    ``out`` meanwhile); level 0 is ``light``. Only the levels below ``n_full`` are blurred here;
+    the wider ones on reduced grids (``spread_blocks``, ``blur_reduced``, ``spread_reduced_part``),
+    then ``part_results`` gives the part's pixels of ``light`` their results (``out`` is scratch)."""
     n_levels = grid.size
     top = grid[n_levels - 1]
     ph = part[1] - part[0]
@@ -2399,7 +2425,7 @@ def spread_part(light, sig, on, part, box, grid, radii, needed, row_levels, plan
     n_col = (pw + SPREAD_STRIP - 1) // SPREAD_STRIP
     n_groups = (ph + SPREAD_ROWS - 1) // SPREAD_ROWS
     which = np.empty(4, np.int64)
-    for k in range(1, n_levels):
+    for k in range(1, n_full):
         if not needed[k, 3]:
             continue
         n_planes = 0
@@ -2415,7 +2441,7 @@ def spread_part(light, sig, on, part, box, grid, radii, needed, row_levels, plan
             xs = part[2] + (item % n_col) * SPREAD_STRIP
             bw = min(xs + SPREAD_STRIP, part[3]) - xs
             buf = np.zeros((hi - lo, SPREAD_STRIP), np.float32)
-            cum = np.empty((hi - lo + 1, SPREAD_STRIP), np.float64)
+            cum = np.empty((_ring(r), SPREAD_STRIP), np.float64)
             for i in range(part[0], part[1]):
                 row = on[i - part[0]]
                 for t in range(bw):
@@ -2441,7 +2467,7 @@ def spread_part(light, sig, on, part, box, grid, radii, needed, row_levels, plan
             if not wanted:
                 continue
             line = np.zeros((right - left, 4 * SPREAD_ROWS), np.float32)
-            cum = np.empty((right - left + 1, 4 * SPREAD_ROWS), np.float64)
+            cum = np.empty((_ring(r), 4 * SPREAD_ROWS), np.float64)
             for j in range(part[2], part[3]):
                 for g in range(rows):
                     for q in range(4):
@@ -2470,7 +2496,228 @@ def spread_part(light, sig, on, part, box, grid, radii, needed, row_levels, plan
                             cur = line[j - left, 4 * g + c] / den
                             wt = f32((s - g_k) / (g_hi - g_k))
                             out[i, j, c] = (_ONE - wt) * cur
-    # The part's light is read no more: its pixels take their results (other parts read theirs only).
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def spread_blocks(light, on, part, box, sums):
+    """The first reduced grid of ``core.combined._spread_reference``'s pyramid: ``sums`` (4,
+    ceil(box rows / 2), ceil(box columns / 2)) float64, the 2 x 2 block sums from ``box``'s origin
+    (region coordinates, as in ``spread_part``) of the light on the part (R, G, B: ``light`` x
+    ``on`` within ``part``'s rows and columns, 0 elsewhere in the box) and of the part itself,
+    as ``core.combined._block_sums`` adds them: (a00 + a01) + (a10 + a11), zeros beyond the box."""
+    hc, wc = sums.shape[1], sums.shape[2]
+    for bi in prange(hc):
+        for bj in range(wc):
+            for q in range(4):
+                acc = 0.0
+                for dy in range(2):
+                    row = 0.0
+                    for dx in range(2):
+                        i = box[0] + 2 * bi + dy
+                        j = box[2] + 2 * bj + dx
+                        v = _ZERO
+                        if i < box[1] and j < box[3] and part[0] <= i < part[1] and part[2] <= j < part[3]:
+                            mk = _ONE if on[i - part[0], j - part[2]] != 0 else _ZERO
+                            v = light[i, j, q] * mk if q < 3 else mk
+                        row = np.float64(v) if dx == 0 else row + np.float64(v)
+                    acc = row if dy == 0 else acc + row
+                sums[q, bi, bj] = acc
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def halve_sums(src, dst):
+    """``core.combined._block_sums`` of ``src`` (P, H, W) float64 into ``dst`` (P, ceil(H / 2),
+    ceil(W / 2)): (a00 + a01) + (a10 + a11), zeros beyond an odd edge."""
+    h, w = src.shape[1], src.shape[2]
+    for bi in prange(dst.shape[1]):
+        for bj in range(dst.shape[2]):
+            for q in range(src.shape[0]):
+                acc = 0.0
+                for dy in range(2):
+                    i = 2 * bi + dy
+                    row = 0.0
+                    for dx in range(2):
+                        j = 2 * bj + dx
+                        v = src[q, i, j] if i < h and j < w else 0.0
+                        row = v if dx == 0 else row + v
+                    acc = row if dy == 0 else acc + row
+                dst[q, bi, bj] = acc
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def blur_reduced(sums, radii, reduced):
+    """A reduced level's blur: ``reduced`` (P, Hc, Wc) float32 = the float32 of ``sums``, then
+    three box sums of half-widths ``radii`` along the columns and three along the rows, each
+    the reference's ``core.combined._box`` (float64 running sums, ``_running_box``)."""
+    n_planes, h, w = sums.shape
+    n_col = (w + SPREAD_STRIP - 1) // SPREAD_STRIP
+    for item in prange(n_planes * n_col):
+        q = item // n_col
+        xs = (item % n_col) * SPREAD_STRIP
+        bw = min(xs + SPREAD_STRIP, w) - xs
+        buf = np.zeros((h, SPREAD_STRIP), np.float32)
+        cum = np.empty((_ring(radii.max()), SPREAD_STRIP), np.float64)
+        for i in range(h):
+            for t in range(bw):
+                buf[i, t] = f32(sums[q, i, xs + t])
+        for r in radii:
+            _running_box(buf, cum, 0, h, 0, h, r, bw)
+        for i in range(h):
+            for t in range(bw):
+                reduced[q, i, xs + t] = buf[i, t]
+    n_row = (h + SPREAD_ROWS - 1) // SPREAD_ROWS
+    lanes = n_planes * SPREAD_ROWS
+    for group in prange(n_row):
+        i0 = group * SPREAD_ROWS
+        rows = min(SPREAD_ROWS, h - i0)
+        line = np.zeros((w, lanes), np.float32)
+        cum = np.empty((_ring(radii.max()), lanes), np.float64)
+        for j in range(w):
+            for g in range(rows):
+                for q in range(n_planes):
+                    line[j, n_planes * g + q] = reduced[q, i0 + g, j]
+        for r in radii:
+            _running_box(line, cum, 0, w, 0, w, r, lanes)
+        for j in range(w):
+            for g in range(rows):
+                for q in range(n_planes):
+                    reduced[q, i0 + g, j] = line[j, n_planes * g + q]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _read_axis(n, f, t):
+    """``core.combined._read_back``'s interpolation along one axis at pixel ``n`` of blocks of
+    ``f`` over ``t`` of them: (first block, second block, weight of the second, float64)."""
+    u = (n + 0.5) / f - 0.5
+    u = min(max(u, 0.0), t - 1.0)
+    i0 = min(np.int64(math.floor(u)), max(t - 2, 0))
+    return i0, min(i0 + 1, t - 1), u - i0
+
+
+@njit(cache=True, error_model="numpy")
+def _read_columns(n0, n1, f, t):
+    """``_read_axis`` of the columns ``n0``..``n1`` - 1: (first blocks, second blocks, weights)."""
+    x0 = np.empty(n1 - n0, np.int64)
+    x1 = np.empty(n1 - n0, np.int64)
+    tx = np.empty(n1 - n0, np.float64)
+    for j in range(n0, n1):
+        x0[j - n0], x1[j - n0], tx[j - n0] = _read_axis(j, f, t)
+    return x0, x1, tx
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _read_row(reduced, y0, y1, ty, between):
+    """``core.combined._read_back``'s first step for one row: the reduced grid's rows ``y0`` and
+    ``y1`` mixed by ``ty`` (float64, every plane and block column) into ``between`` (Wc, P)."""
+    for jc in range(reduced.shape[2]):
+        for q in range(reduced.shape[0]):
+            between[jc, q] = (1.0 - ty) * np.float64(reduced[q, y0, jc]) + ty * np.float64(reduced[q, y1, jc])
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def spread_reduced_part(light, sig, on, part, box, grid, n_full, flat, levels, out):
+    """``spread_part``'s levels from ``n_full`` on (of ``grid``), blurred on reduced grids
+    (``blur_reduced``), all in one pass over the part's pixels: level k's grid is
+    ``flat[levels[k - n_full, 1]:]`` as (4, ``levels[k - n_full, 2]``, ``levels[k - n_full, 3]``)
+    (R, G, B and the mask; blocks of ``levels[k - n_full, 0]`` from ``box``'s origin; a block
+    size of 0: no pixel reads the level). At each pixel and channel whose width lies next to
+    such a level, the grid is read back bilinearly as ``core.combined._read_back`` does (between
+    two rows, then along the row; numerator and mask in float64, each then float32), the
+    numerator divided by the mask (at least 1e-6), and the pixel's share of it put into ``out``
+    as ``spread_part`` does for its levels: (1 - w) times the level below its width, then plus w
+    times the level above (the level below, if at full resolution, put by ``spread_part``)."""
+    n_levels = grid.size
+    top = grid[n_levels - 1]
+    n_red = levels.shape[0]
+    pw = part[3] - part[2]
+    wide = 1
+    for m in range(n_red):
+        wide = max(wide, levels[m, 3])
+    xs0 = np.zeros((n_red, pw), np.int64)
+    xs1 = np.zeros((n_red, pw), np.int64)
+    txs = np.zeros((n_red, pw), np.float64)
+    for m in range(n_red):
+        if levels[m, 0] > 0:
+            for jj in range(pw):
+                xs0[m, jj], xs1[m, jj], txs[m, jj] = _read_axis(part[2] + jj - box[2], levels[m, 0], levels[m, 3])
+    for i in prange(part[0], part[1]):
+        between = np.empty((n_red, wide, 4), np.float64)
+        done = np.zeros(n_red, np.bool_)
+        dens = np.empty(n_red, np.float32)
+        have = np.zeros(n_red, np.bool_)
+        for j in range(part[2], part[3]):
+            if on[i - part[0], j - part[2]] == 0:
+                continue
+            jj = j - part[2]
+            for m in range(n_red):
+                have[m] = False
+            for c in range(3):
+                s = min(max(np.float64(sig[i, j, c]), 0.0), top)
+                # Its levels (the reference's searchsorted): the first of grid >= s, at least 1.
+                hi = 1
+                while hi < n_levels - 1 and not grid[hi] >= s:
+                    hi += 1
+                lo = hi - 1
+                if hi < n_full:
+                    continue
+                wt = f32((s - grid[lo]) / (grid[hi] - grid[lo]))
+                for k in (lo, hi):
+                    if k < n_full:
+                        continue
+                    m = k - n_full
+                    f = levels[m, 0]
+                    off = levels[m, 1]
+                    hc = levels[m, 2]
+                    wc = levels[m, 3]
+                    if not done[m]:
+                        y0, y1, ty = _read_axis(i - box[0], f, hc)
+                        for jc in range(wc):
+                            for q in range(4):
+                                a = np.float64(flat[off + (q * hc + y0) * wc + jc])
+                                b = np.float64(flat[off + (q * hc + y1) * wc + jc])
+                                between[m, jc, q] = (1.0 - ty) * a + ty * b
+                        done[m] = True
+                    x0 = xs0[m, jj]
+                    x1 = xs1[m, jj]
+                    t = txs[m, jj]
+                    if not have[m]:
+                        den = f32((1.0 - t) * between[m, x0, 3] + t * between[m, x1, 3])
+                        dens[m] = den if den > f32(1e-6) or den != den else f32(1e-6)
+                        have[m] = True
+                    cur = f32((1.0 - t) * between[m, x0, c] + t * between[m, x1, c]) / dens[m]
+                    if k == lo:
+                        out[i, j, c] = (_ONE - wt) * cur
+                    else:
+                        out[i, j, c] = out[i, j, c] + wt * cur
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def spread_reduced_frame(mask, sigma, f, reduced, grid, k, prev, out):
+    """``spread_light``'s level ``k`` (of ``grid``) for a level blurred on the reduced grid
+    ``reduced`` (blocks of ``f`` x ``f`` from the frame's origin): each pixel's level value (as
+    ``spread_reduced_part`` reads it), with ``prev`` (the level below) into ``out`` where the
+    pixel's width lies between the two, as ``spread_light`` does it; then ``prev`` = this level."""
+    h, w = mask.shape
+    n_planes, hc, wc = reduced.shape
+    x0, x1, tx = _read_columns(0, w, f, wc)
+    for y in prange(h):
+        y0, y1, ty = _read_axis(y, f, hc)
+        between = np.empty((wc, n_planes), np.float64)
+        _read_row(reduced, y0, y1, ty, between)
+        for x in range(w):
+            a = x0[x]
+            b = x1[x]
+            t = tx[x]
+            den = f32((1.0 - t) * between[a, 3] + t * between[b, 3])
+            den = den if den > f32(1e-6) or den != den else f32(1e-6)
+            for c in range(3):
+                cur = f32((1.0 - t) * between[a, c] + t * between[b, c]) / den
+                _frame_level(mask, sigma, grid, k, y, x, c, cur, prev, out)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def part_results(light, on, part, out):
+    """The end of a part's spread: its pixels of ``light`` take their results from ``out``."""
     for i in prange(part[0], part[1]):
         for j in range(part[2], part[3]):
             if on[i - part[0], j - part[2]] != 0:
