@@ -44,7 +44,8 @@ default backend's.
 
 ``--techniques combined`` (names separated by commas) and ``--backends numba`` time some of the
 cases only, for a quick check: such a run leaves out the energy stage and the first calls, and
-writes only where ``--out`` says (never over ``speed.json``).
+writes only where ``--out`` says (never over ``speed.json``); ``--apply-only`` likewise times
+``apply`` per frame alone.
 """
 
 from __future__ import annotations
@@ -549,6 +550,9 @@ def main(argv=None) -> int:
         "--techniques", default=None, help=f"some of {','.join(GOALS_MS)} only (a partial run, needs --out)"
     )
     parser.add_argument("--backends", default=",".join(BACKENDS), help="some of numba,numpy only (likewise)")
+    parser.add_argument(
+        "--apply-only", action="store_true", help="only what apply costs per frame (whole_frame; needs --out)"
+    )
     args = parser.parse_args(argv)
     width, height = resolution(parser, args.resolution)
     big = None if args.big == "none" else resolution(parser, args.big)
@@ -562,6 +566,14 @@ def main(argv=None) -> int:
             parser.error(f"--backends: {name!r} is not one of {', '.join(BACKENDS)}")
     if (techniques is not None or backends != BACKENDS) and os.path.abspath(args.out) == RESULTS:
         parser.error("--techniques / --backends: a partial run needs --out (it does not replace speed.json)")
+    if args.apply_only:
+        if os.path.abspath(args.out) == RESULTS:
+            parser.error("--apply-only: a partial run needs --out (it does not replace speed.json)")
+        load_before = os.getloadavg()
+        frame = whole_frame(width, height, args.repeat)
+        frame["load_average_before_after"] = [round(load_before[0], 2), round(os.getloadavg()[0], 2)]
+        write_results(args.out, frame)
+        return 0
     data = run(width, height, args.repeat, big, techniques=techniques, backends=backends)
     write_results(args.out, data)
     return 0

@@ -187,8 +187,12 @@ def apply(
             term = out - original[box]
             if mp.unchanged_channels:
                 term[..., list(mp.unchanged_channels)] = 0.0
-        image[box][..., :3][good] = rgb[box][good] + term[good]
-        sss[box][good] = term[good]
+        # Masked copies, not boolean indexing: the latter packs the pixels first (some 40 ms a
+        # material at 1080p); the values written are the same float32 sums.
+        where = good[..., None]
+        with np.errstate(over="ignore", invalid="ignore"):
+            np.copyto(image[box][..., :3], rgb[box] + term, where=where)
+        np.copyto(sss[box], term, where=where)
     p.nonfinite_pixels = nonfinite
     p.overflow_pixels = overflow
     name_image, name_sss = layer_names(spec.name)
