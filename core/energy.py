@@ -269,6 +269,42 @@ def _nodes(values) -> np.ndarray:
     return np.asarray(values, dtype=np.float64)
 
 
+def _entry_table(method: str):
+    """``SEMI_INFINITE``'s table of ``method`` as ``entry_gain`` reads it: (table (view cosines,
+    albedos), the view cosines ascending, the albedos), or None without one."""
+    table = SEMI_INFINITE.get(method)
+    if table is None:
+        return None
+    return np.ascontiguousarray(_nodes(table)[::-1]), np.cos(np.radians(_nodes(VIEW_DEG)))[::-1].copy(), _nodes(ALBEDO)
+
+
+def _convex_table(method: str):
+    """``CONVEX``'s table of ``method`` as ``convex_gain`` reads it: (table (albedos, curvatures),
+    the albedos, the curvatures in mean free paths from 0, the flat surface's 1), or None."""
+    if method not in CONVEX:
+        return None
+    table = np.concatenate([np.ones((len(ALBEDO), 1)), _nodes(CONVEX[method])], axis=1)
+    return table, _nodes(ALBEDO), np.concatenate([[0.0], 1.0 / _nodes(CONVEX_RADII)])
+
+
+def _slab_tables(method: str):
+    """``SLAB_ABOVE`` and ``SLAB_BELOW`` of ``method`` over the thickest slab's ``SLAB_ABOVE``, as
+    ``slab_factors`` reads them: (above, below (albedos, thicknesses), the albedos, log2 of the
+    thicknesses)."""
+    above, below = _nodes(SLAB_ABOVE[method]), _nodes(SLAB_BELOW[method])
+    thick = above[:, -1:]
+    return above / thick, below / thick, _nodes(SLAB_ALBEDO), np.log2(_nodes(SLAB_MFPS))
+
+
+def _log_thickness(t: np.ndarray) -> np.ndarray:
+    """``t`` (float64, thicknesses in mean free paths) as ``slab_factors`` reads it, a new array:
+    NaN and +inf as the thickest slab, -inf as the thinnest (fmin and fmax take the number over
+    NaN, so two passes give what nan_to_num and clip give in six), then log2 (NumPy's)."""
+    lt = np.fmin(t, SLAB_MFPS[-1])
+    np.fmax(lt, SLAB_MFPS[0], out=lt)
+    return np.log2(lt, out=lt)
+
+
 def entry_gain(method: str, albedo, cos_view) -> np.ndarray:
     """The method's light over Lambert's per channel, float32 (..., 3), for Base Color ``albedo``
     (..., 3) and view cosine ``cos_view`` (...): bilinear in the albedo (clamped to the table's
@@ -278,13 +314,10 @@ def entry_gain(method: str, albedo, cos_view) -> np.ndarray:
     mu = np.asarray(cos_view, dtype=np.float64)
     if a.shape[-1:] != (3,) or a.shape[:-1] != mu.shape:
         raise ValueError(f"albedo {a.shape} and cos_view {mu.shape}: expected (..., 3) and (...)")
-    table = SEMI_INFINITE.get(method)
-    if table is None:
+    tables = _entry_table(method)
+    if tables is None:
         return np.ones(a.shape, np.float32)
-    t = _nodes(table)  # (views, albedos)
-    mus = np.cos(np.radians(_nodes(VIEW_DEG)))[::-1]  # ascending
-    t = t[::-1]
-    albedos = _nodes(ALBEDO)
+    t, mus, albedos = tables
     return _lerp2(
         "entry_gain",
         t,
@@ -325,18 +358,8 @@ def slab_factors(method: str, albedo, thickness_mfp) -> tuple[np.ndarray, np.nda
         raise ValueError(f"albedo {a.shape} and thickness_mfp {t.shape}: expected the same (..., 3)")
     if method not in SLAB_ABOVE:
         return np.ones(a.shape, np.float32), np.zeros(a.shape, np.float32)
-    albedos = _nodes(SLAB_ALBEDO)
-    above = _nodes(SLAB_ABOVE[method])
-    below = _nodes(SLAB_BELOW[method])
-    thick = above[:, -1:]
-    above, below = above / thick, below / thick
-    logs = np.log2(_nodes(SLAB_MFPS))
-    # NaN and +inf read as the thickest slab, -inf as the thinnest: fmin and fmax take the number
-    # over NaN, so two passes give what nan_to_num and clip give in six (0.03 s against 0.07 s for
-    # a 1080p frame's three channels).
-    lt = np.fmin(t, SLAB_MFPS[-1])
-    np.fmax(lt, SLAB_MFPS[0], out=lt)
-    np.log2(lt, out=lt)
+    above, below, albedos, logs = _slab_tables(method)
+    lt = _log_thickness(t)  # (0.03 s against 0.07 s with nan_to_num and clip, 1080p x 3)
     f_above, f_below = (
         _lerp2(
             "slab_factors",
@@ -377,9 +400,7 @@ def convex_gain(method: str, albedo, curvature_mfp) -> np.ndarray:
         raise ValueError(f"albedo {a.shape} and curvature_mfp {k.shape}: expected the same (..., 3)")
     if method not in CONVEX:
         return np.ones(a.shape, np.float32)
-    table = np.concatenate([np.ones((len(ALBEDO), 1)), _nodes(CONVEX[method])], axis=1)
-    nodes = np.concatenate([[0.0], 1.0 / _nodes(CONVEX_RADII)])
-    albedos = _nodes(ALBEDO)
+    table, albedos, nodes = _convex_table(method)
     return _lerp2(
         "convex_gain", table, albedos, nodes, a, k, (albedos[0], 0.0), lambda: _convex_reference(table, nodes, a, k)
     )
@@ -935,38 +956,26 @@ def _object_compiled(out, s: _ObjectShape, *, method, albedo, pre_post, thicknes
     c = np.ascontiguousarray
     mb = c(s.m[s.box])
     y0, x0 = s.box[0].start, s.box[1].start
+    # An absent table is passed empty (0 rows: the kernel reads 1); the entry's columns and the
+    # convex gain's rows are both ALBEDO.
     none = np.zeros((0, 2), np.float64)
     nodes = np.zeros(2, np.float64)
-    albedos = _nodes(ALBEDO)  # the entry's columns and the convex gain's rows
-    table = SEMI_INFINITE.get(method)
-    entry, views = (
-        (none, nodes) if table is None else (c(_nodes(table)[::-1]), c(np.cos(np.radians(_nodes(VIEW_DEG)))[::-1]))
-    )
-    if method in CONVEX:
-        convex = c(np.concatenate([np.ones((len(ALBEDO), 1)), _nodes(CONVEX[method])], axis=1))
-        curvatures = np.concatenate([[0.0], 1.0 / _nodes(CONVEX_RADII)])
-    else:
-        convex, curvatures = none, nodes
+    albedos = _nodes(ALBEDO)
+    entry, views, _ = _entry_table(method) or (none, nodes, None)
+    convex, _, curvatures = _convex_table(method) or (none, None, nodes)
     above = below = none
     slab_albedos, logs = nodes, nodes
     x = np.zeros((1, 1), np.float64)
     lt = np.zeros((1, 1, 3), np.float64)
     if s.finite:
-        above, below = _nodes(SLAB_ABOVE[method]), _nodes(SLAB_BELOW[method])
-        thick = above[:, -1:]
-        above, below = c(above / thick), c(below / thick)
-        slab_albedos, logs = _nodes(SLAB_ALBEDO), np.log2(_nodes(SLAB_MFPS))
+        above, below, slab_albedos, logs = _slab_tables(method)
         x = np.zeros(mb.shape, np.float64)  # read on the whole box below
         least = 2.0 / (CHORD_CAP * distance)
         largest = c(s.largest)
         backend.run_kernel(
             "energy_thickness", mb, y0, x0, _float_frame(thickness), as_thickness, distance, least, largest, x
         )
-        # slab_factors' read of the thickness, NaN and +inf as the thickest slab.
-        lt = x[..., None] / s.ell
-        np.fmin(lt, SLAB_MFPS[-1], out=lt)
-        np.fmax(lt, SLAB_MFPS[0], out=lt)
-        np.log2(lt, out=lt)
+        lt = _log_thickness(x[..., None] / s.ell)  # slab_factors' read of the thickness
     unseen = np.zeros(3, np.float32) if s.unseen is None else s.unseen.astype(np.float32)
     mean = [c(v, np.float32) for v in s.mean]
     backend.run_kernel(
