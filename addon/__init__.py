@@ -75,7 +75,20 @@ def _numba_cache_in_user_directory():
 
     root = __package__.rpartition(".")[0]
     if root.startswith("bl_ext."):
-        backend.set_cache_dir(bpy.utils.extension_path_user(root, path="numba", create=True))
+        path = bpy.utils.extension_path_user(root, path="numba", create=True)
+        backend.set_cache_dir(path)
+        _prepare_in_background(root, path)
+
+
+def _prepare_in_background(root: str, path: str) -> None:
+    """Compile this version's kernels in a background process (``blender/prepare.py``); a failure
+    to start it costs only the wait at the first Apply, so it is said and registration goes on."""
+    from ..blender import prepare
+
+    try:
+        prepare.start(root, path)
+    except Exception as exc:  # an OS refusal, a damaged cache folder: never a failed registration
+        print(f"SSS Lab: could not start compiling the kernels in the background ({exc})")
 
 
 def unregister():

@@ -27,6 +27,7 @@ COMMANDS = (
     ".cli_calibrate",
     ".cli_reference",
     ".cli_merge_reference",
+    ".cli_prepare",
 )
 
 

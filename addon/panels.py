@@ -133,6 +133,12 @@ class SSS_LAB_PT_apply(_Step, bpy.types.Panel):
         layout = split(self.layout)
         layout.prop(context.scene.sss_lab, "passes_file")
         layout.operator("sss_lab.apply", icon="IMAGE_DATA")
+        from ..blender import prepare
+
+        if prepare.running():
+            _note(
+                layout, "Compiling the kernels in the background (once per version): until then Apply waits for them."
+            )
 
 
 class SSS_LAB_PT_compositor(_Step, bpy.types.Panel):

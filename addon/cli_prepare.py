@@ -1,0 +1,33 @@
+"""``python -m sss_lab prepare``: compile the kernels into the cache before the first frame needs
+them (``core/prepare.py``): on a render-farm node before its first task, or after installing or
+updating SSS Lab. No Blender needed."""
+
+from __future__ import annotations
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "prepare",
+        help="compile the compiled kernels into their on-disk cache ahead of the first frame (no bpy needed)",
+    )
+    p.add_argument(
+        "--method",
+        default="all",
+        help="the techniques to prepare: all (default) or a comma-separated list of sta, ssss, burley, combined",
+    )
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from ..core.prepare import prepare_kernels
+    from .cli import parse_methods
+
+    names = parse_methods(args.method)
+    everything = args.method.strip() == "all"
+    result = prepare_kernels(None if everything else names, log=lambda line: print(f"prepare: {line}", flush=True))
+    for name, seconds in sorted(result["kernels"].items(), key=lambda kv: -kv[1]):
+        print(f"prepare: {name:24s} {seconds:7.2f} s")
+    print(
+        f"prepare: {len(result['kernels'])} kernels ready in {result['seconds']:.1f} s, cached in {result['cache_dir']}"
+    )
+    return 0

@@ -1,0 +1,115 @@
+"""Compile the kernels before they are needed (``python -m sss_lab prepare``; the extension starts
+it in the background once per installed version).
+
+Numba compiles each kernel of ``core/compiled.py`` on its first call, for the types of the
+arrays it is given, and keeps the machine code in the on-disk cache (``core/backend.py``). With
+an empty cache, the first ``apply`` of a technique waits for that: 10 to 20 s for STA, SSSS or
+Burley and about as much again for the combined technique's light from behind on this project's
+2-core machine (``first_call_s`` in ``benchmarks/results/speed.json``). ``prepare_kernels`` makes
+those first calls on a small synthetic frame (``core.synthetic.sphere_scene``: a Christensen-Burley
+skin sphere and a Random Walk wax one, every pass a real render gives) through ``core.apply``,
+the path each frame takes, so that the cache holds what a frame needs; a later process loads each
+kernel from it in a fraction of a second. The frame is applied twice per technique: as built
+(no thickness bake distance: the energy stage's "object" path) and with a bake distance and long
+lengths (``FAR``), whose light from behind is spread far enough to use the spread's reduced
+levels. A frame whose inputs have other types (another integer type of Object Index, say) still
+compiles what it needs on first use.
+
+The cache is keyed by the kernels' source (Numba checks the file's time stamp and size), so a
+new version of the extension prepares again: ``marker_path`` names the file that records that
+this version's kernels were prepared.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import sys
+import time
+
+from . import _files, backend
+from .errors import SSSLabError
+
+#: The synthetic frame's size: enough pixels for every kernel's paths (the spheres' edges, the
+#: plane behind them), small enough to cost nothing but the compiling.
+SIZE = (64, 48)
+#: The second variant's materials: a thickness bake distance (scene units) and a Subsurface Scale
+#: whose light from behind spreads over 16 pixels and more at ``SIZE`` (the spread's reduced
+#: levels, ``core.combined.SPREAD_COARSE_FROM_PX``; scale 1 stays below them, 3 reaches the first).
+FAR = {"thickness_distance": 0.5, "subsurface_scale": 10.0}
+
+
+class PrepareError(SSSLabError):
+    """The compiled kernels cannot be prepared (Numba cannot load): the techniques run on NumPy."""
+
+
+def _digest() -> str:
+    """What the cache's contents depend on: the kernels' source, Python's and Numba's versions
+    (Numba's from its package metadata: this does not import it, which takes a good part of a
+    second)."""
+    from importlib import metadata
+
+    try:
+        numba_version = metadata.version("numba")
+    except metadata.PackageNotFoundError:
+        numba_version = "none"
+    h = hashlib.sha256()
+    with open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "compiled.py"), "rb") as fh:
+        h.update(fh.read())
+    h.update(f"{sys.version_info[:2]}:{numba_version}".encode())
+    return h.hexdigest()[:16]
+
+
+def marker_path() -> str:
+    """The file in the cache folder that says this version's kernels were prepared there."""
+    return os.path.join(backend.cache_dir(), f"prepared-{_digest()}.json")
+
+
+def is_prepared() -> bool:
+    """Whether ``prepare_kernels`` ran to the end for this version and cache folder (False where
+    Numba cannot load)."""
+    if backend.compiled() is None:
+        return False
+    return os.path.isfile(marker_path())
+
+
+def prepare_kernels(techniques=None, *, log=None) -> dict:
+    """Compile (or load from the cache) every kernel ``core.apply.apply`` runs for each technique of
+    ``techniques`` (default: all registered) on ``SIZE``'s synthetic frame, on the compiled
+    backend whatever ``SSS_LAB_BACKEND`` says; then write ``marker_path()`` (all techniques only).
+
+    Returns {"cache_dir", "seconds" (the whole), "kernels": {name: seconds of its first call in
+    this process: compiling, or loading from the cache}}. ``log(line)`` is told each technique
+    before it runs. Raises ``PrepareError`` where Numba cannot load."""
+    from .apply import apply
+    from .exr import Passes
+    from .synthetic import sphere_scene
+    from .techniques import TECHNIQUES, check_technique
+
+    if backend.compiled() is None:
+        raise PrepareError(
+            f"Numba cannot load ({backend.unavailable_reason()}): the techniques run on their NumPy "
+            "implementations, and there is nothing to compile"
+        )
+    names = list(TECHNIQUES) if techniques is None else [check_technique(t) for t in techniques]
+    arrays, scene = sphere_scene(*SIZE)
+    passes = Passes(arrays)
+    far = dataclasses.replace(
+        scene, materials=tuple(dataclasses.replace(m, **FAR) if m.scatters else m for m in scene.materials)
+    )
+    start = time.perf_counter()
+    before = set(backend.first_call_seconds())
+    with backend.use("numba"):
+        for name in names:
+            if log is not None:
+                log(f"{name}: compiling or loading its kernels")
+            for variant in (scene, far):
+                apply(passes, variant, name)
+    seconds = time.perf_counter() - start
+    kernels = {k: v for k, v in backend.first_call_seconds().items() if k not in before and k != "import"}
+    result = {"cache_dir": backend.cache_dir(), "seconds": seconds, "kernels": kernels}
+    if techniques is None:
+        _files.write_text(marker_path(), json.dumps({"seconds": round(seconds, 3), "kernels": sorted(kernels)}))
+    return result

@@ -1,0 +1,66 @@
+"""``core.prepare``: the kernels compiled ahead of the first frame (``python -m sss_lab prepare``)."""
+
+import os
+
+import pytest
+
+from sss_lab.core import backend
+from sss_lab.core.prepare import PrepareError, is_prepared, marker_path, prepare_kernels
+
+#: Kernels of every path a frame takes: each technique's, the energy stage's two ("object"
+#: without a bake distance, the slab's with one), the light from behind's at full resolution and
+#: on the spread's reduced levels (reached only by ``core.prepare.FAR``'s long lengths).
+EXPECTED = {
+    "sta_kernel",
+    "prepare_pixels",
+    "ssss_kernel",
+    "burley_pack",
+    "burley_kernel",
+    "energy_object",
+    "energy_thickness",
+    "back_light_pixels",
+    "transmit_pixels",
+    "spread_part",
+    "spread_blocks",
+    "halve_sums",
+    "blur_reduced",
+    "spread_reduced_part",
+    "finish_light",
+}
+
+
+def test_prepare_runs_every_kernel_a_frame_needs_and_marks_the_cache(monkeypatch, tmp_path):
+    if backend.compiled() is None:
+        with pytest.raises(PrepareError, match="Numba cannot load"):
+            prepare_kernels()
+        assert not is_prepared()
+        return
+    # Numba keeps the cache it was loaded with; the marker goes to this test's folder.
+    monkeypatch.setitem(backend._state, "cache_dir", str(tmp_path / "some"))
+    assert not is_prepared()
+    lines = []
+    result = prepare_kernels(["sta"], log=lines.append)
+    assert lines == ["sta: compiling or loading its kernels"]
+    assert not os.path.exists(marker_path())  # only a whole preparation marks the cache
+    monkeypatch.setitem(backend._state, "cache_dir", str(tmp_path / "all"))
+    result = prepare_kernels()
+    called = set(backend.first_call_seconds())
+    assert EXPECTED <= called, sorted(EXPECTED - called)
+    # What it reports is what this process called first (earlier tests may have called the rest).
+    assert set(result["kernels"]) <= called and "import" not in result["kernels"]
+    assert result["cache_dir"] == str(tmp_path / "all") and result["seconds"] > 0
+    assert is_prepared() and os.path.dirname(marker_path()) == str(tmp_path / "all")
+
+
+def test_the_command_line_prepares_and_names_a_bad_method(capsys):
+    from sss_lab.addon.cli import main
+
+    assert main(["prepare", "--method", "nonsense"]) == 2
+    assert "unknown method 'nonsense'" in capsys.readouterr().err
+    code = main(["prepare", "--method", "sta"])
+    out, err = capsys.readouterr()
+    if backend.compiled() is None:
+        assert code == 2 and "Numba cannot load" in err
+    else:
+        assert code == 0, err
+        assert "prepare: sta: compiling or loading its kernels" in out and "kernels ready in" in out
