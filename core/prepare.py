@@ -16,8 +16,8 @@ levels. A frame whose inputs have other types (another integer type of Object In
 compiles what it needs on first use.
 
 The cache is keyed by the kernels' source (Numba checks the file's time stamp and size), so a
-new version of the extension prepares again: ``marker_path`` names the file that records that
-this version's kernels were prepared.
+new version of the extension, or the same one installed again, prepares again: ``marker_path``
+names the file that records that these kernels were prepared.
 """
 
 from __future__ import annotations
@@ -46,19 +46,23 @@ class PrepareError(SSSLabError):
 
 
 def _digest() -> str:
-    """What the cache's contents depend on: the kernels' source, Python's and Numba's versions
-    (Numba's from its package metadata: this does not import it, which takes a good part of a
-    second)."""
+    """What the cache's contents depend on: the kernels' source and its file's time stamp, Python's
+    and Numba's versions (Numba's from its package metadata: this does not import it, which takes
+    a good part of a second)."""
     from importlib import metadata
 
     try:
         numba_version = metadata.version("numba")
     except metadata.PackageNotFoundError:
         numba_version = "none"
+    source = os.path.join(os.path.dirname(os.path.abspath(__file__)), "compiled.py")
     h = hashlib.sha256()
-    with open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "compiled.py"), "rb") as fh:
+    with open(source, "rb") as fh:
         h.update(fh.read())
-    h.update(f"{sys.version_info[:2]}:{numba_version}".encode())
+    # Numba's cache index holds the file's time stamp and size: a reinstall of the same version
+    # (files unpacked anew) misses its cache, and so must the marker.
+    st = os.stat(source)
+    h.update(f"{st.st_mtime}:{st.st_size}:{sys.version_info[:2]}:{numba_version}".encode())
     return h.hexdigest()[:16]
 
 

@@ -1,6 +1,7 @@
 """``core.prepare``: the kernels compiled ahead of the first frame (``python -m sss_lab prepare``)."""
 
 import os
+import types
 
 import pytest
 
@@ -64,3 +65,25 @@ def test_the_command_line_prepares_and_names_a_bad_method(capsys):
     else:
         assert code == 0, err
         assert "prepare: sta: compiling or loading its kernels" in out and "kernels ready in" in out
+
+
+def test_the_marker_follows_what_numbas_cache_is_keyed_by(monkeypatch, tmp_path):
+    # A reinstall unpacks compiled.py anew (a new time stamp): Numba compiles again, and the
+    # marker must no longer say the kernels are prepared.
+    from sss_lab.core import prepare
+
+    monkeypatch.setitem(backend._state, "cache_dir", str(tmp_path))
+    before = marker_path()
+    source = os.path.join(os.path.dirname(prepare.__file__), "compiled.py")
+    st = os.stat(source)
+    real_stat = os.stat
+
+    def later(path, *args, **kwargs):
+        if os.path.abspath(path) == os.path.abspath(source):
+            return types.SimpleNamespace(st_mtime=st.st_mtime + 60.0, st_size=st.st_size)
+        return real_stat(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "stat", later)
+    assert marker_path() != before
+    monkeypatch.setattr(os, "stat", real_stat)
+    assert marker_path() == before
