@@ -209,3 +209,24 @@ def bounding_box(m: np.ndarray) -> tuple[slice, slice] | None:
         return None
     cols = np.flatnonzero(m.any(axis=0))
     return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)
+
+
+def all_finite(a: np.ndarray) -> bool:
+    """True when every value of ``a`` is finite, found without a bool frame of ``np.isfinite``.
+
+    A NaN or an infinity among the values makes their float sum NaN or infinite (NaN and inf
+    propagate through additions; inf + -inf is NaN), so a finite sum means every value is
+    finite. Finite values whose sum overflows make it infinite too: then the values are tested
+    one by one."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = np.add.reduce(a, axis=None)
+    return bool(np.isfinite(total)) or bool(np.isfinite(a).all())
+
+
+def box_extent_px(box: tuple[slice, slice] | None) -> float:
+    """Diagonal in pixels (plus one) of a ``bounding_box``, 0 for None: ``core.extent.mask_extent_px``
+    of the mask the box was taken from, without listing its pixels."""
+    if box is None:
+        return 0.0
+    rows, cols = box
+    return math.hypot(float(cols.stop - 1 - cols.start), float(rows.stop - 1 - rows.start)) + 1.0

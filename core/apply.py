@@ -24,7 +24,7 @@ import numpy as np
 from . import _arrays
 from .exr import Passes
 from .passes import THICKNESS
-from .plan import Plan, _accepted, _index_map, plan
+from .plan import Plan, _accepted, _index_map, _plan, plan  # noqa: F401  (plan: callers read it from here too)
 from .scene import SceneDescription
 from .spec import Technique
 
@@ -61,6 +61,29 @@ def _clean(a: np.ndarray) -> np.ndarray:
     return out
 
 
+def _read(raw: np.ndarray, first_channel: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+    """(``raw`` as a technique reads it: a float32 copy with NaN and +-Inf replaced by 0;
+    per-pixel finiteness of ``raw``, or None when every value is finite). One scan finds the
+    usual pass without NaN or Inf, which is copied as it is. ``first_channel``: the technique
+    reads channel 0 alone (a value AOV stored with three); the finiteness covers every channel.
+
+    The copy stays: the compiled kernels take their inputs as they are, and a read-only view
+    would be a new argument type for Numba, compiled again for every kernel on a cold cache."""
+    if raw.dtype == np.float32 and _arrays.all_finite(raw):
+        return np.array(raw[..., 0] if first_channel else raw, dtype=np.float32), None
+    ok = _finite(raw)
+    return _clean(raw[..., 0] if first_channel else raw), ok
+
+
+def _both(ok: np.ndarray | None, other: np.ndarray | None) -> np.ndarray | None:
+    """The pixels finite in both (None: every pixel)."""
+    if ok is None:
+        return other
+    if other is not None:
+        ok &= other
+    return ok
+
+
 #: Inputs a technique gets from a pass it reads, as the keyword of its function (NaN and Inf
 #: become 0 and leave the pixel as it is). The passes every scattering technique reads (Diffuse
 #: Direct + Indirect, Diffuse Color, Depth) and Combined and Material Index are handled apart.
@@ -68,12 +91,19 @@ _PASS_KEYWORDS = {"Normal": "normal", "Position": "position", "Object Index": "o
 
 
 def _inputs(spec: Technique, passes: Passes, scene: SceneDescription, albedo_mode: str):
-    """(keyword inputs of ``spec``'s function but the mask and the material's parameters, the
-    diffuse light Combined holds (albedo x (Direct + Indirect)) or None, per-pixel finiteness of
-    the inputs)."""
-    albedo_raw = passes["Diffuse Color"]
-    albedo = _clean(albedo_raw)
-    ok = _finite(albedo_raw)
+    """(keyword inputs of ``spec``'s function but the mask and the material's parameters; the
+    diffuse light Combined holds (albedo x (Direct + Indirect)) or None; per-pixel finiteness of
+    the inputs): ``_technique_inputs`` with whole frames, as ``core.fit`` reads them."""
+    inputs, parts, ok = _technique_inputs(spec, passes, scene, albedo_mode)
+    original = None if parts is None else parts[0] * parts[1]
+    return inputs, original, np.ones(passes.shape, bool) if ok is None else ok
+
+
+def _technique_inputs(spec: Technique, passes: Passes, scene: SceneDescription, albedo_mode: str):
+    """(keyword inputs of ``spec``'s function but the mask and the material's parameters;
+    (albedo, Direct + Indirect), whose product is the diffuse light Combined holds,
+    or None; per-pixel finiteness of the inputs, None when every pixel is finite)."""
+    albedo, ok = _read(passes["Diffuse Color"])
     inputs: dict = {
         "albedo": albedo,
         "camera": scene.camera,
@@ -87,23 +117,30 @@ def _inputs(spec: Technique, passes: Passes, scene: SceneDescription, albedo_mod
         if keyword is None:
             continue
         raw = passes[scene.thickness_aov if name == THICKNESS else name]
+        # A value AOV (thickness) stored with three channels is read from its first.
+        inputs[keyword], finite = _read(raw, first_channel=name == THICKNESS and raw.ndim == 3)
         if name != "Object Index":  # an index pass is read as it is (Blender writes it finite)
-            ok &= _finite(raw)
-        if name == THICKNESS and raw.ndim == 3:
-            raw = raw[..., 0]  # a value AOV: one channel
-        inputs[keyword] = _clean(raw)
+            ok = _both(ok, finite)
     original = None
     if spec.scatters:
         direct, indirect = passes["Diffuse Direct"], passes["Diffuse Indirect"]
-        depth_raw = passes["Depth"]
-        ok &= _finite(direct) & _finite(indirect) & _finite(depth_raw)
-        diffuse = _clean(direct) + _clean(indirect)
-        original = albedo * diffuse  # the diffuse light Combined holds on these pixels
+        ok_direct = ok_indirect = None
+        if not all(a.dtype == np.float32 and _arrays.all_finite(a) for a in (direct, indirect)):
+            direct, ok_direct = _read(direct)
+            indirect, ok_indirect = _read(indirect)
+        depth = passes["Depth"]
+        ok_depth = None
+        if depth.dtype != np.float32 or not _arrays.all_finite(depth):
+            ok_depth = _finite(depth)
+            # Invalid depth becomes background (1e10), which gives and receives no light.
+            depth = np.where(np.isfinite(depth), depth, np.float32(1e10)).astype(np.float32)
+        ok = _both(_both(_both(ok, ok_direct), ok_indirect), ok_depth)
+        diffuse = direct + indirect  # a new array: the passes are only read
+        original = albedo, diffuse  # their product is the diffuse light Combined holds on these pixels
         pre, tech_albedo = _arrays.split_albedo(albedo, albedo_mode)
         inputs["diffuse"] = diffuse if pre is None else pre * diffuse
         inputs["albedo"] = tech_albedo
-        # Invalid depth becomes background (1e10), which gives and receives no light.
-        inputs["depth"] = np.where(np.isfinite(depth_raw), depth_raw, np.float32(1e10)).astype(np.float32)
+        inputs["depth"] = depth if ok_depth is not None else np.array(depth, dtype=np.float32)
     return inputs, original, ok
 
 
@@ -140,7 +177,10 @@ def apply(
     ``Technique`` spec. ``prepared`` is the result of ``plan`` for
     the same arguments, to avoid planning twice.
     """
-    p = prepared or plan(passes, scene, technique, albedo_mode=albedo_mode, mapping=mapping, **options)
+    if prepared is None:
+        p, index = _plan(passes, scene, technique, albedo_mode, mapping, options)
+    else:
+        p, index = prepared, None
     if not p.scattering:
         return {}
     spec = p.spec
@@ -148,18 +188,23 @@ def apply(
     rgb = combined[..., :3]
     image = np.array(combined, dtype=np.float32)
     sss = np.zeros(rgb.shape, dtype=np.float32)
-    index = _index_map(passes)
-    inputs, original, ok = _inputs(spec, passes, scene, albedo_mode)
-    ok &= _finite(rgb)
+    if index is None:
+        index = _index_map(passes)
+    inputs, original, ok = _technique_inputs(spec, passes, scene, albedo_mode)
+    if not _arrays.all_finite(combined):
+        ok = _both(ok, _finite(rgb))
     nonfinite = overflow = 0
     for mp in p.applied:
         mask = index == mp.material.index
-        nonfinite += int((mask & ~ok).sum())
-        mask &= ok
+        if ok is not None:
+            nonfinite += int(np.count_nonzero(mask & ~ok))
+            mask &= ok
         # The material's pixels lie in its mask's bounding box: the compositing reads nothing else.
         box = _arrays.bounding_box(mask)
         if box is None:
             continue
+        # The diffuse light Combined holds there, taken before the technique runs.
+        held = None if original is None else original[0][box] * original[1][box]
         kwargs = dict(inputs)
         kwargs.update(mp.params)
         # A technique that takes the fitted gain applies it itself (the combined technique, to its
@@ -173,26 +218,33 @@ def apply(
         if out.shape != rgb.shape:
             raise ValueError(f"{spec.name} returned shape {out.shape}; expected {rgb.shape}")
         out = out[box]
+        own = gain is not None  # whether ``out`` or ``term`` below is an array made here
         if gain is not None:
             # The fitted per-channel energy (core/fit_params.py): on the material's light after the
             # technique (for STA, on the light it adds).
             out = out * np.asarray(gain, np.float32)
         m = mask[box]
-        with np.errstate(over="ignore", invalid="ignore"):
-            good = m & _finite(out)
-        overflow += int(m.sum() - good.sum())
-        if not spec.scatters:
+        if _arrays.all_finite(out):
+            good = m
+        else:
+            with np.errstate(over="ignore", invalid="ignore"):
+                good = m & _finite(out)
+            overflow += int(np.count_nonzero(m) - np.count_nonzero(good))
+        if held is None:
             term = out
         else:
-            term = out - original[box]
+            term, own = out - held, True
             if mp.unchanged_channels:
                 term[..., list(mp.unchanged_channels)] = 0.0
         # Masked copies, not boolean indexing: the latter packs the pixels first (some 40 ms a
-        # material at 1080p); the values written are the same float32 sums.
-        where = good[..., None]
-        with np.errstate(over="ignore", invalid="ignore"):
-            np.copyto(image[box][..., :3], rgb[box] + term, where=where)
+        # material at 1080p); the values written are the same float32 sums. The mask is given for
+        # every channel: a mask broadcast over the channels makes the copies several times slower.
+        where = np.repeat(good[..., None], 3, axis=2)
         np.copyto(sss[box], term, where=where)
+        with np.errstate(over="ignore", invalid="ignore"):
+            # Combined + term, into the term when it was made here (not into the technique's result).
+            total = np.add(rgb[box], term, out=term if own else None)
+            np.copyto(image[box][..., :3], total, where=where)
     p.nonfinite_pixels = nonfinite
     p.overflow_pixels = overflow
     name_image, name_sss = layer_names(spec.name)

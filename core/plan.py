@@ -16,7 +16,7 @@ import numpy as np
 
 from . import _arrays
 from .exr import Passes
-from .extent import kernel_warning, mask_extent_px
+from .extent import kernel_warning
 from .passes import THICKNESS
 from .scene import MaterialSSS, SceneDescription
 from .spec import Technique
@@ -193,9 +193,9 @@ def _check_inputs(passes: Passes, scene: SceneDescription, technique: Technique,
 def _index_map(passes: Passes) -> np.ndarray:
     """Material Index as integers; -1 where the pass is not finite (never matches a material)."""
     raw = passes["Material Index"]
-    finite = np.isfinite(raw)
-    if finite.all():  # the usual case: no pixel to mark
+    if _arrays.all_finite(raw):  # the usual case: no pixel to mark
         return np.rint(raw).astype(np.int64)
+    finite = np.isfinite(raw)
     out = np.full(raw.shape, -1, dtype=np.int64)
     out[finite] = np.rint(raw[finite]).astype(np.int64)
     return out
@@ -249,6 +249,13 @@ def plan(
     not match the passes' size, or an option the technique does not take; MissingPassError
     (a KeyError) naming any missing pass and how to enable it.
     """
+    return _plan(passes, scene, technique, albedo_mode, mapping, options)[0]
+
+
+def _plan(
+    passes: Passes, scene: SceneDescription, technique: str | Technique, albedo_mode: str, mapping, options: dict
+) -> tuple[Plan, np.ndarray]:
+    """``plan``, and the Material Index map it read (``_index_map``), which ``apply`` reuses."""
     technique = get_spec(technique)
     _check_inputs(passes, scene, technique, albedo_mode)
     accepted, var_kw = _accepted(technique.function)
@@ -259,9 +266,14 @@ def plan(
         )
     index = _index_map(passes)
     depth = passes.get("Depth")
-    counts = dict(zip(*np.unique(index[index > 0], return_counts=True), strict=True))
-    counts = {int(k): int(v) for k, v in counts.items()}
     known = {m.index for m in scene.materials}
+    # Each listed index's pixels from one comparison each; the map is sorted (np.unique) for the
+    # unlisted indices only when some positive index on screen is not listed.
+    counts = {k: int(np.count_nonzero(index == k)) for k in sorted(known) if k > 0}
+    unknown_indices: dict[int, int] = {}
+    if np.count_nonzero(index > 0) > sum(counts.values()):
+        values, numbers = np.unique(index[index > 0], return_counts=True)
+        unknown_indices = {int(i): int(c) for i, c in zip(values, numbers, strict=True) if int(i) not in known}
     result = []
     for material in scene.materials:
         mp = MaterialPlan(material=material, pixels=counts.get(material.index, 0))
@@ -283,8 +295,9 @@ def plan(
         footprint = technique.footprint(mp.params)
         mp.samples = footprint.samples
         mp.kernel_su = footprint.radius_su
+        mask = index == material.index
         if depth is not None:
-            z = depth[index == material.index]
+            z = depth[mask]
             z = z[np.isfinite(z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)]
             if z.size:
                 mp.median_depth = float(np.median(z))
@@ -302,7 +315,8 @@ def plan(
                 float(v) for v in cam.pixels_per_unit(np.array([mp.median_depth, mp.nearest_depth], np.float32))
             )
             mp.kernel_px = tuple(r * ppu_median for r in mp.kernel_su)
-            mp.warning = kernel_warning(max(mp.kernel_px), mask_extent_px(index == material.index), passes.shape)
+            extent = _arrays.box_extent_px(_arrays.bounding_box(mask))  # mask_extent_px(mask), from its box
+            mp.warning = kernel_warning(max(mp.kernel_px), extent, passes.shape)
             widest_px = max(mp.kernel_su) * ppu_nearest
             # A fitted gain, the light from behind or the energy model still change a material whose
             # kernel is tiny.
@@ -316,8 +330,7 @@ def plan(
                     f"its kernel is at most one pixel wide ({widest_px:.3g} px at the nearest depth"
                     f" {mp.nearest_depth:.4g}): scattering would not change it"
                 )
-    unknown_indices = {i: c for i, c in counts.items() if i not in known}
-    return Plan(
+    result_plan = Plan(
         technique=technique.name,
         spec=technique,
         shape=passes.shape,
@@ -326,3 +339,4 @@ def plan(
         unknown_indices=unknown_indices,
         options=dict(options),
     )
+    return result_plan, index
