@@ -218,7 +218,6 @@ def apply(
         if out.shape != rgb.shape:
             raise ValueError(f"{spec.name} returned shape {out.shape}; expected {rgb.shape}")
         out = out[box]
-        own = gain is not None  # whether ``out`` or ``term`` below is an array made here
         if gain is not None:
             # The fitted per-channel energy (core/fit_params.py): on the material's light after the
             # technique (for STA, on the light it adds).
@@ -233,18 +232,22 @@ def apply(
         if held is None:
             term = out
         else:
-            term, own = out - held, True
+            term = out - held
             if mp.unchanged_channels:
                 term[..., list(mp.unchanged_channels)] = 0.0
         # Masked copies, not boolean indexing: the latter packs the pixels first (some 40 ms a
-        # material at 1080p); the values written are the same float32 sums. The mask is given for
-        # every channel: a mask broadcast over the channels makes the copies several times slower.
+        # material at 1080p); the values written are the same float32 sums. The SSS layer's copy
+        # gets the mask for every channel (a mask broadcast over the channels is several times
+        # slower); Combined's RGB is a strided view of RGBA, so the image is written one channel
+        # at a time: over (rows, channels) NumPy's loops would run three values long.
         where = np.repeat(good[..., None], 3, axis=2)
-        np.copyto(sss[box], term, where=where)
-        with np.errstate(over="ignore", invalid="ignore"):
-            # Combined + term, into the term when it was made here (not into the technique's result).
-            total = np.add(rgb[box], term, out=term if own else None)
-            np.copyto(image[box][..., :3], total, where=where)
+        sss_box, image_box = sss[box], image[box]
+        np.copyto(sss_box, term, where=where)
+        total = np.empty(good.shape, np.float32)
+        for c in range(3):
+            with np.errstate(over="ignore", invalid="ignore"):
+                np.add(image_box[..., c], sss_box[..., c], out=total)  # Combined + term where good
+            np.copyto(image_box[..., c], total, where=good)
     p.nonfinite_pixels = nonfinite
     p.overflow_pixels = overflow
     name_image, name_sss = layer_names(spec.name)
