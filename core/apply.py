@@ -232,7 +232,7 @@ def apply(
         if held is None:
             term = out
         else:
-            term = out - held
+            term = np.subtract(out, held, out=held)  # out - held, in held's array
             if mp.unchanged_channels:
                 term[..., list(mp.unchanged_channels)] = 0.0
         # Masked copies, not boolean indexing: the latter packs the pixels first (some 40 ms a
