@@ -713,6 +713,18 @@ def apply_auto(passes: Passes, scene: SceneDescription, *, prepared: AutoPlan | 
     auto = prepared or choose(passes, scene, **options)
     if not auto.choices:
         return {}
+    name_image, name_sss = core_apply.layer_names(AUTO)
+    if len(auto.plans) == 1:
+        # One technique chosen: its layers are auto's (Combined untouched outside the computed
+        # materials, as below), without a second copy of the frame and a sum over it.
+        ((t, p),) = auto.plans.items()
+        layers = core_apply.apply(passes, scene, t, albedo_mode=p.albedo_mode, prepared=p)
+        if layers:
+            auto.nonfinite_pixels = p.nonfinite_pixels
+            auto.overflow_pixels = p.overflow_pixels
+            image, sss = (layers[n] for n in core_apply.layer_names(t))
+            return {name_image: image, name_sss: sss}
+        # Nothing computed: Combined as it is, below (its apply returns at once again).
     combined = passes["Combined"]
     image = np.array(combined, dtype=np.float32)
     sss = np.zeros(combined.shape[:2] + (3,), np.float32)
@@ -726,7 +738,6 @@ def apply_auto(passes: Passes, scene: SceneDescription, *, prepared: AutoPlan | 
     image[..., :3] += sss
     auto.nonfinite_pixels = nonfinite
     auto.overflow_pixels = overflow
-    name_image, name_sss = core_apply.layer_names(AUTO)
     return {name_image: image, name_sss: sss}
 
 

@@ -244,6 +244,30 @@ def test_the_composite_is_each_materials_chosen_technique():
     np.testing.assert_array_equal(out["SSSLab.auto.Image"][rest], arrays["Combined"][rest])
 
 
+def test_one_chosen_technique_gives_its_own_layers_as_the_composite_of_many_would():
+    # apply_auto hands over the one chosen technique's layers: what the general composite
+    # (Combined + the sum of the SSS terms) gives, Combined's pixels kept outside the materials.
+    arrays, scene = _scene()
+    for k, v in enumerate((np.nan, np.inf, -0.0, 1e30, 0.25)):  # off the materials: kept as they are
+        arrays["Combined"][0, k, :3] = v
+    passes = Passes(arrays)
+    plan = auto.choose(passes, scene, techniques=("burley",))
+    assert set(plan.plans) == {"burley"} and len(plan.applied) == 2, plan.explain()
+    out = auto.apply_auto(passes, scene, prepared=plan)
+    ref = core_apply.apply(passes, scene, "burley")
+    composite = np.array(arrays["Combined"], np.float32)
+    composite[..., :3] += ref["SSSLab.burley.SSS"]
+    np.testing.assert_array_equal(out["SSSLab.auto.Image"], composite)
+    np.testing.assert_array_equal(out["SSSLab.auto.SSS"], ref["SSSLab.burley.SSS"])
+    assert plan.nonfinite_pixels == ref_nonfinite(passes, scene)
+
+
+def ref_nonfinite(passes, scene):
+    p = core_apply.plan(passes, scene, "burley")
+    core_apply.apply(passes, scene, "burley", prepared=p)
+    return p.nonfinite_pixels
+
+
 def test_train_recovers_the_coefficients_it_was_made_from():
     rng = np.random.default_rng(5)
     truth = {
