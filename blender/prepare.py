@@ -19,17 +19,32 @@ import os
 import subprocess
 import sys
 
-#: What the background process runs: the package's parent folder and the cache folder come as
-#: arguments; it lowers its own priority (a fork-time hook is not safe in Blender's threads).
+#: What the background process runs: ``argv`` the package's full name (``bl_ext.<repo>.<id>`` in
+#: Blender) and folder, and the cache folder. It imports the package under the name Blender gives
+#: it, making the parent packages Blender makes itself (``bl_ext``, ``bl_ext.<repo>``): Numba's
+#: cache refers to the kernels' module by name, and an entry written under another name fails to
+#: load in Blender. It lowers its own priority (a fork-time hook is not safe in Blender's threads).
 CHILD = """
-import os, sys
+import importlib, os, sys, types
 if hasattr(os, "nice"):
     os.nice(10)
-sys.path.insert(0, sys.argv[1])
-package = sys.argv[2]
-import importlib
+package, folder, cache = sys.argv[1:4]
+parts = package.split(".")
+for i in range(1, len(parts)):
+    name = ".".join(parts[:i])
+    try:
+        importlib.import_module(name)
+    except ImportError:
+        module = types.ModuleType(name)
+        module.__path__ = [os.path.dirname(folder)] if i == len(parts) - 1 else []
+        sys.modules[name] = module
+if len(parts) == 1:
+    sys.path.insert(0, os.path.dirname(folder))
+root = importlib.import_module(package)
+if os.path.dirname(os.path.abspath(root.__file__)) != os.path.abspath(folder):
+    sys.exit(f"{package} was imported from {root.__file__}, not from {folder}")
 backend = importlib.import_module(package + ".core.backend")
-backend.set_cache_dir(sys.argv[3])
+backend.set_cache_dir(cache)
 prepare = importlib.import_module(package + ".core.prepare")
 result = prepare.prepare_kernels(log=print)
 print(f"{len(result['kernels'])} kernels ready in {result['seconds']:.1f} s")
@@ -60,8 +75,7 @@ def start(package: str, cache_dir: str) -> subprocess.Popen | None:
     backend.set_cache_dir(cache_dir)
     if os.path.isfile(marker_path()):
         return None
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # the extension's folder
-    parent, name = os.path.split(root)
+    folder = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # the extension's folder
     os.makedirs(cache_dir, exist_ok=True)
     env = dict(os.environ)
     # Blender's own module folders and the extension's wheels (Numba, llvmlite), as this process has them.
@@ -71,7 +85,7 @@ def start(package: str, cache_dir: str) -> subprocess.Popen | None:
         flags = subprocess.BELOW_NORMAL_PRIORITY_CLASS | subprocess.CREATE_NO_WINDOW
     with open(os.path.join(cache_dir, "prepare.log"), "w", encoding="utf-8") as log:
         _state["process"] = subprocess.Popen(
-            [sys.executable, "-c", CHILD, parent, name, cache_dir],
+            [sys.executable, "-c", CHILD, package, folder, cache_dir],
             stdin=subprocess.DEVNULL,
             stdout=log,
             stderr=subprocess.STDOUT,
