@@ -121,23 +121,6 @@ def _wide_vectors(numba) -> None:
         numba.config.CPU_FEATURES = features + ",-prefer-256-bit"
 
 
-#: The waiting policy the kernels' OpenMP threads get (docs/references.md §11), unless the
-#: environment chose one.
-WAIT_POLICY = "PASSIVE"
-
-
-def _passive_waits() -> None:
-    """Threads that sleep when they wait, instead of spinning: Numba's parallel kernels run on
-    OpenMP here, whose threads spin at the end of each parallel loop waiting for the others. On a
-    machine whose other cores are busy (a render running beside Blender, a farm node with other
-    tasks) the thread they wait for is off its core while they spin, and each loop costs a
-    scheduler time slice or more: a 96 x 54 Burley apply took a median of 280 ms on two threads
-    against 4 ms on one. OpenMP reads ``OMP_WAIT_POLICY`` once, when Numba starts its threads (at
-    the first parallel kernel): this applies only if that has not happened yet and the
-    environment does not set it already."""
-    os.environ.setdefault("OMP_WAIT_POLICY", WAIT_POLICY)
-
-
 def compiled():
     """The ``core.compiled`` module, loaded on first use; None where Numba cannot load."""
     if _state["module"] is not None or _state["error"] is not None:
@@ -153,7 +136,6 @@ def compiled():
                 # Numba picks a function's cache folder when it is decorated: point it at ours
                 # for the import of our kernels only, leaving other users of Numba as they were.
                 _wide_vectors(numba)
-                _passive_waits()
                 before = numba.config.CACHE_DIR
                 numba.config.CACHE_DIR = path
                 try:

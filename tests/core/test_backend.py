@@ -388,14 +388,3 @@ def test_energy_table_reads_and_curvature_match_the_reference_to_the_bit():
     normal[9, 9] = 0.1
     for radius in (1, 4):
         energy.surface_curvature(normal, position, passes["Material Index"] > 0, radius_px=radius)
-
-
-def test_openmp_threads_sleep_when_they_wait_unless_the_environment_says_otherwise(monkeypatch):
-    # core.backend sets OMP_WAIT_POLICY before Numba starts its threads (docs/references.md §11);
-    # a policy the user set stays.
-    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
-    backend._passive_waits()
-    assert os.environ["OMP_WAIT_POLICY"] == "PASSIVE"
-    monkeypatch.setenv("OMP_WAIT_POLICY", "ACTIVE")
-    backend._passive_waits()
-    assert os.environ["OMP_WAIT_POLICY"] == "ACTIVE"
