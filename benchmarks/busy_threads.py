@@ -36,14 +36,14 @@ from sss_lab.core import backend
 from sss_lab.core.apply import apply
 from sss_lab.core.exr import Passes
 from sss_lab.core.synthetic import sphere_scene
-calls = int(sys.argv[2])
+calls = int(sys.argv[1])
 out = {}
 with backend.use("numba"):
     numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
-    for w, h in json.loads(sys.argv[3]):
+    for w, h in json.loads(sys.argv[2]):
         arrays, scene = sphere_scene(w, h)
         passes = Passes(arrays)
-        for t in json.loads(sys.argv[4]):
+        for t in json.loads(sys.argv[3]):
             apply(passes, scene, t)
             times = []
             for _ in range(calls):
@@ -85,7 +85,7 @@ def _env(policy: str) -> dict:
 def _case(policy: str, calls: int, sizes, techniques) -> dict:
     env = _env(policy)
     proc = subprocess.run(
-        [sys.executable, "-c", _CASE, policy, str(calls), json.dumps(sizes), json.dumps(techniques)],
+        [sys.executable, "-c", _CASE, str(calls), json.dumps(sizes), json.dumps(techniques)],
         capture_output=True,
         text=True,
         cwd=ROOT,

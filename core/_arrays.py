@@ -221,12 +221,3 @@ def all_finite(a: np.ndarray) -> bool:
     with np.errstate(over="ignore", invalid="ignore"):
         total = np.add.reduce(a, axis=None)
     return bool(np.isfinite(total)) or bool(np.isfinite(a).all())
-
-
-def box_extent_px(box: tuple[slice, slice] | None) -> float:
-    """Diagonal in pixels (plus one) of a ``bounding_box``, 0 for None: ``core.extent.mask_extent_px``
-    of the mask the box was taken from, without listing its pixels."""
-    if box is None:
-        return 0.0
-    rows, cols = box
-    return math.hypot(float(cols.stop - 1 - cols.start), float(rows.stop - 1 - rows.start)) + 1.0

@@ -25,6 +25,8 @@ import math
 
 import numpy as np
 
+from . import _arrays
+
 
 def group_extents(
     ok: np.ndarray, scale: np.ndarray, labels: np.ndarray | None = None
@@ -71,11 +73,13 @@ def object_extent(ok: np.ndarray, scale: np.ndarray) -> float:
 
 
 def mask_extent_px(mask: np.ndarray) -> float:
-    """Diagonal of the bounding box of ``mask`` in pixels (plus one), 0 for an empty mask."""
-    ys, xs = np.nonzero(mask)
-    if ys.size == 0:
+    """Diagonal of the bounding box of ``mask`` in pixels (plus one), 0 for an empty mask; from
+    the box's rows and columns (``_arrays.bounding_box``), without listing the mask's pixels."""
+    box = _arrays.bounding_box(mask)
+    if box is None:
         return 0.0
-    return math.hypot(float(xs.max() - xs.min()), float(ys.max() - ys.min())) + 1.0
+    rows, cols = box
+    return math.hypot(float(cols.stop - 1 - cols.start), float(rows.stop - 1 - rows.start)) + 1.0
 
 
 def kernel_warning(kernel_px: float, object_px: float, image_shape: tuple[int, int]) -> str | None:

@@ -16,7 +16,7 @@ import numpy as np
 
 from . import _arrays
 from .exr import Passes
-from .extent import kernel_warning
+from .extent import kernel_warning, mask_extent_px
 from .passes import THICKNESS
 from .scene import MaterialSSS, SceneDescription
 from .spec import Technique
@@ -315,8 +315,7 @@ def _plan(
                 float(v) for v in cam.pixels_per_unit(np.array([mp.median_depth, mp.nearest_depth], np.float32))
             )
             mp.kernel_px = tuple(r * ppu_median for r in mp.kernel_su)
-            extent = _arrays.box_extent_px(_arrays.bounding_box(mask))  # mask_extent_px(mask), from its box
-            mp.warning = kernel_warning(max(mp.kernel_px), extent, passes.shape)
+            mp.warning = kernel_warning(max(mp.kernel_px), mask_extent_px(mask), passes.shape)
             widest_px = max(mp.kernel_su) * ppu_nearest
             # A fitted gain, the light from behind or the energy model still change a material whose
             # kernel is tiny.
