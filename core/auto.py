@@ -6,7 +6,8 @@ any technique, how much the two things SSS adds to a plain diffuse render matter
 - **diffusion** D: how much the material's visible diffuse light changes when it is spread over
   its footprint. Everything is measured on the 2 x 2 block means wholly inside the material (the
   blocks of the error measure ``compare`` uses, docs/references.md §8; a quarter of the pixels;
-  larger blocks on a window wider than ``GRID`` blocks, so that the cost stays bounded).
+  larger blocks on a window wider than ``GRID`` blocks, each read at 2 x 2 of its pixels, so that
+  the cost stays bounded at any resolution).
   The irradiance (Diffuse Direct + Indirect) is averaged, per channel, over a box of half-width
   2.5 d (the mean distance light travels under the Burley profile, docs/references.md §1; in
   whole blocks) at the material's median depth, inside the material only; D is the RMS of
@@ -265,21 +266,51 @@ class _Shared:
 
 
 def _block_means(a: np.ndarray, size: int) -> np.ndarray:
-    """The means of ``a`` (float32, (H, W) or (H, W, C)) over ``size`` x ``size`` blocks (cropped to
-    a multiple of ``size``), float32: the blocks of ``core.metrics.box_downsample``, summed in
-    float64 with vectorized additions along the rows (a mean over the blocks' two short axes costs
-    NumPy some ten times as much: the features' largest cost at 512 px): first each block row's
-    ``size`` rows, then its columns ``size`` apart, which reads each value once (summing the
-    ``size``^2 offsets of a block one at a time read each row ``size`` times: twice the time on
-    512 x 512 x 3, blocks of 8). Only the order of the float64 additions differs from that."""
+    """The means of ``a`` ((H, W) or (H, W, C), cropped to a multiple of ``size``) over
+    ``BOX`` x ``BOX`` pixels of each ``size`` x ``size`` block, one at the centre of each of its
+    ``BOX`` x ``BOX`` equal parts (``_sample_offsets``), float32, NaN and +-Inf read as 0 (as
+    ``core.apply._clean`` reads them).
+
+    With blocks of ``BOX`` (the suite's size) these are the blocks of the error measure
+    (``core.metrics.box_downsample``), every pixel read. Larger blocks (a window wider than
+    ``GRID`` blocks) are represented by those ``BOX`` x ``BOX`` pixels: the features are
+    statistics over at most ``GRID`` x ``GRID`` blocks, their inputs hold the same noise per value
+    as the blocks the model was learnt on, and the cost no longer grows with the resolution
+    (reading every pixel of a 512 px window was most of ``choose``'s time, which ``auto`` spends
+    before any technique runs). Summed in float64 from strided views, each column of the sample
+    first, then across: the additions of the whole-block mean for blocks of ``BOX``."""
+    assert size % BOX == 0, f"blocks of {size}: expected a multiple of {BOX}"
     h, w = a.shape[0] // size * size, a.shape[1] // size * size
-    rows = np.zeros((h // size, w) + a.shape[2:], np.float64)
-    for dy in range(size):
-        rows += a[dy:h:size, :w]
-    total = np.zeros((h // size, w // size) + a.shape[2:], np.float64)
-    for dx in range(size):
-        total += rows[:, dx:w:size]
-    return (total / (size * size)).astype(np.float32)
+    for clean in (False, True):
+        total = np.zeros((h // size, w // size) + a.shape[2:], np.float64)
+        for dx in _sample_offsets(size):
+            column = np.zeros_like(total)
+            for dy in _sample_offsets(size):
+                v = a[dy:h:size, dx:w:size].astype(np.float32, copy=False)
+                column += np.where(np.isfinite(v), v, 0.0) if clean else v
+            total += column
+        # float32 values summed in float64 cannot overflow: a sum that is not finite read a NaN or
+        # an infinity (checked on the sums, a small array: the strided samples are slow to scan).
+        if clean or np.isfinite(total).all():
+            break
+    return (total / (BOX * BOX)).astype(np.float32)
+
+
+def _sample_offsets(size: int) -> range:
+    """The rows (and columns) of a ``size`` x ``size`` block that ``_block_means`` reads: the
+    centres of its ``BOX`` x ``BOX`` equal parts (every row for blocks of ``BOX``)."""
+    part = size // BOX
+    return range(part // 2, size, part)
+
+
+def _block_inside(mask: np.ndarray, size: int) -> np.ndarray:
+    """The blocks (as ``_block_means``) whose sampled pixels are all inside ``mask``."""
+    h, w = mask.shape[0] // size * size, mask.shape[1] // size * size
+    inside = np.ones((h // size, w // size), bool)
+    for dy in _sample_offsets(size):
+        for dx in _sample_offsets(size):
+            inside &= mask[dy:h:size, dx:w:size]
+    return inside
 
 
 def _crop(mask: np.ndarray) -> tuple[slice, slice]:
@@ -339,8 +370,10 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
 
     Measured on the 2 x 2 block means of the material's bounding box (the blocks the error measure
     uses, blocks wholly inside the material; larger blocks when the window is wider than ``GRID``
-    blocks), which costs a quarter of the pixels or less; a material too small for one whole block
-    is measured on its pixels."""
+    blocks, each read at 2 x 2 of its pixels: ``_block_means``), which costs a quarter of the
+    pixels or less; a material too small for one whole block is measured on its pixels. The
+    material's pixel count (its work estimate) and the finiteness of Combined are taken on every
+    pixel of its window; its median depth on one pixel in k x k for blocks of 2 k."""
     start = time.perf_counter()
     sh = _shared or _Shared(passes, scene)
     on = sh.index == material.index
@@ -348,7 +381,8 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
     f.fitted = tuple(t for t in material.fit if fitted(material.fit, t))
     if on.any():
         win = _crop(on)
-        mask = on[win] & core_apply._finite(sh.combined[win])
+        seen = sh.combined[win]
+        mask = on[win] if _arrays.all_finite(seen) else on[win] & core_apply._finite(seen)
         f.pixels = int(mask.sum())
     if not f.pixels:
         f.notes.append("no pixel on screen")
@@ -359,14 +393,13 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
     # resolution (at 128 px, the fidelity suite's size, the blocks are those of the error measure).
     size = BOX * max(1, math.ceil(max(mask.shape) / (BOX * GRID)))
     if min(mask.shape) >= size:
-        blocks = _block_means(mask.astype(np.float32), size) >= 1.0
+        blocks = _block_inside(mask, size)
         if blocks.any():
             keep, step = blocks, size
 
     def at(a):
         """``a`` on the window, NaN/Inf as 0, as block means when measured on blocks."""
-        w = core_apply._clean(a[win])
-        return w if step == 1 else _block_means(w, step)
+        return core_apply._clean(a[win]) if step == 1 else _block_means(a[win], step)
 
     combined = at(sh.combined)
     albedo = at(sh.albedo)
@@ -379,7 +412,8 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
         f.notes.append("no Diffuse Direct/Indirect passes: diffusion not measured")
     z = None
     if sh.depth is not None:
-        zs = sh.depth[win][mask]
+        k = max(1, step // BOX)  # on larger blocks, a pixel in k x k: the median of a sample
+        zs = sh.depth[win][::k, ::k][mask[::k, ::k]]
         zs = zs[np.isfinite(zs) & (zs > 0) & (zs < _arrays.BACKGROUND_DEPTH)]
         z = float(np.median(zs)) if zs.size else None
     if z is not None:

@@ -514,12 +514,12 @@ def test_costs_within_the_tolerance_count_as_equal_and_the_lower_error_decides()
     assert chosen(1.0 + 2.0 * auto.COST_TOLERANCE) == "ssss"
 
 
-@pytest.mark.parametrize("size", [2, 3, 6])
-def test_the_features_block_means_are_the_error_measures_blocks(size):
-    """``auto._block_means`` (the features' block means) takes the blocks ``core.metrics.box_downsample``
-    takes, cropped alike, and their means to float32's rounding: its float64 sum of at most 36
-    float32 values is exact to 2^-53 relative, NumPy's float32 mean to some 2^-24 times the block's
-    size, and both are rounded to float32 (a few units in the last place)."""
+def test_the_features_block_means_are_the_error_measures_blocks():
+    """With blocks of ``auto.BOX`` (the fidelity suite's size), ``auto._block_means`` takes the blocks
+    ``core.metrics.box_downsample`` takes, cropped alike, every pixel read, and their means to
+    float32's rounding: its float64 sum of four float32 values is exact, NumPy's float32 mean is
+    within some 2^-24 times the block's size of it, and both are rounded to float32."""
+    size = auto.BOX
     rng = np.random.default_rng(3)
     a = rng.uniform(0.0, 4.0, (37, 50, 3)).astype(np.float32)
     got = auto._block_means(a, size)
@@ -527,6 +527,40 @@ def test_the_features_block_means_are_the_error_measures_blocks(size):
     assert got.shape == expected.shape and got.dtype == np.float32
     np.testing.assert_allclose(got, expected, rtol=8 * 2.0**-24 * size, atol=0.0)
     mask = rng.uniform(size=(37, 50)) < 0.9
-    assert np.array_equal(
-        auto._block_means(mask.astype(np.float32), size) >= 1.0, box_downsample(mask.astype(np.float32), size) >= 1.0
-    )
+    assert np.array_equal(auto._block_inside(mask, size), box_downsample(mask.astype(np.float32), size) >= 1.0)
+
+
+@pytest.mark.parametrize("size", [4, 6, 8, 12])
+def test_larger_blocks_are_read_at_the_centres_of_their_quarters(size):
+    """A block larger than ``auto.BOX`` (a window wider than ``GRID`` blocks) is represented by the
+    pixel at the centre of each of its ``BOX`` x ``BOX`` parts: the features read BOX^2 values per
+    block at any resolution. NaN and +-Inf read as 0, as ``core.apply._clean`` reads them; pixels
+    between the samples are not read at all. Tolerance: float32 rounding of a float64 mean of four
+    float32 values (exact sum), i.e. half a unit in the last place."""
+    rng = np.random.default_rng(5)
+    a = rng.uniform(0.0, 4.0, (5 * size + 3, 7 * size + 1, 3)).astype(np.float32)
+    part = size // auto.BOX
+    offsets = [part // 2 + i * part for i in range(auto.BOX)]
+    a[offsets[0], offsets[1], 0] = np.nan  # sampled: read as 0
+    a[size + offsets[1], offsets[0], 2] = np.inf  # sampled: read as 0
+    a[0, 0, 1] = np.nan  # between the samples (part >= 2 here): not read
+    expected = np.zeros((5, 7, 3), np.float64)
+    for by in range(5):
+        for bx in range(7):
+            for dy in offsets:
+                for dx in offsets:
+                    v = a[by * size + dy, bx * size + dx].astype(np.float64)
+                    expected[by, bx] += np.where(np.isfinite(v), v, 0.0) / auto.BOX**2
+    got = auto._block_means(a, size)
+    assert got.shape == (5, 7, 3) and got.dtype == np.float32 and np.isfinite(got).all()
+    np.testing.assert_allclose(got, expected, rtol=2.0**-24, atol=0.0)
+    mask = np.ones(a.shape[:2], bool)
+    mask[size + offsets[1], 2 * size + offsets[0]] = False  # a sample: its block is not inside
+    mask[3 * size, 3 * size] = False  # between the samples: does not matter
+    inside = auto._block_inside(mask, size)
+    assert inside.shape == (5, 7) and inside.sum() == 5 * 7 - 1 and not inside[1, 2]
+
+
+def test_block_means_take_blocks_of_whole_parts():
+    with pytest.raises(AssertionError):
+        auto._block_means(np.zeros((9, 9), np.float32), 3)
