@@ -397,9 +397,15 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
         if blocks.any():
             keep, step = blocks, size
 
+    read: dict[int, np.ndarray] = {}
+
     def at(a):
-        """``a`` on the window, NaN/Inf as 0, as block means when measured on blocks."""
-        return core_apply._clean(a[win]) if step == 1 else _block_means(a[win], step)
+        """``a`` on the window, NaN/Inf as 0, as block means when measured on blocks (each pass
+        read once: the light from behind and the energy read the Normal, Position and thickness
+        passes both; a copy each time, since the callers are free to change what they get)."""
+        if id(a) not in read:
+            read[id(a)] = core_apply._clean(a[win]) if step == 1 else _block_means(a[win], step)
+        return read[id(a)].copy()
 
     combined = at(sh.combined)
     albedo = at(sh.albedo)
