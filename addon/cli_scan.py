@@ -1,5 +1,5 @@
 """``python -m sss_lab scan SCENE.blend [--recommend]``: list the scene's subsurface materials, and with
-``--recommend`` the technique ``apply --method auto`` would choose for each (``blender/scan.py``)."""
+``--recommend`` the technique and quality ``apply --method auto`` would choose for each (``blender/scan.py``)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ def add_parser(subparsers):
     p.add_argument(
         "--recommend",
         action="store_true",
-        help="per material, the technique `apply --method auto` would choose and why (renders small passes once)",
+        help="per material, the technique and its quality (rung) `apply --method auto` would choose and why (renders"
+        " small passes once)",
     )
     add_resolution(p, help="with --recommend: WIDTHxHEIGHT of that render (default: long side 160 px)")
     add_samples(p, default=16, help="with --recommend: samples of that render (default: 16)")

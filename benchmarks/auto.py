@@ -3,7 +3,9 @@
 For every scene (the fidelity suite, ``benchmarks/fidelity``, when it is present; else the four
 sample scenes with references rendered here, ``--source samples``):
 
-1. each technique at its default quality on the scene's passes, and no SSS: relative RMSE against
+1. each technique at every rung ``core.auto.variants`` lists (its quality ladder, the runs ``compare``
+   sweeps, and each diffusion without its energy stage; at its default quality only with
+   ``--no-rungs``) on the scene's passes, and no SSS: relative RMSE against
    the scene's Cycles reference over the subsurface pixels after 2 x 2 box downsampling (the
    measure ``compare`` and the fidelity suite use, docs/references.md §8), over the whole scene
    and per material; apply time (process CPU time on one thread, fastest of ``--repeat`` runs) on the same
@@ -12,11 +14,15 @@ sample scenes with references rendered here, ``--source samples``):
 2. the features of every material (``core.auto.features``).
 
 Then, for each scene in turn, the auto model is learnt on the *other* scenes only
-(``core.auto.train``) and ``auto`` runs on the held-out scene with it, scored the same way, and
-timed the same way (its features and choice included). Per scene:
+(``core.auto.train``: coefficients and a cost rate for every rung measured there) and ``auto`` runs
+on the held-out scene with it, scored the same way, and timed the same way (its features and
+choice included). In the same run, a second model learnt on no SSS and the techniques' default
+qualities only (``techniques_only``: ``auto`` as a chooser of techniques) is validated the same way,
+so that the two choosers are compared on the same measurements and machine load. Per scene:
 
 - **regret** = auto's error / the error of the truly best single choice (the best of no SSS and
-  every technique at default quality, known only from the reference) - 1;
+  every technique at default quality, known only from the reference) - 1 (``regret_any_rung``:
+  against the best of no SSS and every technique at every rung);
 - **time saved** = 1 - auto's time (its features and choice included) / the time of the most
   expensive technique (the one with the largest total time over the scenes, run on every scene),
   per scene and over the suite (1 - sum of auto's times / sum of that technique's);
@@ -185,9 +191,11 @@ def upscaled(passes, desc, k: int):
     return Passes(arrays), dataclasses.replace(desc, camera=camera)
 
 
-def measure(scene: Scene, techniques, repeat: int, time_scale: int = 1) -> dict:
-    """Errors (scene and per material) of no SSS and each technique at default quality, their
-    times on the passes at ``time_scale`` x the resolution, and the features of every material."""
+def measure(scene: Scene, techniques, repeat: int, time_scale: int = 1, rungs: bool = True) -> dict:
+    """Errors (scene and per material) of no SSS and each technique at default quality and, with
+    ``rungs``, at every other rung ``core.auto.variants`` lists (its quality ladder, and without
+    its energy stage); their times on the passes at ``time_scale`` x the resolution, and the
+    features of every material."""
     from sss_lab.core import apply as core_apply
     from sss_lab.core import auto
 
@@ -199,22 +207,25 @@ def measure(scene: Scene, techniques, repeat: int, time_scale: int = 1) -> dict:
             core_apply.plan(scene.passes, scene.desc, t)
         except KeyError:  # its passes are missing on this scene
             continue
-        layers = core_apply.apply(scene.passes, scene.desc, t)
-        images[t] = layers[core_apply.layer_names(t)[0]] if layers else scene.passes["Combined"]
-        _, seconds[t] = _fastest(lambda t=t: core_apply.apply(big, big_desc, t), repeat)
-    errors = {t: scene.error(img) for t, img in images.items()}
+        for name, options in (auto.variants(t) if rungs else {t: {}}).items():
+            layers = core_apply.apply(scene.passes, scene.desc, t, **options)
+            images[name] = layers[core_apply.layer_names(t)[0]] if layers else scene.passes["Combined"]
+            _, seconds[name] = _fastest(lambda t=t, o=options: core_apply.apply(big, big_desc, t, **o), repeat)
+    every = {n: scene.error(img) for n, img in images.items()}
+    errors = {n: e for n, e in every.items() if n == auto.NONE or n in techniques}
     fitted_errors = {}
     if scene.fitted is not None:  # each technique the scene's materials carry a fit for, with its fits
         have = {t for m in scene.fitted.materials for t in m.fit}
-        for t in images:
+        for t in errors:
             if t not in have:
                 continue
             layers = core_apply.apply(scene.passes, scene.fitted, t)
             fitted_errors[t] = scene.error(layers[core_apply.layer_names(t)[0]] if layers else scene.passes["Combined"])
-    # Each technique's work on this scene (pixels x samples, from its plan): the model's cost unit.
-    unit = auto.Model({auto.NONE: (1.0, 1.0, 0.0), **{t: (1.0, 1.0, 0.0) for t in images}})
+    # Each candidate's work on this scene (pixels x samples, from its plan): the model's cost unit.
+    unit = auto.Model({n: (1.0, 1.0, 0.0) for n in images})
     work = {}
-    for c in auto.choose(big, big_desc, model=unit, techniques=[t for t in images if t != auto.NONE]).choices:
+    ran = [t for t in techniques if t in images]
+    for c in auto.choose(big, big_desc, model=unit, techniques=ran).choices:
         for k in c.candidates:
             if k.excluded is None and k.name != auto.NONE:
                 work[k.name] = work.get(k.name, 0.0) + k.work
@@ -224,123 +235,176 @@ def measure(scene: Scene, techniques, repeat: int, time_scale: int = 1) -> dict:
         f = auto.features(scene.passes, scene.desc, m)
         per_material.append((f, {t: scene.error(img, mask) for t, img in images.items()}))
     timings = [(t, work[t], seconds[t]) for t in work if t in seconds]
-    out = {"errors": errors, "seconds": seconds, "materials": per_material, "timings": timings, "big": (big, big_desc)}
+    out = {
+        "errors": errors,
+        "variant_errors": every,
+        "seconds": seconds,
+        "materials": per_material,
+        "timings": timings,
+        "big": (big, big_desc),
+    }
     if scene.fitted is not None:
         out["fitted_errors"] = fitted_errors
         out["big_fitted"] = upscaled(scene.passes, scene.fitted, time_scale)
     return out
 
 
-def run(scenes, *, techniques, repeat: int, max_error: float, time_scale: int = 1, log=print) -> dict:
+#: The choosers validated side by side (the same measurements, the same machine load): ``auto`` with
+#: every rung a candidate, and ``auto`` learnt on the techniques' default qualities alone.
+CHOOSERS = ("auto", "techniques_only")
+
+
+def _learn(measured, names, chooser: str, techniques, command: str):
+    """The model learnt on the scenes ``names``; for ``techniques_only``, on no SSS and each
+    technique at its default quality only."""
     from sss_lab.core import auto
 
+    keep = None if chooser == "auto" else {auto.NONE, *techniques}
+    samples = [
+        (f, {n: e for n, e in errors.items() if keep is None or n in keep})
+        for o in names
+        for f, errors in measured[o]["materials"]
+    ]
+    timings = [x for o in names for x in measured[o]["timings"] if keep is None or x[0] in keep]
+    return auto.train(samples, timings=timings, trained_on=names, command=command)
+
+
+def _run_chooser(s: Scene, m: dict, model, *, techniques, max_error, repeat, priciest) -> dict:
+    """``auto`` with ``model`` on the held-out scene ``s``: its choice, error, regret and time (its
+    features and choice included), and the same with the scene's fits."""
+    from sss_lab.core import auto
+
+    def choose_and_apply(passes, desc, keep=None):
+        plan = auto.choose(passes, desc, max_error=max_error, model=model, techniques=techniques, keep=keep)
+        return plan, auto.apply_auto(passes, desc, prepared=plan)
+
+    plan, layers = choose_and_apply(s.passes, s.desc)
+    image = layers["SSSLab.auto.Image"] if layers else s.passes["Combined"]
+    err = s.error(image)
+    # Timed at the larger size making the same choice (its features measured there, at their cost;
+    # the footprint in pixels grows with the resolution, and so may the choice).
+    _, t_auto = _fastest(lambda: choose_and_apply(*m["big"], keep=plan.chosen), repeat)
+    best = min(m["errors"], key=m["errors"].get)
+    out = {
+        "error": err,
+        "seconds": t_auto,
+        "features_s": sum(c.features.seconds for c in plan.choices),
+        "choices": {c.features.name: c.chosen for c in plan.choices},
+        "predicted": {
+            c.features.name: {k.name: k.predicted for k in c.candidates if k.excluded is None} for c in plan.choices
+        },
+        "regret": err / m["errors"][best] - 1.0,
+        # Against the best of every rung as well (no SSS, each technique at every rung).
+        "regret_any_rung": err / min(m["variant_errors"].values()) - 1.0,
+        "time_saved": 1.0 - t_auto / m["seconds"][priciest] if m["seconds"][priciest] > 0 else None,
+        "work": {},
+        "work_auto": sum(next(k.work for k in c.candidates if k.name == c.chosen) for c in plan.choices),
+    }
+    for c in plan.choices:
+        for k in c.candidates:
+            if k.excluded is None:
+                out["work"][k.name] = out["work"].get(k.name, 0.0) + k.work
+    if s.fitted is not None:
+        out["with_fit"] = _with_fit(s, m, choose_and_apply, priciest, repeat)
+    return out
+
+
+def run(
+    scenes, *, techniques, repeat: int, max_error: float, time_scale: int = 1, log=print, rungs: bool = True
+) -> dict:
     measured = {}
     for s in scenes:
         log(f"{s.name}: measuring")
-        measured[s.name] = measure(s, techniques, repeat, time_scale)
+        measured[s.name] = measure(s, techniques, repeat, time_scale, rungs)
         e = measured[s.name]["errors"]
         log("  " + ", ".join(f"{t} {v:.4f}" for t, v in e.items()))
-    # "The most expensive technique": the one with the largest total time over the scenes (always run).
+    # "The most expensive technique": the one with the largest total time over the scenes (always
+    # run), at its default quality.
     totals = {}
     for m in measured.values():
-        for t, v in m["seconds"].items():
-            totals[t] = totals.get(t, 0.0) + v
+        for t in m["errors"]:
+            totals[t] = totals.get(t, 0.0) + m["seconds"][t]
     priciest = max(totals, key=totals.get)
+    choosers = CHOOSERS if rungs else CHOOSERS[:1]
     rows = []
     for s in scenes:
         others = [o.name for o in scenes if o.name != s.name]
-        model = auto.train(
-            [x for o in others for x in measured[o]["materials"]],
-            timings=[x for o in others for x in measured[o]["timings"]],
-            trained_on=others,
-            command="leave-one-scene-out",
-        )
-
-        def choose_and_apply(passes, desc, keep=None, model=model):
-            plan = auto.choose(passes, desc, max_error=max_error, model=model, techniques=techniques, keep=keep)
-            return plan, auto.apply_auto(passes, desc, prepared=plan)
-
-        plan, layers = choose_and_apply(s.passes, s.desc)
-        image = layers["SSSLab.auto.Image"] if layers else s.passes["Combined"]
-        err = s.error(image)
         m = measured[s.name]
-        # Timed at the larger size making the same choice (its features measured there, at their cost;
-        # the footprint in pixels grows with the resolution, and so may the choice).
-        _, t_auto = _fastest(lambda m=m, f=choose_and_apply, k=plan.chosen: f(*m["big"], keep=k), repeat)
         best = min(m["errors"], key=m["errors"].get)
-        # Work (pixels x samples, core.auto) per candidate and of the choice, for the record.
-        work = {}
-        for c in plan.choices:
-            for k in c.candidates:
-                if k.excluded is None:
-                    work[k.name] = work.get(k.name, 0.0) + k.work
-        work_auto = sum(next(k.work for k in c.candidates if k.name == c.chosen) for c in plan.choices)
+        ran = {}
+        for chooser in choosers:
+            model = _learn(measured, others, chooser, techniques, "leave-one-scene-out")
+            ran[chooser] = _run_chooser(
+                s, m, model, techniques=techniques, max_error=max_error, repeat=repeat, priciest=priciest
+            )
+        a = ran["auto"]
         rows.append(
             {
                 "scene": s.name,
-                "work": work,
-                "work_auto": work_auto,
+                "work": a.pop("work"),
+                "work_auto": a.pop("work_auto"),
                 "kind": s.kind,
                 "errors": m["errors"],
+                "variant_errors": m["variant_errors"],
                 "seconds": m["seconds"],
-                "auto": {
-                    "error": err,
-                    "seconds": t_auto,
-                    "features_s": sum(c.features.seconds for c in plan.choices),
-                    "choices": {c.features.name: c.chosen for c in plan.choices},
-                    "predicted": {
-                        c.features.name: {k.name: k.predicted for k in c.candidates if k.excluded is None}
-                        for c in plan.choices
-                    },
-                },
+                "auto": {k: a[k] for k in ("error", "seconds", "features_s", "choices", "predicted")},
                 "best": best,
-                "regret": err / m["errors"][best] - 1.0,
+                "regret": a["regret"],
+                "regret_any_rung": a["regret_any_rung"],
                 "most_expensive": priciest,
-                "time_saved": 1.0 - t_auto / m["seconds"][priciest] if m["seconds"][priciest] > 0 else None,
+                "time_saved": a["time_saved"],
                 "features": [f.to_dict() for f, _ in m["materials"]],
                 "material_errors": {f.name: e for f, e in m["materials"]},
+                **({"with_fit": a["with_fit"]} if "with_fit" in a else {}),
+                **{c: ran[c] for c in choosers[1:]},
             }
         )
-        if s.fitted is not None:
-            rows[-1]["with_fit"] = _with_fit(s, m, choose_and_apply, priciest, repeat)
-            w = rows[-1]["with_fit"]
+        for chooser in choosers:
+            r = ran[chooser]
             log(
-                f"{s.name} with the fit: auto chose {w['choices']}: error {w['error']:.4f}, best {w['best']}"
-                f" {w['best_error']:.4f} (regret {w['regret']:+.1%}); {w['seconds']:.3f} s"
+                f"{s.name} [{chooser}]: chose {r['choices']}: error {r['error']:.4f}, best {best} "
+                f"{m['errors'][best]:.4f} (regret {r['regret']:+.1%}); {r['seconds']:.3f} s vs {priciest} "
+                f"{m['seconds'][priciest]:.3f} s"
             )
-        log(
-            f"{s.name}: auto chose {rows[-1]['auto']['choices']}: error {err:.4f}, best {best} "
-            f"{m['errors'][best]:.4f} (regret {rows[-1]['regret']:+.1%}); {t_auto:.3f} s vs {priciest} "
-            f"{m['seconds'][priciest]:.3f} s"
-        )
-    regrets = [r["regret"] for r in rows]
-    fit_rows = [r["with_fit"] for r in rows if "with_fit" in r]
-    t_auto = sum(r["auto"]["seconds"] for r in rows)
-    t_max = sum(r["seconds"][r["most_expensive"]] for r in rows)
+            if "with_fit" in r:
+                w = r["with_fit"]
+                log(
+                    f"{s.name} [{chooser}] with the fit: chose {w['choices']}: error {w['error']:.4f}, best"
+                    f" {w['best']} {w['best_error']:.4f} (regret {w['regret']:+.1%}); {w['seconds']:.3f} s"
+                )
     always = {}
     for t in techniques:
         errs = [r["errors"][t] / r["errors"][r["best"]] - 1.0 for r in rows if t in r["errors"]]
         if errs:
             always[t] = {"mean_regret": statistics.mean(errs), "median_regret": statistics.median(errs)}
-    full = auto.train(
-        [x for s in scenes for x in measured[s.name]["materials"]],
-        timings=[x for s in scenes for x in measured[s.name]["timings"]],
-        trained_on=[s.name for s in scenes],
-        command="python -m benchmarks.auto --write-model",
-    )
-    return {
-        "rows": rows,
-        "summary": {
-            "scenes": len(rows),
-            **_regret_and_time(regrets, [r["time_saved"] for r in rows], t_auto, t_max),
-            "most_expensive": priciest,
-            "total_seconds": {**totals, "auto": t_auto},
-            "always_one_technique": always,
-            "oracle_time_saved_total": _oracle_saved(rows, max_error, lambda r: r["errors"]),
-            **({"with_fit": _fit_summary(rows, max_error)} if fit_rows else {}),
-        },
-        "model": full,
+    full = _learn(measured, [s.name for s in scenes], "auto", techniques, "python -m benchmarks.auto --write-model")
+    summary = {
+        "scenes": len(rows),
+        **_chooser_summary(rows, lambda r: r, max_error),
+        "most_expensive": priciest,
+        "total_seconds": {**totals, "auto": sum(r["auto"]["seconds"] for r in rows)},
+        "always_one_technique": always,
     }
+    for chooser in choosers[1:]:
+        summary[chooser] = _chooser_summary(rows, lambda r, c=chooser: {**r[c], "auto": r[c]}, max_error)
+    return {"rows": rows, "summary": summary, "model": full}
+
+
+def _chooser_summary(rows, row_of, max_error: float) -> dict:
+    """Regret and time saved of one chooser over the rows (``row_of(row)``: its ``auto``, ``regret``,
+    ``time_saved`` and, with the fit, ``with_fit``), the oracles' time saved, and the fit's."""
+    picked = [row_of(r) for r in rows]
+    t_auto = sum(p["auto"]["seconds"] for p in picked)
+    t_max = sum(r["seconds"][r["most_expensive"]] for r in rows)
+    out = {
+        **_regret_and_time([p["regret"] for p in picked], [p["time_saved"] for p in picked], t_auto, t_max),
+        "mean_regret_any_rung": statistics.mean(p["regret_any_rung"] for p in picked),
+        "oracle_time_saved_total": _oracle_saved(rows, max_error, lambda r: r["errors"]),
+    }
+    if all("with_fit" in p for p in picked):
+        fitted = [{**r, "with_fit": p["with_fit"]} for r, p in zip(rows, picked, strict=True)]
+        out["with_fit"] = _fit_summary(fitted, max_error)
+    return out
 
 
 def _oracle_saved(rows, max_error: float, errors_of) -> float | None:
@@ -447,68 +511,29 @@ def sweep(scenes, technique: str, parameter: str, values, log=print) -> dict:
     return per_value
 
 
-def quality_oracle(scenes, techniques, *, max_error: float, repeat: int, time_scale: int, log=print) -> dict:
+def quality_oracle(rows, *, max_error: float, log=print) -> dict:
     """What a chooser knowing every true error could save if it chose each technique's quality too:
-    every rung of each technique's quality ladder (its spec's ``qualities``, the ladder ``compare``
-    sweeps), and each diffusion's rungs with its energy stage off (``energy`` "lambert"), scored and
-    timed as ``measure`` does the defaults. Per scene the cheapest variant whose error is within
-    ``max_error`` of the best variant's, against the most expensive technique at its default
-    (largest total time over the scenes), over the suite; the same with the default qualities
-    only, from the same run, for comparison."""
-    from sss_lab.core import apply as core_apply
-    from sss_lab.core.techniques import get_spec
-
-    variants: list[tuple[str, dict]] = []
-    for t in techniques:
-        spec = get_spec(t)
-        for k, quality in enumerate(spec.qualities):
-            variants.append((t, {"_default": k == spec.default_quality, **quality}))
-            if "energy" in spec.keywords:
-                variants.append((t, {"_default": False, **quality, "energy": "lambert"}))
-    rows = []
-    for s in scenes:
-        big, big_desc = upscaled(s.passes, s.desc, time_scale)
-        measured = []
-        for t, v in variants:
-            options = {k: x for k, x in v.items() if k != "_default"}
-            try:
-                layers = core_apply.apply(s.passes, s.desc, t, **options)
-            except KeyError:  # its passes are missing on this scene
-                continue
-            image = layers[core_apply.layer_names(t)[0]] if layers else s.passes["Combined"]
-            _, seconds = _fastest(lambda t=t, o=options, b=big, d=big_desc: core_apply.apply(b, d, t, **o), repeat)
-            label = t + "".join(f" {k}={x}" for k, x in options.items())
-            measured.append(
-                {
-                    "variant": label,
-                    "technique": t,
-                    "default": v["_default"],
-                    "error": s.error(image),
-                    "seconds": seconds,
-                }
-            )
-        rows.append({"scene": s.name, "variants": measured})
-        log(f"{s.name}: {len(measured)} variants")
-    totals: dict = {}
-    for r in rows:
-        for m in r["variants"]:
-            if m["default"]:
-                totals[m["technique"]] = totals.get(m["technique"], 0.0) + m["seconds"]
-    priciest = max(totals, key=totals.get)
+    from ``run``'s measurements of every candidate (each rung of each technique's quality ladder,
+    the ladder ``compare`` sweeps, and each diffusion's rungs without its energy stage,
+    ``core.auto.variants``), per scene the cheapest whose error is within ``max_error`` of the best
+    one's, against the most expensive technique at its default (largest total time over the scenes),
+    over the suite; the same with the default qualities only, for comparison."""
+    from sss_lab.core import auto
 
     def saved(keep) -> tuple[float, dict]:
         chosen, t_chosen, t_max = {}, 0.0, 0.0
         for r in rows:
-            pool = [m for m in r["variants"] if keep(m)]
-            best = min(m["error"] for m in pool)
-            pick = min((m for m in pool if m["error"] <= (1.0 + max_error) * best), key=lambda m: m["seconds"])
-            chosen[r["scene"]] = pick["variant"]
-            t_chosen += pick["seconds"]
-            t_max += next(m["seconds"] for m in r["variants"] if m["default"] and m["technique"] == priciest)
+            pool = {n: e for n, e in r["variant_errors"].items() if n != auto.NONE and keep(r, n)}
+            best = min(pool.values())
+            pick = min((n for n, e in pool.items() if e <= (1.0 + max_error) * best), key=lambda n: r["seconds"][n])
+            chosen[r["scene"]] = pick
+            t_chosen += r["seconds"][pick]
+            t_max += r["seconds"][r["most_expensive"]]
         return 1.0 - t_chosen / t_max, chosen
 
-    with_quality, chosen = saved(lambda m: True)
-    defaults, _ = saved(lambda m: m["default"])
+    with_quality, chosen = saved(lambda r, n: True)
+    defaults, _ = saved(lambda r, n: n in r["errors"])
+    priciest = rows[0]["most_expensive"]
     log(
         f"knowing every true error: choosing the quality and the energy stage too saves {with_quality:.0%}, "
         f"the techniques at their defaults {defaults:.0%}, against always {priciest}"
@@ -518,7 +543,17 @@ def quality_oracle(scenes, techniques, *, max_error: float, repeat: int, time_sc
         "oracle_time_saved_total": with_quality,
         "oracle_time_saved_total_defaults": defaults,
         "chosen": chosen,
-        "scenes": rows,
+        "scenes": [
+            {
+                "scene": r["scene"],
+                "variants": [
+                    {"variant": n, "default": n in r["errors"], "error": e, "seconds": r["seconds"][n]}
+                    for n, e in r["variant_errors"].items()
+                    if n != auto.NONE
+                ],
+            }
+            for r in rows
+        ],
     }
 
 
@@ -568,8 +603,13 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--quality-oracle",
         action="store_true",
-        help="also measure every technique's quality ladder, and each diffusion without its energy stage, and"
-        " report what a chooser knowing every true error could save choosing those too",
+        help="also report what a chooser knowing every true error could save choosing each technique's rung (its"
+        " quality ladder, and each diffusion without its energy stage) too",
+    )
+    parser.add_argument(
+        "--no-rungs",
+        action="store_true",
+        help="measure and choose among the techniques at their default qualities only (auto before its rungs)",
     )
     parser.add_argument("--out", default=RESULTS)
     args = parser.parse_args(argv)
@@ -606,12 +646,17 @@ def main(argv=None) -> int:
     if args.sweep_transmission:
         values = [float(v) for v in args.sweep_transmission.split(",")]
         swept = sweep(scenes, "combined", "transmission_scale", values)
-    out = run(scenes, techniques=list(TECHNIQUES), repeat=args.repeat, max_error=max_error, time_scale=args.time_scale)
-    qualities = None
-    if args.quality_oracle:
-        qualities = quality_oracle(
-            scenes, list(TECHNIQUES), max_error=max_error, repeat=args.repeat, time_scale=args.time_scale
-        )
+    if args.quality_oracle and args.no_rungs:
+        parser.error("--quality-oracle: needs the rungs measured (without --no-rungs)")
+    out = run(
+        scenes,
+        techniques=list(TECHNIQUES),
+        repeat=args.repeat,
+        max_error=max_error,
+        time_scale=args.time_scale,
+        rungs=not args.no_rungs,
+    )
+    qualities = quality_oracle(out["rows"], max_error=max_error) if args.quality_oracle else None
     command = " ".join(["python -m benchmarks.auto", *(argv if argv is not None else sys.argv[1:])])
     model = dataclasses.replace(out.pop("model"), command=command)
     if args.write_model:
@@ -641,6 +686,11 @@ def main(argv=None) -> int:
     if "with_fit" in s:
         w = s["with_fit"]
         _print_summary("with the fit (best of unfitted and fitted)", w, w["always_one_fitted_technique"], " fitted")
+    if "techniques_only" in s:
+        o = s["techniques_only"]
+        _print_summary("the same run, auto choosing among the techniques' defaults only", o, {}, "")
+        if "with_fit" in o:
+            _print_summary("  with the fit", o["with_fit"], {}, "")
     return 0
 
 

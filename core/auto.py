@@ -47,6 +47,20 @@ technique whose spec says it adds light), times the technique's measured seconds
 (learnt with the coefficients: one sample of the separable filter and one of Burley's spiral do
 not cost the same).
 
+**Rungs.** The candidates are not only the techniques at their default quality: each rung of a
+technique's quality ladder (its spec's ``qualities``, the runs ``compare`` sweeps: Burley at 8 to 64
+samples, SSSS at 11 to 25 taps, the combined technique with SSSS at 11 taps or Burley at 16) and
+each diffusion's rungs with its energy stage off (``ENERGY_OFF``, Lambert's energy) is a candidate
+of its own, named ``technique option=value ...`` (``variants``), with its own coefficients learnt
+from its own measured errors and its own measured seconds per unit of work (a rung's time is not
+its samples' share of the default's: each run has a fixed part). The energy stage off is what the
+feature V decides: its coefficient epsilon is learnt like the others. Between the rungs of one
+technique the cheapest within the margin stands for it (their costs rank reliably: the same
+kernels, fewer samples or a stage less); ``COST_TOLERANCE`` applies between techniques. A model
+without coefficients for a rung (one learnt before the rungs) leaves that rung out, and says so;
+a stored model naming a rung no ladder has is an error. A technique fitted for the material
+(``core/fit.py``) keeps its energy stage: the fit ran with it, and its gain holds that energy.
+
 **With a fit** (``calibrate``, ``core/fit.py``) the error is measured, not predicted: the fit
 scores each technique it fitted against a Cycles render of the same view on held-out blocks of
 the material (its provenance, ``info["heldout_after"]``). When a material carries such a
@@ -57,9 +71,11 @@ predicted error; the techniques the fit did not measure are not candidates then 
 a measurement are not on the same footing). The measurement holds the fit render's Monte Carlo
 noise, which adds alike to every technique's error and so brings the measured errors closer
 together than the techniques are (hence the prediction's check as well), and covers the blocks wholly inside the
-material (``core.fit.BOX`` pixels across), not the pixels at its silhouette.
+material (``core.fit.BOX`` pixels across), not the pixels at its silhouette. The fit measures each
+technique at its default quality; a rung of a measured technique is judged by that measurement
+times its predicted error over the default's.
 
-``apply_auto`` carries the choice out: each material gets its chosen technique's result
+``apply_auto`` carries the choice out: each material gets its chosen technique's result at its chosen rung
 (``core.apply.apply``), composited into ``SSSLab.auto.Image`` / ``SSSLab.auto.SSS``.
 NumPy only.
 """
@@ -67,6 +83,7 @@ NumPy only.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import os
@@ -146,25 +163,79 @@ class Features:
         return dataclasses.asdict(self)
 
 
+#: The energy stage's setting a candidate runs without it (``core/energy.py``: Lambert's energy,
+#: the passes' light spread as it is): the stage costs a fixed share of each diffusion's time.
+ENERGY_OFF = {"energy": "lambert"}
+
+
+@functools.cache
+def _variants(technique: str) -> tuple[tuple[str, tuple], ...]:
+    spec = get_spec(technique)
+    out = []
+    for k, rung in enumerate(spec.qualities):
+        base = {} if k == spec.default_quality else dict(rung)
+        runs = [base, {**base, **ENERGY_OFF}] if "energy" in spec.keywords else [base]
+        out += [(candidate_name(spec.name, o), tuple(o.items())) for o in runs]
+    return tuple(out)
+
+
+def candidate_name(technique: str, options) -> str:
+    """``burley n_samples=16 energy=lambert``: the technique's name and the options it runs with
+    (none: its default quality)."""
+    return technique + "".join(f" {k}={v}" for k, v in dict(options).items())
+
+
+def variants(technique: str) -> dict[str, dict]:
+    """{candidate name: options} of ``technique``: each rung of its quality ladder (its spec's
+    ``qualities``, the runs ``compare`` sweeps; the default rung is the technique's name alone),
+    and for a technique with an energy stage each rung with the stage off (``ENERGY_OFF``)."""
+    return {name: dict(options) for name, options in _variants(get_spec(technique).name)}
+
+
+def technique_of(candidate: str) -> str:
+    """The technique a candidate name runs (``burley n_samples=16``: burley)."""
+    return candidate.split(" ", 1)[0]
+
+
+def options_of(candidate: str) -> dict:
+    """The options a candidate runs its technique with; InputError naming it when its technique is
+    not registered or it is no rung of the technique's quality ladder (nor one without the energy
+    stage)."""
+    technique = technique_of(candidate)
+    if technique not in TECHNIQUES:
+        raise InputError(
+            f"candidate {candidate!r}: no technique {technique!r}; expected one of: {', '.join(TECHNIQUES)}"
+        )
+    known = variants(technique)
+    if candidate not in known:
+        raise InputError(
+            f"candidate {candidate!r}: not a rung of {technique}'s quality ladder; expected one of: {', '.join(known)}"
+        )
+    return known[candidate]
+
+
 @dataclass(frozen=True)
 class Model:
-    """Per candidate: (alpha, beta, gamma[, delta[, epsilon]]) of error^2 = alpha D^2 + beta B^2 + gamma
-    + delta W^2 + epsilon V^2 (delta and epsilon 0 when not given)."""
+    """Per candidate (``NONE``, a technique at its default quality, or one of its rungs: ``variants``):
+    (alpha, beta, gamma[, delta[, epsilon]]) of error^2 = alpha D^2 + beta B^2 + gamma + delta W^2 +
+    epsilon V^2 (delta and epsilon 0 when not given)."""
 
     coefficients: dict
     #: What it was learnt on (scene names) and by which command.
     trained_on: tuple[str, ...] = ()
     command: str = ""
-    #: Measured seconds per unit of work (pixels x samples) per technique: the techniques' kernels
-    #: differ in what one sample costs, so the work alone does not rank them.
+    #: Measured seconds per unit of work (pixels x samples) per candidate: the techniques' kernels
+    #: differ in what one sample costs, and a rung's time is not its samples' share of its default's
+    #: (each has a fixed part: the energy stage, the compositing), so each rung has its own rate.
     seconds_per_work: dict = field(default_factory=dict)
 
     def seconds(self, candidate: str, work: float) -> float:
-        """Estimated seconds of ``candidate`` for ``work``; a technique without a measurement counts
-        at the median rate of the others (at 1 when none is measured)."""
+        """Estimated seconds of ``candidate`` for ``work``; a rung without a measurement counts at its
+        technique's rate, a technique without one at the median rate of the others (at 1 when none
+        is measured)."""
         if candidate == NONE:
             return 0.0
-        rate = self.seconds_per_work.get(candidate)
+        rate = self.seconds_per_work.get(candidate, self.seconds_per_work.get(technique_of(candidate)))
         if rate is None:
             known = sorted(self.seconds_per_work.values())
             rate = known[len(known) // 2] if known else 1.0
@@ -174,7 +245,7 @@ class Model:
         alpha, beta, gamma, *rest = self.coefficients[candidate]
         e2 = alpha * f.diffusion**2 + beta * f.back**2 + gamma
         e2 += sum(c * v**2 for c, v in zip(rest, (f.wide, f.view), strict=False))
-        if candidate not in f.fitted:
+        if candidate == NONE or technique_of(candidate) not in f.fitted:
             e2 += f.energy**2
         return math.sqrt(max(e2, 0.0))
 
@@ -184,8 +255,9 @@ class Model:
             "trained_on": list(self.trained_on),
             "command": self.command,
             "seconds_per_work": dict(self.seconds_per_work),
-            "definition": "relative error^2 = alpha D^2 + beta B^2 + gamma + delta W^2 + epsilon V^2 per candidate;"
-            " seconds = rate x pixels x samples (core/auto.py)",
+            "definition": "relative error^2 = alpha D^2 + beta B^2 + gamma + delta W^2 + epsilon V^2 per candidate"
+            " (a technique at its default quality, or 'technique option=value ...': a rung of its quality ladder,"
+            " or without its energy stage); seconds = rate x pixels x samples (core/auto.py)",
         }
 
     @classmethod
@@ -205,6 +277,12 @@ class Model:
             raise InputError(f"{where}: seconds_per_work: expected {{technique: seconds per unit of work}}") from None
         if not all(math.isfinite(v) and v > 0 for v in rates.values()):
             raise InputError(f"{where}: seconds_per_work: expected positive numbers, got {rates}")
+        for k in [*coefficients, *rates]:
+            if k != NONE:
+                try:
+                    options_of(k)
+                except InputError as exc:
+                    raise InputError(f"{where}: {exc}") from None
         return cls(coefficients, tuple(data.get("trained_on", ())), str(data.get("command", "")), rates)
 
 
@@ -498,6 +576,18 @@ class Candidate:
     work: float = 0.0
     #: The error its fit measured against Cycles on the material's held-out blocks (None: not measured).
     measured: float | None = None
+    #: For a rung of a technique the fit measured: that measurement times the rung's predicted error
+    #: over the technique's predicted error at its default (the fit measures the default only).
+    scaled: float | None = None
+
+    @property
+    def technique(self) -> str:
+        return NONE if self.name == NONE else technique_of(self.name)
+
+    @property
+    def is_rung(self) -> bool:
+        """True for a rung other than its technique's default (a quality, or the energy stage off)."""
+        return self.name not in (NONE, self.technique)
 
 
 @dataclass
@@ -511,6 +601,8 @@ class MaterialChoice:
     reason: str
     #: Kept for the callers that read a plan's materials (``Plan.applied``-like).
     warning: str | None = None
+    #: Rungs of the candidate techniques the model has no coefficients for (not candidates).
+    unmodelled: list[str] = field(default_factory=list)
 
     @property
     def applied(self) -> bool:
@@ -524,7 +616,8 @@ class AutoPlan:
     shape: tuple[int, int]
     max_error: float
     choices: list[MaterialChoice]
-    #: The plans of the chosen techniques, restricted to the materials that chose them.
+    #: The plans of the chosen candidates (a technique, or a rung of it: ``technique option=value``),
+    #: each restricted to the materials that chose it.
     plans: dict[str, Plan]
     model: Model
     skipped_materials: list[str] = field(default_factory=list)
@@ -548,8 +641,9 @@ class AutoPlan:
     def explain(self) -> str:
         h, w = self.shape
         lines = [
-            f"auto on {w}x{h} pixels: per material, the cheapest technique whose predicted error (measured, where"
-            f" the material's fit measured two or more) is within {100 * self.max_error:.0f} % of the best"
+            f"auto on {w}x{h} pixels: per material, the cheapest technique or rung of its quality ladder whose"
+            f" predicted error (measured, where the material's fit measured two or more techniques) is within"
+            f" {100 * self.max_error:.0f} % of the best"
             f" (model: {self.model.command or 'given'})"
         ]
         if not self.choices:
@@ -578,15 +672,32 @@ class AutoPlan:
                     "    no fit measured two or more techniques here: the errors are predicted (calibrate, or"
                     " Fit to Cycles in the panel, measures them against Cycles)"
                 )
-            for cand in sorted(c.candidates, key=lambda k: k.cost):
+            ok = sorted((k for k in c.candidates if not k.excluded), key=lambda k: (k.cost, k.name))
+            width = max([len(k.name) for k in ok] + [9])
+            for cand in ok:
+                seen = ""
+                if cand.measured is not None:
+                    seen = f", measured {cand.measured:.4f} (its fit, held out)"
+                elif cand.scaled is not None:
+                    seen = f", {cand.scaled:.4f} from {cand.technique}'s measured error x the predicted ratio"
+                lines.append(
+                    f"    {cand.name:{width}s} predicted error {cand.predicted:.4f}{seen}, estimated"
+                    f" {1000 * cand.cost:.3g} ms ({cand.work:.3g} pixel-samples)"
+                )
+            # Excluded candidates: one line per technique and reason.
+            grouped: dict[tuple[str, str], list[str]] = {}
+            for cand in c.candidates:
                 if cand.excluded:
-                    lines.append(f"    {cand.name:9s} not a candidate: {cand.excluded}")
+                    grouped.setdefault((cand.technique, cand.excluded), []).append(cand.name)
+            for (technique, why), names in grouped.items():
+                if names == [technique]:
+                    lines.append(f"    {technique:{width}s} not a candidate: {why}")
                 else:
-                    seen = "" if cand.measured is None else f", measured {cand.measured:.4f} (its fit, held out)"
-                    lines.append(
-                        f"    {cand.name:9s} predicted error {cand.predicted:.4f}{seen}, estimated"
-                        f" {1000 * cand.cost:.3g} ms ({cand.work:.3g} pixel-samples)"
-                    )
+                    lines.append(f"    {technique} ({len(names)} rungs: {', '.join(names)}) not candidates: {why}")
+            if c.unmodelled:
+                lines.append(
+                    f"    not candidates, the auto model has no coefficients for them: {', '.join(c.unmodelled)}"
+                )
             lines.append(f"    => {c.chosen}: {c.reason}")
             if c.warning:
                 lines.append(f"    warning: {c.warning}")
@@ -616,14 +727,23 @@ def measured_errors(material: MaterialSSS) -> dict[str, float]:
     return {t: v[0] for t, v in found.items()}
 
 
-def _work(technique: str, material: MaterialSSS, pixels: int, lights: int, mapping) -> float:
-    """pixels x (samples per pixel + one per light when the technique adds light from behind)."""
+def _work(technique: str, material: MaterialSSS, pixels: int, lights: int, mapping, options=None) -> float:
+    """pixels x (samples per pixel + one per light when the technique adds light from behind), with
+    ``options`` (a rung's: ``variants``) over the material's parameters."""
+    return _works(technique, material, pixels, lights, mapping, [options or {}])[0]
+
+
+def _works(technique: str, material: MaterialSSS, pixels: int, lights: int, mapping, runs) -> list[float]:
+    """``_work`` of each options of ``runs``, the material's parameters read once."""
     spec = get_spec(technique)
     params = technique_params(material, technique, mapping=mapping)
-    per_pixel = float(spec.footprint(params).samples or 0)
-    if spec.adds_light:  # one evaluation per light for the light it adds
-        per_pixel += max(lights, 1)
-    return pixels * max(per_pixel, 1.0)
+    out = []
+    for options in runs:
+        per_pixel = float(spec.footprint({**params, **options}).samples or 0)
+        if spec.adds_light:  # one evaluation per light for the light it adds
+            per_pixel += max(lights, 1)
+        out.append(pixels * max(per_pixel, 1.0))
+    return out
 
 
 def choose(
@@ -637,13 +757,15 @@ def choose(
     mapping=None,
     keep=None,
 ) -> AutoPlan:
-    """Per scattering material on screen, the technique to run (or none), and why.
+    """Per scattering material on screen, the technique and quality to run (or none), and why.
 
-    ``techniques``: the candidates (default: every registered technique the model knows); one
-    whose passes are missing is not a candidate (said in the plan). ``max_error`` >= 0: how much
-    worse than the best predicted error (relative) a cheaper choice may be. ``keep``: {material
-    name: candidate} chosen before (on the first frame of a sequence): kept where it can still
-    run, so that a material's look does not switch from frame to frame.
+    The candidates are no SSS and each technique's runs in ``variants`` (its quality ladder's rungs,
+    and without its energy stage) that the model has coefficients for. ``techniques``: the
+    techniques whose runs are candidates (default: every registered technique); one whose passes
+    are missing is not a candidate (said in the plan). ``max_error`` >= 0: how much worse than the
+    best predicted error (relative) a cheaper choice may be. ``keep``: {material name: candidate}
+    chosen before (on the first frame of a sequence): kept where it can still run, so that a
+    material's look does not switch from frame to frame.
     """
     if not (isinstance(max_error, (int, float)) and math.isfinite(max_error) and max_error >= 0):
         raise InputError(f"max_error: expected a number >= 0 (0.05 = within 5 % of the best), got {max_error!r}")
@@ -651,7 +773,7 @@ def choose(
     # Every registered technique is a candidate (a new one too: without coefficients it is listed
     # as not a candidate until the model is learnt again with it).
     names = [get_spec(t).name for t in techniques] if techniques is not None else list(TECHNIQUES)
-    # Only the chosen techniques are planned (below); a candidate needs its passes and its work.
+    # Only the chosen runs are planned (below); a candidate needs its passes and its work.
     missing: dict[str, str] = {}
     for t in names:
         lacking = [p for p in required_passes(t, scene.thickness_aov) if p not in passes]
@@ -670,61 +792,39 @@ def choose(
             auto.skipped_materials.append(f"material {name!r}: no pixel on screen: left as it is")
             continue
         cands = [Candidate(NONE, model.predict(NONE, f), 0.0)]
+        unmodelled = []
         for t in names:
-            if t not in model.coefficients:
+            every = variants(t)
+            runs = {n: o for n, o in every.items() if n in model.coefficients}
+            if not runs:
                 cands.append(Candidate(t, math.nan, math.nan, "the auto model has no coefficients for it"))
                 continue
+            unmodelled += [n for n in every if n not in runs]
             if t in missing:
-                cands.append(Candidate(t, math.nan, math.nan, f"its passes are missing ({missing[t]})"))
+                cands += [Candidate(n, math.nan, math.nan, f"its passes are missing ({missing[t]})") for n in runs]
                 continue
-            work = _work(t, material, f.pixels, len(scene.lights), mapping)
-            cands.append(Candidate(t, model.predict(t, f), model.seconds(t, work), work=work))
-        measured = measured_errors(material)
-        runnable = [c for c in cands if c.excluded is None]
-        # With two or more runnable techniques measured by the material's fit, the measurements decide.
-        what = "measured" if sum(c.name in measured for c in runnable) >= 2 else "predicted"
-        for c in cands:
-            c.measured = measured.get(c.name)
-            if what == "measured" and c.excluded is None and c.measured is None:
-                c.excluded = f"not measured by the material's fit (measured: {', '.join(sorted(measured))})"
-        ok = [c for c in cands if c.excluded is None]
-        score = {c.name: c.measured if what == "measured" and c.measured is not None else c.predicted for c in ok}
-        best = min(ok, key=lambda c: score[c.name])
-        limit = score[best.name] * (1.0 + max_error)
-        within = [c for c in ok if score[c.name] <= limit + 1e-12]
-        if what == "measured":
-            # The measurement holds the fit render's noise, which brings every technique's measured
-            # error closer to the best's: a cheaper technique must be within the margin of the best
-            # measured one by its prediction too.
-            within = [c for c in within if c.predicted <= best.predicted * (1.0 + max_error) + 1e-12]
-        cheapest = min(c.cost for c in within)
-        alike = [c for c in within if c.cost <= cheapest * (1.0 + COST_TOLERANCE) + 1e-12]
-        pick = min(alike, key=lambda c: (score[c.name], c.cost))
-        if pick is best:
-            reason = f"the best {what} error ({score[best.name]:.4f})"
-            if len(within) > 1:
-                reason += " and the cheapest within the margin"
-        else:
-            reason = (
-                f"cheapest within {100 * max_error:.0f} % of the best {what} error"
-                f" ({best.name} {score[best.name]:.4f}); {what} {score[pick.name]:.4f}"
-            )
-        if len(alike) > 1:
-            reason += f" (estimated costs within {100 * COST_TOLERANCE:.0f} % of the cheapest count as equal)"
-        if what == "measured":
-            reason += "; measured by its fit against Cycles on the material's held-out blocks"
-        reason += _why(f, pick.name)
+            works = _works(t, material, f.pixels, len(scene.lights), mapping, list(runs.values()))
+            for (n, options), work in zip(runs.items(), works, strict=True):
+                if t in f.fitted and options.get("energy") == ENERGY_OFF["energy"]:
+                    # The fit (core/fit.py) runs the technique with its energy stage: the fitted gain
+                    # holds that stage's energy, and without it the gain is wrong.
+                    why = f"the material's fit for {t} was made with its energy stage on"
+                    cands.append(Candidate(n, math.nan, math.nan, why))
+                    continue
+                cands.append(Candidate(n, model.predict(n, f), model.seconds(n, work), work=work))
+        pick, reason, score = _pick(cands, f, measured_errors(material), max_error)
         kept = (keep or {}).get(f.name)
         if kept is not None and kept != pick.name:
-            held = next((c for c in ok if c.name == kept), None)
+            held = next((c for c in cands if c.name == kept and c.excluded is None), None)
             if held is not None:
                 reason = f"kept from the first frame (this frame alone would choose {pick.name}: {reason})"
                 pick = held
         if pick.name != NONE:
             chosen_by.setdefault(pick.name, set()).add(material.index)
-        auto.choices.append(MaterialChoice(material, f, cands, pick.name, reason))
-    for t, indices in chosen_by.items():
-        p = plan(passes, scene, t, albedo_mode=albedo_mode, mapping=mapping)
+        auto.choices.append(MaterialChoice(material, f, cands, pick.name, reason, unmodelled=unmodelled))
+    for run, indices in chosen_by.items():
+        t = technique_of(run)
+        p = plan(passes, scene, t, albedo_mode=albedo_mode, mapping=mapping, **options_of(run))
         for mp in p.materials:
             if mp.material.index not in indices:
                 if mp.skip is None:
@@ -733,9 +833,97 @@ def choose(
             choice = next(c for c in auto.choices if c.material.index == mp.material.index)
             choice.warning = mp.warning
             if mp.skip:
-                choice.reason += f"; {t} leaves it as it is: {mp.skip}"
-        auto.plans[t] = p
+                choice.reason += f"; {run} leaves it as it is: {mp.skip}"
+        auto.plans[run] = p
     return auto
+
+
+def _pick(cands: list[Candidate], f: Features, measured: dict, max_error: float) -> tuple[Candidate, str, dict]:
+    """The candidate ``choose`` takes among ``cands`` (excluding, in place, those a measured choice
+    cannot compare), the reason in words, and the error each was judged by."""
+    runnable = [c for c in cands if c.excluded is None]
+    # With two or more runnable techniques measured by the material's fit, the measurements decide.
+    what = "measured" if sum(c.name in measured for c in runnable) >= 2 else "predicted"
+    default = {c.name: c for c in runnable}
+    for c in cands:
+        c.measured = measured.get(c.name)
+        if what != "measured" or c.excluded is not None or c.measured is not None:
+            continue
+        own = default.get(c.technique)
+        if c.technique in measured and own is not None:
+            # A rung of a measured technique: the fit measured its default; the rung differs from it
+            # as predicted.
+            ratio = c.predicted / own.predicted if own.predicted > 0 else 1.0
+            c.scaled = measured[c.technique] * ratio
+        else:
+            c.excluded = f"not measured by the material's fit (measured: {', '.join(sorted(measured))})"
+    ok = [c for c in cands if c.excluded is None]
+    # In measured mode every candidate left has its measurement or a rung's scaled one.
+    score: dict[str, float] = {c.name: _judged(c) if what == "measured" else c.predicted for c in ok}
+    best = min(ok, key=lambda c: score[c.name])
+    limit = score[best.name] * (1.0 + max_error)
+    within = [c for c in ok if score[c.name] <= limit + 1e-12]
+    if what == "measured":
+        # The measurement holds the fit render's noise, which brings every technique's measured
+        # error closer to the best's: a cheaper technique must be within the margin of the best
+        # measured one by its prediction too.
+        within = [c for c in within if c.predicted <= best.predicted * (1.0 + max_error) + 1e-12]
+    # The rungs of one technique run the same kernels with fewer samples or without a stage: their
+    # costs rank reliably, and its cheapest rung within the margin stands for it. Between
+    # techniques, estimated costs within COST_TOLERANCE count as equal and the lower error decides.
+    finalists: dict[str, Candidate] = {}
+    for c in within:
+        held = finalists.get(c.technique)
+        if held is None or (c.cost, score[c.name]) < (held.cost, score[held.name]):
+            finalists[c.technique] = c
+    cheapest = min(c.cost for c in finalists.values())
+    alike = [c for c in finalists.values() if c.cost <= cheapest * (1.0 + COST_TOLERANCE) + 1e-12]
+    pick = min(alike, key=lambda c: (score[c.name], c.cost))
+    if pick is best:
+        reason = f"the best {what} error ({score[best.name]:.4f})"
+        if len(within) > 1:
+            reason += " and the cheapest within the margin"
+    else:
+        reason = (
+            f"cheapest within {100 * max_error:.0f} % of the best {what} error"
+            f" ({best.name} {score[best.name]:.4f}); {what} {score[pick.name]:.4f}"
+        )
+    if len(alike) > 1:
+        reason += f" (estimated costs within {100 * COST_TOLERANCE:.0f} % of the cheapest count as equal)"
+    if pick.is_rung:
+        reason += _rung_reason(pick, default.get(pick.technique), score, f)
+    if what == "measured":
+        reason += "; measured by its fit against Cycles on the material's held-out blocks"
+        if pick.scaled is not None:
+            reason += f" ({pick.technique} at its default quality; the rung's error scaled by the predicted ratio)"
+    return pick, reason + _why(f, pick.name), score
+
+
+def _judged(c: Candidate) -> float:
+    """A candidate's measured error, or for a rung of a measured technique its scaled one."""
+    value = c.measured if c.measured is not None else c.scaled
+    assert value is not None, f"{c.name}: neither measured nor scaled"
+    return value
+
+
+def _rung_reason(pick: Candidate, own: Candidate | None, score: dict, f: Features) -> str:
+    """Why a rung rather than its technique's default quality, in words."""
+    options = options_of(pick.name)
+    parts = []
+    if options.get("energy") == ENERGY_OFF["energy"]:
+        parts.append(f"the energy stage off (energy V {f.view:.4f}: the techniques' energy changes little here)")
+    quality = {k: v for k, v in options.items() if k != "energy"}
+    if quality:
+        parts.append(" ".join(f"{k}={v}" for k, v in quality.items()) + f" instead of {pick.technique}'s default")
+    text = f"; {' and '.join(parts)}"
+    if own is None:
+        return text + f" ({pick.technique}'s default is not a candidate)"
+    if own.name not in score:
+        return text
+    return text + (
+        f": estimated {1000 * pick.cost:.3g} ms against {1000 * own.cost:.3g} ms,"
+        f" error {score[pick.name]:.4f} against {score[own.name]:.4f} at the default"
+    )
 
 
 def _why(f: Features, chosen: str) -> str:
@@ -751,17 +939,18 @@ def _why(f: Features, chosen: str) -> str:
 
 
 def apply_auto(passes: Passes, scene: SceneDescription, *, prepared: AutoPlan | None = None, **options) -> dict:
-    """Run each material's chosen technique; returns ``SSSLab.auto.Image`` and ``SSSLab.auto.SSS``
-    (as ``core.apply.apply``: float32, Combined untouched outside the computed materials), or {}
-    when no material scatters light on screen. ``options`` go to ``choose``."""
+    """Run each material's chosen technique at its chosen quality; returns ``SSSLab.auto.Image`` and
+    ``SSSLab.auto.SSS`` (as ``core.apply.apply``: float32, Combined untouched outside the computed
+    materials), or {} when no material scatters light on screen. ``options`` go to ``choose``."""
     auto = prepared or choose(passes, scene, **options)
     if not auto.choices:
         return {}
     name_image, name_sss = core_apply.layer_names(AUTO)
     if len(auto.plans) == 1:
-        # One technique chosen: its layers are auto's (Combined untouched outside the computed
+        # One run chosen: its layers are auto's (Combined untouched outside the computed
         # materials, as below), without a second copy of the frame and a sum over it.
-        ((t, p),) = auto.plans.items()
+        ((run, p),) = auto.plans.items()
+        t = p.spec.name
         layers = core_apply.apply(passes, scene, t, albedo_mode=p.albedo_mode, prepared=p)
         if layers:
             auto.nonfinite_pixels = p.nonfinite_pixels
@@ -773,7 +962,8 @@ def apply_auto(passes: Passes, scene: SceneDescription, *, prepared: AutoPlan | 
     image = np.array(combined, dtype=np.float32)
     sss = np.zeros(combined.shape[:2] + (3,), np.float32)
     nonfinite = overflow = 0
-    for t, p in auto.plans.items():
+    for p in auto.plans.values():
+        t = p.spec.name
         layers = core_apply.apply(passes, scene, t, albedo_mode=p.albedo_mode, prepared=p)
         if layers:
             sss += layers[core_apply.layer_names(t)[1]]
@@ -811,13 +1001,14 @@ def _nnls(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
 def train(samples, *, timings=(), trained_on=(), command: str = "") -> Model:
     """Learn the coefficients from measured errors.
 
-    ``samples``: (Features, {candidate: relative error}) pairs, one per material of a scene,
-    the candidates including ``NONE``. Each technique's error^2 is fitted to (D^2, B^2, 1, W^2, V^2) by
-    non-negative least squares, each material weighted by 1 / its no-SSS error^2 so that every
-    material counts alike whatever its scene's error level. The energy term is not learnt (no SSS
-    always keeps it, a fitted technique removes it): it is subtracted from the measured error^2
-    first. ``timings``: (technique, work, seconds) measurements; each technique's rate is the
-    median of seconds / work."""
+    ``samples``: (Features, {candidate: relative error}) pairs, one per material of a scene, the
+    candidates including ``NONE`` (a technique at its default quality, or one of its rungs,
+    ``variants``: each learnt from its own measurements). Each candidate's error^2 is fitted to
+    (D^2, B^2, 1, W^2, V^2) by non-negative least squares, each material weighted by 1 / its
+    no-SSS error^2 so that every material counts alike whatever its scene's error level. The
+    energy term is not learnt (no SSS always keeps it, a fitted technique removes it): it is
+    subtracted from the measured error^2 first. ``timings``: (candidate, work, seconds)
+    measurements; each candidate's rate is the median of seconds / work."""
     by_candidate: dict[str, list] = {}
     for f, errors in samples:
         none = errors.get(NONE)
@@ -826,7 +1017,7 @@ def train(samples, *, timings=(), trained_on=(), command: str = "") -> Model:
         for t, err in errors.items():
             if err is None or not math.isfinite(err):
                 continue
-            e2 = err**2 - (0.0 if t in f.fitted else f.energy**2)
+            e2 = err**2 - (0.0 if t != NONE and technique_of(t) in f.fitted else f.energy**2)
             by_candidate.setdefault(t, []).append(
                 (f.diffusion**2, f.back**2, f.wide**2, f.view**2, max(e2, 0.0), 1.0 / none**2)
             )

@@ -66,3 +66,10 @@ def test_scan_recommend_renders_small_passes_and_leaves_the_scene_as_it_was(tmp_
         assert f"material {m.name!r}" in out
     assert out.count("=> ") == len(sss_materials(scene))
     assert "light from behind B" in out and "diffusion D" in out
+    # Each choice is no SSS or a run auto knows: a technique at one rung of its quality ladder.
+    from sss_lab.core import auto
+
+    for line in out.splitlines():
+        if line.strip().startswith("=> "):
+            chosen = line.strip()[3:].split(":", 1)[0]
+            assert chosen == auto.NONE or auto.options_of(chosen) is not None, line

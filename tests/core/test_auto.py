@@ -251,7 +251,7 @@ def test_one_chosen_technique_gives_its_own_layers_as_the_composite_of_many_woul
     for k, v in enumerate((np.nan, np.inf, -0.0, 1e30, 0.25)):  # off the materials: kept as they are
         arrays["Combined"][0, k, :3] = v
     passes = Passes(arrays)
-    plan = auto.choose(passes, scene, techniques=("burley",))
+    plan = auto.choose(passes, scene, model=MODEL, techniques=("burley",))
     assert set(plan.plans) == {"burley"} and len(plan.applied) == 2, plan.explain()
     out = auto.apply_auto(passes, scene, prepared=plan)
     ref = core_apply.apply(passes, scene, "burley")
