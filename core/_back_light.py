@@ -4,14 +4,16 @@
 the same computation runs as fused per-pixel kernels on the bounding box of the mask's pixels
 (the region), parallel over rows, with nothing the size of a frame in float64: the far side's
 thickness and normal, the irradiance from behind (``back_light_pixels``), the transmittance's
-table reads, the view cosine and the spread's widths (``transmit_pixels``), the spread per
-object confined to what its pixels read (``part_sigma``, ``spread_part``; its wide levels on
-the reference's pyramid: ``spread_blocks``, ``halve_sums``, ``blur_reduced``,
-``spread_reduced_part``, then ``part_results``) and the exit weight and scale
-(``finish_light``). Each kernel computes the reference's float32 and float64 operations in its
-order, so the result is the reference's to the bit: in check mode
-(``core.backend``) every ``transmitted`` and ``add_to`` is compared with the reference's with
-a bound of 0.
+table reads, the view cosine and the range of the spread's widths per row and object
+(``transmit_pixels``), the spread per object confined to what its pixels read (the reference's
+pyramid for its wide levels first: ``spread_pyramid``, ``blur_reduced``; then down the object's
+rows in bands of ``SPREAD_BAND``, its vertical running sums carried from band to band:
+``band_sigma``, ``spread_band``, ``spread_reduced_part``, ``part_results``, so that the widths,
+the level planes and the results are held for a band, not for the object) and the exit weight
+and scale (``finish_light``). Each kernel computes the reference's float32 and float64
+operations in its order, so the result is the reference's to the bit: in check mode
+(``core.backend``) every ``transmitted`` and ``add_to`` is compared with the reference's with a
+bound of 0.
 
 Without a medium (Burley's law) the reference's exponentials are NumPy's vectorized ones, which
 a kernel does not reproduce to the bit: that case stays on the NumPy code, as do inputs whose
@@ -213,6 +215,66 @@ def _row_levels(grid: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.stack([lo, hi], axis=1), np.int64)
 
 
+def _width_ranges(stats: np.ndarray, fill: np.ndarray) -> np.ndarray:
+    """Per row of a part (``transmit_pixels``' ``part_rows`` of its rows) and channel, the smallest
+    and the largest of its pixels' widths in pixels (rows, 3, (least, most)) float32, +inf and 0
+    where the row has no pixel: ``band_sigma``'s widths, where a NaN width is the part's largest
+    ``fill`` (float32) times the pixel's scale. Rounding keeps the order of products by the same
+    ``fill`` >= 0, so its smallest and largest are ``fill`` times the smallest and largest scale."""
+    out = np.empty((stats.shape[0], 3, 2), np.float32)
+    least, most = stats[:, 5:8].astype(np.float32), stats[:, 8:11].astype(np.float32)
+    nan_least, nan_most = stats[:, 11:14].astype(np.float32), stats[:, 14:17].astype(np.float32)
+    has_nan = np.isfinite(nan_least)
+    with np.errstate(invalid="ignore"):
+        out[..., 0] = np.where(has_nan, np.minimum(least, fill * nan_least), least)
+        out[..., 1] = np.where(has_nan, np.maximum(most, fill * nan_most), most)
+    return out
+
+
+#: Rows of a part the spread goes down at a time (``core.compiled.spread_band``): its level planes
+#: and results are held for a band of rows, not for the part.
+SPREAD_BAND = 128
+
+
+def _bands(box, wide, radii, needed, n_full) -> list[tuple[int, int]]:
+    """The bands (first row, last row + 1; region rows) ``spread_band`` goes down the part's rows
+    ``box[0]``..``box[1]`` - 1 in: ``SPREAD_BAND`` rows each, but a band that ends 3 r rows or
+    less before the last row a level's running sums read (half-width r, ``wide`` the
+    reference's box) goes to the part's end."""
+    ends = [
+        min(box[1] + 2 * int(radii[k - 1]), int(wide[1])) - 3 * int(radii[k - 1])
+        for k in range(1, n_full)
+        if needed[k, 3]
+    ]
+    last = min(ends, default=box[1])
+    bands = []
+    b0 = box[0]
+    while b0 < box[1]:
+        b1 = min(b0 + SPREAD_BAND, box[1])
+        if b1 >= last:
+            b1 = box[1]
+        bands.append((b0, b1))
+        b0 = b1
+    return bands
+
+
+def _band_state(radii, needed, n_full, columns) -> tuple[np.ndarray, np.ndarray]:
+    """``spread_band``'s running sums carried from band to band, float64, and where each level's
+    start (int64 per level): per plane it blurs and strip of ``PART_STRIP`` of the part's
+    ``columns``, three rings of 2 r + 2 rows."""
+    from .compiled import PART_STRIP
+
+    at = np.zeros(needed.shape[0], np.int64)
+    size = 0
+    strips = -(-columns // PART_STRIP)
+    for k in range(1, n_full):
+        if not needed[k, 3]:
+            continue
+        at[k] = size
+        size += int(needed[k].sum()) * strips * 3 * (2 * int(radii[k - 1]) + 2) * PART_STRIP
+    return np.empty(size, np.float64), at
+
+
 @dataclass
 class CompiledBackLight:
     """``core.combined.BackLight`` on the compiled backend: the irradiance from behind on the
@@ -318,7 +380,7 @@ class CompiledBackLight:
 
     def _light(self, kind, ell, grid, columns, nodes, spread_len, last) -> np.ndarray:
         """The transmitted light on the region after its spread, float32 (rows, columns, 3)."""
-        from .combined import _box_radius, _full_levels, _reduced_levels, _spread_factor, _spread_levels
+        from .combined import _box_radius, _full_levels, _pyramid_layout, _reduced_levels, _spread_levels
 
         assert self.region is not None and self.e is not None
         medium = self.medium
@@ -347,38 +409,32 @@ class CompiledBackLight:
             counts = np.zeros(3, np.int64)
             values = np.zeros((3, 1), np.float64)
             spread_nodes = np.zeros(1, np.float64)
-        sig = np.empty(e.shape if self.spread else (1, 1, 3), np.float32)
-        part_rows = np.empty((y1 - y0 if self.spread else 1, max(n_parts, 1), 5), np.float64)
+        part_rows = np.empty((y1 - y0 if self.spread else 1, max(n_parts, 1), 17), np.float64)
         view = self.camera is not None and medium.walks
         cy0, cx0 = self.curvature_origin
         ior2 = float(medium.ior) * float(medium.ior)
+        camera = self.camera
+        ortho = camera is not None and camera.type == "ORTHO"
+        focal = np.float32(0.0 if camera is None else camera.ortho_px_per_unit if ortho else camera.focal_px)
+        depth = self.depth if self.spread else np.zeros((1, 1), np.float32)
+        widths = (kind, _c(spread_len), counts, spread_nodes, values)
         backend.run_kernel(
             "transmit_pixels", e, self.mask, self.normal, self.position, self.thickness, self.as_thickness,
             self.distance, self.kmin, self.largest, cy0, cx0, y0, x0, view, self.cam, kind, ior2, _c(ell), grid,
-            columns, nodes, self.spread, _c(spread_len), counts, spread_nodes, values, self.ids_c, self.part_ids,
-            light, sig, part_rows,
+            columns, nodes, self.spread, *widths[1:], self.ids_c, self.part_ids, depth, ortho, focal, light, part_rows,
         )  # fmt: skip
         if not self.spread:
             return light
-        scratch = np.empty(light.shape, np.float32)  # spread_part's, written at the parts' pixels
         h, w = self.shape
         one_part = self.ids is None
-        camera = self.camera
-        ortho = camera.type == "ORTHO"
-        focal = np.float32(camera.ortho_px_per_unit if ortho else camera.focal_px)
         assert self.depth is not None
         for p in range(n_parts):
             box = _spans_box(part_rows[:, p, 0].astype(np.int64), part_rows[:, p, 1].astype(np.int64))
             if box is None:
                 continue
             fill = part_rows[:, p, 2:5].max(axis=0).astype(np.float32)
-            row_range = np.empty((y1 - y0, 3, 2), np.float32)
             part = np.array(box, np.int64)
-            backend.run_kernel(
-                "part_sigma", sig, self.mask, self.thickness, self.ids_c, self.part_ids, p, one_part, self.depth,
-                ortho, focal, fill, y0, x0, part, row_range,
-            )  # fmt: skip
-            rows = row_range[box[0] : box[1]]
+            rows = _width_ranges(part_rows[box[0] : box[1], p], fill)
             least, most = rows[..., 0].min(axis=0), rows[..., 1].max(axis=0)
             top = float(most.max(initial=0.0))
             sigmas = _spread_levels(top)
@@ -396,7 +452,6 @@ class CompiledBackLight:
                 np.int64,
             )
             ph, pw = box[1] - box[0], box[3] - box[2]
-            planes = np.empty((4, ph, pw), np.float32)
             radii = np.array([_box_radius(sg) for sg in sigmas[1:]], np.int64)
             on = np.empty((ph, pw), np.uint8)
             backend.run_kernel(
@@ -404,31 +459,41 @@ class CompiledBackLight:
             )
             grid = np.asarray(sigmas, np.float64)
             needed = _needed_levels(grid, least, most)
-            backend.run_kernel(
-                "spread_part", light, sig, on, part, wide, grid, _full_levels(sigmas), radii, needed,
-                _row_levels(grid, rows), planes, scratch,
-            )  # fmt: skip
-            del planes  # the reduced levels' grids take its place, not its size again
             n_full = _full_levels(sigmas)
-            if n_full < len(sigmas):
-                # The reduced levels' grids side by side in one buffer, read in one pass.
-                levels = np.zeros((len(sigmas) - n_full, 4), np.int64)
-                size = 0
-                for k in range(n_full, len(sigmas)):
-                    f = _spread_factor(sigmas[k])
-                    hc, wc = -(-(wide[1] - wide[0]) // f), -(-(wide[3] - wide[2]) // f)
-                    levels[k - n_full] = (f if needed[k, 3] else 0, size, hc, wc)
-                    size += 4 * hc * wc if needed[k, 3] else 0
-                flat = np.empty(size, np.float32)
-
-                def into(k, flat=flat, levels=levels, n_full=n_full):
-                    _, off, hc, wc = levels[k - n_full]
-                    return flat[off : off + 4 * hc * wc].reshape(4, hc, wc)
-
-                for _ in _reduced_levels(light, on, part, wide, sigmas, needed[:, 3], into):
-                    pass
+            # The reduced levels first, from the light before the bands below replace it.
+            levels, size = _pyramid_layout(sigmas, wide, needed[:, 3])
+            flat = np.empty(size, np.float32)
+            for _ in _reduced_levels(light, on, part, wide, sigmas, levels, flat):
+                pass
+            state, at = _band_state(radii, needed, n_full, pw)
+            row_levels = _row_levels(grid, rows)
+            bands = _bands(box, wide, radii, needed, n_full)
+            most_rows = max(b1 - b0 for b0, b1 in bands)
+            band_planes = np.empty((4, most_rows, pw), np.float32)
+            band_out = np.empty((most_rows, light.shape[1], 3), np.float32)
+            band_sig = np.empty((most_rows, light.shape[1], 3), np.float32)
+            for b0, b1 in bands:
+                out = band_out[: b1 - b0]
+                sig = band_sig[: b1 - b0]
                 backend.run_kernel(
-                    "spread_reduced_part", light, sig, on, part, wide, grid, n_full, flat, levels, scratch
-                )
-            backend.run_kernel("part_results", light, on, part, scratch)
+                    "band_sigma", self.mask, self.normal, self.position, self.thickness, self.as_thickness,
+                    self.distance, self.kmin, self.largest, cy0, cx0, y0, x0, *widths, self.ids_c, self.part_ids, p,
+                    one_part, self.depth, ortho, focal, fill, part, b0, b1, sig,
+                )  # fmt: skip
+                backend.run_kernel(
+                    "spread_band", light, sig, on, part, wide, grid, n_full, radii, needed, row_levels, b0, b1,
+                    state, at, band_planes, out,
+                )  # fmt: skip
+                # The band's rows as one part of their own, in the band's coordinates.
+                band = np.array([0, b1 - b0, box[2], box[3]], np.int64)
+                band_box = np.array([wide[0] - b0, wide[1] - b0, wide[2], wide[3]], np.int64)
+                band_on = on[b0 - box[0] : b1 - box[0]]
+                if n_full < len(sigmas):
+                    backend.run_kernel(
+                        "spread_reduced_part", light[b0:b1], sig, band_on, band, band_box, grid, n_full,
+                        flat, levels, out,
+                    )  # fmt: skip
+                # Nothing reads these rows of the light again: the next bands' running sums have
+                # passed them, and the reduced levels are made.
+                backend.run_kernel("part_results", light[b0:b1], band_on, band, out)
         return light

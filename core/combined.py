@@ -447,7 +447,9 @@ def _spread_compiled(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> n
     n_full = _full_levels(sigmas)
     backend.run_kernel("spread_light", e32, m, sig, grid, n_full, radii, prev, out)
     whole = np.array([0, m.shape[0], 0, m.shape[1]], np.int64)
-    for k, f, reduced in _reduced_levels(e32, m.view(np.uint8), whole, whole, sigmas, None):
+    levels, size = _pyramid_layout(sigmas, whole, None)
+    flat = np.empty(size, np.float32)
+    for k, f, reduced in _reduced_levels(e32, m.view(np.uint8), whole, whole, sigmas, levels, flat):
         backend.run_kernel("spread_reduced_frame", m, sig, f, reduced, grid, k, prev, out)
     return out
 
@@ -457,33 +459,42 @@ def _full_levels(sigmas: list[float]) -> int:
     return sum(1 for sg in sigmas if _spread_factor(sg) == 1)
 
 
-def _reduced_levels(light, on, part, box, sigmas, wanted, into=None):
+def _pyramid_layout(sigmas, box, wanted) -> tuple[np.ndarray, int]:
+    """Where ``_reduced_levels`` puts the reduced levels of ``sigmas`` (the levels from
+    ``_full_levels``) in one float32 buffer: per level (block size f, or 0 where ``wanted[k]`` is
+    False (None: every level wanted), offset, rows, columns), (levels, 4) int64, and the
+    buffer's size. Each grid is (4, rows, columns): R, G, B and the mask, blocks of f x f from
+    ``box``'s origin."""
+    n_full = _full_levels(sigmas)
+    levels = np.zeros((len(sigmas) - n_full, 4), np.int64)
+    size = 0
+    for k in range(n_full, len(sigmas)):
+        f = _spread_factor(sigmas[k])
+        hc, wc = -(-(box[1] - box[0]) // f), -(-(box[3] - box[2]) // f)
+        on = wanted is None or bool(wanted[k])
+        levels[k - n_full] = (f if on else 0, size, hc, wc)
+        size += 4 * hc * wc if on else 0
+    return levels, size
+
+
+def _reduced_levels(light, on, part, box, sigmas, levels, flat):
     """The compiled pyramid (``_spread_reference``'s reduced levels): yields (k, f, the level's
     blurred reduced grid (4, rows, columns) float32: R, G, B and the mask) for each level k of
-    ``sigmas`` blurred on blocks of f x f of ``box`` (``core.compiled.spread_blocks``: the light
-    ``light`` on the pixels ``on`` of ``part``, region coordinates), ``halve_sums`` from one
-    factor to the next, ``blur_reduced``; levels with ``wanted[k]`` False are not blurred
-    (their block sums are made: the next level's are summed from them). ``into(k)``, if given,
-    is the array level k's grid is written to."""
-    sums = None
-    f = 1
-    for k in range(_full_levels(sigmas), len(sigmas)):
-        target = _spread_factor(sigmas[k])
-        while f < target:
-            if sums is None:
-                sums = np.empty((4, (box[1] - box[0] + 1) // 2, (box[3] - box[2] + 1) // 2), np.float64)
-                backend.run_kernel("spread_blocks", light, on, part, box, sums)
-            else:
-                half = np.empty((4, (sums.shape[1] + 1) // 2, (sums.shape[2] + 1) // 2), np.float64)
-                backend.run_kernel("halve_sums", sums, half)
-                sums = half
-            f *= 2
-        if wanted is not None and not wanted[k]:
+    ``sigmas`` blurred on blocks of f x f of ``box``, in ``flat`` as ``levels`` lays them out
+    (``_pyramid_layout``; a level with f = 0 is not made). ``core.compiled.spread_pyramid``
+    makes the float32 of their block sums from the light ``light`` on the pixels ``on`` of
+    ``part`` (region coordinates), ``blur_reduced`` blurs each."""
+    n_full = _full_levels(sigmas)
+    if not np.any(levels[:, 0] > 0):
+        return
+    backend.run_kernel("spread_pyramid", light, on, part, box, levels, flat)
+    for k in range(n_full, len(sigmas)):
+        f, off, hc, wc = (int(v) for v in levels[k - n_full])
+        if f == 0:
             continue
-        assert sums is not None
-        reduced = np.empty(sums.shape, np.float32) if into is None else into(k)
+        reduced = flat[off : off + 4 * hc * wc].reshape(4, hc, wc)
         radii = np.array(_coarse_radii(sigmas[k], f), np.int64)
-        backend.run_kernel("blur_reduced", sums, radii, reduced)
+        backend.run_kernel("blur_reduced", radii, reduced)
         yield k, f, reduced
 
 

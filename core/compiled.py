@@ -1811,7 +1811,7 @@ def spread_light(e, mask, sigma, grid, n_full, radii, prev, out):
     when its upper level is done: two levels and the four planes being summed are held, not the
     reference's stack of every level. Only the levels below ``n_full`` are blurred here; ``prev``
     (3, H, W) is left holding the last of them, for the wider ones on reduced grids
-    (``spread_blocks``, ``blur_reduced``, ``spread_reduced_frame``)."""
+    (``spread_pyramid``, ``blur_reduced``, ``spread_reduced_frame``)."""
     h, w, _ = e.shape
     planes = np.empty((4, h, w), np.float32)
     for y in prange(h):
@@ -2200,11 +2200,39 @@ def _view_cos(normal, position, y, x, cam):
     return abs(_nan_to_num32(nx / length * vx + ny / length * vy + nz / length * vz))
 
 
+_ROOT2 = math.sqrt(2.0)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _spread_width(kind, xs, spread_len, spread_counts, spread_nodes, spread_values, c):
+    """``core.combined.spread_sigma`` of channel ``c`` through thickness ``xs``, float32 (NaN where
+    the walk's table ends; 0 for a length of 0)."""
+    d = spread_len[c]
+    n = spread_counts[c]
+    if d <= 0.0 or n == 0:
+        return _ZERO
+    v = xs / d
+    if kind == DISK:
+        return f32(math.sqrt(_interp(v, spread_nodes, spread_values[c], 0.0, _below(v, spread_nodes))) * d / _ROOT2)
+    return f32(_interp(v, spread_nodes[:n], spread_values[c, :n], np.nan, _below(v, spread_nodes)) * d / _ROOT2)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _pixel_scale(depth, y, x, ortho, focal):
+    """``core.scene.Camera.pixels_per_unit`` of a pixel, float32: ``focal`` / z, or ``focal`` for an
+    orthographic camera; 0 where that is not finite or z <= 0 (orthographic: z not finite)."""
+    z = depth[y, x]
+    if ortho:
+        return focal if np.isfinite(z) else _ZERO
+    scale = focal / z
+    return scale if np.isfinite(scale) and not z <= _ZERO else _ZERO
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def transmit_pixels(
     e, mask, normal, position, thickness, as_thickness, distance, kmin, largest, cy0, cx0, y0, x0, view, cam,
     kind, ior2, ell, grid, columns, nodes, spread, spread_len, spread_counts, spread_nodes, spread_values, ids,
-    part_ids, light, sig, part_rows,
+    part_ids, depth, ortho, focal, light, part_rows,
 ):  # fmt: skip
     """``core.combined.BackLight.transmitted`` before its spread: ``light`` = ``e`` x T_c(x) on the
     lit pixels of the region (irradiance > 0, finite map), 0 elsewhere, float32 (T_c
@@ -2213,23 +2241,29 @@ def transmit_pixels(
 
     With ``spread`` (a Depth pass and a camera), per pixel of the mask with a finite map: its
     part (``part_ids``, ascending, holding the pixel's object id ``ids``; a single part when
-    ``ids`` is (1, 1)) and its spread's width before the pixel's scale, float32 into ``sig``:
-    ``core.combined.spread_sigma``'s value, NaN where the walk's table ends (the reference puts
-    the part's largest there; 0 for a pixel in no part); per region row and part
-    (``part_rows``): the first and last + 1 region column of the part's pixels and, per channel,
-    the largest width (at least 0)."""
+    ``ids`` is (1, 1)) and its spread's width before the pixel's scale (``_spread_width``:
+    ``core.combined.spread_sigma``'s value, NaN where the walk's table ends, where the reference
+    puts the part's largest) and that scale (``_pixel_scale`` of ``depth``, ``ortho``,
+    ``focal``), into per region row and part (``part_rows``): the first and last + 1 region
+    column of the part's pixels; per channel the largest width (at least 0), the smallest and
+    the largest width times the scale where the width is not NaN (+inf and 0 without a pixel),
+    and the smallest and the largest scale where it is NaN (+inf and 0 without a pixel), from
+    which ``band_sigma``'s widths' range per row follows once the part's largest is known,
+    without a frame of widths."""
     h, w = light.shape[0], light.shape[1]
     one_part = ids.shape[0] == 1 and ids.shape[1] == 1 and part_ids.size == 1
-    root2 = math.sqrt(2.0)
     n_parts = part_ids.size if spread else 0
     for i in prange(h):
         y = y0 + i
         for p in range(n_parts):
             part_rows[i, p, 0] = w
             part_rows[i, p, 1] = 0
-            part_rows[i, p, 2] = 0.0
-            part_rows[i, p, 3] = 0.0
-            part_rows[i, p, 4] = 0.0
+            for c in range(3):
+                part_rows[i, p, 2 + c] = 0.0
+                part_rows[i, p, 5 + c] = np.inf
+                part_rows[i, p, 8 + c] = 0.0
+                part_rows[i, p, 11 + c] = np.inf
+                part_rows[i, p, 14 + c] = 0.0
         for j in range(w):
             x = x0 + j
             a0 = e[i, j, 0]
@@ -2264,30 +2298,20 @@ def transmit_pixels(
                 v = ids[y, x]
                 p = np.searchsorted(part_ids, v)
                 if p >= part_ids.size or part_ids[p] != v:
-                    sig[i, j, 0] = _ZERO
-                    sig[i, j, 1] = _ZERO
-                    sig[i, j, 2] = _ZERO
                     continue
             part_rows[i, p, 0] = min(part_rows[i, p, 0], j)
             part_rows[i, p, 1] = j + 1
+            scale = _pixel_scale(depth, y, x, ortho, focal)
             for c in range(3):
-                d = spread_len[c]
-                n = spread_counts[c]
-                if d <= 0.0 or n == 0:
-                    s = _ZERO
-                elif kind == DISK:
-                    v = xs / d
-                    s = f32(
-                        math.sqrt(_interp(v, spread_nodes, spread_values[c], 0.0, _below(v, spread_nodes))) * d / root2
-                    )
-                else:
-                    v = xs / d
-                    s = f32(
-                        _interp(v, spread_nodes[:n], spread_values[c, :n], np.nan, _below(v, spread_nodes)) * d / root2
-                    )
-                sig[i, j, c] = s
+                s = _spread_width(kind, xs, spread_len, spread_counts, spread_nodes, spread_values, c)
                 if s == s:
                     part_rows[i, p, 2 + c] = max(part_rows[i, p, 2 + c], np.float64(s))
+                    s = s * scale
+                    part_rows[i, p, 5 + c] = min(part_rows[i, p, 5 + c], np.float64(s))
+                    part_rows[i, p, 8 + c] = max(part_rows[i, p, 8 + c], np.float64(s))
+                else:
+                    part_rows[i, p, 11 + c] = min(part_rows[i, p, 11 + c], np.float64(scale))
+                    part_rows[i, p, 14 + c] = max(part_rows[i, p, 14 + c], np.float64(scale))
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -2300,35 +2324,27 @@ def _in_part(mask, thickness, ids, part_ids, p, one_part, y, x):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def part_sigma(sig, mask, thickness, ids, part_ids, p, one_part, depth, ortho, focal, fill, y0, x0, box, row_range):
-    """The spread's width in pixels of part ``p``'s pixels within ``box`` (region rows ``box[0]``..
-    ``box[1]`` - 1, columns ``box[2]``..``box[3]`` - 1), in place in ``sig``: its NaN replaced by
-    ``fill`` (float32, per channel), times the pixel's ``core.scene.Camera.pixels_per_unit`` of
-    ``depth`` (float32: ``focal`` / z, or ``focal`` for an orthographic camera; 0 where that is not
-    finite or z <= 0 (orthographic: z not finite)); per region row of the box and channel, the
-    smallest and the largest into ``row_range[i, c]`` (+inf and 0 without a pixel)."""
-    for i in prange(box[0], box[1]):
+def band_sigma(
+    mask, normal, position, thickness, as_thickness, distance, kmin, largest, cy0, cx0, y0, x0, kind, spread_len,
+    spread_counts, spread_nodes, spread_values, ids, part_ids, p, one_part, depth, ortho, focal, fill, part, b0, b1,
+    sig,
+):  # fmt: skip
+    """The spread's width in pixels of part ``p``'s pixels (``_in_part``) in region rows ``b0``..
+    ``b1`` - 1 and columns ``part[2]``..``part[3]`` - 1, into ``sig`` (band rows from ``b0``,
+    region columns, 3): ``transmit_pixels``' width before the scale (``_spread_width``), its NaN
+    replaced by ``fill`` (float32, per channel), times the pixel's scale (``_pixel_scale``)."""
+    for i in prange(b0, b1):
         y = y0 + i
-        for c in range(3):
-            row_range[i, c, 0] = _INF
-            row_range[i, c, 1] = _ZERO
-        for j in range(box[2], box[3]):
+        for j in range(part[2], part[3]):
             x = x0 + j
             if not _in_part(mask, thickness, ids, part_ids, p, one_part, y, x):
                 continue
-            z = depth[y, x]
-            if ortho:
-                scale = focal if np.isfinite(z) else _ZERO
-            else:
-                scale = focal / z
-                scale = scale if np.isfinite(scale) and not z <= _ZERO else _ZERO
+            xs, _ = _pixel_x(mask, normal, position, thickness, as_thickness, distance, kmin, largest, cy0, cx0, y, x)
+            scale = _pixel_scale(depth, y, x, ortho, focal)
             for c in range(3):
-                s = sig[i, j, c]
+                s = _spread_width(kind, xs, spread_len, spread_counts, spread_nodes, spread_values, c)
                 s = fill[c] if s != s else s
-                s = s * scale
-                sig[i, j, c] = s
-                row_range[i, c, 0] = min(row_range[i, c, 0], s)
-                row_range[i, c, 1] = max(row_range[i, c, 1], s)
+                sig[i - b0, j, c] = s * scale
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -2380,60 +2396,96 @@ def part_pixels(mask, thickness, ids, part_ids, p, one_part, y0, x0, part, on):
             on[i - part[0], j - part[2]] = 1 if inside else 0
 
 
-#: Columns of a part ``spread_part``'s vertical passes sum together: its running sums go down whole
-#: columns, one row (tens of kB apart) after the other, so a wide strip does more per memory page
-#: touched. Measured (``benchmarks.speed``'s profile, full screen): 16 columns 211 / 1201 ms at
-#: 1080p / 4K (5.7x), 64: 166 / 839, 128: 146 / 632 (4.3x), 256: 130 / 695 (a strip of 2160
-#: rows no longer fits the 2 MB second-level cache).
+#: Columns of a part ``spread_band``'s vertical passes sum together: its running sums go down the
+#: columns one row (tens of kB apart) after the other, so a wide strip does more per memory page
+#: touched. Measured (``benchmarks.speed``'s profile, full screen, before the passes went in
+#: bands): 16 columns 211 / 1201 ms at 1080p / 4K (5.7x), 64: 166 / 839, 128: 146 / 632 (4.3x),
+#: 256: 130 / 695 (a strip of 2160 rows no longer fits the 2 MB second-level cache).
 PART_STRIP = 128
 
-#: Rows of a part ``spread_part``'s horizontal passes sum together (their four planes side by side:
-#: the running sums' chains of additions are independent, 16 float64 lanes).
+#: Rows of a part ``spread_band``'s horizontal passes sum together (their four planes side by
+#: side: the running sums' chains of additions are independent, 16 float64 lanes).
 SPREAD_ROWS = 4
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _ready(m, r, n):
+    """How many outputs of a box sum of half-width ``r`` over ``n`` values are ready once ``m`` of
+    them are summed: output i takes the running sum up to min(i + r + 1, n)."""
+    return n if m >= n else max(0, m - r)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _push(ring, m, vals, bw):
+    """The running sum after ``m`` + 1 values: the one after ``m`` plus ``vals`` (float64), in the
+    ring ``ring`` (rows: its length; the sum of the first k values in row k mod it)."""
+    n = ring.shape[0]
+    src = m % n
+    dst = (m + 1) % n
+    for t in range(bw):
+        ring[dst, t] = ring[src, t] + np.float64(vals[t])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _take(ring, i, r, n, out, bw):
+    """Output ``i`` of the box sum: the float32 of the running sums' difference 2 r + 1 apart
+    (clipped to the ``n`` values), as ``_running_box`` gives it."""
+    rows = ring.shape[0]
+    a = min(i + r + 1, n) % rows
+    b = max(i - r, 0) % rows
+    for t in range(bw):
+        out[t] = f32(ring[a, t] - ring[b, t])
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
-def spread_part(light, sig, on, part, box, grid, n_full, radii, needed, row_levels, planes, out):
-    """``core.combined._spread_part`` of one part (its pixels ``on``, from region row ``part[0]``
-    and column ``part[2]``; region rows ``part[0]``..``part[1]`` - 1 and columns ``part[2]``..
-    ``part[3]`` - 1 hold them all), its blurs confined to ``box`` (region coordinates, the
-    reference's box: the part's widened by the widest blur's reach and clipped to the frame),
-    into ``out`` at the part's pixels: ``light`` blurred per pixel and channel by ``sig``
-    (pixels) as ``spread_light`` does it, each level's three box sums per axis as the
-    reference's float64 cumulative sums (``_running_box``).
+def spread_band(light, sig, on, part, box, grid, n_full, radii, needed, row_levels, b0, b1, state, at, planes, out):
+    """``core.combined._spread_part`` of one part's rows ``b0``..``b1`` - 1 (a band; region
+    coordinates), for its levels at full resolution (the wider ones: ``spread_reduced_part``),
+    into ``out`` (band rows, region columns, 3) at the part's pixels: ``light`` blurred per
+    pixel and channel by ``sig`` (pixels; band rows, region columns, 3: ``band_sigma``) as
+    ``spread_light`` does it, each level's three box
+    sums per axis as the reference's float64 cumulative sums (``_running_box``). The part's
+    pixels are ``on`` (from region row ``part[0]`` and column ``part[2]``; region rows
+    ``part[0]``..``part[1]`` - 1 and columns ``part[2]``..``part[3]`` - 1 hold them all); the
+    blurs are confined to ``box`` (the reference's box: the part's widened by the widest blur's
+    reach and clipped to the frame).
 
     Only what the part's pixels read is computed, in the reference's order: the light on the
     part is zero outside its rows and columns, so a column outside them sums to zero, and so does
     a running sum before its first value; a channel's level is blurred only where a pixel's width
-    lies next to it (``needed[k, c]``; ``needed[k, 3]``: the mask, for any channel). Along the
-    columns (strips of ``PART_STRIP``; every column, as the horizontal running sums read whole
-    rows), the first two box sums over the rows the third reads from (the part's rows and 2 r
-    beyond, within the box; every one of their values is summed, as in the reference's running
-    sums), the third over the part's rows into ``planes`` (4, part rows, part columns: R, G, B
-    and the mask); along the rows the same, ``SPREAD_ROWS`` rows at a time, for the rows with a
-    pixel whose width lies next to the level (the part's row i: levels ``row_levels[i, 0]``..
-    ``row_levels[i, 1]``). A pixel's result is (1 - w) times the level below its width plus w
-    times the level above, written when the upper level is done (the lower one's share kept in
-    ``out`` meanwhile); level 0 is ``light``. Only the levels below ``n_full`` are blurred here;
-    the wider ones on reduced grids (``spread_blocks``, ``blur_reduced``, ``spread_reduced_part``),
-    then ``part_results`` gives the part's pixels of ``light`` their results (``out`` is scratch)."""
+    lies next to it (``needed[k, c]``; ``needed[k, 3]``: the mask, for any channel).
+
+    The bands go down the part in order, the first from ``part[0]``, and each carries the
+    vertical running sums on to the next in ``state`` (float64; level k's from ``at[k]``: per
+    plane and strip of ``PART_STRIP`` columns, three rings of 2 r + 2 running sums, one per
+    box sum): along the columns the three box sums of half-width r are chained, each value
+    passed on as soon as its sum is complete, from the first row the reference's box sums read
+    (the part's rows and 2 r beyond, within the box; every value summed, as in the reference's
+    running sums) down to 3 r rows past the band (the last band: to the end), and the third
+    sum's rows of the band go into ``planes`` (4, band rows, part columns: R, G, B and the
+    mask). A band other than the last must end more than 3 r rows before that end for every
+    level. Along the rows the same as whole rows, ``SPREAD_ROWS`` rows at a time, for the rows
+    with a pixel whose width lies next to the level (the part's row i: levels
+    ``row_levels[i, 0]``..``row_levels[i, 1]``). A pixel's result is (1 - w) times the level
+    below its width plus w times the level above, written when the upper level is done (the
+    lower one's share kept in ``out`` meanwhile); level 0 is ``light``."""
     n_levels = grid.size
     top = grid[n_levels - 1]
-    ph = part[1] - part[0]
     pw = part[3] - part[2]
+    nb = b1 - b0
     # Level 0: the lower share of the pixels whose width lies below the first blur.
-    for i in prange(part[0], part[1]):
+    for i in prange(b0, b1):
         for j in range(part[2], part[3]):
             if on[i - part[0], j - part[2]] == 0:
                 continue
             for c in range(3):
-                s = min(max(np.float64(sig[i, j, c]), 0.0), top)
+                s = min(max(np.float64(sig[i - b0, j, c]), 0.0), top)
                 if not grid[1] >= s:
                     continue
                 wt = f32((s - grid[0]) / (grid[1] - grid[0]))
-                out[i, j, c] = (_ONE - wt) * light[i, j, c]
+                out[i - b0, j, c] = (_ONE - wt) * light[i, j, c]
     n_col = (pw + PART_STRIP - 1) // PART_STRIP
-    n_groups = (ph + SPREAD_ROWS - 1) // SPREAD_ROWS
+    n_groups = (nb + SPREAD_ROWS - 1) // SPREAD_ROWS
     which = np.empty(4, np.int64)
     for k in range(1, n_full):
         if not needed[k, 3]:
@@ -2446,47 +2498,76 @@ def spread_part(light, sig, on, part, box, grid, n_full, radii, needed, row_leve
         r = radii[k - 1]
         lo = max(part[0] - 2 * r, box[0])
         hi = min(part[1] + 2 * r, box[1])
+        n = hi - lo
+        t_from = lo if b0 == part[0] else min(b0 + 3 * r, hi)
+        t_to = min(b1 + 3 * r, hi)
+        rows = 2 * r + 2
+        size = 3 * rows * PART_STRIP
         for item in prange(n_planes * n_col):
             q = which[item // n_col]
             xs = part[2] + (item % n_col) * PART_STRIP
             bw = min(xs + PART_STRIP, part[3]) - xs
-            buf = np.zeros((hi - lo, PART_STRIP), np.float32)
-            cum = np.empty((_ring(r), PART_STRIP), np.float64)
-            for i in range(part[0], part[1]):
-                row = on[i - part[0]]
+            base = at[k] + item * size
+            ring1 = state[base : base + rows * PART_STRIP].reshape((rows, PART_STRIP))
+            ring2 = state[base + rows * PART_STRIP : base + 2 * rows * PART_STRIP].reshape((rows, PART_STRIP))
+            ring3 = state[base + 2 * rows * PART_STRIP : base + size].reshape((rows, PART_STRIP))
+            if b0 == part[0]:
                 for t in range(bw):
-                    mk = _ONE if row[xs + t - part[2]] != 0 else _ZERO
-                    buf[i - lo, t] = light[i, xs + t, q] * mk if q < 3 else mk
-            _running_box(buf, cum, lo, hi, lo, hi, r, bw)
-            _running_box(buf, cum, lo, hi, lo, hi, r, bw)
-            _running_box(buf, cum, lo, hi, part[0], part[1], r, bw)
-            for i in range(part[0], part[1]):
-                for t in range(bw):
-                    planes[q, i - part[0], xs + t - part[2]] = buf[i - lo, t]
+                    ring1[0, t] = 0.0
+                    ring2[0, t] = 0.0
+                    ring3[0, t] = 0.0
+            x = np.zeros(PART_STRIP, np.float32)
+            y1 = np.empty(PART_STRIP, np.float32)
+            y2 = np.empty(PART_STRIP, np.float32)
+            y3 = np.empty(PART_STRIP, np.float32)
+            for t_row in range(t_from, t_to):
+                if part[0] <= t_row < part[1]:
+                    row = on[t_row - part[0]]
+                    for t in range(bw):
+                        mk = _ONE if row[xs + t - part[2]] != 0 else _ZERO
+                        x[t] = light[t_row, xs + t, q] * mk if q < 3 else mk
+                else:
+                    for t in range(bw):
+                        x[t] = _ZERO
+                m1 = t_row - lo
+                _push(ring1, m1, x, bw)
+                for i1 in range(_ready(m1, r, n), _ready(m1 + 1, r, n)):
+                    _take(ring1, i1, r, n, y1, bw)
+                    _push(ring2, i1, y1, bw)
+                    for i2 in range(_ready(i1, r, n), _ready(i1 + 1, r, n)):
+                        _take(ring2, i2, r, n, y2, bw)
+                        _push(ring3, i2, y2, bw)
+                        for i3 in range(_ready(i2, r, n), _ready(i2 + 1, r, n)):
+                            i = lo + i3
+                            if i < part[0] or i >= part[1]:
+                                continue
+                            _take(ring3, i3, r, n, y3, bw)
+                            for t in range(bw):
+                                planes[q, i - b0, xs + t - part[2]] = y3[t]
         left = max(part[2] - 2 * r, box[2])
         right = min(part[3] + 2 * r, box[3])
         g_lo = grid[k - 1]
         g_k = grid[k]
         g_hi = grid[k + 1] if k + 1 < n_levels else top
         for group in prange(n_groups):
-            i0 = part[0] + group * SPREAD_ROWS
-            rows = min(SPREAD_ROWS, part[1] - i0)
+            i0 = b0 + group * SPREAD_ROWS
+            n_rows = min(SPREAD_ROWS, b1 - i0)
             wanted = False
-            for g in range(rows):
+            for g in range(n_rows):
                 wanted |= row_levels[i0 + g - part[0], 0] <= k <= row_levels[i0 + g - part[0], 1]
             if not wanted:
                 continue
             line = np.zeros((right - left, 4 * SPREAD_ROWS), np.float32)
             cum = np.empty((_ring(r), 4 * SPREAD_ROWS), np.float64)
             for j in range(part[2], part[3]):
-                for g in range(rows):
+                for g in range(n_rows):
                     for q in range(4):
-                        line[j - left, 4 * g + q] = planes[q, i0 + g - part[0], j - part[2]] if needed[k, q] else _ZERO
+                        line[j - left, 4 * g + q] = planes[q, i0 + g - b0, j - part[2]] if needed[k, q] else _ZERO
             lanes = 4 * SPREAD_ROWS
             _running_box(line, cum, left, right, left, right, r, lanes)
             _running_box(line, cum, left, right, left, right, r, lanes)
             _running_box(line, cum, left, right, part[2], part[3], r, lanes)
-            for g in range(rows):
+            for g in range(n_rows):
                 i = i0 + g
                 for j in range(part[2], part[3]):
                     if on[i - part[0], j - part[2]] == 0:
@@ -2496,70 +2577,101 @@ def spread_part(light, sig, on, part, box, grid, n_full, radii, needed, row_leve
                     for c in range(3):
                         if not needed[k, c]:
                             continue
-                        s = min(max(np.float64(sig[i, j, c]), 0.0), top)
+                        s = min(max(np.float64(sig[i - b0, j, c]), 0.0), top)
                         # Its levels (the reference's searchsorted): the first of grid >= s, at least 1.
                         if s <= g_k and (k == 1 or s > g_lo):
                             cur = line[j - left, 4 * g + c] / den
                             wt = f32((s - g_lo) / (g_k - g_lo))
-                            out[i, j, c] = out[i, j, c] + wt * cur
+                            out[i - b0, j, c] = out[i - b0, j, c] + wt * cur
                         elif k + 1 < n_levels and s > g_k and s <= g_hi:
                             cur = line[j - left, 4 * g + c] / den
                             wt = f32((s - g_k) / (g_hi - g_k))
-                            out[i, j, c] = (_ONE - wt) * cur
+                            out[i - b0, j, c] = (_ONE - wt) * cur
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def spread_blocks(light, on, part, box, sums):
-    """The first reduced grid of ``core.combined._spread_reference``'s pyramid: ``sums`` (4,
-    ceil(box rows / 2), ceil(box columns / 2)) float64, the 2 x 2 block sums from ``box``'s origin
-    (region coordinates, as in ``spread_part``) of the light on the part (R, G, B: ``light`` x
-    ``on`` within ``part``'s rows and columns, 0 elsewhere in the box) and of the part itself,
-    as ``core.combined._block_sums`` adds them: (a00 + a01) + (a10 + a11), zeros beyond the box."""
-    hc, wc = sums.shape[1], sums.shape[2]
-    for bi in prange(hc):
-        for bj in range(wc):
+def spread_pyramid(light, on, part, box, levels, flat):
+    """The reduced grids of ``core.combined._spread_reference``'s pyramid, float32, straight from
+    the light: level m's grid is ``flat[levels[m, 1]:]`` as (4, ``levels[m, 2]``, ``levels[m,
+    3]``) (R, G, B and the mask; a block size ``levels[m, 0]`` of 0: not made), the float32 of
+    the float64 sums of blocks of ``levels[m, 0]`` x ``levels[m, 0]`` from ``box``'s origin
+    (region coordinates) of the light on the part (``light`` x ``on`` within ``part``'s rows
+    and columns, 0 elsewhere in the box) and of the part itself, as ``core.combined._block_sums``
+    adds them from one factor to the next: (a00 + a01) + (a10 + a11), zeros beyond the box.
+    Block sizes are powers of two, ascending (0s anywhere). Per band of rows of the largest
+    block, its sums are made factor by factor, so nothing of the frame's size is held in
+    float64."""
+    top_f = 1
+    for m in range(levels.shape[0]):
+        top_f = max(top_f, levels[m, 0])
+    hb = box[1] - box[0]
+    wb = box[3] - box[2]
+    w2 = (wb + 1) // 2
+    n_bands = (hb + top_f - 1) // top_f
+    for band in prange(n_bands):
+        y = box[0] + band * top_f
+        rows = max(top_f // 2, 1)
+        sums = np.zeros((4, rows, w2), np.float64)
+        # Blocks of 2 from the pixels (the reference's first _block_sums).
+        for bi in range(rows):
+            for bj in range(w2):
+                for q in range(4):
+                    acc = 0.0
+                    for dy in range(2):
+                        row = 0.0
+                        for dx in range(2):
+                            i = y + 2 * bi + dy
+                            j = box[2] + 2 * bj + dx
+                            v = _ZERO
+                            if i < box[1] and j < box[3] and part[0] <= i < part[1] and part[2] <= j < part[3]:
+                                mk = _ONE if on[i - part[0], j - part[2]] != 0 else _ZERO
+                                v = light[i, j, q] * mk if q < 3 else mk
+                            row = np.float64(v) if dx == 0 else row + np.float64(v)
+                        acc = row if dy == 0 else acc + row
+                    sums[q, bi, bj] = acc
+        f = 2
+        h_f = rows
+        w_f = w2
+        while True:
+            for m in range(levels.shape[0]):
+                if levels[m, 0] != f:
+                    continue
+                off = levels[m, 1]
+                hc = levels[m, 2]
+                wc = levels[m, 3]
+                first = band * (top_f // f)
+                for bi in range(min(h_f, hc - first)):
+                    for q in range(4):
+                        for bj in range(wc):
+                            flat[off + (q * hc + first + bi) * wc + bj] = f32(sums[q, bi, bj])
+            if f >= top_f:
+                break
+            # The next factor: (a00 + a01) + (a10 + a11) in place, zeros beyond an odd edge.
+            h_n = (h_f + 1) // 2
+            w_n = (w_f + 1) // 2
             for q in range(4):
-                acc = 0.0
-                for dy in range(2):
-                    row = 0.0
-                    for dx in range(2):
-                        i = box[0] + 2 * bi + dy
-                        j = box[2] + 2 * bj + dx
-                        v = _ZERO
-                        if i < box[1] and j < box[3] and part[0] <= i < part[1] and part[2] <= j < part[3]:
-                            mk = _ONE if on[i - part[0], j - part[2]] != 0 else _ZERO
-                            v = light[i, j, q] * mk if q < 3 else mk
-                        row = np.float64(v) if dx == 0 else row + np.float64(v)
-                    acc = row if dy == 0 else acc + row
-                sums[q, bi, bj] = acc
+                for bi in range(h_n):
+                    for bj in range(w_n):
+                        acc = 0.0
+                        for dy in range(2):
+                            i = 2 * bi + dy
+                            row = 0.0
+                            for dx in range(2):
+                                j = 2 * bj + dx
+                                v = sums[q, i, j] if i < h_f and j < w_f else 0.0
+                                row = v if dx == 0 else row + v
+                            acc = row if dy == 0 else acc + row
+                        sums[q, bi, bj] = acc
+            h_f, w_f, f = h_n, w_n, 2 * f
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def halve_sums(src, dst):
-    """``core.combined._block_sums`` of ``src`` (P, H, W) float64 into ``dst`` (P, ceil(H / 2),
-    ceil(W / 2)): (a00 + a01) + (a10 + a11), zeros beyond an odd edge."""
-    h, w = src.shape[1], src.shape[2]
-    for bi in prange(dst.shape[1]):
-        for bj in range(dst.shape[2]):
-            for q in range(src.shape[0]):
-                acc = 0.0
-                for dy in range(2):
-                    i = 2 * bi + dy
-                    row = 0.0
-                    for dx in range(2):
-                        j = 2 * bj + dx
-                        v = src[q, i, j] if i < h and j < w else 0.0
-                        row = v if dx == 0 else row + v
-                    acc = row if dy == 0 else acc + row
-                dst[q, bi, bj] = acc
-
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def blur_reduced(sums, radii, reduced):
-    """A reduced level's blur: ``reduced`` (P, Hc, Wc) float32 = the float32 of ``sums``, then
-    three box sums of half-widths ``radii`` along the columns and three along the rows, each
-    the reference's ``core.combined._box`` (float64 running sums, ``_running_box``)."""
-    n_planes, h, w = sums.shape
+def blur_reduced(radii, reduced):
+    """A reduced level's blur, in place: ``reduced`` (P, Hc, Wc) float32 (the float32 of its block
+    sums, ``spread_pyramid``) through three box sums of half-widths ``radii`` along the columns
+    and three along the rows, each the reference's ``core.combined._box`` (float64 running sums,
+    ``_running_box``)."""
+    n_planes, h, w = reduced.shape
     n_col = (w + SPREAD_STRIP - 1) // SPREAD_STRIP
     for item in prange(n_planes * n_col):
         q = item // n_col
@@ -2569,7 +2681,7 @@ def blur_reduced(sums, radii, reduced):
         cum = np.empty((_ring(radii.max()), SPREAD_STRIP), np.float64)
         for i in range(h):
             for t in range(bw):
-                buf[i, t] = f32(sums[q, i, xs + t])
+                buf[i, t] = reduced[q, i, xs + t]
         for r in radii:
             _running_box(buf, cum, 0, h, 0, h, r, bw)
         for i in range(h):
@@ -2626,7 +2738,7 @@ def _read_row(reduced, y0, y1, ty, between):
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def spread_reduced_part(light, sig, on, part, box, grid, n_full, flat, levels, out):
-    """``spread_part``'s levels from ``n_full`` on (of ``grid``), blurred on reduced grids
+    """``spread_band``'s levels from ``n_full`` on (of ``grid``), blurred on reduced grids
     (``blur_reduced``), all in one pass over the part's pixels: level k's grid is
     ``flat[levels[k - n_full, 1]:]`` as (4, ``levels[k - n_full, 2]``, ``levels[k - n_full, 3]``)
     (R, G, B and the mask; blocks of ``levels[k - n_full, 0]`` from ``box``'s origin; a block
@@ -2634,8 +2746,8 @@ def spread_reduced_part(light, sig, on, part, box, grid, n_full, flat, levels, o
     such a level, the grid is read back bilinearly as ``core.combined._read_back`` does (between
     two rows, then along the row; numerator and mask in float64, each then float32), the
     numerator divided by the mask (at least 1e-6), and the pixel's share of it put into ``out``
-    as ``spread_part`` does for its levels: (1 - w) times the level below its width, then plus w
-    times the level above (the level below, if at full resolution, put by ``spread_part``)."""
+    as ``spread_band`` does for its levels: (1 - w) times the level below its width, then plus w
+    times the level above (the level below, if at full resolution, put by ``spread_band``)."""
     n_levels = grid.size
     top = grid[n_levels - 1]
     n_red = levels.shape[0]

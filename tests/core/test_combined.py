@@ -379,17 +379,52 @@ def test_compiled_light_from_behind_equals_the_reference_to_the_bit(method, came
         assert np.array_equal(out, np.float32(0.25) + reference.transmitted(d_su), equal_nan=True)
 
 
+def _wide_spread_inputs(by_object: bool) -> dict:
+    """``back_light``'s arguments for a spread past SPREAD_COARSE_FROM_PX at long lengths: a frame
+    whose sides (121 x 87) are not multiples of the pyramid's blocks, a mask with holes, lamps
+    behind, a Random Walk medium, and the Object Index (``by_object``) or one part."""
+    from sss_lab.core.combined import Medium
+    from sss_lab.core.synthetic import sphere_scene
+
+    passes, scene = sphere_scene(121, 87)
+    mask = passes["Depth"] < 1e9
+    mask &= np.random.default_rng(5).random(mask.shape) > 0.1
+    z_behind = float(np.nanmin(passes["Position"][..., 2][mask])) - 0.3
+    return dict(
+        normal=passes["Normal"], position=passes["Position"], thickness=passes["Thickness"], mask=mask,
+        lights=_lamps_behind(z_behind), thickness_distance_su=1.0, thickness_convention="translucency",
+        medium=Medium("RANDOM_WALK", (0.9, 0.8, 0.6), 1.33, 0.0), albedo=passes["Diffuse Color"],
+        camera=scene.camera, depth=passes["Depth"],
+        object_id=passes["Object Index"].astype(np.float32) if by_object else None, albedo_mode="post",
+    )  # fmt: skip
+
+
+def _compiled_equals_reference(kw: dict, lengths) -> None:
+    """The compiled ``back_light(**kw)``'s light at each of ``lengths`` equals the NumPy
+    reference's to the bit (and some of it is lit)."""
+    from sss_lab.core import backend
+    from sss_lab.core._back_light import CompiledBackLight
+    from sss_lab.core.combined import back_light
+
+    with backend.use("numpy"):
+        reference = back_light(**kw)
+    back = back_light(**kw)
+    if not isinstance(back, CompiledBackLight):
+        pytest.skip("Numba cannot load here: both are the NumPy code")
+    for d_su in lengths:
+        want = reference.transmitted(d_su)
+        assert np.array_equal(back.transmitted(d_su), want, equal_nan=True)
+        assert np.nanmax(want[kw["mask"]]) > 0
+
+
 def test_compiled_pyramid_levels_equal_the_reference_to_the_bit(monkeypatch):
     # The spread's widest levels are blurred on reduced grids (core.combined._spread_reference's
-    # pyramid): the compiled kernels (spread_blocks, halve_sums, blur_reduced,
+    # pyramid): the compiled kernels (spread_pyramid, blur_reduced,
     # spread_reduced_part) against the NumPy reference, equal to the bit, with widths past
     # SPREAD_COARSE_FROM_PX (blocks of 2 and 4), a frame whose sides (121 x 87) and the parts'
     # boxes are not multiples of the blocks, a mask with holes, parts whose boxes the frame's
     # edges clip, and two objects.
-    from sss_lab.core import backend, combined
-    from sss_lab.core._back_light import CompiledBackLight
-    from sss_lab.core.combined import Medium, back_light
-    from sss_lab.core.synthetic import sphere_scene
+    from sss_lab.core import combined
 
     factors = []
     reduced_levels = combined._reduced_levels
@@ -400,28 +435,22 @@ def test_compiled_pyramid_levels_equal_the_reference_to_the_bit(monkeypatch):
             yield k, f, reduced
 
     monkeypatch.setattr(combined, "_reduced_levels", recorded)
-    passes, scene = sphere_scene(121, 87)
-    mask = passes["Depth"] < 1e9
-    mask &= np.random.default_rng(5).random(mask.shape) > 0.1
-    z_behind = float(np.nanmin(passes["Position"][..., 2][mask])) - 0.3
-    kw = dict(
-        normal=passes["Normal"], position=passes["Position"], thickness=passes["Thickness"], mask=mask,
-        lights=_lamps_behind(z_behind), thickness_distance_su=1.0, thickness_convention="translucency",
-        medium=Medium("RANDOM_WALK", (0.9, 0.8, 0.6), 1.33, 0.0), albedo=passes["Diffuse Color"],
-        camera=scene.camera, depth=passes["Depth"], object_id=passes["Object Index"].astype(np.float32),
-        albedo_mode="post",
-    )  # fmt: skip
-    with backend.use("numpy"):
-        reference = back_light(**kw)
-    back = back_light(**kw)
-    if not isinstance(back, CompiledBackLight):
-        pytest.skip("Numba cannot load here: both are the NumPy code")
-    for d_su in ((0.3, 0.2, 0.1), (3.0, 1.0, 0.3)):
-        want = reference.transmitted(d_su)
-        got = back.transmitted(d_su)
-        assert np.array_equal(got, want, equal_nan=True)
-        assert np.nanmax(want[mask]) > 0
+    _compiled_equals_reference(_wide_spread_inputs(by_object=True), ((0.3, 0.2, 0.1), (3.0, 1.0, 0.3)))
     assert 2 in factors and 4 in factors, factors
+
+
+@pytest.mark.parametrize("band_rows", (1, 5))
+def test_compiled_spread_in_bands_of_rows_equals_the_reference_to_the_bit(monkeypatch, band_rows):
+    # core.compiled.spread_band goes down a part in bands of rows, carrying its vertical running
+    # sums from band to band: bands of 1 and 5 rows (far fewer than the 3 r rows a level's three
+    # box sums reach ahead, r up to 8) give the reference's bits, with one part and with two
+    # objects, at lengths whose widths reach only the full-resolution levels and past them (the
+    # pyramid's blocks of 2 and 4).
+    from sss_lab.core import _back_light
+
+    monkeypatch.setattr(_back_light, "SPREAD_BAND", band_rows)
+    for by_object in (True, False):
+        _compiled_equals_reference(_wide_spread_inputs(by_object), ((0.02, 0.008, 0.004), (3.0, 1.0, 0.3)))
 
 
 def _gaussian_spread(e, m, s):
