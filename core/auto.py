@@ -125,8 +125,11 @@ MAX_BOX = 64
 WIDE_PX = 32.0
 #: Blocks of the error measure (as ``compare`` and the fidelity suite: 2 x 2).
 BOX = 2
-#: Most blocks across a material's window the features are measured on (larger blocks beyond).
-GRID = 96
+#: Most blocks across a material's window the features are measured on (larger blocks beyond): as
+#: many as the fidelity suite's 128 px frames hold (64 blocks of 2 x 2), the grid the model's
+#: coefficients are learnt on, so that a material seen at a higher resolution is measured on no
+#: finer a grid than the one its error model knows (and its cost stays that of the suite's size).
+GRID = 64
 #: Estimated costs within this share of the cheapest count as equal, and the lower error decides
 #: between them: the measured seconds the costs come from vary by about this much from run to run
 #: on a loaded machine (SSSS and Burley cost the same to within 3 % over the fidelity suite, and
