@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _arrays
+from . import _arrays, backend
 from .exr import Passes
 from .passes import THICKNESS
 from .plan import Plan, _accepted, _index_map, _plan, plan  # noqa: F401  (plan: callers read it from here too)
@@ -59,6 +59,11 @@ def _clean(a: np.ndarray) -> np.ndarray:
     if not finite.all():
         out[~finite] = 0.0
     return out
+
+
+def _bits_equal(name: str, expected: np.ndarray, got: np.ndarray) -> None:
+    if expected.shape != got.shape or expected.tobytes() != got.tobytes():
+        raise backend.BackendMismatch(f"{name}: the compiled result differs from the NumPy code's bits")
 
 
 def _read(raw: np.ndarray, first_channel: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
@@ -144,6 +149,82 @@ def _technique_inputs(spec: Technique, passes: Passes, scene: SceneDescription, 
     return inputs, original, ok
 
 
+def _composite(image, sss, out, gain, original, mask, unchanged) -> int:
+    """Write the technique's result ``out`` (H, W, 3) on the pixels of ``mask`` into the layers:
+    ``sss`` the SSS term (``out`` times the fitted ``gain``, minus the light Combined held,
+    ``original``'s albedo x diffuse light, for a technique that scatters; 0 in the channels
+    ``unchanged``), ``image`` Combined plus that term. A pixel whose result is not finite (light
+    near float32's limit overflowing in the technique's sums) is left as it was: returns how
+    many. One compiled pass (``core.compiled.composite``) where apply's kernels run, compared
+    with the NumPy code (``_composite_numpy``) to the bit in check mode."""
+    g = np.ones(3, np.float32) if gain is None else np.asarray(gain, np.float32)
+    if backend.active() == "numpy" or g.shape not in ((), (3,)):
+        return _composite_numpy(image, sss, out, gain, original, mask, unchanged)
+    expected: tuple[np.ndarray, np.ndarray, int] | None = None
+    if backend.active() == "check":
+        ref_image, ref_sss = image.copy(), sss.copy()
+        expected = ref_image, ref_sss, _composite_numpy(ref_image, ref_sss, out, gain, original, mask, unchanged)
+    c = np.ascontiguousarray
+    result = out if out.flags.c_contiguous and out.flags.writeable and out.flags.aligned else np.array(out)
+    held = original is not None
+    albedo, diffuse = (c(original[0]), c(original[1])) if held else (result, result)
+    zeroed = np.zeros(3, bool)
+    if held:  # as the NumPy code: a technique that adds light keeps every channel of its result
+        zeroed[list(unchanged)] = True
+    bad = np.empty(mask.shape[0], np.int64)
+    gains = np.array(np.broadcast_to(g, (3,)))
+    backend.run_kernel("composite", result, gains, albedo, diffuse, held, zeroed, c(mask), image, sss, bad)
+    count = int(bad.sum())
+    if expected is not None:
+        _bits_equal("composite (image)", expected[0], image)
+        _bits_equal("composite (SSS)", expected[1], sss)
+        if count != expected[2]:
+            raise backend.BackendMismatch(f"composite: {count} pixels overflowed, the NumPy code found {expected[2]}")
+    return count
+
+
+def _composite_numpy(image, sss, out, gain, original, mask, unchanged) -> int:
+    """``_composite`` in NumPy, on the mask's bounding box."""
+    box = _arrays.bounding_box(mask)
+    if box is None:
+        return 0
+    # The diffuse light Combined holds there.
+    held = None if original is None else original[0][box] * original[1][box]
+    out = out[box]
+    if gain is not None:
+        # The fitted per-channel energy (core/fit_params.py): on the material's light after the
+        # technique (for STA, on the light it adds).
+        out = out * np.asarray(gain, np.float32)
+    m = mask[box]
+    overflow = 0
+    if _arrays.all_finite(out):
+        good = m
+    else:
+        with np.errstate(over="ignore", invalid="ignore"):
+            good = m & _finite(out)
+        overflow = int(np.count_nonzero(m) - np.count_nonzero(good))
+    if held is None:
+        term = out
+    else:
+        term = np.subtract(out, held, out=held)  # out - held, in held's array
+        if unchanged:
+            term[..., list(unchanged)] = 0.0
+    # Masked copies, not boolean indexing: the latter packs the pixels first (some 40 ms a
+    # material at 1080p); the values written are the same float32 sums. The SSS layer's copy
+    # gets the mask for every channel (a mask broadcast over the channels is several times
+    # slower); Combined's RGB is a strided view of RGBA, so the image is written one channel
+    # at a time: over (rows, channels) NumPy's loops would run three values long.
+    where = np.repeat(good[..., None], 3, axis=2)
+    sss_box, image_box = sss[box], image[box]
+    np.copyto(sss_box, term, where=where)
+    total = np.empty(good.shape, np.float32)
+    for c in range(3):
+        with np.errstate(over="ignore", invalid="ignore"):
+            np.add(image_box[..., c], sss_box[..., c], out=total)  # Combined + term where good
+        np.copyto(image_box[..., c], total, where=good)
+    return overflow
+
+
 def _call(func, kwargs: dict):
     accepted, var_kw = _accepted(func)
     if not var_kw:
@@ -177,34 +258,38 @@ def apply(
     ``Technique`` spec. ``prepared`` is the result of ``plan`` for
     the same arguments, to avoid planning twice.
     """
+    masks: dict[int, np.ndarray] = {}
     if prepared is None:
-        p, index = _plan(passes, scene, technique, albedo_mode, mapping, options)
+        p, index, masks = _plan(passes, scene, technique, albedo_mode, mapping, options)
     else:
         p, index = prepared, None
     if not p.scattering:
         return {}
+    if index is None:
+        index = _index_map(passes)
     spec = p.spec
     combined = passes["Combined"]
     rgb = combined[..., :3]
     image = np.array(combined, dtype=np.float32)
     sss = np.zeros(rgb.shape, dtype=np.float32)
-    if index is None:
-        index = _index_map(passes)
     inputs, original, ok = _technique_inputs(spec, passes, scene, albedo_mode)
     if not _arrays.all_finite(combined):
         ok = _both(ok, _finite(rgb))
     nonfinite = overflow = 0
     for mp in p.applied:
-        mask = index == mp.material.index
+        # The plan's pixels of the material (it found some), or the Material Index map's.
+        mask = masks.get(mp.material.index)
+        if mask is None:
+            mask = index == mp.material.index
+            if not mask.any():
+                continue
         if ok is not None:
-            nonfinite += int(np.count_nonzero(mask & ~ok))
-            mask &= ok
-        # The material's pixels lie in its mask's bounding box: the compositing reads nothing else.
-        box = _arrays.bounding_box(mask)
-        if box is None:
-            continue
-        # The diffuse light Combined holds there, taken before the technique runs.
-        held = None if original is None else original[0][box] * original[1][box]
+            within = mask & ok
+            left = int(np.count_nonzero(within))
+            nonfinite += int(np.count_nonzero(mask)) - left
+            if not left:
+                continue
+            mask = within
         kwargs = dict(inputs)
         kwargs.update(mp.params)
         # A technique that takes the fitted gain applies it itself (the combined technique, to its
@@ -217,37 +302,9 @@ def apply(
             out = np.asarray(_call(spec.function, kwargs), dtype=np.float32)
         if out.shape != rgb.shape:
             raise ValueError(f"{spec.name} returned shape {out.shape}; expected {rgb.shape}")
-        out = out[box]
-        if gain is not None:
-            # The fitted per-channel energy (core/fit_params.py): on the material's light after the
-            # technique (for STA, on the light it adds).
-            out = out * np.asarray(gain, np.float32)
-        m = mask[box]
-        if _arrays.all_finite(out):
-            good = m
-        else:
-            with np.errstate(over="ignore", invalid="ignore"):
-                good = m & _finite(out)
-            overflow += int(np.count_nonzero(m) - np.count_nonzero(good))
-        if held is None:
-            term = out
-        else:
-            term = np.subtract(out, held, out=held)  # out - held, in held's array
-            if mp.unchanged_channels:
-                term[..., list(mp.unchanged_channels)] = 0.0
-        # Masked copies, not boolean indexing: the latter packs the pixels first (some 40 ms a
-        # material at 1080p); the values written are the same float32 sums. The SSS layer's copy
-        # gets the mask for every channel (a mask broadcast over the channels is several times
-        # slower); Combined's RGB is a strided view of RGBA, so the image is written one channel
-        # at a time: over (rows, channels) NumPy's loops would run three values long.
-        where = np.repeat(good[..., None], 3, axis=2)
-        sss_box, image_box = sss[box], image[box]
-        np.copyto(sss_box, term, where=where)
-        total = np.empty(good.shape, np.float32)
-        for c in range(3):
-            with np.errstate(over="ignore", invalid="ignore"):
-                np.add(image_box[..., c], sss_box[..., c], out=total)  # Combined + term where good
-            np.copyto(image_box[..., c], total, where=good)
+        # The techniques only read their inputs: the diffuse light Combined holds on the material
+        # (albedo x (Direct + Indirect)) is what it was before the technique ran.
+        overflow += _composite(image, sss, out, gain, original, mask, mp.unchanged_channels)
     p.nonfinite_pixels = nonfinite
     p.overflow_pixels = overflow
     name_image, name_sss = layer_names(spec.name)

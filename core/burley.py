@@ -435,7 +435,10 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
     out, ok, cam, box, extent_su, largest = _arrays.compiled_pixels(e, a, z, m, camera, TRUNCATION * dmax, 1.0)
     if box is None:
         return out
-    groups = group_extents(ok, camera.pixels_per_unit(z), ids) if ids is not None else [(None, extent_su)]
+    groups = [(None, extent_su)]
+    if ids is not None:  # the scales of each object's pixels only, not a frame of them
+        zflat = z.ravel()
+        groups = group_extents(ok, lambda idx: camera.pixels_per_unit(zflat[idx]), ids)
     pre, post = _arrays.split_albedo(a, albedo_mode)
     light = e if pre is None else pre * e
     inv3d = _inv3d(d)
@@ -452,9 +455,13 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
         extents[k] = extent_su
         if len(groups) > 1:
             group_map.ravel()[group] = k
-    id_map = np.zeros(1, np.int32) if ids is None else np.rint(ids).astype(np.int64).ravel()
-    if id_map.size > 1 and np.iinfo(np.int32).min <= id_map.min() and id_map.max() <= np.iinfo(np.int32).max:
-        id_map = id_map.astype(np.int32)  # the same ids, gathered 16 per 512-bit register instead of 8
+    id_map = np.zeros(1, np.int32)
+    if ids is not None:
+        rounded = np.rint(ids)
+        least, most = float(rounded.min()), float(rounded.max())  # NaN when any is: then int64
+        small = rounded.size > 1 and np.iinfo(np.int32).min <= least and most <= np.iinfo(np.int32).max
+        # The same ids as int32 where they fit, gathered 16 per 512-bit register instead of 8.
+        id_map = rounded.astype(np.int32 if small else np.int64).ravel()
     z = c(z, dtype=f32)
     h = ok.shape[0]
     # The surface each pixel covers (``surface_area``), computed by ``burley_pack`` for the pixels

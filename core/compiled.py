@@ -2961,3 +2961,42 @@ def largest_out(planes, normal, position, mask, y0, x0, out):
             on, _, _, _ = _curvature_unit(normal, position, mask, y0 + i, x0 + j)
             keep = on and near > 0.0
             out[i, j] = f32(planes[1, i, j] / max(near, 1.0)) if keep else _ZERO
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def composite(result, gain, albedo, diffuse, held, zeroed, mask, image, sss, overflow):
+    """``core.apply``'s compositing of one material, equal to the bit to its NumPy code: on each
+    pixel of ``mask`` (H, W) the technique's ``result`` (H, W, 3) times ``gain`` (3,), and where
+    all three are finite the SSS term, that minus ``albedo`` x ``diffuse`` where ``held`` (0 in
+    the channels ``zeroed``), written into ``sss`` (H, W, 3) and added to ``image`` (H, W, C);
+    ``overflow[y]`` counts row y's pixels of ``mask`` whose result is not finite. The same float32
+    products, differences and sums as the NumPy code (no fused multiply-add)."""
+    h, w = mask.shape
+    for y in prange(h):
+        bad = 0
+        for x in range(w):
+            if not mask[y, x]:
+                continue
+            o0 = result[y, x, 0] * gain[0]
+            o1 = result[y, x, 1] * gain[1]
+            o2 = result[y, x, 2] * gain[2]
+            if not (np.isfinite(o0) and np.isfinite(o1) and np.isfinite(o2)):
+                bad += 1
+                continue
+            if held:
+                o0 = o0 - albedo[y, x, 0] * diffuse[y, x, 0]
+                o1 = o1 - albedo[y, x, 1] * diffuse[y, x, 1]
+                o2 = o2 - albedo[y, x, 2] * diffuse[y, x, 2]
+            if zeroed[0]:
+                o0 = _ZERO
+            if zeroed[1]:
+                o1 = _ZERO
+            if zeroed[2]:
+                o2 = _ZERO
+            sss[y, x, 0] = o0
+            sss[y, x, 1] = o1
+            sss[y, x, 2] = o2
+            image[y, x, 0] = image[y, x, 0] + o0
+            image[y, x, 1] = image[y, x, 1] + o1
+            image[y, x, 2] = image[y, x, 2] + o2
+        overflow[y] = bad

@@ -854,8 +854,9 @@ def apply_energy(
     ell = np.maximum(_arrays.rgb_lengths(mfp_su, "mfp_su").astype(np.float64), 1e-30)
     # The curvature over the reach of a walk, a mean free path, per channel (its pixels at the
     # material's median depth, at least 1 and at most CURVATURE_REACH_PX).
-    scales = camera.pixels_per_unit(np.asarray(depth, np.float32)[box])[mb]
-    ppu = float(np.median(scales[scales > 0])) if (scales > 0).any() else 0.0
+    scales = camera.pixels_per_unit(np.asarray(depth, np.float32)[box][mb])  # per pixel: on the mask only
+    scales = scales[scales > 0]
+    ppu = float(np.median(scales, overwrite_input=True)) if scales.size else 0.0  # ``scales`` is a copy
     reach = [int(np.clip(round(v * ppu), 1, CURVATURE_REACH_PX)) for v in ell]
     nb, pb = np.asarray(normal)[box], np.asarray(position)[box]
     parts = _curvature_per_pixel(nb, pb, mb)

@@ -27,37 +27,60 @@ import numpy as np
 
 from . import _arrays
 
+#: ``group_extents`` finds each label's pixels with one comparison per label when the pixels
+#: hold at most this many labels within a range this wide; otherwise by sorting them.
+_FEW_LABELS = 8
+_LABEL_RANGE = 1 << 16
 
-def group_extents(
-    ok: np.ndarray, scale: np.ndarray, labels: np.ndarray | None = None
-) -> list[tuple[np.ndarray, float]]:
+
+def group_extents(ok: np.ndarray, scale, labels: np.ndarray | None = None) -> list[tuple[np.ndarray, float]]:
     """[(flat pixel indices, extent in scene units)] for each group of the pixels ``ok``.
 
-    A group is the pixels sharing a ``labels`` value (object index), or all of ``ok``. Its
-    extent is the diagonal of its bounding box on screen plus one pixel, converted to scene
-    units at its farthest pixel (the smallest ``scale``, pixels per scene unit): no two pixels
-    of the group are farther apart than that, from any of them.
+    A group is the pixels sharing a ``labels`` value (object index), or all of ``ok``; groups come
+    in increasing label order, each one's indices increasing. Its extent is the diagonal of its
+    bounding box on screen plus one pixel, converted to scene units at its farthest pixel (the
+    smallest ``scale``, pixels per scene unit): no two pixels of the group are farther apart than
+    that, from any of them. ``scale``: an (H, W) array, or a function giving the scales of flat
+    pixel indices (so that a caller computes them for the group's pixels only).
     """
     h, w = ok.shape
     flat = np.flatnonzero(ok)
     if flat.size == 0:
         return []
-    if labels is None:
-        groups = [flat]
-    else:
-        lab = np.rint(np.asarray(labels, dtype=np.float64).ravel()[flat]).astype(np.int64)
-        order = np.argsort(lab, kind="stable")
-        cuts = np.flatnonzero(np.diff(lab[order])) + 1
-        groups = np.split(flat[order], cuts)
-    sflat = np.asarray(scale, dtype=np.float64).ravel()
+    groups: list[np.ndarray] | None = [flat]
+    if labels is not None:
+        lab = np.rint(np.asarray(labels).ravel()[flat].astype(np.float64)).astype(np.int64)
+        groups = _few_groups(flat, lab)
+        if groups is None:
+            order = np.argsort(lab, kind="stable")
+            cuts = np.flatnonzero(np.diff(lab[order])) + 1
+            groups = [np.sort(g) for g in np.split(flat[order], cuts)]
+    assert groups is not None
+    scale_at = scale if callable(scale) else np.asarray(scale).ravel().__getitem__
     out = []
     for idx in groups:
-        y, x = idx // w, idx % w
-        diag_px = math.hypot(float(x.max() - x.min()), float(y.max() - y.min())) + 1.0
-        smallest = float(sflat[idx].min())
+        # ``idx`` increases: its first and last pixels are on its first and last rows.
+        x = idx % w
+        diag_px = math.hypot(float(x.max() - x.min()), float(idx[-1] // w - idx[0] // w)) + 1.0
+        smallest = float(np.min(scale_at(idx)))
         extent = diag_px / smallest if smallest > 0 else math.inf
-        out.append((np.sort(idx), extent))
+        out.append((idx, extent))
     return out
+
+
+def _few_groups(flat: np.ndarray, lab: np.ndarray) -> list[np.ndarray] | None:
+    """``flat`` split by ``lab`` in increasing label order (each part increasing, as ``flat``),
+    with one comparison per label; None when the labels are many or spread wide (then sorting is
+    cheaper)."""
+    lo, hi = int(lab.min()), int(lab.max())
+    if lo == hi:
+        return [flat]
+    if hi - lo >= _LABEL_RANGE:
+        return None
+    present = np.flatnonzero(np.bincount(lab - lo, minlength=hi - lo + 1))
+    if present.size > _FEW_LABELS:
+        return None
+    return [flat[lab == lo + int(k)] for k in present]
 
 
 def object_extent(ok: np.ndarray, scale: np.ndarray) -> float:

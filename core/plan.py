@@ -254,8 +254,9 @@ def plan(
 
 def _plan(
     passes: Passes, scene: SceneDescription, technique: str | Technique, albedo_mode: str, mapping, options: dict
-) -> tuple[Plan, np.ndarray]:
-    """``plan``, and the Material Index map it read (``_index_map``), which ``apply`` reuses."""
+) -> tuple[Plan, np.ndarray, dict[int, np.ndarray]]:
+    """``plan``, the Material Index map it read (``_index_map``) and the pixels of each pass index
+    of a scattering material on screen (index -> bool (H, W)), which ``apply`` reuses."""
     technique = get_spec(technique)
     _check_inputs(passes, scene, technique, albedo_mode)
     accepted, var_kw = _accepted(technique.function)
@@ -269,7 +270,15 @@ def _plan(
     known = {m.index for m in scene.materials}
     # Each listed index's pixels from one comparison each; the map is sorted (np.unique) for the
     # unlisted indices only when some positive index on screen is not listed.
-    counts = {k: int(np.count_nonzero(index == k)) for k in sorted(known) if k > 0}
+    scattering = {m.index for m in scene.materials if m.scatters}
+    counts: dict[int, int] = {}
+    masks: dict[int, np.ndarray] = {}
+    for k in sorted(known):
+        if k > 0:
+            on = index == k
+            counts[k] = int(np.count_nonzero(on))
+            if k in scattering and counts[k]:
+                masks[k] = on  # read again below and by ``apply``
     unknown_indices: dict[int, int] = {}
     if np.count_nonzero(index > 0) > sum(counts.values()):
         values, numbers = np.unique(index[index > 0], return_counts=True)
@@ -295,13 +304,13 @@ def _plan(
         footprint = technique.footprint(mp.params)
         mp.samples = footprint.samples
         mp.kernel_su = footprint.radius_su
-        mask = index == material.index
+        mask = masks[material.index]
         if depth is not None:
             z = depth[mask]
-            z = z[np.isfinite(z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)]
+            z = z[(z > 0) & (z < _arrays.BACKGROUND_DEPTH)]  # NaN and +inf fail these comparisons
             if z.size:
-                mp.median_depth = float(np.median(z))
                 mp.nearest_depth = float(z.min())
+                mp.median_depth = float(np.median(z, overwrite_input=True))  # ``z`` is a copy
             elif mp.kernel_su is not None:
                 # Scattering needs the depth of each pixel (its footprint): none has one here.
                 mp.skip = (
@@ -338,4 +347,4 @@ def _plan(
         unknown_indices=unknown_indices,
         options=dict(options),
     )
-    return result_plan, index
+    return result_plan, index, masks
