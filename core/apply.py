@@ -265,7 +265,7 @@ def apply(
         p, index = prepared, None
     if not p.scattering:
         return {}
-    if index is None:
+    if prepared is not None:
         index = _index_map(passes)
     spec = p.spec
     combined = passes["Combined"]
@@ -280,6 +280,7 @@ def apply(
         # The plan's pixels of the material (it found some), or the Material Index map's.
         mask = masks.get(mp.material.index)
         if mask is None:
+            index = _index_map(passes) if index is None else index
             mask = index == mp.material.index
             if not mask.any():
                 continue

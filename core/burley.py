@@ -436,9 +436,14 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
     if box is None:
         return out
     groups = [(None, extent_su)]
-    if ids is not None:  # the scales of each object's pixels only, not a frame of them
-        zflat = z.ravel()
-        groups = group_extents(ok, lambda idx: camera.pixels_per_unit(zflat[idx]), ids)
+    if ids is not None:
+        # One object on ``ok`` (the usual case; its ids are finite there): its extent is the one
+        # ``compiled_pixels`` found, which ``group_extents`` would give it (the same box and the
+        # same float32 scales), and one group needs no map of groups.
+        on = ids[ok]
+        if np.rint(on.min()) != np.rint(on.max()):
+            zflat = z.ravel()  # the scales of each object's pixels only, not a frame of them
+            groups = group_extents(ok, lambda idx: camera.pixels_per_unit(zflat[idx]), ids)
     pre, post = _arrays.split_albedo(a, albedo_mode)
     light = e if pre is None else pre * e
     inv3d = _inv3d(d)

@@ -856,7 +856,7 @@ def apply_energy(
     # material's median depth, at least 1 and at most CURVATURE_REACH_PX).
     scales = camera.pixels_per_unit(np.asarray(depth, np.float32)[box][mb])  # per pixel: on the mask only
     scales = scales[scales > 0]
-    ppu = float(np.median(scales, overwrite_input=True)) if scales.size else 0.0  # ``scales`` is a copy
+    ppu = _arrays.median(scales) if scales.size else 0.0  # ``scales`` is a copy, without NaN
     reach = [int(np.clip(round(v * ppu), 1, CURVATURE_REACH_PX)) for v in ell]
     nb, pb = np.asarray(normal)[box], np.asarray(position)[box]
     parts = _curvature_per_pixel(nb, pb, mb)

@@ -201,6 +201,10 @@ def _index_map(passes: Passes) -> np.ndarray:
     return out
 
 
+#: Integers below this are float32 values exactly (2^24).
+_EXACT_FLOAT32 = 1 << 24
+
+
 def _mapping():
     from . import mapping
 
@@ -254,9 +258,10 @@ def plan(
 
 def _plan(
     passes: Passes, scene: SceneDescription, technique: str | Technique, albedo_mode: str, mapping, options: dict
-) -> tuple[Plan, np.ndarray, dict[int, np.ndarray]]:
-    """``plan``, the Material Index map it read (``_index_map``) and the pixels of each pass index
-    of a scattering material on screen (index -> bool (H, W)), which ``apply`` reuses."""
+) -> tuple[Plan, np.ndarray | None, dict[int, np.ndarray]]:
+    """``plan``, the Material Index map (``_index_map``) if it needed one (else None) and the pixels
+    of each pass index of a scattering material on screen (index -> bool (H, W)), which ``apply``
+    reuses."""
     technique = get_spec(technique)
     _check_inputs(passes, scene, technique, albedo_mode)
     accepted, var_kw = _accepted(technique.function)
@@ -265,7 +270,12 @@ def _plan(
         raise ValueError(
             f"option(s) {', '.join(unknown)} not taken by {technique.name}; it takes: {', '.join(sorted(accepted))}"
         )
-    index = _index_map(passes)
+    raw = passes["Material Index"]
+    index = None
+    # The pass rounded as float32 (half the bytes of ``_index_map``'s int64 map to compare): a
+    # float32 holds every index below 2^24 exactly, and NaN and +-inf equal none of them, so each
+    # such index has the same pixels in both. The int64 map only for the rest.
+    rounded = np.rint(raw) if raw.dtype == np.float32 else None
     depth = passes.get("Depth")
     known = {m.index for m in scene.materials}
     # Each listed index's pixels from one comparison each; the map is sorted (np.unique) for the
@@ -275,12 +285,21 @@ def _plan(
     masks: dict[int, np.ndarray] = {}
     for k in sorted(known):
         if k > 0:
-            on = index == k
+            if rounded is not None and k < _EXACT_FLOAT32:
+                on = rounded == np.float32(k)
+            else:
+                index = _index_map(passes) if index is None else index
+                on = index == k
             counts[k] = int(np.count_nonzero(on))
             if k in scattering and counts[k]:
                 masks[k] = on  # read again below and by ``apply``
     unknown_indices: dict[int, int] = {}
-    if np.count_nonzero(index > 0) > sum(counts.values()):
+    listed = sum(counts.values())
+    # A positive rounded value is a positive index or one the int64 map marks -1 (+inf) or cannot
+    # hold: more of them than listed pixels is checked on the int64 map.
+    if rounded is None or np.count_nonzero(rounded > 0) > listed:
+        index = _index_map(passes) if index is None else index
+    if index is not None and np.count_nonzero(index > 0) > listed:
         values, numbers = np.unique(index[index > 0], return_counts=True)
         unknown_indices = {int(i): int(c) for i, c in zip(values, numbers, strict=True) if int(i) not in known}
     result = []
@@ -307,10 +326,12 @@ def _plan(
         mask = masks[material.index]
         if depth is not None:
             z = depth[mask]
-            z = z[(z > 0) & (z < _arrays.BACKGROUND_DEPTH)]  # NaN and +inf fail these comparisons
+            valid = (z > 0) & (z < _arrays.BACKGROUND_DEPTH)  # NaN and +inf fail these comparisons
+            if not valid.all():
+                z = z[valid]
             if z.size:
                 mp.nearest_depth = float(z.min())
-                mp.median_depth = float(np.median(z, overwrite_input=True))  # ``z`` is a copy
+                mp.median_depth = _arrays.median(z)  # ``z`` is a copy, without NaN
             elif mp.kernel_su is not None:
                 # Scattering needs the depth of each pixel (its footprint): none has one here.
                 mp.skip = (

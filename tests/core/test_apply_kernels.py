@@ -82,3 +82,50 @@ def test_group_extents_splits_by_label_as_sorting_does(labels):
         ys, xs = np.divmod(want, w)
         diag = np.hypot(float(xs.max() - xs.min()), float(ys.max() - ys.min())) + 1.0
         assert extent == extent_lazy == diag / float(scale.ravel()[want].astype(np.float64).min())
+
+
+@pytest.mark.parametrize("listed", [(1, 2), (1, 2, 16777216, 16777218, 1 << 40)], ids=["small", "beyond float32"])
+def test_plan_finds_each_index_as_the_int64_map_does(listed):
+    """``plan`` compares the pass rounded as float32 for indices below 2^24 and the int64 map
+    (``_index_map``) for the others: the same pixels and unlisted indices as the int64 map alone,
+    with NaN, +-inf and values beyond int64 in the pass."""
+    from dataclasses import replace
+
+    from sss_lab.core.exr import Passes
+    from sss_lab.core.plan import _index_map, plan
+    from sss_lab.core.synthetic import sphere_scene
+
+    arrays, scene = sphere_scene(48, 32)
+    mi = arrays["Material Index"].copy()
+    mi[0, :6] = [np.nan, np.inf, -np.inf, 1e20, -1e20, 2.5]  # 2.5 rounds to 2 (half to even)
+    mi[1, :4] = [16777216.0, 16777218.0, 7.0, float(1 << 40)]
+    base = scene.materials[0]
+    materials = list(scene.materials) + [replace(base, index=k) for k in listed if k > 2]
+    scene = replace(scene, materials=materials)
+    passes = Passes({**arrays, "Material Index": mi})
+    with np.errstate(invalid="ignore"):
+        p = plan(passes, scene, "burley")
+        index = _index_map(passes)
+    for mp in p.materials:
+        assert mp.pixels == (int(np.count_nonzero(index == mp.material.index)) if mp.material.index > 0 else 0)
+    known = {m.index for m in materials}
+    values, counts = np.unique(index[index > 0], return_counts=True)
+    expected = {int(v): int(c) for v, c in zip(values, counts, strict=True) if int(v) not in known}
+    assert p.unknown_indices == expected and 7 in expected
+    assert {mp.material.index: mp.pixels for mp in p.materials}.get(16777216, 1) == 1
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 10, 11, 1000, 1001, 65536])
+def test_median_equals_numpy_median(n):
+    """``_arrays.median`` (one selection) gives ``np.median``'s float, ties and spreads alike."""
+    from sss_lab.core import _arrays
+
+    rng = np.random.default_rng(n)
+    for scale in (1.0, 1e-30, 3e38):
+        for ties in (False, True):
+            z = (rng.random(n) * scale).astype(np.float32)
+            if ties:
+                z = np.round(z / np.float32(scale) * 4) * np.float32(scale / 4)
+            with np.errstate(over="ignore"):  # the mean of two values near 3e38 is inf in both
+                expected = float(np.median(z))
+                assert _arrays.median(z.copy()) == expected
