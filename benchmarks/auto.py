@@ -25,7 +25,9 @@ so that the two choosers are compared on the same measurements and machine load.
   against the best of no SSS and every technique at every rung);
 - **time saved** = 1 - auto's time (its features and choice included) / the time of the most
   expensive technique (the one with the largest total time over the scenes, run on every scene),
-  per scene and over the suite (1 - sum of auto's times / sum of that technique's);
+  per scene and over the suite (1 - sum of auto's times / sum of that technique's); the two timed
+  in turn, call by call (``time_saved_total_separate``: against that technique's time from step 1,
+  measured apart, as before);
 - **the most a chooser could save** (``oracle_time_saved_total``): per scene the cheapest choice
   whose true error is within ``--max-error`` of the best (known only from the reference), over
   the suite against the same most expensive technique: how much the techniques' measured costs
@@ -178,6 +180,41 @@ def _fastest(fn, repeat):
     return result, best
 
 
+def _in_turn(fns, repeat) -> list:
+    """CPU seconds of the fastest of ``repeat`` calls of each of ``fns`` (None: not timed), called
+    in turn, so that a change in the shared machine's load touches them alike."""
+    best = [float("inf") if fn is not None else None for fn in fns]
+    for _ in range(repeat):
+        for k, fn in enumerate(fns):
+            if fn is None:
+                continue
+            start = time.process_time()
+            fn()
+            best[k] = min(best[k], time.process_time() - start)
+    return best
+
+
+def _chosen_run(plan, passes, desc):
+    """The one technique and rung ``plan`` chose for every material it computes, run by itself
+    (what auto's run would cost if its choice were free); None when it chose several."""
+    from sss_lab.core import apply as core_apply
+    from sss_lab.core import auto
+
+    if len(plan.plans) != 1 or any(c.chosen == auto.NONE for c in plan.choices):
+        return None
+    (run,) = plan.plans
+    t, options = auto.technique_of(run), auto.options_of(run)
+    return lambda: core_apply.apply(passes, desc, t, **options)
+
+
+def _reference(m: dict, priciest: str):
+    """The most expensive technique at its default quality on the scene's larger passes."""
+    from sss_lab.core import apply as core_apply
+
+    big, big_desc = m["big"]
+    return lambda: core_apply.apply(big, big_desc, priciest)
+
+
 def upscaled(passes, desc, k: int):
     """The passes repeated ``k`` x ``k`` per pixel and the camera ``k`` times finer: the same view
     at ``k`` times the resolution, for timing at a size where the techniques' work dominates."""
@@ -282,8 +319,16 @@ def _run_chooser(s: Scene, m: dict, model, *, techniques, max_error, repeat, pri
     image = layers["SSSLab.auto.Image"] if layers else s.passes["Combined"]
     err = s.error(image)
     # Timed at the larger size making the same choice (its features measured there, at their cost;
-    # the footprint in pixels grows with the resolution, and so may the choice).
-    _, t_auto = _fastest(lambda: choose_and_apply(*m["big"], keep=plan.chosen), repeat)
+    # the footprint in pixels grows with the resolution, and so may the choice), in turn with the
+    # most expensive technique.
+    t_auto, t_run, t_ref = _in_turn(
+        [
+            lambda: choose_and_apply(*m["big"], keep=plan.chosen),
+            _chosen_run(plan, *m["big"]),
+            _reference(m, priciest),
+        ],
+        repeat,
+    )
     best = min(m["errors"], key=m["errors"].get)
     out = {
         "error": err,
@@ -296,7 +341,9 @@ def _run_chooser(s: Scene, m: dict, model, *, techniques, max_error, repeat, pri
         "regret": err / m["errors"][best] - 1.0,
         # Against the best of every rung as well (no SSS, each technique at every rung).
         "regret_any_rung": err / min(m["variant_errors"].values()) - 1.0,
-        "time_saved": 1.0 - t_auto / m["seconds"][priciest] if m["seconds"][priciest] > 0 else None,
+        "reference_seconds": t_ref,
+        "chosen_run_seconds": t_run,
+        "time_saved": 1.0 - t_auto / t_ref if t_ref > 0 else None,
         "work": {},
         "work_auto": sum(next(k.work for k in c.candidates if k.name == c.chosen) for c in plan.choices),
     }
@@ -353,6 +400,8 @@ def run(
                 "regret_any_rung": a["regret_any_rung"],
                 "most_expensive": priciest,
                 "time_saved": a["time_saved"],
+                "reference_seconds": a["reference_seconds"],
+                "chosen_run_seconds": a["chosen_run_seconds"],
                 "features": [f.to_dict() for f, _ in m["materials"]],
                 "material_errors": {f.name: e for f, e in m["materials"]},
                 **({"with_fit": a["with_fit"]} if "with_fit" in a else {}),
@@ -395,9 +444,11 @@ def _chooser_summary(rows, row_of, max_error: float) -> dict:
     ``time_saved`` and, with the fit, ``with_fit``), the oracles' time saved, and the fit's."""
     picked = [row_of(r) for r in rows]
     t_auto = sum(p["auto"]["seconds"] for p in picked)
-    t_max = sum(r["seconds"][r["most_expensive"]] for r in rows)
+    t_max = sum(p["reference_seconds"] for p in picked)
     out = {
         **_regret_and_time([p["regret"] for p in picked], [p["time_saved"] for p in picked], t_auto, t_max),
+        "time_saved_total_separate": 1.0 - t_auto / sum(r["seconds"][r["most_expensive"]] for r in rows),
+        **_choice_cost(picked),
         "mean_regret_any_rung": statistics.mean(p["regret_any_rung"] for p in picked),
         "oracle_time_saved_total": _oracle_saved(rows, max_error, lambda r: r["errors"]),
     }
@@ -405,6 +456,25 @@ def _chooser_summary(rows, row_of, max_error: float) -> dict:
         fitted = [{**r, "with_fit": p["with_fit"]} for r, p in zip(rows, picked, strict=True)]
         out["with_fit"] = _fit_summary(fitted, max_error)
     return out
+
+
+def _choice_cost(picked) -> dict:
+    """Over the scenes where auto ran one technique and rung for every material it computed (timed
+    by itself in turn with auto and the reference): the time that run alone saves against the
+    reference (auto's choice free), auto's, and auto's mean cost over it per scene (its features,
+    choice and plan)."""
+    one = [p for p in picked if p.get("chosen_run_seconds") is not None]
+    if not one:
+        return {}
+    t_ref = sum(p["reference_seconds"] for p in one)
+    t_run = sum(p["chosen_run_seconds"] for p in one)
+    t_auto = sum(p["auto"]["seconds"] if "auto" in p else p["seconds"] for p in one)
+    return {
+        "one_run_scenes": len(one),
+        "one_run_time_saved_if_the_choice_were_free": 1.0 - t_run / t_ref,
+        "one_run_time_saved": 1.0 - t_auto / t_ref,
+        "choice_seconds_per_scene": (t_auto - t_run) / len(one),
+    }
 
 
 def _oracle_saved(rows, max_error: float, errors_of) -> float | None:
@@ -439,7 +509,14 @@ def _with_fit(s: Scene, m: dict, choose_and_apply, priciest: str, repeat: int) -
     plan, layers = choose_and_apply(s.passes, s.fitted)
     image = layers["SSSLab.auto.Image"] if layers else s.passes["Combined"]
     err = s.error(image)
-    _, seconds = _fastest(lambda: choose_and_apply(*m["big_fitted"], keep=plan.chosen), repeat)
+    seconds, t_run, t_ref = _in_turn(
+        [
+            lambda: choose_and_apply(*m["big_fitted"], keep=plan.chosen),
+            _chosen_run(plan, *m["big_fitted"]),
+            _reference(m, priciest),
+        ],
+        repeat,
+    )
     every = {**m["errors"], **{f"{t} fitted": e for t, e in m["fitted_errors"].items()}}
     best = min(every, key=every.get)
     return {
@@ -453,7 +530,9 @@ def _with_fit(s: Scene, m: dict, choose_and_apply, priciest: str, repeat: int) -
         "best": best,
         "best_error": every[best],
         "regret": err / every[best] - 1.0,
-        "time_saved": 1.0 - seconds / m["seconds"][priciest] if m["seconds"][priciest] > 0 else None,
+        "reference_seconds": t_ref,
+        "chosen_run_seconds": t_run,
+        "time_saved": 1.0 - seconds / t_ref if t_ref > 0 else None,
     }
 
 
@@ -463,13 +542,15 @@ def _fit_summary(rows, max_error: float) -> dict:
     fit = [r["with_fit"] for r in rows]
     regrets = [w["regret"] for w in fit]
     t_auto = sum(w["seconds"] for w in fit)
-    t_max = sum(r["seconds"][r["most_expensive"]] for r in rows)
+    t_max = sum(w["reference_seconds"] for w in fit)
     always = {}
     for t in sorted({t for w in fit for t in w["fitted_errors"]}):
         errs = [w["fitted_errors"][t] / w["best_error"] - 1.0 for w in fit if t in w["fitted_errors"]]
         always[t] = {"mean_regret": statistics.mean(errs), "median_regret": statistics.median(errs)}
     return {
         **_regret_and_time(regrets, [w["time_saved"] for w in fit], t_auto, t_max),
+        "time_saved_total_separate": 1.0 - t_auto / sum(r["seconds"][r["most_expensive"]] for r in rows),
+        **_choice_cost(fit),
         "total_seconds": t_auto,
         "always_one_fitted_technique": always,
         "oracle_time_saved_total": _oracle_saved(
