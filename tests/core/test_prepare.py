@@ -10,8 +10,10 @@ from sss_lab.core.prepare import PrepareError, is_prepared, marker_path, prepare
 
 #: Kernels of every path a frame takes: each technique's, the energy stage's two ("object"
 #: without a bake distance, the slab's with one), the light from behind's at full resolution and
-#: on the spread's reduced levels (reached only by ``core.prepare.FAR``'s long lengths).
+#: on the spread's reduced levels (reached only by ``core.prepare.FAR``'s long lengths), and
+#: ``core.apply``'s compositing.
 EXPECTED = {
+    "composite",
     "sta_kernel",
     "prepare_pixels",
     "ssss_kernel",
