@@ -306,6 +306,25 @@ def _learn(measured, names, chooser: str, techniques, command: str):
     return auto.train(samples, timings=timings, trained_on=names, command=command)
 
 
+def _scored_and_timed(s: Scene, desc, big, choose_and_apply, m: dict, priciest: str, repeat: int):
+    """(plan, error, (auto's, its chosen run's and the most expensive technique's seconds)):
+    ``auto`` chooses on the scene's passes with ``desc`` and is scored there; then it is timed on
+    ``big`` (the passes at the larger size) making the same choice (its features measured there,
+    at their cost; the footprint in pixels grows with the resolution, and so may the choice), in
+    turn with its chosen run alone and with the most expensive technique."""
+    plan, layers = choose_and_apply(s.passes, desc)
+    image = layers["SSSLab.auto.Image"] if layers else s.passes["Combined"]
+    times = _in_turn(
+        [
+            lambda: choose_and_apply(*big, keep=plan.chosen),
+            _chosen_run(plan, *big),
+            _reference(m, priciest),
+        ],
+        repeat,
+    )
+    return plan, s.error(image), times
+
+
 def _run_chooser(s: Scene, m: dict, model, *, techniques, max_error, repeat, priciest) -> dict:
     """``auto`` with ``model`` on the held-out scene ``s``: its choice, error, regret and time (its
     features and choice included), and the same with the scene's fits."""
@@ -315,20 +334,7 @@ def _run_chooser(s: Scene, m: dict, model, *, techniques, max_error, repeat, pri
         plan = auto.choose(passes, desc, max_error=max_error, model=model, techniques=techniques, keep=keep)
         return plan, auto.apply_auto(passes, desc, prepared=plan)
 
-    plan, layers = choose_and_apply(s.passes, s.desc)
-    image = layers["SSSLab.auto.Image"] if layers else s.passes["Combined"]
-    err = s.error(image)
-    # Timed at the larger size making the same choice (its features measured there, at their cost;
-    # the footprint in pixels grows with the resolution, and so may the choice), in turn with the
-    # most expensive technique.
-    t_auto, t_run, t_ref = _in_turn(
-        [
-            lambda: choose_and_apply(*m["big"], keep=plan.chosen),
-            _chosen_run(plan, *m["big"]),
-            _reference(m, priciest),
-        ],
-        repeat,
-    )
+    plan, err, (t_auto, t_run, t_ref) = _scored_and_timed(s, s.desc, m["big"], choose_and_apply, m, priciest, repeat)
     best = min(m["errors"], key=m["errors"].get)
     out = {
         "error": err,
@@ -506,16 +512,8 @@ def _regret_and_time(regrets, saved, t_auto: float, t_max: float) -> dict:
 def _with_fit(s: Scene, m: dict, choose_and_apply, priciest: str, repeat: int) -> dict:
     """auto on the scene's passes with its fits (choosing by the fits' measured errors where they
     exist), scored against the lowest error of no SSS and every technique unfitted or fitted."""
-    plan, layers = choose_and_apply(s.passes, s.fitted)
-    image = layers["SSSLab.auto.Image"] if layers else s.passes["Combined"]
-    err = s.error(image)
-    seconds, t_run, t_ref = _in_turn(
-        [
-            lambda: choose_and_apply(*m["big_fitted"], keep=plan.chosen),
-            _chosen_run(plan, *m["big_fitted"]),
-            _reference(m, priciest),
-        ],
-        repeat,
+    plan, err, (seconds, t_run, t_ref) = _scored_and_timed(
+        s, s.fitted, m["big_fitted"], choose_and_apply, m, priciest, repeat
     )
     every = {**m["errors"], **{f"{t} fitted": e for t, e in m["fitted_errors"].items()}}
     best = min(every, key=every.get)
