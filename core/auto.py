@@ -77,7 +77,11 @@ times its predicted error over the default's.
 
 ``apply_auto`` carries the choice out: each material gets its chosen technique's result at its chosen rung
 (``core.apply.apply``), composited into ``SSSLab.auto.Image`` / ``SSSLab.auto.SSS``.
-NumPy only.
+
+The features are NumPy, the reference. On the compiled backend (``core.backend``) the loops that
+read the passes (the material's window and pixels, the block means, the diffusion's box means)
+are kernels of ``core.compiled`` with the same operations in the same order, equal to the bit; in
+check mode each is compared with its NumPy code with a bound of 0.
 """
 
 from __future__ import annotations
@@ -92,7 +96,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import _arrays
+from . import _arrays, backend
 from . import apply as core_apply
 from .combined import medium_of, transmission, view_cosine
 from .energy import SLAB_ABOVE, entry_gain, slab_factors, unseen_irradiance
@@ -322,12 +326,57 @@ def _blurred(e: np.ndarray, mask: np.ndarray, h: int) -> np.ndarray:
     return np.where(den > 0, num / np.maximum(den, 1e-300), e)
 
 
+def _blurred_change(e: np.ndarray, mask: np.ndarray, h: int) -> np.ndarray:
+    """``_blurred(e, mask, h) - e`` as float32 (``e`` (H, W) float32): a kernel on the compiled
+    backend (``core.compiled.blurred_change``)."""
+
+    def reference():
+        return (_blurred(e, mask, h) - e).astype(np.float32)
+
+    def kernel():
+        out = np.empty(e.shape, np.float32)
+        backend.run_serial("blurred_change", e, mask, h, out)
+        return out
+
+    return _kernel_or_reference("auto box means", reference, kernel, e.dtype == np.float32)
+
+
+def _kernel_or_reference(name: str, reference, kernel, fits: bool = True):
+    """``kernel()`` on the compiled backend where its inputs ``fits`` it (else and on NumPy
+    ``reference()``); in check mode compared with ``reference()``, equal to the bit."""
+    mode = backend.active()
+    if mode == "numpy" or not fits:
+        return reference()
+    result = kernel()
+    if mode == "check":
+        expected = reference()
+        same = (expected is None) == (result is None)
+        if same and expected is not None:
+            pairs = zip(expected, result, strict=True) if isinstance(expected, tuple) else [(expected, result)]
+            same = all(_equal(a, b) for a, b in pairs)
+        if not same:
+            raise backend.BackendMismatch(f"{name}: compiled result differs from the NumPy reference")
+    return result
+
+
+def _equal(a, b) -> bool:
+    """Equal values (NaN where the other has NaN), shapes and dtypes; slices and tuples of them too."""
+    if isinstance(a, tuple):
+        return isinstance(b, tuple) and len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, slice):
+        return a == b
+    a, b = np.asarray(a), np.asarray(b)
+    return a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
+
+
 class _Shared:
     """What ``features`` reads, found once per call of ``choose``: the Material Index map and the
     passes (read-only views; each material's features clean only its own window of them)."""
 
     def __init__(self, passes: Passes, scene: SceneDescription):
-        self.index = _index_map(passes)
+        self.raw_index = passes["Material Index"]
+        self._index: np.ndarray | None = None
+        self._passes = passes
         self.combined = passes["Combined"][..., :3]
         self.albedo = passes["Diffuse Color"][..., :3]
         have = "Diffuse Direct" in passes and "Diffuse Indirect" in passes
@@ -345,6 +394,14 @@ class _Shared:
             self.normal = passes["Normal"]
             self.position = passes["Position"]
 
+    @property
+    def index(self) -> np.ndarray:
+        """The Material Index map (``core.plan._index_map``), made at its first use: the compiled
+        backend's window (``_window``) reads the pass without it."""
+        if self._index is None:
+            self._index = _index_map(self._passes)
+        return self._index
+
 
 def _block_means(a: np.ndarray, size: int) -> np.ndarray:
     """The means of ``a`` ((H, W) or (H, W, C), cropped to a multiple of ``size``) over
@@ -361,6 +418,18 @@ def _block_means(a: np.ndarray, size: int) -> np.ndarray:
     before any technique runs). Summed in float64 from strided views, each column of the sample
     first, then across: the additions of the whole-block mean for blocks of ``BOX``."""
     assert size % BOX == 0, f"blocks of {size}: expected a multiple of {BOX}"
+
+    def kernel():
+        view = a if a.ndim == 3 else a[..., None]
+        out = np.empty((a.shape[0] // size, a.shape[1] // size, view.shape[2]), np.float32)
+        backend.run_serial("block_means", view, size, size // BOX, float(BOX * BOX), out)
+        return out if a.ndim == 3 else out[..., 0]
+
+    return _kernel_or_reference("auto block means", lambda: _block_means_numpy(a, size), kernel, a.dtype == np.float32)
+
+
+def _block_means_numpy(a: np.ndarray, size: int) -> np.ndarray:
+    """``_block_means`` in NumPy, the reference."""
     h, w = a.shape[0] // size * size, a.shape[1] // size * size
     for clean in (False, True):
         total = np.zeros((h // size, w // size) + a.shape[2:], np.float64)
@@ -401,6 +470,36 @@ def _crop(mask: np.ndarray) -> tuple[slice, slice]:
     assert box is not None, "a window of no pixel"
     rows, cols = box
     return slice(rows.start // BOX * BOX, rows.stop), slice(cols.start // BOX * BOX, cols.stop)
+
+
+def _window(sh: _Shared, index: int) -> tuple[tuple[slice, slice], np.ndarray] | None:
+    """The material's window (``_crop`` of its pixels) and its pixels there whose Combined is
+    finite, or None when it has no pixel: on the compiled backend read from the Material Index
+    pass by two kernels (``core.compiled.index_box``, ``index_window``) instead of the whole
+    frame's int64 map, its comparison and the window's finiteness."""
+
+    def reference():
+        on = sh.index == index
+        if not on.any():
+            return None
+        win = _crop(on)
+        seen = sh.combined[win]
+        return win, (on[win] if _arrays.all_finite(seen) else on[win] & core_apply._finite(seen))
+
+    def kernel():
+        box = np.zeros(4, np.int64)
+        backend.run_serial("index_box", sh.raw_index, index, box)
+        if box[1] == 0:
+            return None
+        win = slice(int(box[0]) // BOX * BOX, int(box[1])), slice(int(box[2]) // BOX * BOX, int(box[3]))
+        mask = np.empty((win[0].stop - win[0].start, win[1].stop - win[1].start), bool)
+        backend.run_serial("index_window", sh.raw_index, index, sh.combined, win[0].start, win[1].start, mask)
+        return win, mask
+
+    # A float32 holds every index below 2^24 exactly (as ``core.plan`` compares them).
+    fits = sh.raw_index.dtype == np.float32 and sh.raw_index.ndim == 2 and 0 <= index < 1 << 24
+    fits = fits and sh.combined.ndim == 3 and sh.combined.shape[2] >= 3
+    return _kernel_or_reference("auto window", reference, kernel, fits and sh.combined.dtype == np.float32)
 
 
 def _rms(term: np.ndarray, keep: np.ndarray, base: np.ndarray) -> float:
@@ -457,13 +556,11 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
     pixel of its window; its median depth on one pixel in k x k for blocks of 2 k."""
     start = time.perf_counter()
     sh = _shared or _Shared(passes, scene)
-    on = sh.index == material.index
     f = Features(name=material.name or str(material.index), index=material.index)
     f.fitted = tuple(t for t in material.fit if fitted(material.fit, t))
-    if on.any():
-        win = _crop(on)
-        seen = sh.combined[win]
-        mask = on[win] if _arrays.all_finite(seen) else on[win] & core_apply._finite(seen)
+    found = _window(sh, material.index)
+    if found is not None:
+        win, mask = found
         f.pixels = int(mask.sum())
     if not f.pixels:
         f.notes.append("no pixel on screen")
@@ -544,7 +641,7 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
             half = min(int(round(MEAN_DISTANCE * f.footprint_px[c] / step)), MAX_BOX)
             if half < 1:
                 continue  # the light stays within its block
-            change[..., c] = _blurred(e[..., c], keep, half) - e[..., c]
+            change[..., c] = _blurred_change(e[..., c], keep, half)
         f.diffusion = _rms(albedo * change, keep, base)
         f.wide = f.diffusion * min(1.0, max(f.footprint_px) / WIDE_PX)
     if sh.normal_position is None:

@@ -179,6 +179,18 @@ def run_kernel(name: str, *args) -> None:
     _compile_s.setdefault(name, time.perf_counter() - start)
 
 
+def run_serial(name: str, *args):
+    """``run_kernel`` for a kernel without a parallel loop, returning what it returns: no chunk
+    size to set, which costs more than such a kernel's work on the small arrays it is for."""
+    kernel = getattr(compiled(), name)
+    if name in _compile_s:
+        return kernel(*args)
+    start = time.perf_counter()
+    result = kernel(*args)
+    _compile_s[name] = time.perf_counter() - start
+    return result
+
+
 def tolerance(terms: int, magnitude: np.ndarray) -> np.ndarray:
     """Per-pixel bound on |compiled - reference| (float64, the shape of ``magnitude``).
 

@@ -8,8 +8,9 @@ Burley and about as much again for the combined technique's light from behind on
 2-core machine (``first_call_s`` in ``benchmarks/results/speed.json``). ``prepare_kernels`` makes
 those first calls on a small synthetic frame (``core.synthetic.sphere_scene``: a Christensen-Burley
 skin sphere and a Random Walk wax one, every pass a real render gives) through ``core.apply``,
-the path each frame takes, so that the cache holds what a frame needs; a later process loads each
-kernel from it in a fraction of a second. The frame is applied twice per technique: as built
+the path each frame takes, and measures ``apply --method auto``'s features of each material on it,
+so that the cache holds what a frame needs; a later process loads each kernel from it in a
+fraction of a second. The frame is applied twice per technique: as built
 (no thickness bake distance: the energy stage's "object" path) and with a bake distance and long
 lengths (``FAR``), whose light from behind is spread far enough to use the spread's reduced
 levels. A frame whose inputs have other types (another integer type of Object Index, say) still
@@ -111,6 +112,15 @@ def prepare_kernels(techniques=None, *, log=None) -> dict:
                 log(f"{name}: compiling or loading its kernels")
             for variant in (scene, far):
                 apply(passes, variant, name)
+        if techniques is None:
+            # ``apply --method auto`` measures each material before any technique runs.
+            from .auto import features
+
+            if log is not None:
+                log("auto: compiling or loading its features' kernels")
+            for material in far.materials:
+                if material.scatters:
+                    features(passes, far, material)
     seconds = time.perf_counter() - start
     kernels = {k: v for k, v in backend.first_call_seconds().items() if k not in before and k != "import"}
     result = {"cache_dir": backend.cache_dir(), "seconds": seconds, "kernels": kernels}

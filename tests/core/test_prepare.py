@@ -10,8 +10,8 @@ from sss_lab.core.prepare import PrepareError, is_prepared, marker_path, prepare
 
 #: Kernels of every path a frame takes: each technique's, the energy stage's two ("object"
 #: without a bake distance, the slab's with one), the light from behind's at full resolution and
-#: on the spread's reduced levels (reached only by ``core.prepare.FAR``'s long lengths), and
-#: ``core.apply``'s compositing.
+#: on the spread's reduced levels (reached only by ``core.prepare.FAR``'s long lengths),
+#: ``core.apply``'s compositing, and ``apply --method auto``'s features (``core.auto``).
 EXPECTED = {
     "composite",
     "sta_kernel",
@@ -28,6 +28,10 @@ EXPECTED = {
     "blur_reduced",
     "spread_reduced_part",
     "finish_light",
+    "index_box",
+    "index_window",
+    "block_means",
+    "blurred_change",
 }
 
 
