@@ -258,15 +258,13 @@ def apply(
     ``Technique`` spec. ``prepared`` is the result of ``plan`` for
     the same arguments, to avoid planning twice.
     """
-    masks: dict[int, np.ndarray] = {}
     if prepared is None:
         p, index, masks = _plan(passes, scene, technique, albedo_mode, mapping, options)
     else:
-        p, index = prepared, None
+        # The pixels its plan found on these passes, if it was made on them (else found below).
+        p, index, masks = prepared, None, prepared.planned_masks(passes)
     if not p.scattering:
         return {}
-    if prepared is not None:
-        index = _index_map(passes)
     spec = p.spec
     combined = passes["Combined"]
     rgb = combined[..., :3]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import inspect
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -82,6 +83,18 @@ class Plan:
     #: 3.4e38, overflowing in the technique's sums): left as they were.
     overflow_pixels: int = 0
     options: dict = field(default_factory=dict)
+    #: What ``plan`` found of each scattering material's pixels (pass index -> bool (H, W)) and the
+    #: Material Index pass it read them from, held weakly: ``apply`` with this plan takes them
+    #: (``planned_masks``) instead of reading the pass again, if it is given the same pass.
+    found: tuple = field(default=(), repr=False, compare=False)
+
+    def planned_masks(self, passes: Passes) -> dict[int, np.ndarray]:
+        """The pixels ``plan`` found per pass index if ``passes`` holds the Material Index array it
+        read (the same object), else {}: a plan applied to other passes finds them again."""
+        if not self.found:
+            return {}
+        source, masks = self.found
+        return masks if source() is passes.get("Material Index") else {}
 
     @property
     def applied(self) -> list[MaterialPlan]:
@@ -253,7 +266,9 @@ def plan(
     not match the passes' size, or an option the technique does not take; MissingPassError
     (a KeyError) naming any missing pass and how to enable it.
     """
-    return _plan(passes, scene, technique, albedo_mode, mapping, options)[0]
+    p, _, masks = _plan(passes, scene, technique, albedo_mode, mapping, options)
+    p.found = (weakref.ref(passes["Material Index"]), masks)
+    return p
 
 
 def _plan(

@@ -267,6 +267,30 @@ def test_nan_and_inf_pixels_are_left_as_they_are(stub, scene_passes):
     assert "3 pixels with NaN/Inf inputs: left as they are" in p.explain()
 
 
+def test_a_plan_brings_its_pixels_to_apply_only_on_the_passes_it_read(stub, scene_passes):
+    """``apply(prepared=plan(...))`` takes the pixels the plan found, instead of reading the
+    Material Index pass again, only when it is given that same pass; on other passes (here the two
+    scattering materials' indices swapped) it finds them itself, as without a plan."""
+    passes, scene, arrays = scene_passes
+    mi = arrays["Material Index"]
+    p = plan(passes, scene, "burley")
+    ks = [m.material.index for m in p.applied]
+    assert len(ks) == 2 and sorted(p.planned_masks(passes)) == sorted(ks)
+    for k in ks:
+        assert np.array_equal(p.planned_masks(passes)[k], mi == k)
+    apply(passes, scene, "burley", prepared=p)
+    for call, k in zip(stub["burley"].calls[-2:], ks, strict=True):
+        assert np.array_equal(call["mask"], mi == k)
+    a, b = ks
+    swapped = dict(arrays)
+    swapped["Material Index"] = np.where(mi == a, np.float32(b), np.where(mi == b, np.float32(a), mi))
+    other = Passes(swapped)
+    assert p.planned_masks(other) == {}
+    apply(other, scene, "burley", prepared=p)
+    for call, k in zip(stub["burley"].calls[-2:], ks, strict=True):
+        assert np.array_equal(call["mask"], swapped["Material Index"] == k)
+
+
 def test_half_float_passes_are_computed_in_float32(stub, scene_passes):
     _, scene, arrays = scene_passes
     halves = {k: v.astype(np.float16) for k, v in arrays.items() if k != "Depth"}
