@@ -487,7 +487,7 @@ def _reduced_levels(light, on, part, box, sigmas, levels, flat):
     n_full = _full_levels(sigmas)
     if not np.any(levels[:, 0] > 0):
         return
-    backend.run_kernel("spread_pyramid", light, on, part, box, levels, flat)
+    backend.run_kernel("spread_pyramid", light, on, part, box, levels, flat, 0, 1 << 62, 0, part[0])
     for k in range(n_full, len(sigmas)):
         f, off, hc, wc = (int(v) for v in levels[k - n_full])
         if f == 0:

@@ -2438,7 +2438,9 @@ def _take(ring, i, r, n, out, bw):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def spread_band(light, sig, on, part, box, grid, n_full, radii, needed, row_levels, b0, b1, state, at, planes, out):
+def spread_band(
+    light, sig, on, part, box, grid, n_full, radii, needed, row_levels, b0, b1, state, at, planes, out, l0, o0
+):
     """``core.combined._spread_part`` of one part's rows ``b0``..``b1`` - 1 (a band; region
     coordinates), for its levels at full resolution (the wider ones: ``spread_reduced_part``),
     into ``out`` (band rows, region columns, 3) at the part's pixels: ``light`` blurred per
@@ -2468,7 +2470,11 @@ def spread_band(light, sig, on, part, box, grid, n_full, radii, needed, row_leve
     with a pixel whose width lies next to the level (the part's row i: levels
     ``row_levels[i, 0]``..``row_levels[i, 1]``). A pixel's result is (1 - w) times the level
     below its width plus w times the level above, written when the upper level is done (the
-    lower one's share kept in ``out`` meanwhile); level 0 is ``light``."""
+    lower one's share kept in ``out`` meanwhile); level 0 is ``light``.
+
+    ``light`` and ``on`` may be windows of rows: their first rows are region rows ``l0`` and
+    ``o0`` (``light``: 0 and ``on``: ``part[0]`` for the whole region and part; a window holds at
+    least the band's rows and the 3 r rows after it that are the part's)."""
     n_levels = grid.size
     top = grid[n_levels - 1]
     pw = part[3] - part[2]
@@ -2476,14 +2482,14 @@ def spread_band(light, sig, on, part, box, grid, n_full, radii, needed, row_leve
     # Level 0: the lower share of the pixels whose width lies below the first blur.
     for i in prange(b0, b1):
         for j in range(part[2], part[3]):
-            if on[i - part[0], j - part[2]] == 0:
+            if on[i - o0, j - part[2]] == 0:
                 continue
             for c in range(3):
                 s = min(max(np.float64(sig[i - b0, j, c]), 0.0), top)
                 if not grid[1] >= s:
                     continue
                 wt = f32((s - grid[0]) / (grid[1] - grid[0]))
-                out[i - b0, j, c] = (_ONE - wt) * light[i, j, c]
+                out[i - b0, j, c] = (_ONE - wt) * light[i - l0, j, c]
     n_col = (pw + PART_STRIP - 1) // PART_STRIP
     n_groups = (nb + SPREAD_ROWS - 1) // SPREAD_ROWS
     which = np.empty(4, np.int64)
@@ -2522,10 +2528,10 @@ def spread_band(light, sig, on, part, box, grid, n_full, radii, needed, row_leve
             y3 = np.empty(PART_STRIP, np.float32)
             for t_row in range(t_from, t_to):
                 if part[0] <= t_row < part[1]:
-                    row = on[t_row - part[0]]
+                    row = on[t_row - o0]
                     for t in range(bw):
                         mk = _ONE if row[xs + t - part[2]] != 0 else _ZERO
-                        x[t] = light[t_row, xs + t, q] * mk if q < 3 else mk
+                        x[t] = light[t_row - l0, xs + t, q] * mk if q < 3 else mk
                 else:
                     for t in range(bw):
                         x[t] = _ZERO
@@ -2570,7 +2576,7 @@ def spread_band(light, sig, on, part, box, grid, n_full, radii, needed, row_leve
             for g in range(n_rows):
                 i = i0 + g
                 for j in range(part[2], part[3]):
-                    if on[i - part[0], j - part[2]] == 0:
+                    if on[i - o0, j - part[2]] == 0:
                         continue
                     den = line[j - left, 4 * g + 3]
                     den = den if den > f32(1e-6) or den != den else f32(1e-6)
@@ -2590,7 +2596,7 @@ def spread_band(light, sig, on, part, box, grid, n_full, radii, needed, row_leve
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def spread_pyramid(light, on, part, box, levels, flat):
+def spread_pyramid(light, on, part, box, levels, flat, band_a, band_b, l0, o0):
     """The reduced grids of ``core.combined._spread_reference``'s pyramid, float32, straight from
     the light: level m's grid is ``flat[levels[m, 1]:]`` as (4, ``levels[m, 2]``, ``levels[m,
     3]``) (R, G, B and the mask; a block size ``levels[m, 0]`` of 0: not made), the float32 of
@@ -2600,7 +2606,12 @@ def spread_pyramid(light, on, part, box, levels, flat):
     adds them from one factor to the next: (a00 + a01) + (a10 + a11), zeros beyond the box.
     Block sizes are powers of two, ascending (0s anywhere). Per band of rows of the largest
     block, its sums are made factor by factor, so nothing of the frame's size is held in
-    float64."""
+    float64.
+
+    Only the bands ``band_a``..``band_b`` - 1 (of ``levels``' largest block's rows from ``box[0]``;
+    ``band_b`` clipped to the box) are made, from ``light`` and ``on`` whose first rows are region
+    rows ``l0`` and ``o0`` (the whole region and part: 0 and ``part[0]``; a window holds the
+    bands' rows that are the part's)."""
     top_f = 1
     for m in range(levels.shape[0]):
         top_f = max(top_f, levels[m, 0])
@@ -2608,7 +2619,7 @@ def spread_pyramid(light, on, part, box, levels, flat):
     wb = box[3] - box[2]
     w2 = (wb + 1) // 2
     n_bands = (hb + top_f - 1) // top_f
-    for band in prange(n_bands):
+    for band in prange(band_a, min(band_b, n_bands)):
         y = box[0] + band * top_f
         rows = max(top_f // 2, 1)
         sums = np.zeros((4, rows, w2), np.float64)
@@ -2624,8 +2635,8 @@ def spread_pyramid(light, on, part, box, levels, flat):
                             j = box[2] + 2 * bj + dx
                             v = _ZERO
                             if i < box[1] and j < box[3] and part[0] <= i < part[1] and part[2] <= j < part[3]:
-                                mk = _ONE if on[i - part[0], j - part[2]] != 0 else _ZERO
-                                v = light[i, j, q] * mk if q < 3 else mk
+                                mk = _ONE if on[i - o0, j - part[2]] != 0 else _ZERO
+                                v = light[i - l0, j, q] * mk if q < 3 else mk
                             row = np.float64(v) if dx == 0 else row + np.float64(v)
                         acc = row if dy == 0 else acc + row
                     sums[q, bi, bj] = acc
@@ -2862,6 +2873,29 @@ def _exit_weight(a, pre_post, walks, base):
     return a if a < _ONE or a != a else _ONE
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _finished(v, albedo, y, x, c, pre_post, walks, base, has_weight, scale, scaled):
+    """``finish_light``'s value of light ``v`` at frame pixel (``y``, ``x``) and channel ``c``: times
+    the exit weight (with ``has_weight``) and, where ``scaled``, times ``scale[c]``."""
+    if has_weight:
+        v = v * _exit_weight(albedo[y, x, c], pre_post, walks, base[c])
+    if scaled:
+        v = v * scale[c]
+    return v
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _finish_dark(albedo, y, x, pre_post, walks, base, scale, scaled, add, out):
+    """``finish_light`` at a pixel outside the region (with a weight): 0 x the weight changes
+    ``out`` only where the weight is not finite (NaN)."""
+    for c in range(3):
+        a = albedo[y, x, c]
+        if np.isfinite(a) and (walks or np.isfinite(a * a)):
+            continue  # 0 x a finite weight: nothing changes
+        v = _finished(_ZERO, albedo, y, x, c, pre_post, walks, base, True, scale, scaled)
+        out[y, x, c] = out[y, x, c] + v if add else v
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def finish_light(light, y0, x0, albedo, pre_post, walks, base, has_weight, scale, scaled, add, out):
     """``core.combined.BackLight.transmitted``'s last steps into the frame ``out``: the light
@@ -2877,90 +2911,166 @@ def finish_light(light, y0, x0, albedo, pre_post, walks, base, has_weight, scale
             for x in range(x0, x0 + rw):
                 for c in range(3):
                     v = light[y - y0, x - x0, c]
-                    if has_weight:
-                        v = v * _exit_weight(albedo[y, x, c], pre_post, walks, base[c])
-                    if scaled:
-                        v = v * scale[c]
+                    v = _finished(v, albedo, y, x, c, pre_post, walks, base, has_weight, scale, scaled)
                     out[y, x, c] = out[y, x, c] + v if add else v
         if not has_weight:
             continue
         for x in range(w):
             if inside_rows and x0 <= x < x0 + rw:
                 continue
+            _finish_dark(albedo, y, x, pre_post, walks, base, scale, scaled, add, out)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _owned(mask, thickness, ids, part_ids, owned, one_part, y, x):
+    """Whether frame pixel (``y``, ``x``) is one of a part whose light spreads (``owned[p]``; its
+    part as ``transmit_pixels`` finds it)."""
+    if not (mask[y, x] and np.isfinite(thickness[y, x])):
+        return False
+    if one_part:
+        return owned[0]
+    v = ids[y, x]
+    p = np.searchsorted(part_ids, v)
+    return p < part_ids.size and part_ids[p] == v and owned[p]
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def finish_band(
+    light, fy0, x0, mode, on, ox0, owned, mask, thickness, ids, part_ids, one_part, albedo, pre_post, walks, base,
+    has_weight, scale, scaled, add, out,
+):  # fmt: skip
+    """``finish_light`` of a band of the region's rows (``light``: frame rows from ``fy0``, the
+    region's columns from ``x0``), at its pixels of ``mode`` 0: all; 1: where ``on`` (the band's
+    rows, region columns from ``ox0``) is not 0; 2: those of no part whose light spreads
+    (``_owned``). The pixels outside the region: ``finish_rest``."""
+    rows, rw = light.shape[0], light.shape[1]
+    for i in prange(rows):
+        y = fy0 + i
+        for jj in range(rw):
+            x = x0 + jj
+            if mode == 1:
+                k = jj - ox0
+                if k < 0 or k >= on.shape[1] or on[i, k] == 0:
+                    continue
+            elif mode == 2 and _owned(mask, thickness, ids, part_ids, owned, one_part, y, x):
+                continue
             for c in range(3):
-                a = albedo[y, x, c]
-                if np.isfinite(a) and (walks or np.isfinite(a * a)):
-                    continue  # 0 x a finite weight: nothing changes
-                v = _ZERO * _exit_weight(a, pre_post, walks, base[c])
-                if scaled:
-                    v = v * scale[c]
+                v = _finished(light[i, jj, c], albedo, y, x, c, pre_post, walks, base, has_weight, scale, scaled)
                 out[y, x, c] = out[y, x, c] + v if add else v
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def largest_pixels(normal, position, mask, y0, x0, planes):
-    """``curvature_pixels``' largest curvature and validity on the window of ``planes`` (2, rows,
-    columns) from frame row ``y0`` and column ``x0`` (``mask``: the far side's pixels), without
-    its frames of unit normals and mean curvature: ``planes[0]`` 1 where valid (else 0),
-    ``planes[1]`` the largest times that (``smooth_curvature``'s planes). The same float32 and
-    float64 operations in the same order, the neighbours' unit normals computed again where
-    they are read; neighbours outside the window count as off the mask, as on the window the
-    reference is given."""
-    h, w = planes.shape[1], planes.shape[2]
-    for row in prange(h):
-        i = np.int64(row)
-        for j in range(w):
-            y = y0 + i
-            x = x0 + j
-            on, u0, u1, u2 = _curvature_unit(normal, position, mask, y, x)
-            count = 0.0
-            best = -np.inf
-            for axis in range(2):
-                di = np.int64(1 if axis == 0 else 0)
-                dj = np.int64(1) - di
-                ib, jb = i + di, j + dj
-                ia, ja = i - di, j - dj
-                ok_n = False
-                b0 = b1 = b2 = _ZERO
-                if ib < h and jb < w:
-                    ok_n, b0, b1, b2 = _curvature_unit(normal, position, mask, y0 + ib, x0 + jb)
-                ok_p = False
-                a0 = a1 = a2 = _ZERO
-                if ia >= 0 and ja >= 0:
-                    ok_p, a0, a1, a2 = _curvature_unit(normal, position, mask, y0 + ia, x0 + ja)
-                if not ok_n:
-                    ib, jb, b0, b1, b2 = i, j, u0, u1, u2
-                if not ok_p:
-                    ia, ja, a0, a1, a2 = i, j, u0, u1, u2
-                d0 = position[y0 + ib, x0 + jb, 0] - position[y0 + ia, x0 + ja, 0]
-                d1 = position[y0 + ib, x0 + jb, 1] - position[y0 + ia, x0 + ja, 1]
-                d2 = position[y0 + ib, x0 + jb, 2] - position[y0 + ia, x0 + ja, 2]
-                dd = d0 * d0 + d1 * d1 + d2 * d2
-                if on and (ok_n or ok_p) and dd > _ZERO:
-                    e0 = b0 - a0
-                    e1 = b1 - a1
-                    e2 = b2 - a2
-                    k = (e0 * d0 + e1 * d1 + e2 * d2) / dd
-                    count += 1.0
-                    best = max(best, np.float64(k))
-            v = count > 0.0
-            weight = 1.0 if v else 0.0
-            planes[0, i, j] = weight
-            planes[1, i, j] = (best if v else 0.0) * weight
+def finish_rest(y0, rh, x0, rw, albedo, pre_post, walks, base, scale, scaled, add, out):
+    """``finish_light`` at the pixels outside the region (rows ``y0``.. and columns ``x0``.., ``rh``
+    x ``rw``), with a weight (without one nothing changes there)."""
+    h, w = out.shape[0], out.shape[1]
+    for y in prange(h):
+        inside_rows = y0 <= y < y0 + rh
+        for x in range(w):
+            if inside_rows and x0 <= x < x0 + rw:
+                continue
+            _finish_dark(albedo, y, x, pre_post, walks, base, scale, scaled, add, out)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _largest_plane(normal, position, mask, y0, x0, h, w, i, j):
+    """``curvature_pixels``' largest curvature and validity at pixel (``i``, ``j``) of the window
+    (``h``, ``w``) from frame row ``y0`` and column ``x0`` (``mask``: the far side's pixels),
+    without its frames of unit normals and mean curvature: (1 where valid else 0, the largest
+    times that: ``smooth_curvature``'s planes). The same float32 and float64 operations in the
+    same order, the neighbours' unit normals computed again where they are read; neighbours
+    outside the window count as off the mask, as on the window the reference is given."""
+    y = y0 + i
+    x = x0 + j
+    on, u0, u1, u2 = _curvature_unit(normal, position, mask, y, x)
+    count = 0.0
+    best = -np.inf
+    for axis in range(2):
+        di = np.int64(1 if axis == 0 else 0)
+        dj = np.int64(1) - di
+        ib, jb = i + di, j + dj
+        ia, ja = i - di, j - dj
+        ok_n = False
+        b0 = b1 = b2 = _ZERO
+        if ib < h and jb < w:
+            ok_n, b0, b1, b2 = _curvature_unit(normal, position, mask, y0 + ib, x0 + jb)
+        ok_p = False
+        a0 = a1 = a2 = _ZERO
+        if ia >= 0 and ja >= 0:
+            ok_p, a0, a1, a2 = _curvature_unit(normal, position, mask, y0 + ia, x0 + ja)
+        if not ok_n:
+            ib, jb, b0, b1, b2 = i, j, u0, u1, u2
+        if not ok_p:
+            ia, ja, a0, a1, a2 = i, j, u0, u1, u2
+        d0 = position[y0 + ib, x0 + jb, 0] - position[y0 + ia, x0 + ja, 0]
+        d1 = position[y0 + ib, x0 + jb, 1] - position[y0 + ia, x0 + ja, 1]
+        d2 = position[y0 + ib, x0 + jb, 2] - position[y0 + ia, x0 + ja, 2]
+        dd = d0 * d0 + d1 * d1 + d2 * d2
+        if on and (ok_n or ok_p) and dd > _ZERO:
+            e0 = b0 - a0
+            e1 = b1 - a1
+            e2 = b2 - a2
+            k = (e0 * d0 + e1 * d1 + e2 * d2) / dd
+            count += 1.0
+            best = max(best, np.float64(k))
+    v = count > 0.0
+    weight = 1.0 if v else 0.0
+    return weight, (best if v else 0.0) * weight
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def largest_out(planes, normal, position, mask, y0, x0, out):
-    """``smooth_curvature``'s largest curvature from ``box_planes``' sums of ``largest_pixels``'
-    planes: float32 on the pixels ``_curvature_unit`` finds on (0 elsewhere and where no valid
-    pixel is near)."""
-    h, w = out.shape
-    for i in prange(h):
+def largest_rows(normal, position, mask, y0, x0, h, w, a, b, carry, c_n, cums, out):
+    """Rows ``a``..``b`` - 1 of ``smooth_curvature``'s largest curvature (half-width 1) of
+    ``_largest_plane``'s planes on the window (``h``, ``w``) from frame row ``y0`` and column
+    ``x0``, into ``out`` (``b`` - ``a``, ``w``) float32: float32 on the pixels
+    ``_curvature_unit`` finds on (0 elsewhere and where no valid pixel is near), with
+    ``box_planes``' float64 sums (equal to the bit): along
+    the columns, each box sum is the difference of the running sums of the window's planes from
+    its first row, which ``carry`` (2, ``w``) float64 holds after its first ``c_n`` rows
+    (``c_n`` <= max(``a`` - 1, 0); 0 and zeros to begin) and then holds after its first
+    max(``b`` - 1, 0), the next rows' start. ``cums`` (2, at least min(``b`` + 1, ``h``) -
+    max(``a`` - 1, 0) + 1, ``w``) float64: the running sums the rows read."""
+    lo = max(a - 1, 0)
+    hi = min(b + 1, h)
+    keep = max(b - 1, 0)
+    n_col = (w + SPREAD_STRIP - 1) // SPREAD_STRIP
+    for item in prange(n_col):
+        xa = item * SPREAD_STRIP
+        xb = min(xa + SPREAD_STRIP, w)
+        for j in range(xa, xb):
+            if c_n >= lo:
+                cums[0, c_n - lo, j] = carry[0, j]
+                cums[1, c_n - lo, j] = carry[1, j]
+        s0 = np.empty(SPREAD_STRIP, np.float64)
+        s1 = np.empty(SPREAD_STRIP, np.float64)
+        for j in range(xa, xb):
+            s0[j - xa] = carry[0, j]
+            s1[j - xa] = carry[1, j]
+        for n in range(c_n, hi):
+            for j in range(xa, xb):
+                weight, value = _largest_plane(normal, position, mask, y0, x0, h, w, np.int64(n), np.int64(j))
+                s0[j - xa] = s0[j - xa] + weight
+                s1[j - xa] = s1[j - xa] + value
+                if n + 1 >= lo:
+                    cums[0, n + 1 - lo, j] = s0[j - xa]
+                    cums[1, n + 1 - lo, j] = s1[j - xa]
+        for j in range(xa, xb):
+            carry[0, j] = cums[0, keep - lo, j]
+            carry[1, j] = cums[1, keep - lo, j]
+    for row in prange(b - a):
+        i = a + row
+        top = max(i - 1, 0) - lo
+        bottom = min(i + 2, h) - lo
+        c0 = np.zeros(w + 1, np.float64)
+        c1 = np.zeros(w + 1, np.float64)
         for j in range(w):
-            near = planes[0, i, j]
+            c0[j + 1] = c0[j] + (cums[0, bottom, j] - cums[0, top, j])
+            c1[j + 1] = c1[j] + (cums[1, bottom, j] - cums[1, top, j])
+        for j in range(w):
+            near = c0[min(j + 2, w)] - c0[max(j - 1, 0)]
+            most = c1[min(j + 2, w)] - c1[max(j - 1, 0)]
             on, _, _, _ = _curvature_unit(normal, position, mask, y0 + i, x0 + j)
-            keep = on and near > 0.0
-            out[i, j] = f32(planes[1, i, j] / max(near, 1.0)) if keep else _ZERO
+            out[row, j] = f32(most / max(near, 1.0)) if on and near > 0.0 else _ZERO
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

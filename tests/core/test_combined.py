@@ -377,6 +377,11 @@ def test_compiled_light_from_behind_equals_the_reference_to_the_bit(method, came
         out = np.full(want.shape, 0.25, np.float32)
         back.add_to(out, d_su)
         assert np.array_equal(out, np.float32(0.25) + reference.transmitted(d_su), equal_nan=True)
+        # The last call, on a BackLight that holds nothing yet: its light computed band by band.
+        last = back_light(**kw)
+        out = np.full(want.shape, 0.25, np.float32)
+        last.add_to(out, d_su, (1.0, 0.5, 2.0), last=True)
+        assert np.array_equal(out, np.float32(0.25) + want, equal_nan=True)
 
 
 def _wide_spread_inputs(by_object: bool) -> dict:
@@ -415,6 +420,10 @@ def _compiled_equals_reference(kw: dict, lengths) -> None:
         want = reference.transmitted(d_su)
         assert np.array_equal(back.transmitted(d_su), want, equal_nan=True)
         assert np.nanmax(want[kw["mask"]]) > 0
+        # The last call, on a BackLight that holds nothing yet: its light computed band by band.
+        out = np.full(want.shape, 0.25, np.float32)
+        back_light(**kw).add_to(out, d_su, last=True)
+        assert np.array_equal(out, np.float32(0.25) + want, equal_nan=True)
 
 
 def test_compiled_pyramid_levels_equal_the_reference_to_the_bit(monkeypatch):
@@ -445,10 +454,12 @@ def test_compiled_spread_in_bands_of_rows_equals_the_reference_to_the_bit(monkey
     # sums from band to band: bands of 1 and 5 rows (far fewer than the 3 r rows a level's three
     # box sums reach ahead, r up to 8) give the reference's bits, with one part and with two
     # objects, at lengths whose widths reach only the full-resolution levels and past them (the
-    # pyramid's blocks of 2 and 4).
+    # pyramid's blocks of 2 and 4); the last ``add_to`` computes the light band by band as well.
     from sss_lab.core import _back_light
 
     monkeypatch.setattr(_back_light, "SPREAD_BAND", band_rows)
+    # The far side's curvature a few rows at a time too (its column sums carried from rows to rows).
+    monkeypatch.setattr(_back_light, "CURVATURE_ROWS", band_rows)
     for by_object in (True, False):
         _compiled_equals_reference(_wide_spread_inputs(by_object), ((0.02, 0.008, 0.004), (3.0, 1.0, 0.3)))
 
