@@ -665,26 +665,23 @@ class CompiledBackLight:
         self._transmit_cache = transmit
         mode_rest = 0
         owned = np.zeros(max(self.part_ids.size, 1), bool)
-        flat_need = 0
         plans: list = []
         if self.parted:
-            # The parts' widths: transmit_pixels on no light (only its rows of widths), and
-            # whether any pixel is lit.
+            # The parts' widths: transmit_pixels on no light (only its rows of widths). The
+            # reference spreads only where a pixel is lit; here also where none is (not known
+            # before the light is computed): then the light is 0 everywhere, and so is its spread
+            # (every level's blur and mask ratio of zeros is +0), as the reference's.
             n_parts = self.part_ids.size
             part_rows = np.empty((rh, n_parts, 17), np.float64)
             rows = _Rows(self, transmit)
-            lit = False
             for a in range(0, rh, SPREAD_BAND):
-                b = min(a + SPREAD_BAND, rh)
-                lit |= rows.widths(a, b, part_rows[a:b])
+                rows.widths(a, min(a + SPREAD_BAND, rh), part_rows[a : a + SPREAD_BAND])
             del rows
-            if lit:
-                for p in range(n_parts):
-                    q = self._part(part_rows, p)
-                    if q is not None:
-                        owned[p] = True
-                        plans.append((p, q))
-                        flat_need = max(flat_need, q.size)
+            for p in range(n_parts):
+                q = self._part(part_rows, p)
+                if q is not None:
+                    owned[p] = True
+                    plans.append((p, q))
             mode_rest = 2 if plans else 0
         one_part = self.ids is None
         for p, q in plans:
@@ -817,16 +814,10 @@ class _Rows:
         back._irradiance(largest, cy0, cx0, fy0, out, self.lit_rows[: b - a])
         back._transmit(self.transmit, largest, cy0, cx0, fy0, out, out, False, np.empty((1, 1, 17)))
 
-    def widths(self, a, b, part_rows) -> bool:
+    def widths(self, a, b, part_rows) -> None:
         """``transmit_pixels``' rows of widths of region rows ``a``..``b`` - 1 into ``part_rows``,
-        without their light (only the widths are computed); whether a pixel there is lit."""
+        without their light (on no irradiance only the widths are computed)."""
         back = self.back
         largest, cy0, cx0 = self._curvature(a, b, None)
-        rw = back._region[3] - back._region[2]
-        e = np.empty((b - a, rw, 3), np.float32)
-        lit_rows = np.empty(b - a, bool)
-        fy0 = back._region[0] + a
-        back._irradiance(largest, cy0, cx0, fy0, e, lit_rows)
-        e[:] = 0.0
-        back._transmit(self.transmit, largest, cy0, cx0, fy0, e, e, True, part_rows)
-        return bool(lit_rows.any())
+        e = np.zeros((b - a, back._region[3] - back._region[2], 3), np.float32)
+        back._transmit(self.transmit, largest, cy0, cx0, back._region[0] + a, e, e, True, part_rows)

@@ -2973,16 +2973,32 @@ def finish_rest(y0, rh, x0, rw, albedo, pre_post, walks, base, scale, scaled, ad
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _largest_plane(normal, position, mask, y0, x0, h, w, i, j):
+def _unit_row(normal, position, mask, y0, x0, w, n, xa, xb, ons, units):
+    """``_curvature_unit`` of window row ``n``'s columns ``xa`` - 1..``xb`` (within the window's
+    ``w``) into slot n mod 3 of ``ons`` and ``units`` (column j at j - ``xa`` + 1)."""
+    slot = n % 3
+    for j in range(max(xa - 1, 0), min(xb + 1, w)):
+        on, u0, u1, u2 = _curvature_unit(normal, position, mask, y0 + n, x0 + j)
+        ons[slot, j - xa + 1] = on
+        units[slot, j - xa + 1, 0] = u0
+        units[slot, j - xa + 1, 1] = u1
+        units[slot, j - xa + 1, 2] = u2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _plane_of_units(position, y0, x0, h, w, i, j, xa, ons, units):
     """``curvature_pixels``' largest curvature and validity at pixel (``i``, ``j``) of the window
-    (``h``, ``w``) from frame row ``y0`` and column ``x0`` (``mask``: the far side's pixels),
-    without its frames of unit normals and mean curvature: (1 where valid else 0, the largest
-    times that: ``smooth_curvature``'s planes). The same float32 and float64 operations in the
-    same order, the neighbours' unit normals computed again where they are read; neighbours
-    outside the window count as off the mask, as on the window the reference is given."""
-    y = y0 + i
-    x = x0 + j
-    on, u0, u1, u2 = _curvature_unit(normal, position, mask, y, x)
+    (``h``, ``w``) from frame row ``y0`` and column ``x0``, without its frames of unit normals and
+    mean curvature: (1 where valid else 0, the largest times that: ``smooth_curvature``'s planes).
+    The same float32 and float64 operations in the same order, the unit normals of rows i - 1..
+    i + 1 those ``_unit_row`` keeps; neighbours outside the window count as off the mask, as on
+    the window the reference is given."""
+    k = j - xa + 1
+    rs = i % 3
+    on = ons[rs, k]
+    u0 = units[rs, k, 0]
+    u1 = units[rs, k, 1]
+    u2 = units[rs, k, 2]
     count = 0.0
     best = -np.inf
     for axis in range(2):
@@ -2993,11 +3009,13 @@ def _largest_plane(normal, position, mask, y0, x0, h, w, i, j):
         ok_n = False
         b0 = b1 = b2 = _ZERO
         if ib < h and jb < w:
-            ok_n, b0, b1, b2 = _curvature_unit(normal, position, mask, y0 + ib, x0 + jb)
+            sb, kb = ib % 3, k + dj
+            ok_n, b0, b1, b2 = ons[sb, kb], units[sb, kb, 0], units[sb, kb, 1], units[sb, kb, 2]
         ok_p = False
         a0 = a1 = a2 = _ZERO
         if ia >= 0 and ja >= 0:
-            ok_p, a0, a1, a2 = _curvature_unit(normal, position, mask, y0 + ia, x0 + ja)
+            sa, ka = ia % 3, k - dj
+            ok_p, a0, a1, a2 = ons[sa, ka], units[sa, ka, 0], units[sa, ka, 1], units[sa, ka, 2]
         if not ok_n:
             ib, jb, b0, b1, b2 = i, j, u0, u1, u2
         if not ok_p:
@@ -3010,9 +3028,9 @@ def _largest_plane(normal, position, mask, y0, x0, h, w, i, j):
             e0 = b0 - a0
             e1 = b1 - a1
             e2 = b2 - a2
-            k = (e0 * d0 + e1 * d1 + e2 * d2) / dd
+            k2 = (e0 * d0 + e1 * d1 + e2 * d2) / dd
             count += 1.0
-            best = max(best, np.float64(k))
+            best = max(best, np.float64(k2))
     v = count > 0.0
     weight = 1.0 if v else 0.0
     return weight, (best if v else 0.0) * weight
@@ -3021,7 +3039,7 @@ def _largest_plane(normal, position, mask, y0, x0, h, w, i, j):
 @njit(cache=True, parallel=True, error_model="numpy")
 def largest_rows(normal, position, mask, y0, x0, h, w, a, b, carry, c_n, cums, out):
     """Rows ``a``..``b`` - 1 of ``smooth_curvature``'s largest curvature (half-width 1) of
-    ``_largest_plane``'s planes on the window (``h``, ``w``) from frame row ``y0`` and column
+    ``_plane_of_units``' planes on the window (``h``, ``w``) from frame row ``y0`` and column
     ``x0``, into ``out`` (``b`` - ``a``, ``w``) float32: float32 on the pixels
     ``_curvature_unit`` finds on (0 elsewhere and where no valid pixel is near), with
     ``box_planes``' float64 sums (equal to the bit): along
@@ -3046,9 +3064,16 @@ def largest_rows(normal, position, mask, y0, x0, h, w, a, b, carry, c_n, cums, o
         for j in range(xa, xb):
             s0[j - xa] = carry[0, j]
             s1[j - xa] = carry[1, j]
+        # The unit normals of three rows (by row mod 3) of the strip's columns and one either side.
+        ons = np.zeros((3, SPREAD_STRIP + 2), np.bool_)
+        units = np.zeros((3, SPREAD_STRIP + 2, 3), np.float32)
+        for n in range(max(c_n - 1, 0), min(c_n + 1, h)):
+            _unit_row(normal, position, mask, y0, x0, w, n, xa, xb, ons, units)
         for n in range(c_n, hi):
+            if n + 1 < h:
+                _unit_row(normal, position, mask, y0, x0, w, n + 1, xa, xb, ons, units)
             for j in range(xa, xb):
-                weight, value = _largest_plane(normal, position, mask, y0, x0, h, w, np.int64(n), np.int64(j))
+                weight, value = _plane_of_units(position, y0, x0, h, w, np.int64(n), np.int64(j), xa, ons, units)
                 s0[j - xa] = s0[j - xa] + weight
                 s1[j - xa] = s1[j - xa] + value
                 if n + 1 >= lo:
