@@ -10,8 +10,10 @@ from sss_lab.core.prepare import PrepareError, is_prepared, marker_path, prepare
 
 #: Kernels of every path a frame takes: each technique's, the energy stage's two ("object"
 #: without a bake distance, the slab's with one), the light from behind's at full resolution and
-#: on the spread's reduced levels (reached only by ``core.prepare.FAR``'s long lengths),
-#: ``core.apply``'s compositing, and ``apply --method auto``'s features (``core.auto``).
+#: on the spread's reduced levels (reached only by ``core.prepare.FAR``'s long lengths), band by
+#: band in the combined technique's call (``finish_band``) and whole in the fit's
+#: (``finish_light``), ``core.apply``'s compositing, and ``apply --method auto``'s features
+#: (``core.auto``).
 EXPECTED = {
     "composite",
     "sta_kernel",
@@ -28,6 +30,8 @@ EXPECTED = {
     "blur_reduced",
     "spread_reduced_part",
     "finish_light",
+    "finish_band",
+    "largest_rows",
     "index_box",
     "index_window",
     "block_means",
