@@ -18,7 +18,8 @@ bound of 0.
 The far side's largest curvature is computed a few rows at a time (``largest_rows``, its column
 sums carried from rows to rows). ``transmitted`` and ``add_to`` hold the irradiance and the
 curvature on the whole region, for the many lengths the fit tries; the last ``add_to``
-(``combined``'s) holds neither: it goes down the region in bands of rows and computes the light
+(``combined``'s) on a region of ``STREAM_FROM_PIXELS`` or more holds neither: it goes down the
+region in bands of rows and computes the light
 again where it is read (``CompiledBackLight._stream``: once for the parts' widths, once for the
 pyramid's blocks, once for the bands' running sums), each band's result added to the frame
 (``finish_band``), so that at 4K it holds the pyramid, a band's buffers and the running sums
@@ -261,6 +262,13 @@ def _width_ranges(stats: np.ndarray, fill: np.ndarray) -> np.ndarray:
 #: and results are held for a band of rows, not for the part.
 SPREAD_BAND = 128
 
+#: The region's size (pixels of the mask's bounding box) from which the last ``add_to`` streams
+#: its light (``_stream``) instead of holding it: below it the irradiance and the curvature held
+#: whole take at most 16 MB, and computing the light three times would cost more time than that
+#: memory is worth; from it the held arrays grow with the frame (133 MB at 4K, on top of the
+#: output frame), and streaming keeps the technique within its inputs and two frames.
+STREAM_FROM_PIXELS = 1 << 20
+
 
 def _bands(box, wide, radii, needed, n_full) -> list[tuple[int, int]]:
     """The bands (first row, last row + 1; region rows) ``spread_band`` goes down the part's rows
@@ -372,6 +380,12 @@ class CompiledBackLight:
         self._hold()
         return np.array(bool(self.lit_any))
 
+    def _streams(self) -> bool:
+        """Whether the region is large enough for the last ``add_to`` to stream its light."""
+        assert self.region is not None
+        y0, y1, x0, x1 = self.region
+        return (y1 - y0) * (x1 - x0) >= STREAM_FROM_PIXELS
+
     def _hold(self) -> None:
         """The far side's curvature and the irradiance from behind on the whole region (``e``)."""
         if self.e is not None or self.region is None:
@@ -457,7 +471,7 @@ class CompiledBackLight:
         base = np.asarray(medium.base_color, np.float32)
         finish = (albedo, self.pre_post, walks, base, weight, scale, bool(np.any(scale != 1)), add)
         transmit = self._transmit_arguments(kind, ell, grid, columns, nodes, spread_len)
-        if last and add and self.e is None and self.region is not None:
+        if last and add and self.e is None and self.region is not None and self._streams():
             self._stream(transmit, finish, out)
             return
         self._hold()

@@ -13,6 +13,18 @@ from sss_lab.core.profiles import burley_transmittance
 from sss_lab.core.scene import Camera, Light
 from sss_lab.core.transmittance import trapezoid
 
+
+@pytest.fixture(autouse=True)
+def _stream_every_region(monkeypatch):
+    """The compiled light from behind's last ``add_to`` streams its light on every region here,
+    as it does from ``STREAM_FROM_PIXELS`` on (4K frames), so that these small frames test that
+    path against the reference; below that size it holds the light whole, the path every other
+    module's combined calls take (``test_the_last_add_to_streams_from_a_region_size_on``)."""
+    from sss_lab.core import _back_light
+
+    monkeypatch.setattr(_back_light, "STREAM_FROM_PIXELS", 0)
+
+
 N = 24
 CAMERA = Camera(type="ORTHO", width_px=N, height_px=N, ortho_scale=1.0)  # looks down -Z from the origin
 D = (0.02, 0.008, 0.004)
@@ -424,6 +436,35 @@ def _compiled_equals_reference(kw: dict, lengths) -> None:
         out = np.full(want.shape, 0.25, np.float32)
         back_light(**kw).add_to(out, d_su, last=True)
         assert np.array_equal(out, np.float32(0.25) + want, equal_nan=True)
+
+
+def test_the_last_add_to_streams_from_a_region_size_on(monkeypatch):
+    """Below ``STREAM_FROM_PIXELS`` the last ``add_to`` holds the irradiance on the region (faster:
+    the light computed once); from it on it streams (the light computed where it is read, nothing
+    of the region's size held). Both add the reference's light to the bit."""
+    from sss_lab.core import _back_light, backend
+    from sss_lab.core.combined import back_light
+
+    kw = _wide_spread_inputs(True)
+    d_su = (0.02, 0.008, 0.004)
+    with backend.use("numpy"):
+        want = back_light(**kw).transmitted(d_su)
+    region = None
+    for threshold, holds in ((1 << 40, True), (0, False)):
+        monkeypatch.setattr(_back_light, "STREAM_FROM_PIXELS", threshold)
+        back = back_light(**kw)
+        if not isinstance(back, _back_light.CompiledBackLight):
+            pytest.skip("Numba cannot load here: both are the NumPy code")
+        out = np.full(want.shape, 0.25, np.float32)
+        back.add_to(out, d_su, last=True)
+        assert (back.e is not None) == holds
+        assert np.array_equal(out, np.float32(0.25) + want, equal_nan=True)
+        region = back.region
+    y0, y1, x0, x1 = region
+    monkeypatch.setattr(_back_light, "STREAM_FROM_PIXELS", (y1 - y0) * (x1 - x0))  # at the size: streams
+    back = back_light(**kw)
+    back.add_to(np.zeros(want.shape, np.float32), d_su, last=True)
+    assert back.e is None
 
 
 def test_compiled_pyramid_levels_equal_the_reference_to_the_bit(monkeypatch):
