@@ -104,7 +104,7 @@ from .errors import InputError
 from .exr import Passes
 from .fit_params import INFO, fitted
 from .mapping import burley_d, mean_free_path, technique_params
-from .plan import Plan, _index_map, plan, required_passes
+from .plan import _EXACT_FLOAT32, Plan, _index_map, plan, required_passes
 from .scene import MaterialSSS, SceneDescription
 from .techniques import TECHNIQUES, get_spec
 
@@ -349,24 +349,19 @@ def _kernel_or_reference(name: str, reference, kernel, fits: bool = True):
         return reference()
     result = kernel()
     if mode == "check":
-        expected = reference()
-        same = (expected is None) == (result is None)
-        if same and expected is not None:
-            pairs = zip(expected, result, strict=True) if isinstance(expected, tuple) else [(expected, result)]
-            same = all(_equal(a, b) for a, b in pairs)
-        if not same:
-            raise backend.BackendMismatch(f"{name}: compiled result differs from the NumPy reference")
+        _same_bits(name, reference(), result)
     return result
 
 
-def _equal(a, b) -> bool:
-    """Equal values (NaN where the other has NaN), shapes and dtypes; slices and tuples of them too."""
-    if isinstance(a, tuple):
-        return isinstance(b, tuple) and len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b, strict=True))
-    if isinstance(a, slice):
-        return a == b
-    a, b = np.asarray(a), np.asarray(b)
-    return a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
+def _same_bits(name: str, expected, result) -> None:
+    """``core.apply._bits_equal`` over arrays, and tuples of them, slices or None."""
+    if isinstance(expected, tuple) and isinstance(result, tuple) and len(expected) == len(result):
+        for a, b in zip(expected, result, strict=True):
+            _same_bits(name, a, b)
+    elif isinstance(expected, np.ndarray) and isinstance(result, np.ndarray):
+        core_apply._bits_equal(name, expected, result)
+    elif isinstance(expected, np.ndarray) or isinstance(result, np.ndarray) or expected != result:
+        raise backend.BackendMismatch(f"{name}: the compiled result differs from the NumPy code's")
 
 
 class _Shared:
@@ -375,7 +370,6 @@ class _Shared:
 
     def __init__(self, passes: Passes, scene: SceneDescription):
         self.raw_index = passes["Material Index"]
-        self._index: np.ndarray | None = None
         self._passes = passes
         self.combined = passes["Combined"][..., :3]
         self.albedo = passes["Diffuse Color"][..., :3]
@@ -394,13 +388,11 @@ class _Shared:
             self.normal = passes["Normal"]
             self.position = passes["Position"]
 
-    @property
+    @functools.cached_property
     def index(self) -> np.ndarray:
         """The Material Index map (``core.plan._index_map``), made at its first use: the compiled
         backend's window (``_window``) reads the pass without it."""
-        if self._index is None:
-            self._index = _index_map(self._passes)
-        return self._index
+        return _index_map(self._passes)
 
 
 def _block_means(a: np.ndarray, size: int) -> np.ndarray:
@@ -497,7 +489,7 @@ def _window(sh: _Shared, index: int) -> tuple[tuple[slice, slice], np.ndarray] |
         return win, mask
 
     # A float32 holds every index below 2^24 exactly (as ``core.plan`` compares them).
-    fits = sh.raw_index.dtype == np.float32 and sh.raw_index.ndim == 2 and 0 <= index < 1 << 24
+    fits = sh.raw_index.dtype == np.float32 and sh.raw_index.ndim == 2 and 0 <= index < _EXACT_FLOAT32
     fits = fits and sh.combined.ndim == 3 and sh.combined.shape[2] >= 3
     return _kernel_or_reference("auto window", reference, kernel, fits and sh.combined.dtype == np.float32)
 

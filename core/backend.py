@@ -172,16 +172,14 @@ def run_kernel(name: str, *args) -> None:
     import numba
 
     module = compiled()
-    kernel = getattr(module, name)
-    start = time.perf_counter()
     with numba.parallel_chunksize(module.CHUNKS.get(name, module.ROWS_PER_CHUNK)):
-        kernel(*args)
-    _compile_s.setdefault(name, time.perf_counter() - start)
+        run_serial(name, *args)
 
 
 def run_serial(name: str, *args):
-    """``run_kernel`` for a kernel without a parallel loop, returning what it returns: no chunk
-    size to set, which costs more than such a kernel's work on the small arrays it is for."""
+    """``core.compiled.<name>(*args)``, returning what it returns, timing its first call in this
+    process; without ``run_kernel``'s chunk size, which costs more than a kernel without a
+    parallel loop spends on the small arrays it is for."""
     kernel = getattr(compiled(), name)
     if name in _compile_s:
         return kernel(*args)
