@@ -32,6 +32,7 @@ shapes the reference would reject (it then raises its own error).
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -268,6 +269,20 @@ SPREAD_BAND = 128
 #: memory is worth; from it the held arrays grow with the frame (133 MB at 4K, on top of the
 #: output frame), and streaming keeps the technique within its inputs and two frames.
 STREAM_FROM_PIXELS = 1 << 20
+
+
+@contextlib.contextmanager
+def streaming_every_region():
+    """Within it, the last ``add_to`` streams on a region of any size: ``core.prepare`` compiles
+    that path on its small frame. The light added is the same to the bit either way (only the
+    time and the memory differ), so a call elsewhere meanwhile loses nothing."""
+    global STREAM_FROM_PIXELS
+    before = STREAM_FROM_PIXELS
+    STREAM_FROM_PIXELS = 0
+    try:
+        yield
+    finally:
+        STREAM_FROM_PIXELS = before
 
 
 def _bands(box, wide, radii, needed, n_full) -> list[tuple[int, int]]:

@@ -13,8 +13,9 @@ so that the cache holds what a frame needs; a later process loads each kernel fr
 fraction of a second. The frame is applied twice per technique: as built
 (no thickness bake distance: the energy stage's "object" path) and with a bake distance and long
 lengths (``FAR``), whose light from behind is spread far enough to use the spread's reduced
-levels. A frame whose inputs have other types (another integer type of Object Index, say) still
-compiles what it needs on first use.
+levels; the latter once more with the light from behind streamed as frames of 2^20 pixels and
+more have it (``core._back_light.STREAM_FROM_PIXELS``). A frame whose inputs have other types
+(another integer type of Object Index, say) still compiles what it needs on first use.
 
 The cache is keyed by the kernels' source (Numba checks the file's time stamp and size), so a
 new version of the extension, or the same one installed again, prepares again: ``marker_path``
@@ -88,6 +89,7 @@ def prepare_kernels(techniques=None, *, log=None) -> dict:
     Returns {"cache_dir", "seconds" (the whole), "kernels": {name: seconds of its first call in
     this process: compiling, or loading from the cache}}. ``log(line)`` is told each technique
     before it runs. Raises ``PrepareError`` where Numba cannot load."""
+    from ._back_light import streaming_every_region
     from .apply import apply
     from .exr import Passes
     from .synthetic import sphere_scene
@@ -112,6 +114,9 @@ def prepare_kernels(techniques=None, *, log=None) -> dict:
                 log(f"{name}: compiling or loading its kernels")
             for variant in (scene, far):
                 apply(passes, variant, name)
+            # Frames from ``core._back_light.STREAM_FROM_PIXELS`` on stream the light from behind.
+            with streaming_every_region():
+                apply(passes, far, name)
         if techniques is None:
             # ``apply --method auto`` measures each material before any technique runs.
             from .auto import features
