@@ -33,6 +33,7 @@ shapes the reference would reject (it then raises its own error).
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -114,6 +115,21 @@ class _Curvature:
                 out[c0 - a : c1 - a],
             )  # fmt: skip
             self.done = max(c1 - 1, 0)
+
+
+@functools.lru_cache(maxsize=32)
+def _passage_columns(alphas: tuple[float, ...], entries: tuple) -> np.ndarray:
+    """``passage_column`` of each channel's albedo ``alphas`` and each of ``entries``, float64
+    (channels, entries, ``TAUS``), kept for the media seen last, since every ``CompiledBackLight``
+    of a material reads the same (``core.auto``'s features build one per material and frame, and
+    these reads were a fifth of their light from behind on the blocks). Read-only: its callers
+    take a copy (a read-only array is another type to the kernels, compiled again)."""
+    columns = np.zeros((len(alphas), len(entries), TAUS.size), np.float64)
+    for c, alpha in enumerate(alphas):
+        for g, entry in enumerate(entries):
+            columns[c, g] = passage_column(alpha, entry)
+    columns.flags.writeable = False
+    return columns
 
 
 def _largest_curvature(mask, normal, position, box) -> np.ndarray:
@@ -467,10 +483,7 @@ class CompiledBackLight:
             # The tables depend on the medium, not on the length: read once per BackLight.
             columns = self.tables.get("columns")
             if columns is None:
-                columns = np.zeros((3, len(entries), TAUS.size), np.float64)
-                for c in range(3):
-                    for g, entry in enumerate(entries):
-                        columns[c, g] = passage_column(alpha[c], entry)
+                columns = _passage_columns(tuple(float(a) for a in alpha), tuple(entries)).copy()
                 self.tables["columns"] = columns
             nodes = TAUS
             kind = 1 if skin else 0

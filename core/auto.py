@@ -99,7 +99,7 @@ import numpy as np
 from . import _arrays, backend
 from . import apply as core_apply
 from .combined import medium_of, transmission, view_cosine
-from .energy import SLAB_ABOVE, entry_gain, slab_factors, unseen_irradiance
+from .energy import SLAB_ABOVE, _unseen_light, entry_gain, slab_factors
 from .errors import InputError
 from .exr import Passes
 from .fit_params import INFO, fitted
@@ -506,7 +506,11 @@ def _energy_change(material, scene, sh, at, keep, albedo, e, visible, base) -> f
     """V: the RMS change the scattering techniques' default energy (``core.energy.apply_energy``,
     "object") makes to the material's visible light, relative to the mean of ``base``: the entry's
     view dependence (each channel's total kept) times the finite object's light, computed as that
-    function does on the blocks (the view cosine from the Normal and Position passes)."""
+    function does on the blocks (the view cosine from the Normal and Position passes; the unseen
+    side's light by the energy stage's own ``_unseen_light``, a kernel on the compiled backend)."""
+    mean = float(np.mean(base[keep]))
+    if mean <= 0:
+        return 0.0
     normal, position = (at(a) for a in sh.normal_position)
     a = np.clip(albedo[keep], 0.0, 1.0).astype(np.float32)
     lit = visible[keep].astype(np.float32)
@@ -523,16 +527,19 @@ def _energy_change(material, scene, sh, at, keep, albedo, e, visible, base) -> f
         x = distance * np.sqrt(1.0 - tau)
         ell = np.maximum(np.asarray(mean_free_path(material), np.float64), 1e-30)
         f_above, f_below = slab_factors(material.method, a, x[:, None] / ell[None, :])
-        nrm, pos = normal[keep].astype(np.float64), position[keep].astype(np.float64)
-        ok = np.isfinite(nrm).all(axis=1) & np.isfinite(pos).all(axis=1) & (np.linalg.norm(nrm, axis=1) > 0)
-        if ok.any():
-            unseen = unseen_irradiance(
-                irradiance=e[keep][ok], normal=nrm[ok], position=pos[ok], camera=scene.camera, lights=scene.lights
-            )
+        unseen = _unseen_light(
+            keep,
+            diffuse=e,
+            albedo=albedo,
+            pre_post=False,
+            normal=normal,
+            position=position,
+            camera=scene.camera,
+            lights=scene.lights,
+            lamps=True,
+        )
+        if unseen is not None:
             out = lit * f_above + a * f_below * unseen.astype(np.float32)[None, :]
-    mean = float(np.mean(base[keep]))
-    if mean <= 0:
-        return 0.0
     change = (out * gain).astype(np.float64) - lit
     return float(np.sqrt(np.mean(np.square(change)))) / mean
 

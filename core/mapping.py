@@ -85,14 +85,18 @@ def _skin_factor(albedo, ior: float) -> np.ndarray:
 
 def mean_free_path(material: MaterialSSS) -> np.ndarray:
     """The per-channel length Cycles gives the material's subsurface method (scene units)."""
-    radius = np.asarray(material.radius, dtype=np.float64)
-    method = material.method
+    m = material
+    return _mean_free_path(m.method, np.asarray(m.radius, dtype=np.float64), m.base_color, m.subsurface_ior)
+
+
+def _mean_free_path(method: str, radius: np.ndarray, base_color, ior: float) -> np.ndarray:
+    """``mean_free_path`` of a material's method, radius (scene units), Base Color and IOR."""
     if method in ("BURLEY", "RANDOM_WALK_LEGACY"):
         return radius / (4.0 * math.pi)
     if method == "RANDOM_WALK":
         return radius
     if method == "RANDOM_WALK_SKIN":
-        return radius * skin_radius_factor(material.base_color, material.subsurface_ior)
+        return radius * skin_radius_factor(base_color, ior)
     raise ValueError(f"unknown subsurface method {method!r}; expected one of: {', '.join(SUBSURFACE_METHODS)}")
 
 
@@ -119,13 +123,22 @@ def mapping_name(method: str, mapping=None) -> str:
 
 def burley_d(material: MaterialSSS, *, mapping=None) -> tuple[float, float, float]:
     """Burley's d per channel (scene units) for the material under the chosen mapping."""
-    ell = mean_free_path(material)
     name = mapping_name(material.method, mapping)
+    m = material
+    key = (tuple(float(v) for v in m.radius), tuple(float(v) for v in m.base_color), float(m.subsurface_ior))
+    return _burley_d(m.method, name, *key)
+
+
+@functools.lru_cache(maxsize=1024)
+def _burley_d(method: str, name: str, radius: tuple, base_color: tuple, ior: float) -> tuple[float, float, float]:
+    """``burley_d`` of a material's values (every technique's parameters ask again for each
+    material and frame: ``core.auto`` reads them for each candidate)."""
+    ell = _mean_free_path(method, np.asarray(radius, dtype=np.float64), base_color, ior)
     if name == "none":
         d = ell
     else:
         assert name in ALBEDO_SCALINGS
-        d = ell / albedo_scaling(material.base_color, name)
+        d = ell / albedo_scaling(base_color, name)
     d = np.where(d < MIN_RADIUS, 0.0, d)
     r, g, b = (float(v) for v in d)
     return r, g, b
