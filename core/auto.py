@@ -886,7 +886,9 @@ def choose(
         if not material.scatters:
             auto.skipped_materials.append(f"material {name!r}: does not scatter light: left as it is")
             continue
-        f = features(passes, scene, material, _shared=shared)
+        # The features' kernels run on at most GRID x GRID blocks: one thread (backend.one_thread).
+        with backend.one_thread():
+            f = features(passes, scene, material, _shared=shared)
         if not f.pixels:
             auto.skipped_materials.append(f"material {name!r}: no pixel on screen: left as it is")
             continue

@@ -189,6 +189,30 @@ def run_serial(name: str, *args):
     return result
 
 
+@contextlib.contextmanager
+def one_thread():
+    """The compiled kernels on one thread within the block: for work made of many calls on small
+    arrays, where a second thread only adds the threads' hand-overs and spin-waits (a CPU cost
+    that the wall time hides). ``core/fit.py`` runs each technique a dozen times on one frame:
+    measured per call of SSSS / Burley on the synthetic spheres (``python -m
+    benchmarks.fit_threads``, CPU time, the shared 2-core machine under load), two threads -> one:
+    33 -> 7 / 52 -> 6 ms at 128 x 128, 54 -> 21 / 63 -> 21 ms at 256, 112 -> 82 / 133 -> 86 ms at
+    512, the wall time lower too; on a quiet machine two threads take about half the wall time at
+    1080p (README's speed table). ``core.auto``'s features read at most 64 x 64 blocks a
+    material."""
+    if active() == "numpy":
+        yield
+        return
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
 def tolerance(terms: int, magnitude: np.ndarray) -> np.ndarray:
     """Per-pixel bound on |compiled - reference| (float64, the shape of ``magnitude``).
 

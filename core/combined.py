@@ -187,7 +187,7 @@ def far_side(*, translucency, distance_su, normal, position, mask, camera=None, 
         return x, n
     s = np.clip(x[box] * k / 2.0, 0.0, 1.0)[..., None]
     nb = n[box]
-    unit = nb / np.maximum(np.linalg.norm(nb, axis=2, keepdims=True), np.float32(1e-20))
+    unit = nb / np.maximum(_arrays.vector_length(nb), np.float32(1e-20))
     v = camera.view_vectors(p[box])
     blend = n.astype(np.float32)
     blend[box] = np.where(mb[..., None], (1.0 - s) * np.nan_to_num(unit) + s * v, nb)
@@ -227,9 +227,10 @@ def medium_of(material) -> Medium:
 def view_cosine(normal, position, camera: Camera) -> np.ndarray:
     """|N . V| per pixel, float32 (H, W): the visible normal's cosine to the direction of the camera."""
     n = _arrays.image(normal, "normal")
-    nn = n / np.maximum(np.linalg.norm(n, axis=2, keepdims=True), np.float32(1e-20))
+    nn = n / np.maximum(_arrays.vector_length(n), np.float32(1e-20))
     v = camera.view_vectors(_arrays.image(position, "position"))
-    return np.abs(np.nan_to_num(np.sum(nn * v, axis=2))).astype(np.float32)
+    d = nn * v  # summed as np.sum along the last axis does, (x + y) + z, without its generic path
+    return np.abs(np.nan_to_num(d[..., 0] + d[..., 1] + d[..., 2])).astype(np.float32)
 
 
 def slab_transmittance_rgb(x_su, length_su, medium: Medium | None, *, view_cos=None) -> np.ndarray:

@@ -36,12 +36,11 @@ For each k (one technique run) and each f the problem is linear in (g, s): its n
 come from a few dot products per channel, so the whole grid costs little more than the
 technique runs. Each k runs only the technique's light transport (``_Diffusion``: its energy
 stage does not depend on d and is applied in closed form), with the compiled kernels on one
-thread (``_one_thread``).
+thread (``core.backend.one_thread``).
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import inspect
 import math
@@ -197,28 +196,6 @@ def _check_inputs(passes, scene: SceneDescription, reference, technique: str) ->
     return ref
 
 
-@contextlib.contextmanager
-def _one_thread():
-    """The compiled kernels on one thread while the fit runs. The fit's cost is its CPU time, and
-    it runs each technique a dozen times on one frame: a second thread only adds the threads'
-    hand-overs and spin-waits. Measured per call of SSSS / Burley on the synthetic spheres
-    (``python -m benchmarks.fit_threads``, CPU time, the shared 2-core machine under load), two
-    threads -> one: 33 -> 7 / 52 -> 6 ms at 128 x 128, 54 -> 21 / 63 -> 21 ms at 256, 112 -> 82 /
-    133 -> 86 ms at 512, the wall time lower too; on a quiet machine two threads take about half
-    the wall time at 1080p (README's speed table)."""
-    if backend.active() == "numpy":
-        yield
-        return
-    import numba
-
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(before)
-
-
 def block_folds(count: int, *, folds: int, seed: int) -> np.ndarray:
     """The fold (0 .. ``folds`` - 1) of each of ``count`` blocks (in row-major order of the
     material's blocks): a random permutation drawn with ``seed``, dealt out in turn, so that the
@@ -228,7 +205,7 @@ def block_folds(count: int, *, folds: int, seed: int) -> np.ndarray:
     return fold
 
 
-@_one_thread()
+@backend.one_thread()
 def fit_material(
     passes,
     scene: SceneDescription,

@@ -19,6 +19,8 @@ from dataclasses import MISSING, asdict, dataclass, field, fields
 
 import numpy as np
 
+from . import _arrays
+
 #: Version of the JSON layout; bump on any incompatible change.
 SCENE_DESCRIPTION_VERSION = 1
 
@@ -185,7 +187,7 @@ class Camera:
         if self.type == "ORTHO":
             return np.broadcast_to((-self.forward).astype(np.float32), p.shape).copy()
         v = self.position.astype(np.float32) - p
-        n = np.linalg.norm(v, axis=2, keepdims=True)
+        n = _arrays.vector_length(v)
         return (v / np.maximum(n, np.float32(1e-20))).astype(np.float32, copy=False)
 
 
