@@ -388,3 +388,36 @@ def test_energy_table_reads_and_curvature_match_the_reference_to_the_bit():
     normal[9, 9] = 0.1
     for radius in (1, 4):
         energy.surface_curvature(normal, position, passes["Material Index"] > 0, radius_px=radius)
+
+
+def test_vector_length_is_numpys_norm_to_the_bit():
+    # _arrays.vector_length stands in for np.linalg.norm(v, axis=-1, keepdims=True) in the view
+    # vectors and the view cosine: the same bits, NaN, infinities, zeros and overflow included.
+    from sss_lab.core import _arrays
+
+    rng = np.random.default_rng(3)
+    for shape in ((50, 37, 3), (7, 1, 3), (64, 3)):
+        scale = rng.choice(np.array([1e-20, 1e-3, 1.0, 1e3, 1e19], np.float32), size=shape)
+        v = (rng.standard_normal(shape) * scale).astype(np.float32)
+        v.reshape(-1, 3)[0] = (np.nan, 1.0, 2.0)
+        v.reshape(-1, 3)[1] = (np.inf, 0.0, 0.0)
+        v.reshape(-1, 3)[2] = 0.0
+        with np.errstate(over="ignore", invalid="ignore"):
+            expected = np.linalg.norm(v, axis=-1, keepdims=True)
+            got = _arrays.vector_length(v)
+        assert got.dtype == expected.dtype == np.float32
+        assert got.shape == expected.shape
+        assert got.tobytes() == expected.tobytes()
+
+
+def test_one_thread_holds_one_thread_and_restores_the_count():
+    import numba
+
+    before = numba.get_num_threads()
+    with backend.use("numba"):
+        with backend.one_thread():
+            assert numba.get_num_threads() == 1
+        assert numba.get_num_threads() == before
+        with pytest.raises(RuntimeError), backend.one_thread():
+            raise RuntimeError("the count is restored on the way out of an error too")
+        assert numba.get_num_threads() == before

@@ -87,6 +87,34 @@ def test_mapping_follows_each_methods_convention():
         assert key in mapping.technique_params(rw, technique)
 
 
+def test_burley_d_kept_per_material_follows_every_value_it_reads():
+    # burley_d is cached on the material's values: each one that changes d must change it, and a
+    # value asked again must give what was computed (the skin's IOR and colour, the scale, the
+    # mapping, the method).
+    skin = _mat("RANDOM_WALK_SKIN", subsurface_scale=0.01, subsurface_ior=1.4)
+    first = mapping.burley_d(skin)
+    assert mapping.burley_d(skin) == first
+    others = [
+        _mat("RANDOM_WALK_SKIN", subsurface_scale=0.01, subsurface_ior=1.3),
+        _mat("RANDOM_WALK_SKIN", subsurface_scale=0.02, subsurface_ior=1.4),
+        MaterialSSS(
+            index=1,
+            method="RANDOM_WALK_SKIN",
+            base_color=(0.5, 0.8, 0.8),
+            subsurface_radius=(1.0, 0.2, 0.1),
+            subsurface_scale=0.01,
+            subsurface_ior=1.4,
+        ),
+        _mat("RANDOM_WALK", subsurface_scale=0.01, subsurface_ior=1.4),
+    ]
+    for other in others:
+        assert mapping.burley_d(other) != first
+    assert mapping.burley_d(skin, mapping="none") != first
+    ell = mapping.mean_free_path(skin)
+    expected = ell / profiles.albedo_scaling(skin.base_color, mapping.mapping_name(skin.method))
+    assert mapping.burley_d(skin) == tuple(float(v) for v in expected)
+
+
 def test_mapping_rejects_unknown_names():
     with pytest.raises(ValueError, match="unknown mapping 'foo' for subsurface method RANDOM_WALK"):
         mapping.burley_d(_mat(), mapping="foo")

@@ -123,3 +123,22 @@ def test_disk_probes_far_side():
         assert ti == pytest.approx(bessel, rel=1e-2)
         assert ti > 0.25 * math.exp(-xi / d) + 0.75 * math.exp(-xi / (3 * d))
     assert tr.disk_transmittance_rgb(np.array([17 * d]), (d, d, d))[0, 0] == 0.0
+
+
+def test_passage_columns_kept_per_medium_are_the_columns_read_again():
+    # core._back_light keeps each medium's passage columns (an LRU); what it hands out must be
+    # the columns passage_column gives, and a caller's copy must not change what is kept.
+    from sss_lab.core._back_light import _passage_columns
+
+    alphas = (0.9, 0.99, 0.5)
+    entries = (tr.COSINE_ENTRY, 0.7, 1.0)
+    kept = _passage_columns(alphas, entries)
+    assert kept.shape == (3, 3, tr.TAUS.size)
+    for c, alpha in enumerate(alphas):
+        for g, entry in enumerate(entries):
+            assert np.array_equal(kept[c, g], tr.passage_column(alpha, entry))
+    copy = _passage_columns(alphas, entries).copy()
+    copy[:] = -1.0
+    assert np.array_equal(_passage_columns(alphas, entries), kept)
+    with pytest.raises(ValueError):
+        kept[0, 0, 0] = 2.0  # read-only: only copies leave the cache
