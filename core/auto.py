@@ -129,11 +129,15 @@ MAX_BOX = 64
 WIDE_PX = 32.0
 #: Blocks of the error measure (as ``compare`` and the fidelity suite: 2 x 2).
 BOX = 2
-#: Most blocks across a material's window the features are measured on (larger blocks beyond): as
-#: many as the fidelity suite's 128 px frames hold (64 blocks of 2 x 2), the grid the model's
-#: coefficients are learnt on, so that a material seen at a higher resolution is measured on no
-#: finer a grid than the one its error model knows (and its cost stays that of the suite's size).
-GRID = 64
+#: Most blocks across a material's window the features are measured on (larger blocks beyond), at
+#: every resolution, the fidelity suite's 128 px frames included, where the model's coefficients
+#: are learnt: a material seen at a higher resolution is measured on no finer a grid than the one
+#: its error model knows, and the features' cost stays that of the suite's size. 32: the features
+#: are statistics over the material, and most of their cost is per block (table reads, the light
+#: from behind); leave-one-scene-out with the fit (``benchmarks/auto.py --fit``), 64 -> 32 gave
+#: +6.0 -> +6.4 % mean regret (the runs' spread is about a point) and the choice 3.9 -> 2.9 ms a
+#: scene at 512 px (README).
+GRID = 32
 #: Estimated costs within this share of the cheapest count as equal, and the lower error decides
 #: between them: the measured seconds the costs come from vary by about this much from run to run
 #: on a loaded machine (SSSS and Burley cost the same to within 3 % over the fidelity suite, and
@@ -401,7 +405,7 @@ def _block_means(a: np.ndarray, size: int) -> np.ndarray:
     ``BOX`` x ``BOX`` equal parts (``_sample_offsets``), float32, NaN and +-Inf read as 0 (as
     ``core.apply._clean`` reads them).
 
-    With blocks of ``BOX`` (the suite's size) these are the blocks of the error measure
+    With blocks of ``BOX`` (a window of at most ``BOX`` x ``GRID`` pixels) these are the blocks of the error measure
     (``core.metrics.box_downsample``), every pixel read. Larger blocks (a window wider than
     ``GRID`` blocks) are represented by those ``BOX`` x ``BOX`` pixels: the features are
     statistics over at most ``GRID`` x ``GRID`` blocks, their inputs hold the same noise per value
@@ -567,7 +571,8 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
     keep, step = mask, 1
     # Blocks of 2 x 2 pixels, larger on a large window so that a material is measured on at most
     # about GRID x GRID blocks: the features are statistics, and their cost stays bounded at any
-    # resolution (at 128 px, the fidelity suite's size, the blocks are those of the error measure).
+    # resolution (at 128 px, the fidelity suite's size, a window of up to 64 px is measured on the
+    # blocks of the error measure, a wider one on 4 x 4 blocks).
     size = BOX * max(1, math.ceil(max(mask.shape) / (BOX * GRID)))
     if min(mask.shape) >= size:
         blocks = _block_inside(mask, size)

@@ -198,7 +198,7 @@ def one_thread():
     benchmarks.fit_threads``, CPU time, the shared 2-core machine under load), two threads -> one:
     33 -> 7 / 52 -> 6 ms at 128 x 128, 54 -> 21 / 63 -> 21 ms at 256, 112 -> 82 / 133 -> 86 ms at
     512, the wall time lower too; on a quiet machine two threads take about half the wall time at
-    1080p (README's speed table). ``core.auto``'s features read at most 64 x 64 blocks a
+    1080p (README's speed table). ``core.auto``'s features read at most 32 x 32 blocks a
     material."""
     if active() == "numpy":
         yield

@@ -3138,7 +3138,7 @@ def composite(result, gain, albedo, diffuse, held, zeroed, mask, image, sss, ove
 
 
 # --- auto's features (core/auto.py) ---------------------------------------------------------------
-# Not parallel: ``auto`` measures a material on at most 64 x 64 blocks, a few microseconds of work
+# Not parallel: ``auto`` measures a material on at most 32 x 32 blocks, a few microseconds of work
 # per call, less than a parallel launch costs. Each computes the NumPy code's operations in its
 # order (``core.auto``: ``_block_means``, ``_blurred``, the material's window in ``features``), so
 # the features are the reference's to the bit; in check mode each call is compared with it.
