@@ -548,6 +548,7 @@ def _energy_change(material, scene, sh, at, keep, albedo, e, visible, base) -> f
     return float(np.sqrt(np.mean(np.square(change)))) / mean
 
 
+@backend.one_thread()  # its kernels read at most GRID x GRID blocks: a second thread only waits
 def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, _shared=None) -> Features:
     """The features of ``material`` on ``passes`` (module docstring); pure NumPy, no technique run.
 
@@ -891,9 +892,7 @@ def choose(
         if not material.scatters:
             auto.skipped_materials.append(f"material {name!r}: does not scatter light: left as it is")
             continue
-        # The features' kernels run on at most GRID x GRID blocks: one thread (backend.one_thread).
-        with backend.one_thread():
-            f = features(passes, scene, material, _shared=shared)
+        f = features(passes, scene, material, _shared=shared)
         if not f.pixels:
             auto.skipped_materials.append(f"material {name!r}: no pixel on screen: left as it is")
             continue

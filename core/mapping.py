@@ -123,10 +123,9 @@ def mapping_name(method: str, mapping=None) -> str:
 
 def burley_d(material: MaterialSSS, *, mapping=None) -> tuple[float, float, float]:
     """Burley's d per channel (scene units) for the material under the chosen mapping."""
-    name = mapping_name(material.method, mapping)
     m = material
-    key = (tuple(float(v) for v in m.radius), tuple(float(v) for v in m.base_color), float(m.subsurface_ior))
-    return _burley_d(m.method, name, *key)
+    radius, color = tuple(float(v) for v in m.radius), tuple(float(v) for v in m.base_color)
+    return _burley_d(m.method, mapping_name(m.method, mapping), radius, color, float(m.subsurface_ior))
 
 
 @functools.lru_cache(maxsize=1024)

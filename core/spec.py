@@ -148,10 +148,9 @@ def profile_footprint(samples_param: str) -> Callable[[Mapping[str, Any]], Footp
     def footprint(params: Mapping[str, Any]) -> Footprint:
         d = params.get("d_su")
         radius = None
-        if isinstance(d, tuple) and len(d) == 3:  # a material's (technique_params'), read as it is
-            radius = tuple(float(v) * TRUNCATION for v in d)
-        elif d is not None:
-            d3 = np.broadcast_to(np.asarray(d, dtype=np.float64), (3,))
+        if d is not None:
+            # A material's d (technique_params': a tuple of three) is read as it is, without NumPy.
+            d3 = d if isinstance(d, tuple) and len(d) == 3 else np.broadcast_to(np.asarray(d, np.float64), (3,))
             radius = tuple(float(v) * TRUNCATION for v in d3)
         samples = params.get(samples_param)
         return Footprint(radius_su=radius, samples=None if samples is None else int(samples))
