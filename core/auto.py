@@ -538,7 +538,6 @@ def _energy_change(material, scene, sh, at, keep, albedo, e, visible, base) -> f
             pre_post=False,
             normal=normal,
             position=position,
-            camera=scene.camera,
             lights=scene.lights,
             lamps=True,
         )

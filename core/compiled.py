@@ -1681,17 +1681,14 @@ def _lamp_cosine(lights, k, nx, ny, nz, px, py, pz):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def unseen_sums(
-    normal, position, diffuse, albedo, pre_post, mask, lights, cam, ortho, lamps, count, light, seen, unseen
-):
+def unseen_sums(normal, position, diffuse, albedo, pre_post, mask, lights, lamps, count, light, seen, unseen):
     """Per row of ``mask``, the sums ``core.energy.unseen_irradiance`` takes the means of over the
     pixels whose ``normal`` and ``position`` (H, W, 3 float32) are finite and whose normal is
     longer than 0: their number into ``count`` (H,), their light (``diffuse``, over the albedo at
     least 1e-6 with ``pre_post``) into ``light`` (H, 3), and per light k of ``lights``
     (``light_table``) the unshadowed irradiance over pi on the unit normal into ``seen`` (H, L)
-    and, with ``lamps``, on the normal mirrored across the view direction into ``unseen``
-    (H, L); ``cam`` is the camera's position (float32; with ``ortho`` the direction towards the
-    camera). Each pixel's terms are the reference's float64 and float32 operations in its order;
+    and, with ``lamps``, on the reversed normal (the opposite surface) into ``unseen`` (H, L).
+    Each pixel's terms are the reference's float64 and float32 operations in its order;
     the sums run along the row (the reference sums every pixel at once, pairwise)."""
     h, w = mask.shape
     n_lights = lights.shape[0]
@@ -1739,33 +1736,8 @@ def unseen_sums(
                 seen[y, k] += _lamp_cosine(lights, k, nx, ny, nz, px, py, pz)
             if not lamps:
                 continue
-            if ortho:
-                vx = cam[0]
-                vy = cam[1]
-                vz = cam[2]
-            else:
-                vx = cam[0] - px
-                vy = cam[1] - py
-                vz = cam[2] - pz
-                vn = vx * vx
-                vn += vy * vy
-                vn += vz * vz
-                vn = math.sqrt(vn)
-                vn = vn if vn > f32(1e-20) else f32(1e-20)
-                vx = vx / vn
-                vy = vy / vn
-                vz = vz / vn
-            v0 = np.float64(vx)
-            v1 = np.float64(vy)
-            v2 = np.float64(vz)
-            d = nx * v0 + ny * v1
-            d += nz * v2
-            d2 = 2.0 * d
-            mx = nx - d2 * v0
-            my = ny - d2 * v1
-            mz = nz - d2 * v2
             for k in range(n_lights):
-                unseen[y, k] += _lamp_cosine(lights, k, mx, my, mz, px, py, pz)
+                unseen[y, k] += _lamp_cosine(lights, k, -nx, -ny, -nz, px, py, pz)
         count[y] = n_ok
         light[y, 0] = s0
         light[y, 1] = s1

@@ -30,9 +30,9 @@ three reasons this module models (docs/references.md §15, §17), each from cano
    And light that enters the far side comes through: ``SLAB_BELOW`` of the irradiance there,
    both per albedo and thickness in mean free paths, measured on slabs. The irradiance of the
    surfaces the camera does not see (``unseen_irradiance``) is estimated once per material: each
-   lamp's irradiance on the visible normals mirrored through the view plane (the back of a convex
-   object), unshadowed, plus the visible light that the lamps do not explain (a world or bounce
-   light, taken to reach the unseen side alike).
+   lamp's irradiance on the visible normals reversed (the opposite surface of an object symmetric
+   about its centre), unshadowed, plus the visible light that the lamps do not explain (a world
+   or bounce light, taken to reach the unseen side alike).
 
 The diffusion techniques' ``energy`` parameter chooses. "object" (their default), with the Normal
 and Position passes (rendered with the combined technique's passes): the entry's gain as
@@ -580,25 +580,30 @@ def mean_lamp_irradiance(lights, normal, position) -> np.ndarray:
     return out
 
 
-def unseen_irradiance(*, irradiance, normal, position, camera: Camera, lights, lamps: bool = True) -> np.ndarray:
+def unseen_irradiance(*, irradiance, normal, position, lights, lamps: bool = True) -> np.ndarray:
     """The mean irradiance (3,) of the surfaces of an object the camera does not see, from its
     visible pixels' measured ``irradiance`` (N, 3, Diffuse Direct + Indirect), world-space
     ``normal`` and ``position`` (N, 3): each lamp's unshadowed irradiance on the visible normals
-    mirrored through the plane across the view direction (n - 2 (n . v) v: the back of a convex
-    object, the far side of a slab), averaged, plus the visible light the lamps do not explain
-    (the mean measured irradiance less the mean unshadowed lamp irradiance, at least 0: a world
-    or bounce light, taken to reach the unseen side as much). ``lamps`` False leaves the lamps
-    out (the combined technique adds their light from behind itself)."""
+    reversed (-n: the opposite surface, docs/references.md §15), averaged, plus the visible light
+    the lamps do not explain (the mean measured irradiance less the mean unshadowed lamp
+    irradiance, at least 0: a world or bounce light, taken to reach the unseen side as much).
+    ``lamps`` False leaves the lamps out (the combined technique adds their light from behind
+    itself).
+
+    Why reversed: a convex object symmetric about its centre (a sphere, a box, a slab, a cylinder,
+    an ellipsoid) has opposite every visible surface element one the camera does not see, of the
+    same area, normal -n and the same |n . v|, so the visible pixels, reversed, sample its unseen
+    surface as they sample the seen one. (Mirroring them across the view direction instead, n -
+    2 (n . v) v, gives the same mean on a sphere but invents faces on a box: the top face seen
+    from above-front becomes a back face tilted up, lit by a lamp above.)"""
     n = np.asarray(normal, np.float64)
     n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
     pos = np.asarray(position, np.float64)
-    v = camera.view_vectors(pos[None, :, :].astype(np.float32))[0].astype(np.float64)
     visible = mean_lamp_irradiance(lights, n, pos)
     other = np.maximum(np.asarray(irradiance, np.float64).mean(axis=0) - visible, 0.0)
     if not lamps:
         return other
-    mirrored = n - 2.0 * (n * v).sum(axis=1, keepdims=True) * v
-    return mean_lamp_irradiance(lights, mirrored, pos) + other
+    return mean_lamp_irradiance(lights, -n, pos) + other
 
 
 def _float_frame(a) -> np.ndarray:
@@ -607,7 +612,7 @@ def _float_frame(a) -> np.ndarray:
     return np.ascontiguousarray(a if a.dtype in (np.float32, np.float64) else a.astype(np.float64))
 
 
-def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, camera: Camera, lights, lamps):
+def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, lights, lamps):
     """``apply_energy``'s light of the surfaces the camera does not see: ``unseen_irradiance`` of
     the pixels of ``mask`` whose normal and position are finite and whose normal is longer than 0
     (their light ``diffuse``, over the albedo with ``pre_post``), float64 (3,), or None without
@@ -628,9 +633,7 @@ def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, camera: 
         ok = np.isfinite(nrm).all(axis=1) & np.isfinite(pos).all(axis=1) & (np.linalg.norm(nrm, axis=1) > 0)
         if not ok.any():
             return None, 0.0
-        got = unseen_irradiance(
-            irradiance=e[ok], normal=nrm[ok], position=pos[ok], camera=camera, lights=lights, lamps=lamps
-        )
+        got = unseen_irradiance(irradiance=e[ok], normal=nrm[ok], position=pos[ok], lights=lights, lamps=lamps)
         return got, np.abs(e[ok].astype(np.float64)).mean(axis=0)
 
     if mode == "numpy":
@@ -641,10 +644,8 @@ def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, camera: 
     table = light_table(active)
     m = np.ascontiguousarray(mask, dtype=bool)
     h = m.shape[0]
-    ortho = camera.type == "ORTHO"
-    cam = ((-camera.forward) if ortho else camera.position).astype(np.float32)
     count, light = np.zeros(h, np.int64), np.zeros((h, 3), np.float64)
-    seen, mirrored = np.zeros((h, len(active)), np.float64), np.zeros((h, len(active)), np.float64)
+    seen, behind = np.zeros((h, len(active)), np.float64), np.zeros((h, len(active)), np.float64)
     diffuse32 = np.ascontiguousarray(diffuse, np.float32)
     albedo32 = np.ascontiguousarray(albedo, np.float32) if pre_post else diffuse32
     args = (
@@ -655,11 +656,9 @@ def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, camera: 
         bool(pre_post),
         m,
         table,
-        cam,
-        ortho,
         bool(lamps),
     )
-    backend.run_kernel("unseen_sums", *args, count, light, seen, mirrored)
+    backend.run_kernel("unseen_sums", *args, count, light, seen, behind)
     n = int(count.sum())
     if n == 0:
         result = None
@@ -673,7 +672,7 @@ def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, camera: 
             return out
 
         other = np.maximum(light.sum(axis=0) / n - mean_lamps(seen.sum(axis=0)), 0.0)
-        result = mean_lamps(mirrored.sum(axis=0)) + other if lamps else other
+        result = mean_lamps(behind.sum(axis=0)) + other if lamps else other
     if mode == "check":
         expected, magnitude = reference()
         if (expected is None) != (result is None):
@@ -681,7 +680,7 @@ def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, camera: 
         if result is not None:
             lamp = np.zeros(3)
             if colors:  # the lamps' terms are >= 0: the magnitude of their sums is their sums'
-                lamp = (np.abs(seen.sum(axis=0)) + np.abs(mirrored.sum(axis=0))) @ np.abs(np.stack(colors)) / n
+                lamp = (np.abs(seen.sum(axis=0)) + np.abs(behind.sum(axis=0))) @ np.abs(np.stack(colors)) / n
             backend.compare("unseen_light", expected, result, (2.0 * n + 8.0) * _U64 * (magnitude + lamp))
     return result
 
@@ -872,7 +871,6 @@ def apply_energy(
             pre_post=albedo_mode == "pre-post",
             normal=normal,
             position=position,
-            camera=camera,
             lights=lights,
             lamps=lamps_behind,
         )
