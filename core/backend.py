@@ -102,6 +102,17 @@ def cache_dir() -> str:
     return _state["cache_dir"] or os.environ.get("NUMBA_CACHE_DIR") or user_cache_dir()
 
 
+def kernel_cache_dir() -> str:
+    """The folder of ``cache_dir`` the compiled kernels are cached in: one per name the package is
+    imported under. Numba keys a cache entry by the source file's path, but the entry refers to
+    the kernels' module by its name: the same files imported as ``sss_lab`` (a script, a farm
+    node) and as ``bl_ext.user_default.sss_lab`` (the extension in Blender) with one cache folder
+    (a shared ``NUMBA_CACHE_DIR``) would load each other's entries, and the process in which the
+    other name cannot be imported fails with ModuleNotFoundError on its first kernel call."""
+    package = __name__.rsplit(".", 1)[0]  # e.g. sss_lab.core
+    return os.path.join(cache_dir(), "".join(c if c.isalnum() or c in "._-" else "_" for c in package))
+
+
 def _wide_vectors(numba) -> None:
     """Let LLVM vectorize with 512-bit registers on CPUs with AVX-512, where its default tuning
     stops at 256 bits: the kernels' loops over samples and taps then take half the
@@ -131,7 +142,7 @@ def compiled():
             try:
                 import numba
 
-                path = cache_dir()
+                path = kernel_cache_dir()
                 os.makedirs(path, exist_ok=True)
                 # Numba picks a function's cache folder when it is decorated: point it at ours
                 # for the import of our kernels only, leaving other users of Numba as they were.

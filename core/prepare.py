@@ -70,7 +70,7 @@ def _digest() -> str:
 
 def marker_path() -> str:
     """The file in the cache folder that says this version's kernels were prepared there."""
-    return os.path.join(backend.cache_dir(), f"prepared-{_digest()}.json")
+    return os.path.join(backend.kernel_cache_dir(), f"prepared-{_digest()}.json")
 
 
 def is_prepared() -> bool:
@@ -130,5 +130,6 @@ def prepare_kernels(techniques=None, *, log=None) -> dict:
     kernels = {k: v for k, v in backend.first_call_seconds().items() if k not in before and k != "import"}
     result = {"cache_dir": backend.cache_dir(), "seconds": seconds, "kernels": kernels}
     if techniques is None:
+        os.makedirs(os.path.dirname(marker_path()), exist_ok=True)
         _files.write_text(marker_path(), json.dumps({"seconds": round(seconds, 3), "kernels": sorted(kernels)}))
     return result

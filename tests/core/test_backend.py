@@ -2,6 +2,7 @@
 really compares, Numba's absence falls back to NumPy with one line, the cache is outside the
 package, and the kernels keep the reference's results on the benchmark's scene."""
 
+import math
 import os
 import subprocess
 import sys
@@ -123,6 +124,43 @@ def test_the_cache_is_written_outside_the_package(tmp_path):
         n for _, _, files in os.walk(os.path.join(ROOT, "core")) for n in files if n.endswith((".nbi", ".nbc"))
     ]
     assert in_package == []
+
+
+def test_one_cache_folder_serves_the_package_under_two_names(tmp_path):
+    # The same files imported as ``sss_x`` and as ``pkgs.sss_x`` (a script and the extension in
+    # Blender, ``bl_ext.<repo>.sss_lab``) with one cache folder: Numba keys its entries by the
+    # file's path, but they refer to the module by name. The second process, where the first
+    # name cannot be imported, must compile its own rather than load the first one's.
+    pkgs = tmp_path / "pkgs"
+    pkgs.mkdir()
+    os.symlink(ROOT, pkgs / "sss_x", target_is_directory=True)
+    cache = tmp_path / "cache"
+    code = (
+        "import sys\n"
+        "class Block:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name.split('.')[0] in sys.argv[3].split(','):\n"
+        "            raise ModuleNotFoundError(f'{name} may not be imported here')\n"
+        "sys.meta_path.insert(0, Block())\n"
+        "sys.path.insert(0, sys.argv[1])\n"
+        "import importlib\n"
+        "backend = importlib.import_module(sys.argv[2] + '.core.backend')\n"
+        f"backend.set_cache_dir({str(cache)!r})\n"
+        "module = backend.compiled()\n"
+        "assert module is not None, backend.unavailable_reason()\n"
+        "import numpy as np\n"
+        "print(module.__name__, float(module._exp(np.float32(-0.5))), backend.kernel_cache_dir())\n"
+    )
+    runs = [(str(pkgs), "sss_x", "sss_lab,pkgs"), (str(tmp_path), "pkgs.sss_x", "sss_lab,sss_x")]
+    folders = []
+    for path, name, blocked in runs:
+        proc = subprocess.run([sys.executable, "-c", code, path, name, blocked], capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        module, value, folder = proc.stdout.split()
+        # _exp is within 1 unit in the last place of float32 (its docstring): 2^-23 relative.
+        assert module == name + ".core.compiled" and float(value) == pytest.approx(math.exp(-0.5), rel=2.0**-23)
+        folders.append(folder)
+    assert folders[0] != folders[1] and all(os.path.dirname(f) == str(cache) for f in folders)
 
 
 def test_unknown_backend_names_the_value(monkeypatch):

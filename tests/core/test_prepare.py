@@ -59,7 +59,8 @@ def test_prepare_runs_every_kernel_a_frame_needs_and_marks_the_cache(monkeypatch
     # What it reports is what this process called first (earlier tests may have called the rest).
     assert set(result["kernels"]) <= called and "import" not in result["kernels"]
     assert result["cache_dir"] == str(tmp_path / "all") and result["seconds"] > 0
-    assert is_prepared() and os.path.dirname(marker_path()) == str(tmp_path / "all")
+    assert is_prepared() and os.path.dirname(marker_path()) == backend.kernel_cache_dir()
+    assert os.path.dirname(backend.kernel_cache_dir()) == str(tmp_path / "all")
 
 
 def test_the_command_line_prepares_and_names_a_bad_method(capsys):
