@@ -755,9 +755,10 @@ def view_cosine(depth, mask, camera: Camera, *, origin=(0, 0), frame=None) -> np
 
     dx, okx = diff(1)
     dy, oky = diff(0)
-    n = np.cross(dx, dy)
     v = -p if camera.type != "ORTHO" else np.broadcast_to(np.array([0.0, 0.0, 1.0]), p.shape)
+    # Pixels without a finite depth or neighbour give inf and NaN here; ``ok`` leaves them out.
     with np.errstate(invalid="ignore", divide="ignore"):
+        n = np.cross(dx, dy)
         cos = np.abs((n * v).sum(-1)) / (np.linalg.norm(n, axis=-1) * np.linalg.norm(v, axis=-1))
     ok = m & okx & oky & np.isfinite(cos)
     return np.where(ok, np.clip(cos, 0.0, 1.0), 1.0).astype(np.float32)
