@@ -158,8 +158,7 @@ def fit_scale(x: np.ndarray, m: np.ndarray, d: float, ks=None) -> dict:
     i = int(np.argmin(errs))
     lo, hi = ks[max(i - 1, 0)], ks[min(i + 1, len(ks) - 1)]
     fine = np.exp(np.linspace(math.log(lo), math.log(hi), 21))
-    errs = [solve(k)[0] for k in fine]
-    k = float(fine[int(np.argmin(errs))])
+    k = float(min(fine, key=lambda v: solve(v)[0]))
     _, c, q = solve(k)
     return {"k": k, "c": c, "q": q}
 
@@ -176,7 +175,7 @@ def _shadow_mm(x: np.ndarray, y: np.ndarray) -> float:
 def measure(method: str, colors, *, samples: int, seed: int) -> list[dict]:
     from benchmarks.energy import _render
     from sss_lab.core.mapping import MAPPINGS
-    from sss_lab.core.profiles import albedo_scaling
+    from sss_lab.core.profiles import d_from_mean_free_path
 
     start = time.perf_counter()
     x, m = edge_profile(_render(build(method, colors, weight=1.0), samples, seed))
@@ -184,16 +183,16 @@ def measure(method: str, colors, *, samples: int, seed: int) -> list[dict]:
     mapping = MAPPINGS[method][0]
     rows = []
     for c, a in enumerate(colors):
-        d = MFP / float(albedo_scaling(np.array([a]), mapping)[0])
+        d = float(d_from_mean_free_path(MFP, a, mapping))
         fit = fit_scale(x, m[:, c], d)
         level = fit["c"]
         shape = m[:, c] / level
         q1 = burley_edge(x, d)
         # The Lambert step's 10-90 % width, in pixels: how sharp the imaged edge is.
-        lam_n = lam[:, c] / max(float(np.median(lam[x > HALF_WIDTH / 2, c])), 1e-30)
-        px = 2 * HALF_WIDTH / RESOLUTION[0]
+        lam_level = max(float(np.median(lam[x > HALF_WIDTH / 2, c])), 1e-30)
+        lam_n = lam[:, c] / lam_level
         width = float(np.sum((lam_n > 0.1) & (lam_n < 0.9)))
-        probes = {f"{r:g}d": None for r in (-4, -2, -1, -0.5, 0.5, 1, 2)}
+        probes = {}
         for r in (-4, -2, -1, -0.5, 0.5, 1, 2):
             j = int(np.argmin(np.abs(x - r * d)))
             probes[f"{r:g}d"] = {
@@ -208,7 +207,7 @@ def measure(method: str, colors, *, samples: int, seed: int) -> list[dict]:
                 "mapping": mapping,
                 "d_mm": round(d * 1000, 3),
                 "k": round(fit["k"], 3),
-                "level_over_lambert": round(level / max(float(np.median(lam[x > HALF_WIDTH / 2, c])), 1e-30), 4),
+                "level_over_lambert": round(level / lam_level, 4),
                 "shadow_mm": {
                     "measured": round(_shadow_mm(x, shape), 3),
                     "burley_k1": round(_shadow_mm(x, q1), 3),
@@ -220,7 +219,7 @@ def measure(method: str, colors, *, samples: int, seed: int) -> list[dict]:
                 },
                 "at": probes,
                 "lambert_edge_px": width,
-                "pixel_mm": round(px * 1000, 4),
+                "pixel_mm": round(2 * HALF_WIDTH / RESOLUTION[0] * 1000, 4),
             }
         )
     for r in rows:
