@@ -16,7 +16,8 @@ three reasons this module models (docs/references.md §15, §17), each from cano
    the pixel (through the refraction), not of where the light comes from (the exit is
    Lambertian, as for the passes). Christensen-Burley returns exactly the Lambert light.
    ``entry_gain`` interpolates it per pixel and channel (bilinear in the albedo and the view
-   cosine, which ``view_cosine`` reconstructs from the Depth pass).
+   cosine: ``normal_view_cosine`` reads it from the Normal pass where that is rendered, else
+   ``view_cosine`` reconstructs it from the Depth pass).
 2. **A convex surface** (``convex_gain``). Where the surface curves away from a walk it leaves
    sooner and is absorbed less: spheres of radius R return more light than a flat surface, by
    ``CONVEX`` (per albedo and R in mean free paths; +3-4 % at 32, +7-9 % at 16, +10-18 % at 8 for a
@@ -764,6 +765,63 @@ def view_cosine(depth, mask, camera: Camera, *, origin=(0, 0), frame=None) -> np
     return np.where(ok, np.clip(cos, 0.0, 1.0), 1.0).astype(np.float32)
 
 
+def normal_view_cosine(normal, mask, camera: Camera, *, origin=(0, 0), frame=None) -> tuple[np.ndarray, np.ndarray]:
+    """(|cos| of the angle between the Normal pass's normal and the pixel's ray to the camera,
+    float32 (H, W); where it is known, bool (H, W)) on a window of the frame (``origin`` and
+    ``frame`` as ``view_cosine``'s). Known: on ``mask``, with a finite normal longer than 1e-6
+    (a pixel that a silhouette shares with the background holds the object's normal, shortened by
+    the pixel filter, which the length divides away). The ray is the camera model's through the
+    pixel's centre, not the Position pass's direction to the camera, which the pixel filter mixes
+    with the background's at a silhouette. Elsewhere 1."""
+    n = np.asarray(normal)[..., :3].astype(np.float32)
+    m = np.asarray(mask, dtype=bool)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # Divided by its largest component first: a normal of any finite length keeps its squares finite.
+        n = n / np.abs(n).max(axis=-1, keepdims=True)
+    h, w = m.shape if frame is None else frame
+    rot = np.asarray(camera.matrix_world, np.float64).reshape(4, 4)[:3, :3]
+    rot = rot / np.maximum(np.linalg.norm(rot, axis=0, keepdims=True), 1e-30)  # unit camera axes
+    # The normal in camera space (x right, y up, z towards the viewer): the axes' dot products.
+    if camera.type != "ORTHO":
+        f = camera.focal_px
+        cx, cy = camera.principal_point(w, h)
+        ys, xs = np.ogrid[origin[0] : origin[0] + m.shape[0], origin[1] : origin[1] + m.shape[1]]
+        rx = ((cx - xs - 0.5) / f).astype(np.float32)  # the ray towards the camera, z = 1
+        ry = ((ys + 0.5 - cy) / f).astype(np.float32)
+    # A NaN or infinite normal gives NaN here; ``known`` leaves it out.
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        nc = [n[..., 0] * np.float32(rot[0, j]) + n[..., 1] * np.float32(rot[1, j]) + n[..., 2] * np.float32(rot[2, j])
+              for j in range(3)]  # fmt: skip
+        length = np.sqrt(nc[0] * nc[0] + nc[1] * nc[1] + nc[2] * nc[2])
+        if camera.type == "ORTHO":
+            dot = nc[2]
+        else:
+            dot = (nc[0] * rx + nc[1] * ry + nc[2]) / np.sqrt(rx * rx + ry * ry + np.float32(1.0))
+        cos = np.abs(dot) / length
+    known = m & np.isfinite(cos) & (length > np.float32(1e-6))
+    return np.where(known, np.minimum(cos, np.float32(1.0)), np.float32(1.0)).astype(np.float32), known
+
+
+def surface_view_cosine(depth, normal, mask, camera: Camera, box) -> np.ndarray:
+    """The view cosine on ``box`` (a window of the frame) of the pixels of ``mask`` (H, W): from
+    the Normal pass where ``normal`` is given and known there (``normal_view_cosine``: the shading
+    normal, smooth across a mesh's faces), else from the Depth pass (``view_cosine``: the cross
+    product of neighbouring depths, which a faceted mesh or an object a few pixels across makes
+    coarse: 0.09 from the Normal pass's cosine on spheres 10 px across, docs/references.md §15).
+    float32 (box's shape)."""
+    mb = np.asarray(mask, dtype=bool)[box]
+    origin = (box[0].start, box[1].start)
+    shape = np.shape(mask)
+    if normal is not None:
+        cos, known = normal_view_cosine(np.asarray(normal)[box], mb, camera, origin=origin, frame=shape)
+        missing = mb & ~known
+        if not missing.any():
+            return cos
+        fallback = view_cosine(np.asarray(depth)[box], mb, camera, origin=origin, frame=shape)
+        return np.where(missing, fallback, cos).astype(np.float32)
+    return view_cosine(np.asarray(depth)[box], mb, camera, origin=origin, frame=shape)
+
+
 #: The keywords of ``apply_energy`` besides ``out``: a diffusion passes its own arguments of these
 #: names (``energy_inputs``).
 ENERGY_INPUTS = (
@@ -822,7 +880,8 @@ def apply_energy(
     c towards 1 on an object thinner than the curvature's sphere (x < 2 / largest curvature: a
     curved shell is a slab) and a pixel whose map reads "no far side within D" is given the
     sphere's chord 2 / (largest curvature), at least D and at most ``CHORD_CAP`` D (the object's
-    size). Without ``normal`` or ``position`` "object" is "view". ``diffuse`` and ``albedo`` are
+    size). Without ``normal`` or ``position`` "object" is "view". g reads the view cosine from
+    ``normal`` where it is given (``surface_view_cosine``), else from ``depth``. ``diffuse`` and ``albedo`` are
     the diffusion's inputs (in the "pre-post" mode sqrt(A) x E and sqrt(A)).
     ``subsurface_method`` None (unknown) or "lambert": ``out`` unchanged."""
     if energy not in ENERGY_MODES:
@@ -836,8 +895,7 @@ def apply_energy(
         return out
     # The view cosine and the curvature on the mask's bounding box only (they read nothing else).
     mb = m[box]
-    origin = (box[0].start, box[1].start)
-    mu = view_cosine(np.asarray(depth)[box], mb, camera, origin=origin, frame=m.shape)
+    mu = surface_view_cosine(depth, normal, m, camera, box)
     shaped = energy == "object" and normal is not None and position is not None and mfp_su is not None
     if not shaped:
         a = np.asarray(albedo, dtype=np.float32)[m]

@@ -97,6 +97,89 @@ def test_view_cosine_at_a_silhouette_uses_the_surface_side():
     assert np.all(mu[:, 16:] == 1.0)
 
 
+def _turned_camera(kind, h, w):
+    """A camera turned 25 degrees about x and 40 about its view axis, at (0.3, -0.2, 0.5): its
+    world-space axes differ from camera space in every component."""
+    a, b = math.radians(25.0), math.radians(40.0)
+    rx = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
+    rz = np.array([[math.cos(b), -math.sin(b), 0], [math.sin(b), math.cos(b), 0], [0, 0, 1]])
+    world = np.eye(4)
+    world[:3, :3] = rx @ rz
+    world[:3, 3] = (0.3, -0.2, 0.5)
+    matrix = tuple(world.ravel())
+    camera = Camera(type=kind, width_px=w, height_px=h, lens_mm=50.0, ortho_scale=1.0, matrix_world=matrix)
+    return camera, world[:3, :3]
+
+
+@pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
+@pytest.mark.parametrize("tilt", [0.0, 30.0, 60.0])
+def test_the_normal_passs_view_cosine_is_the_planes(kind, tilt):
+    # The plane of test_view_cosine_of_a_tilted_plane, its normal given in world space as the
+    # Normal pass holds it, seen by a camera turned in the world: the same cosine as the exact
+    # one of the plane's depth, without the depth's rounding.
+    h = w = 48
+    camera, rotation = _turned_camera(kind, h, w)
+    z = _plane_depth(camera, tilt, h, w).astype(np.float64)
+    n_camera = np.array([0.0, math.sin(math.radians(tilt)), math.cos(math.radians(tilt))])
+    normal = np.broadcast_to((rotation @ n_camera).astype(np.float32), (h, w, 3)).copy()
+    mask = np.ones((h, w), bool)
+    mu, known = energy.normal_view_cosine(normal, mask, camera)
+    assert known.all()
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    if kind == "ORTHO":
+        expected = np.full((h, w), n_camera[2])
+    else:
+        f = camera.focal_px
+        p = np.stack([(xs + 0.5 - w / 2) / f * z, (h / 2 - ys - 0.5) / f * z, -z], -1)
+        v = -p / np.linalg.norm(p, axis=-1, keepdims=True)
+        expected = np.abs(v @ n_camera)
+    np.testing.assert_allclose(mu, expected, atol=1e-6)  # float32 products of unit vectors
+
+
+def test_the_normal_passs_cosine_divides_the_length_and_falls_back_to_the_depth():
+    h = w = 32
+    camera = Camera(type="ORTHO", width_px=w, height_px=h, ortho_scale=1.0)
+    z = _plane_depth(camera, 45.0, h, w)
+    s = math.sqrt(0.5)
+    normal = np.broadcast_to(np.float32([0.0, s, s]), (h, w, 3)).copy()
+    normal[:, :8] *= 0.3  # a silhouette's pixel: the object's normal, shortened by the pixel filter
+    normal[:4, 8:] = np.nan  # no normal
+    normal[4:8, 8:] = 0.0
+    normal[8:12, 8:, 2] = np.inf
+    mask = np.ones((h, w), bool)
+    mask[:, -2:] = False
+    mu, known = energy.normal_view_cosine(normal, mask, camera)
+    np.testing.assert_allclose(mu[12:, :-2], s, atol=1e-6)
+    assert known[12:, :-2].all() and not known[:12, 8:].any() and not known[:, -2:].any()
+    assert np.all(mu[~known] == 1.0)
+    # Where the normal is unknown the Depth pass's cosine stands in; the frame's window is read.
+    box = (slice(0, h), slice(0, w - 2))
+    got = energy.surface_view_cosine(z, normal, mask, camera, box)
+    depth_mu = energy.view_cosine(z[box], mask[box], camera)
+    np.testing.assert_array_equal(got[:12, 8:], depth_mu[:12, 8:])
+    np.testing.assert_allclose(got[12:], s, atol=1e-6)
+    np.testing.assert_array_equal(energy.surface_view_cosine(z, None, mask, camera, box), depth_mu)
+
+
+def test_the_entry_gain_reads_the_normal_pass_where_it_is_given():
+    # A surface facing the camera in the Depth pass whose Normal pass says 60 degrees (a normal
+    # map, or a mesh too coarse for its depth to show its shading): the view cosine is the
+    # normal's, 0.5. "object" keeps the measured level: the light times the entry's gain at 0.5
+    # (constant normals and positions: no curvature, so no convex gain; no thickness map).
+    args, light = _object_inputs("sphere")
+    m = args["mask"]
+    tilted = np.broadcast_to(np.float32([0.0, math.sin(math.radians(60.0)), 0.5]), m.shape + (3,)).copy()
+    flat = dict(args, depth=np.full(m.shape, 2.0, np.float32), position=np.zeros(m.shape + (3,), np.float32))
+    got = energy.apply_energy(light.copy(), **dict(flat, normal=tilted))
+    gain = energy.entry_gain("RANDOM_WALK", args["albedo"][m], np.full(m.sum(), 0.5))
+    np.testing.assert_allclose(got[m], light[m] * gain, rtol=1e-5)
+    # Facing the camera (the Depth pass's cosine, 1) the gain is the table's at normal view.
+    facing = np.broadcast_to(np.float32([0.0, 0.0, 1.0]), m.shape + (3,)).copy()
+    got = energy.apply_energy(light.copy(), **dict(flat, normal=facing))
+    gain = energy.entry_gain("RANDOM_WALK", args["albedo"][m], np.ones(m.sum()))
+    np.testing.assert_allclose(got[m], light[m] * gain, rtol=1e-5)
+
+
 def _passes(h=40, w=40):
     rng = np.random.default_rng(3)
     diffuse = rng.uniform(0.2, 1.0, (h, w, 3)).astype(np.float32)
@@ -370,7 +453,9 @@ def test_object_energy_keeps_the_measured_level_times_the_convex_gain():
     args, light = _object_inputs("sphere")
     m = args["mask"]
     got = energy.apply_energy(light.copy(), **args)
-    mu = energy.view_cosine(args["depth"], m, args["camera"])[m]
+    # The Normal pass gives the view cosine: for the orthographic camera looking down -z, |n_z|.
+    n = args["normal"][m].astype(np.float64)
+    mu = np.abs(n[:, 2]) / np.linalg.norm(n, axis=1)
     g = energy.entry_gain("RANDOM_WALK", args["albedo"][m], mu)
     mean, _ = energy.surface_curvature(args["normal"], args["position"], m)
     c = energy.convex_gain("RANDOM_WALK", args["albedo"][m], np.repeat(mean[m][:, None] * 0.05, 3, axis=1))
@@ -414,7 +499,9 @@ def test_a_map_without_far_side_reads_the_spheres_chord_and_a_thin_shell_is_a_sl
     np.testing.assert_allclose(flat[m], flat_cap[m], rtol=1e-4)
     # A shell 0.08 thick on that sphere (a tenth of its chord) keeps a tenth of the convex gain.
     shell = energy.apply_energy(light.copy(), **dict(common, thickness=slab_map(0.08, 0.3)))
-    mu = energy.view_cosine(args["depth"], m, args["camera"])[m]
+    # The Normal pass gives the view cosine: for the orthographic camera looking down -z, |n_z|.
+    n = args["normal"][m].astype(np.float64)
+    mu = np.abs(n[:, 2]) / np.linalg.norm(n, axis=1)
     g = energy.entry_gain("RANDOM_WALK", args["albedo"][m], mu)
     c = energy.convex_gain("RANDOM_WALK", args["albedo"][m], np.full((m.sum(), 3), 2.5 * 0.05))
     f_above, f_below = energy.slab_factors("RANDOM_WALK", args["albedo"][m], np.full((m.sum(), 3), 0.08 / 0.05))
