@@ -1129,6 +1129,49 @@ def view_cosine(depth, ok, far, ortho, f, cx, cy, oy, ox, out):
             out[y, x] = _cos_at(depth, ok, far, ortho, f, cx, cy, oy, ox, y, x)
 
 
+@njit(cache=True, parallel=True, error_model="numpy")
+def normal_cosine(normal, ok, rot, ortho, f, cx, cy, oy, ox, out, known):
+    """``core.energy.normal_view_cosine`` of the window ``normal`` (float32 (H, W, 3)) / ``ok``
+    whose first pixel is the frame's (``oy``, ``ox``), into ``out`` (float32) and ``known``
+    (bool), rows in parallel: the reference's float32 operations in its order (the normal over
+    its largest component, its camera-space components from ``rot``'s columns (float32 (3, 3)),
+    their length, the dot product with the pixel's ray, whose components are rounded to float32
+    from float64 as the reference's), so equal to the bit. A normal with a component that is
+    not finite, or all 0, is unknown (the reference's NaN)."""
+    for y in prange(ok.shape[0]):
+        ry = f32((np.float64(y + oy) + 0.5 - cy) / f)
+        for x in range(ok.shape[1]):
+            out[y, x] = _ONE
+            known[y, x] = False
+            if not ok[y, x]:
+                continue
+            a = normal[y, x, 0]
+            b = normal[y, x, 1]
+            c = normal[y, x, 2]
+            if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(c)):
+                continue
+            top = max(abs(a), abs(b), abs(c))
+            if top == _ZERO:
+                continue
+            a = a / top
+            b = b / top
+            c = c / top
+            n0 = a * rot[0, 0] + b * rot[1, 0] + c * rot[2, 0]
+            n1 = a * rot[0, 1] + b * rot[1, 1] + c * rot[2, 1]
+            n2 = a * rot[0, 2] + b * rot[1, 2] + c * rot[2, 2]
+            length = f32(math.sqrt(n0 * n0 + n1 * n1 + n2 * n2))
+            if ortho:
+                dot = n2
+            else:
+                rx = f32((cx - np.float64(x + ox) - 0.5) / f)
+                dot = (n0 * rx + n1 * ry + n2) / f32(math.sqrt(rx * rx + ry * ry + _ONE))
+            cos = abs(dot) / length
+            if not (math.isfinite(cos) and length > f32(1e-6)):
+                continue
+            known[y, x] = True
+            out[y, x] = min(cos, _ONE)
+
+
 @njit(cache=True, inline="always", error_model="numpy")
 def _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, cosines, y, x):
     """``surface_area``'s value at pixel (``y``, ``x``): 1 where the view cosine is 1, which

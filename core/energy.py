@@ -775,12 +775,34 @@ def normal_view_cosine(normal, mask, camera: Camera, *, origin=(0, 0), frame=Non
     with the background's at a silhouette. Elsewhere 1."""
     n = np.asarray(normal)[..., :3].astype(np.float32)
     m = np.asarray(mask, dtype=bool)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        # Divided by its largest component first: a normal of any finite length keeps its squares finite.
-        n = n / np.abs(n).max(axis=-1, keepdims=True)
     h, w = m.shape if frame is None else frame
     rot = np.asarray(camera.matrix_world, np.float64).reshape(4, 4)[:3, :3]
     rot = rot / np.maximum(np.linalg.norm(rot, axis=0, keepdims=True), 1e-30)  # unit camera axes
+    mode = backend.active()
+    if mode != "numpy":
+        if n.shape[:2] != m.shape:
+            raise ValueError(f"normal {n.shape} and mask {m.shape}: expected images of the same size")
+        ortho = camera.type == "ORTHO"
+        f = float(camera.ortho_px_per_unit if ortho else camera.focal_px)
+        cx, cy = camera.principal_point(w, h)
+        out, known = np.empty(m.shape, np.float32), np.empty(m.shape, np.bool_)
+        c = np.ascontiguousarray
+        backend.run_kernel(
+            "normal_cosine", c(n), c(m), c(rot, np.float32), ortho, f, float(cx), float(cy),
+            int(origin[0]), int(origin[1]), out, known,
+        )  # fmt: skip
+        if mode == "check":
+            with backend.use("numpy"):
+                ref, ref_known = normal_view_cosine(normal, mask, camera, origin=origin, frame=frame)
+            backend.compare("normal_view_cosine", ref, out, np.zeros(out.shape))
+            if not np.array_equal(ref_known, known):
+                raise backend.BackendMismatch(
+                    "normal_view_cosine: the compiled and NumPy backends disagree on its pixels"
+                )
+        return out, known
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # Divided by its largest component first: a normal of any finite length keeps its squares finite.
+        n = n / np.abs(n).max(axis=-1, keepdims=True)
     # The normal in camera space (x right, y up, z towards the viewer): the axes' dot products.
     if camera.type != "ORTHO":
         f = camera.focal_px
@@ -790,8 +812,8 @@ def normal_view_cosine(normal, mask, camera: Camera, *, origin=(0, 0), frame=Non
         ry = ((ys + 0.5 - cy) / f).astype(np.float32)
     # A NaN or infinite normal gives NaN here; ``known`` leaves it out.
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        nc = [n[..., 0] * np.float32(rot[0, j]) + n[..., 1] * np.float32(rot[1, j]) + n[..., 2] * np.float32(rot[2, j])
-              for j in range(3)]  # fmt: skip
+        r = rot.astype(np.float32)
+        nc = [n[..., 0] * r[0, j] + n[..., 1] * r[1, j] + n[..., 2] * r[2, j] for j in range(3)]
         length = np.sqrt(nc[0] * nc[0] + nc[1] * nc[1] + nc[2] * nc[2])
         if camera.type == "ORTHO":
             dot = nc[2]

@@ -423,6 +423,42 @@ def test_view_cosine_matches_the_reference_to_the_bit(kind):
             energy.view_cosine(depth, mask[:, :-1], camera)
 
 
+@pytest.mark.parametrize("kind", ("PERSP", "ORTHO"))
+def test_normal_view_cosine_matches_the_reference_to_the_bit(kind):
+    # core.compiled.normal_cosine against core.energy's NumPy code (check mode, bound 0, and the
+    # same pixels known): random normals of any length on a turned camera with a lens shift,
+    # with NaN, infinite, zero, tiny and huge normals, holes in the mask, on the frame and on a
+    # window of it.
+    import dataclasses
+
+    from sss_lab.core import energy
+
+    passes, scene, _, _ = _scene(61, 43)
+    a, b = math.radians(30.0), math.radians(-50.0)
+    world = np.eye(4)
+    world[:3, :3] = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]]) @ np.array(
+        [[math.cos(b), -math.sin(b), 0], [math.sin(b), math.cos(b), 0], [0, 0, 1]]
+    )
+    world[:3, 3] = (0.5, -2.0, 1.0)
+    camera = dataclasses.replace(
+        scene.camera, type=kind, shift_x=0.07, shift_y=-0.03, ortho_scale=4.0, matrix_world=tuple(world.ravel())
+    )
+    rng = np.random.default_rng(11)
+    normal = (rng.normal(size=(43, 61, 3)) * rng.uniform(0.01, 3.0, (43, 61, 1))).astype(np.float32)
+    normal[4, 5], normal[6, 30, 1], normal[20, 2] = np.nan, np.inf, 0.0
+    normal[30, 40], normal[31, 40] = (1e-30, -2e-30, 3e-30), (3e38, -1e38, 2e38)
+    mask = np.ones((43, 61), bool)
+    mask[10:13, 20:40] = False
+    cos, known = energy.normal_view_cosine(normal, mask, camera)
+    assert known.sum() == mask.sum() - 3 and np.all(cos[~known] == 1.0)
+    assert (cos < 0.5).any() and (cos > 0.9).any()
+    assert known[30, 40] and known[31, 40]  # tiny and huge normals are read like unit ones
+    window = (slice(3, 40), slice(7, 55))
+    part, part_known = energy.normal_view_cosine(normal[window], mask[window], camera, origin=(3, 7), frame=mask.shape)
+    np.testing.assert_array_equal(part, cos[window])
+    np.testing.assert_array_equal(part_known, known[window])
+
+
 def test_energy_table_reads_and_curvature_match_the_reference_to_the_bit():
     # core.compiled.table_lerp, curvature_pixels and smooth_curvature against core.energy's NumPy
     # code (check mode, bound 0), with values beyond the tables, NaN and infinite inputs.

@@ -23,6 +23,7 @@ EXPECTED = {
     "burley_kernel",
     "energy_object",
     "energy_thickness",
+    "normal_cosine",
     "back_light_pixels",
     "transmit_pixels",
     "spread_band",
