@@ -802,7 +802,7 @@ def normal_view_cosine(normal, mask, camera: Camera, *, origin=(0, 0), frame=Non
         return out, known
     with np.errstate(invalid="ignore", divide="ignore"):
         # Divided by its largest component first: a normal of any finite length keeps its squares finite.
-        n = n / np.abs(n).max(axis=-1, keepdims=True)
+        u = n / np.abs(n).max(axis=-1, keepdims=True)
     # The normal in camera space (x right, y up, z towards the viewer): the axes' dot products.
     if camera.type != "ORTHO":
         f = camera.focal_px
@@ -813,7 +813,7 @@ def normal_view_cosine(normal, mask, camera: Camera, *, origin=(0, 0), frame=Non
     # A NaN or infinite normal gives NaN here; ``known`` leaves it out.
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         r = rot.astype(np.float32)
-        nc = [n[..., 0] * r[0, j] + n[..., 1] * r[1, j] + n[..., 2] * r[2, j] for j in range(3)]
+        nc = [u[..., 0] * r[0, j] + u[..., 1] * r[1, j] + u[..., 2] * r[2, j] for j in range(3)]
         length = np.sqrt(nc[0] * nc[0] + nc[1] * nc[1] + nc[2] * nc[2])
         if camera.type == "ORTHO":
             dot = nc[2]
