@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from . import _arrays, backend
-from .energy import ENERGY_PARAM, apply_energy, energy_inputs, surface_view_cosine
+from .energy import ENERGY_PARAM, apply_energy, energy_inputs, view_cosine
 from .extent import group_extents, object_extent
 from .passes import THICKNESS
 from .profiles import TRUNCATION, burley_icdf
@@ -192,7 +192,6 @@ def burley(
         seed=seed,
         smooth_px=smooth_px,
         albedo_mode=albedo_mode,
-        normal=normal,
     )
     return apply_energy(out, **energy_inputs(locals()))
 
@@ -202,11 +201,10 @@ def burley(
 MIN_VIEW_COSINE = 0.2
 
 
-def surface_area(depth, ok, camera: Camera, normal=None) -> np.ndarray:
+def surface_area(depth, ok, camera: Camera) -> np.ndarray:
     """The surface each pixel of ``ok`` covers over that of a pixel at its place in the image on a
-    plane at its depth facing the camera's axis: cos a / cos, with cos the view cosine
-    (``core.energy.surface_view_cosine`` on the pixels' bounding box: from the Normal pass
-    ``normal`` where it is given and known, else from the Depth pass) and a the angle of the
+    plane at its depth facing the camera's axis: cos a / cos, with cos the view cosine from the
+    Depth pass (``core.energy.view_cosine``, on the pixels' bounding box) and a the angle of the
     pixel's ray to the axis (0 for an orthographic camera), at most 1 / ``MIN_VIEW_COSINE``;
     float32 (H, W), C-contiguous; 1 elsewhere and where the view cosine is unknown (no neighbour
     on ``ok``: view_cosine's 1). A spiral sample stands for the screen area around it, which the
@@ -220,7 +218,7 @@ def surface_area(depth, ok, camera: Camera, normal=None) -> np.ndarray:
         return out
     rows, cols = np.flatnonzero(ok.any(axis=1)), np.flatnonzero(ok.any(axis=0))
     box = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
-    cos = surface_view_cosine(depth, normal, ok, camera, box)
+    cos = view_cosine(np.asarray(depth)[box], ok[box], camera, origin=(box[0].start, box[1].start), frame=ok.shape)
     axis = np.ones(cos.shape, np.float64)
     if camera.type != "ORTHO":
         h, w = ok.shape
@@ -233,24 +231,16 @@ def surface_area(depth, ok, camera: Camera, normal=None) -> np.ndarray:
     return out
 
 
-def surface_area_args(camera: Camera, ok, min_cos: float, depth=None, normal=None) -> tuple:
+def surface_area_args(camera: Camera, shape, min_cos: float) -> tuple:
     """The compiled kernels' parameters of ``surface_area`` after the depth and ``ok``
     (``core.compiled._area_at``): the background depth, whether the camera is orthographic, its
     pixels per unit (orthographic) or focal length in pixels, its principal point, as
-    ``surface_area`` unprojects pixels, the smallest view cosine ``min_cos``, and the view
-    cosines: with ``normal`` (and ``depth``, for the pixels whose normal is unknown)
-    ``core.energy.surface_view_cosine``'s of the pixels of ``ok`` (H, W), as a float32 frame
-    (1 off their bounding box), else an empty one (the kernels read the depth's)."""
-    h, w = np.shape(ok)
+    ``surface_area`` unprojects pixels, and the smallest view cosine ``min_cos``."""
+    h, w = shape
     ortho = camera.type == "ORTHO"
     f = float(camera.ortho_px_per_unit if ortho else camera.focal_px)
     cx, cy = camera.principal_point(w, h)
-    cosines = np.ones((0, 0), np.float32)
-    box = _arrays.bounding_box(np.asarray(ok, dtype=bool)) if normal is not None else None
-    if box is not None:
-        cosines = np.ones((h, w), np.float32)
-        cosines[box] = surface_view_cosine(depth, normal, ok, camera, box)
-    return np.float32(_arrays.BACKGROUND_DEPTH), ortho, f, cx, cy, min_cos, cosines
+    return np.float32(_arrays.BACKGROUND_DEPTH), ortho, f, cx, cy, min_cos
 
 
 def _gather(
@@ -267,10 +257,8 @@ def _gather(
     seed: int,
     smooth_px: int,
     albedo_mode: str,
-    normal=None,
 ) -> np.ndarray:
-    """``burley`` without the entry energy (``normal``: the Normal pass, for the surface each
-    sample stands for, ``surface_area``)."""
+    """``burley`` without the entry energy."""
     if not isinstance(camera, Camera):
         raise ValueError(f"camera: expected a core.scene.Camera, got {type(camera).__name__}")
     _arrays.check_albedo_mode(albedo_mode)
@@ -282,14 +270,13 @@ def _gather(
     a = _arrays.image(albedo, "albedo")
     z = _arrays.image(depth, "depth", None)
     ids = None if object_id is None else _arrays.image(object_id, "object_id", None)
-    nrm = None if normal is None else _arrays.image(normal, "normal")
-    _arrays.same_size(shape, albedo=a, depth=z, object_id=ids, normal=nrm)
+    _arrays.same_size(shape, albedo=a, depth=z, object_id=ids)
     m = _arrays.mask_array(mask, shape)
 
     dmax = float(d.max())
     if dmax > 0 and backend.active() == "numba":
         return _compiled(
-            e, a, z, m, ids, camera, int(n_samples), d, random_rotation, seed, int(smooth_px), albedo_mode, nrm
+            e, a, z, m, ids, camera, int(n_samples), d, random_rotation, seed, int(smooth_px), albedo_mode
         )  # fmt: skip
     base = a * e
     ok = m & _arrays.finite_pixels(e, a, z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)
@@ -329,7 +316,7 @@ def _gather(
     items = packed.view(np.dtype((np.void, 16))).ravel()
     sentinel = h * w
     zkey = packed[:, 3]
-    aflat = np.append(surface_area(z, ok, camera, nrm).ravel(), f32(0.0))
+    aflat = np.append(surface_area(z, ok, camera).ravel(), f32(0.0))
     idflat = None if ids is None else np.rint(ids).astype(np.int64).ravel()
     sflat = scale.ravel()
     n = int(n_samples)
@@ -434,7 +421,7 @@ def _inv3d(d: np.ndarray) -> np.ndarray:
     return np.array([max(1.0 / (3.0 * v), 1e-37) if v > 0 else 0.0 for v in d], np.float32)
 
 
-def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, albedo_mode, normal):
+def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, albedo_mode):
     """``_gather`` on the compiled backend: the pixels that take part in one pass over the frame
     (``_arrays.compiled_pixels``, with the footprint rule), then the gather and the clean-up as
     one compiled kernel (``core.compiled.burley_kernel``) over their bounding box, into the
@@ -484,7 +471,7 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
     h = ok.shape[0]
     # The surface each pixel covers (``surface_area``), computed by ``burley_pack`` for the pixels
     # each band's samples reach.
-    area_args = surface_area_args(camera, ok, MIN_VIEW_COSINE, z, normal)
+    area_args = surface_area_args(camera, ok.shape, MIN_VIEW_COSINE)
     light = c(light, dtype=f32)
     post = c(post, dtype=f32)
     reach = np.asarray(reach_c, np.float64)

@@ -846,7 +846,7 @@ def ssss_kernel(light, depth, ok, cam, follow, gate, offsets, weights, wsum, pos
     the value of a pixel that takes no part. Nothing the size of a frame is allocated.
 
     With ``surface`` an (H, W) frame, the taps weigh by the surface their pixels cover
-    (core.ssss's "surface" weighting; ``area`` = (far, orthographic, f, cx, cy, min_cos, cosines):
+    (core.ssss's "surface" weighting; ``area`` = (far, orthographic, f, cx, cy, min_cos):
     ``surface_area``'s parameters): the row pass computes each pixel's (``_area_at``) and
     writes it into ``surface`` where the pixel takes part, for the column pass. An empty
     ``surface``: the paper's unweighted passes."""
@@ -854,7 +854,7 @@ def ssss_kernel(light, depth, ok, cam, follow, gate, offsets, weights, wsum, pos
     r0, r1, c0, c1 = box[0], box[1], box[2], box[3]
     half = f32(0.5)
     weighted = surface.shape[0] > 0
-    far, ortho, fx, cx, cy, min_cos, cosines = area
+    far, ortho, fx, cx, cy, min_cos = area
     for y in prange(r0, r1):
         lr = np.zeros(w + 1, np.float32)
         lg = np.zeros(w + 1, np.float32)
@@ -874,7 +874,7 @@ def ssss_kernel(light, depth, ok, cam, follow, gate, offsets, weights, wsum, pos
             lb[x] = light[y, x, 2] if o else _ZERO
             lk[x] = depth[y, x] * follow if o else _INF
             if weighted:
-                la[x] = _area_at(depth, ok, far, ortho, fx, cx, cy, min_cos, cosines, y, x)
+                la[x] = _area_at(depth, ok, far, ortho, fx, cx, cy, min_cos, y, x)
         x0, x1 = _span(okr[c0:c1])
         if x0 >= x1:
             continue
@@ -1082,7 +1082,7 @@ def _axis_step(depth, ok, far, y, x, dy, dx, px, py, pz, ortho, f, cx, cy, oy, o
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def surface_area(depth, ok, far, ortho, f, cx, cy, min_cos, cosines, y0, y1, x0, x1, area):
+def surface_area(depth, ok, far, ortho, f, cx, cy, min_cos, y0, y1, x0, x1, area):
     """``core.burley.surface_area`` over rows ``y0``..``y1`` - 1 and columns ``x0``..``x1`` - 1
     (``area`` holds 1 elsewhere): min(cos a / cos, 1 / ``min_cos``) on the pixels ``ok``, with cos
     the view cosine of ``core.energy.view_cosine`` (in float64: on each axis the difference to a
@@ -1092,7 +1092,7 @@ def surface_area(depth, ok, far, ortho, f, cx, cy, min_cos, cosines, y0, y1, x0,
     depth is in (0, ``far``) (the reference's valid depth)."""
     for y in prange(y0, y1):
         for x in range(x0, x1):
-            area[y, x] = _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, cosines, y, x)
+            area[y, x] = _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -1173,16 +1173,11 @@ def normal_cosine(normal, ok, rot, ortho, f, cx, cy, oy, ox, out, known):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, cosines, y, x):
+def _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x):
     """``surface_area``'s value at pixel (``y``, ``x``): 1 where the view cosine is 1, which
-    ``_cos_at`` also gives a pixel off ``ok`` or without a valid depth. The view cosine is
-    ``cosines``' (a float32 frame, 1 off ``ok``: ``core.energy.surface_view_cosine``'s, from the
-    Normal pass) when that is not empty, else ``_cos_at``'s from the depth."""
+    ``_cos_at`` also gives a pixel off ``ok`` or without a valid depth."""
     # The reference rounds the view cosine to float32 before the ratio.
-    if cosines.shape[0] > 0:
-        cos = np.float64(cosines[y, x])
-    else:
-        cos = np.float64(_cos_at(depth, ok, far, ortho, f, cx, cy, 0, 0, y, x))
+    cos = np.float64(_cos_at(depth, ok, far, ortho, f, cx, cy, 0, 0, y, x))
     if cos >= 1.0:
         return _ONE
     axis = 1.0
@@ -1194,12 +1189,12 @@ def _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, cosines, y, x):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def burley_pack(light, depth, ok, far, ortho, f, cx, cy, min_cos, cosines, y0, x0, packed, packed_area):
+def burley_pack(light, depth, ok, far, ortho, f, cx, cy, min_cos, y0, x0, packed, packed_area):
     """``packed`` (rows, columns, 4): the rows from y0 and columns from x0 of the frame as (R,
     G, B, depth) where ``ok``, (0, 0, 0, +inf) elsewhere (the reference's packed items: a
     pixel that takes no part gives no light and its weight is 0), so that a sample's four
     values are one aligned 16-byte read; ``packed_area`` (rows, columns) the surface each of
-    these pixels covers (``surface_area``, with its parameters ``far`` .. ``cosines``; computed
+    these pixels covers (``surface_area``, with its parameters ``far`` .. ``min_cos``; computed
     here for the pixels the band's samples reach, not for a frame)."""
     for i in prange(packed.shape[0]):
         y = y0 + i
@@ -1210,7 +1205,7 @@ def burley_pack(light, depth, ok, far, ortho, f, cx, cy, min_cos, cosines, y0, x
             packed[i, j, 1] = light[y, x, 1] if o else _ZERO
             packed[i, j, 2] = light[y, x, 2] if o else _ZERO
             packed[i, j, 3] = depth[y, x] if o else _INF
-            packed_area[i, j] = _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, cosines, y, x)
+            packed_area[i, j] = _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

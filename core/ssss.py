@@ -20,8 +20,7 @@ stated in scene units, independent of the field of view (a documented difference
 Weighting by surface (``weighting="surface"``, the default): the diffusion profile integrates
 over the surface, a convolution sums over pixels, and a pixel seen at a grazing angle covers
 more surface than one facing the camera (``core.burley.surface_area``: cos a / cos, 1 on a plane
-facing the camera's axis, cos read from the Normal pass where it is given; at most
-``MAX_SURFACE`` = 2 here, against Burley's 5). Each pass
+facing the camera's axis; at most ``MAX_SURFACE`` = 2 here, against Burley's 5). Each pass
 weighs a tap's two samples by their pixels' surface relative to the centre pixel's and divides
 by the total weight, so that the kernel's weights still sum to one; the part of a tap that
 follow surface gives back to the centre keeps the centre's surface. Equal surfaces (a plane
@@ -290,7 +289,6 @@ def ssss(
         follow_surface=follow_surface,
         albedo_mode=albedo_mode,
         weighting=weighting,
-        normal=normal,
     )
     return apply_energy(out, **energy_inputs(locals()))
 
@@ -312,10 +310,8 @@ def _filter(
     follow_surface: bool,
     albedo_mode: str,
     weighting: str,
-    normal=None,
 ) -> np.ndarray:
-    """``ssss`` without the entry energy (``normal``: the Normal pass, for the surface each tap
-    stands for, ``core.burley.surface_area``)."""
+    """``ssss`` without the entry energy."""
     if not isinstance(camera, Camera):
         raise ValueError(f"camera: expected a core.scene.Camera, got {type(camera).__name__}")
     _arrays.check_albedo_mode(albedo_mode)
@@ -325,8 +321,7 @@ def _filter(
     shape = e.shape[:2]
     a = _arrays.image(albedo, "albedo")
     z = _arrays.image(depth, "depth", None)
-    nrm = None if normal is None or weighting != "surface" else _arrays.image(normal, "normal")
-    _arrays.same_size(shape, albedo=a, depth=z, normal=nrm)
+    _arrays.same_size(shape, albedo=a, depth=z)
     m = _arrays.mask_array(mask, shape)
     given = kernel
     artist = {"unit_su": unit_su, "falloff": falloff, "strength": strength}
@@ -351,7 +346,7 @@ def _filter(
         return bounded(given, extent_su)
 
     if len(kernel) > 1 and backend.active() == "numba":
-        return _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode, weighting, nrm)
+        return _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode, weighting)
     base = a * e
     ok = m & _arrays.finite_pixels(e, a, z) & (z > 0) & (z < _arrays.BACKGROUND_DEPTH)
     if len(kernel) == 1 or not ok.any():
@@ -363,7 +358,7 @@ def _filter(
     kernel = over_object(object_extent(ok, scale))
     # The surface each pixel covers (over the pixels that take part, before the one-pixel rule:
     # a pixel's neighbours on the material tell its slope whatever its kernel's size).
-    area = np.minimum(surface_area(z, ok, camera, nrm), np.float32(MAX_SURFACE)) if weighting == "surface" else None
+    area = np.minimum(surface_area(z, ok, camera), np.float32(MAX_SURFACE)) if weighting == "surface" else None
     # Pixels whose whole kernel is within one pixel would not change: skip them (EEVEE Next does).
     ok &= kernel.radius_su * scale > 0.5
     if not ok.any():
@@ -411,7 +406,7 @@ def _follow(kernel: SeparableKernel, follow_surface: bool) -> np.float32:
         return np.float32(1.0 / (2.0 * kernel.radius_su))
 
 
-def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode, weighting, normal):
+def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode, weighting):
     """The NumPy code above on the compiled backend: the pixels that take part in one pass over
     the frame (``_arrays.compiled_pixels``), then both passes as one kernel
     (``core.compiled.ssss_kernel``, which applies the one-pixel rule and the keys itself), into
@@ -441,7 +436,7 @@ def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode, weig
         kernel.weights.sum(axis=0).astype(f32),
         c(post, dtype=f32),
         np.array(box, np.int64),
-        surface_area_args(camera, ok, 1.0 / MAX_SURFACE, z, normal if weighting == "surface" else None),
+        surface_area_args(camera, ok.shape, 1.0 / MAX_SURFACE),
         surface,
         out,
     )

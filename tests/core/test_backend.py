@@ -58,25 +58,6 @@ def test_scene_with_masks_rotation_and_ids_matches_the_reference(rotation, mode)
     )  # fmt: skip
 
 
-@pytest.mark.parametrize("weighting", ("surface", "screen"))
-def test_surface_weights_from_the_normal_pass_match_the_reference(weighting):
-    # The autouse fixture runs each call on both backends and compares them: the surface each
-    # sample and tap stands for read from the Normal pass (a frame of cosines in the kernels).
-    passes, scene, albedo, normal = _scene()
-    diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]
-    depth = passes["Depth"]
-    mask = passes["Material Index"] > 0
-    d = (0.04, 0.016, 0.008)
-    common = dict(diffuse=diffuse, albedo=albedo, depth=depth, mask=mask, camera=scene.camera, energy="lambert")
-    with_normal = burley(**common, d_su=d, seed=3, normal=passes["Normal"])
-    without = burley(**common, d_su=d, seed=3)
-    assert np.isfinite(with_normal).all() and not np.array_equal(with_normal, without)
-    s_normal = ssss(**common, d_su=d, weighting=weighting, normal=passes["Normal"])
-    s_depth = ssss(**common, d_su=d, weighting=weighting)
-    # "screen" weighs taps by screen area: the normal changes nothing there.
-    assert np.array_equal(s_normal, s_depth) == (weighting == "screen")
-
-
 def test_check_mode_catches_a_kernel_that_differs(monkeypatch):
     passes, scene, albedo, _ = _scene(32, 24)
     diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]

@@ -590,48 +590,8 @@ def test_burley_weighs_its_samples_by_the_surface_a_pixel_covers(kind, tilt):
     else:
         args = (False, float(camera.focal_px), w / 2, h / 2)
     far = np.float32(1e9)  # the background depth (core._arrays.BACKGROUND_DEPTH)
-    backend.run_kernel("surface_area", z, ok, far, *args, MIN_VIEW_COSINE, np.ones((0, 0), np.float32), 0, h, 0, w, got)
+    backend.run_kernel("surface_area", z, ok, far, *args, MIN_VIEW_COSINE, 0, h, 0, w, got)
     np.testing.assert_allclose(got, area, rtol=1e-6)
-
-
-@pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
-def test_the_surface_a_pixel_covers_reads_the_normal_pass_where_it_is_given(kind):
-    from sss_lab.core import backend
-    from sss_lab.core.burley import MIN_VIEW_COSINE, surface_area, surface_area_args
-
-    # A plane facing the camera's axis in the Depth pass whose Normal pass is tilted by 60
-    # degrees about x (a coarse mesh shaded smooth, or a normal map): cos a / |n . r| from the
-    # normal, the Depth pass's plane (1 everywhere) where the normal is unknown.
-    h, w = 32, 48
-    camera, rotation = _turned_camera(kind, h, w)
-    z = _plane_depth(camera, 0.0, h, w)
-    ok = np.zeros((h, w), bool)
-    ok[4:28, 6:40] = True
-    n_camera = np.array([0.0, math.sin(math.radians(60.0)), 0.5])
-    normal = np.broadcast_to((rotation @ n_camera).astype(np.float32), (h, w, 3)).copy()
-    normal[4:8] = np.nan
-    area = surface_area(z, ok, camera, normal)
-    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
-    if kind == "ORTHO":
-        ray = np.broadcast_to([0.0, 0.0, 1.0], (h, w, 3))
-    else:
-        f = camera.focal_px
-        ray = np.stack([(xs + 0.5 - w / 2) / f, (h / 2 - ys - 0.5) / f, -np.ones_like(xs)], -1)
-        ray = ray / np.linalg.norm(ray, axis=-1, keepdims=True)
-    expected = np.minimum(np.abs(ray[..., 2]) / np.abs(ray @ n_camera), 1.0 / MIN_VIEW_COSINE)
-    known = ok.copy()
-    known[4:8] = False
-    np.testing.assert_allclose(area[known], expected[known], rtol=1e-5)
-    np.testing.assert_allclose(area[4:8][ok[4:8]], surface_area(z, ok, camera)[4:8][ok[4:8]], rtol=0)
-    assert np.all(area[~ok] == 1.0)
-    # The compiled kernel reads the same cosines from the frame surface_area_args builds.
-    got = np.ones((h, w), np.float32)
-    args = surface_area_args(camera, ok, MIN_VIEW_COSINE, z, normal)
-    assert args[-1].shape == (h, w)
-    backend.run_kernel("surface_area", z, ok, *args, 0, h, 0, w, got)
-    np.testing.assert_array_equal(got, area)
-    # Without a normal the frame is empty: the kernel reads the depth's cosine.
-    assert surface_area_args(camera, ok, MIN_VIEW_COSINE)[-1].shape == (0, 0)
 
 
 def _lamps():
