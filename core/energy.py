@@ -773,22 +773,22 @@ def normal_view_cosine(normal, mask, camera: Camera, *, origin=(0, 0), frame=Non
     the pixel filter, which the length divides away). The ray is the camera model's through the
     pixel's centre, not the Position pass's direction to the camera, which the pixel filter mixes
     with the background's at a silhouette. Elsewhere 1."""
-    n = np.asarray(normal)[..., :3].astype(np.float32)
+    raw = np.asarray(normal)[..., :3]
     m = np.asarray(mask, dtype=bool)
     h, w = m.shape if frame is None else frame
     rot = np.asarray(camera.matrix_world, np.float64).reshape(4, 4)[:3, :3]
     rot = rot / np.maximum(np.linalg.norm(rot, axis=0, keepdims=True), 1e-30)  # unit camera axes
     mode = backend.active()
     if mode != "numpy":
-        if n.shape[:2] != m.shape:
-            raise ValueError(f"normal {n.shape} and mask {m.shape}: expected images of the same size")
+        if raw.shape[:2] != m.shape:
+            raise ValueError(f"normal {raw.shape} and mask {m.shape}: expected images of the same size")
         ortho = camera.type == "ORTHO"
         f = float(camera.ortho_px_per_unit if ortho else camera.focal_px)
         cx, cy = camera.principal_point(w, h)
         out, known = np.empty(m.shape, np.float32), np.empty(m.shape, np.bool_)
         c = np.ascontiguousarray
         backend.run_kernel(
-            "normal_cosine", c(n), c(m), c(rot, np.float32), ortho, f, float(cx), float(cy),
+            "normal_cosine", c(raw, np.float32), c(m), c(rot, np.float32), ortho, f, float(cx), float(cy),
             int(origin[0]), int(origin[1]), out, known,
         )  # fmt: skip
         if mode == "check":
@@ -800,6 +800,7 @@ def normal_view_cosine(normal, mask, camera: Camera, *, origin=(0, 0), frame=Non
                     "normal_view_cosine: the compiled and NumPy backends disagree on its pixels"
                 )
         return out, known
+    n = raw.astype(np.float32)
     with np.errstate(invalid="ignore", divide="ignore"):
         # Divided by its largest component first: a normal of any finite length keeps its squares finite.
         u = n / np.abs(n).max(axis=-1, keepdims=True)
@@ -824,8 +825,9 @@ def normal_view_cosine(normal, mask, camera: Camera, *, origin=(0, 0), frame=Non
     return np.where(known, np.minimum(cos, np.float32(1.0)), np.float32(1.0)).astype(np.float32), known
 
 
-def surface_view_cosine(depth, normal, mask, camera: Camera, box) -> np.ndarray:
-    """The view cosine on ``box`` (a window of the frame) of the pixels of ``mask`` (H, W): from
+def entry_view_cosine(depth, normal, mask, camera: Camera, box) -> np.ndarray:
+    """The entry gain's view cosine on ``box`` (a window of the frame) of the pixels of ``mask``
+    (H, W): from
     the Normal pass where ``normal`` is given and known there (``normal_view_cosine``: the shading
     normal, smooth across a mesh's faces), else from the Depth pass (``view_cosine``: the cross
     product of neighbouring depths, which a faceted mesh or an object a few pixels across makes
@@ -903,7 +905,7 @@ def apply_energy(
     curved shell is a slab) and a pixel whose map reads "no far side within D" is given the
     sphere's chord 2 / (largest curvature), at least D and at most ``CHORD_CAP`` D (the object's
     size). Without ``normal`` or ``position`` "object" is "view". g reads the view cosine from
-    ``normal`` where it is given (``surface_view_cosine``), else from ``depth``. ``diffuse`` and ``albedo`` are
+    ``normal`` where it is given (``entry_view_cosine``), else from ``depth``. ``diffuse`` and ``albedo`` are
     the diffusion's inputs (in the "pre-post" mode sqrt(A) x E and sqrt(A)).
     ``subsurface_method`` None (unknown) or "lambert": ``out`` unchanged."""
     if energy not in ENERGY_MODES:
@@ -917,7 +919,7 @@ def apply_energy(
         return out
     # The view cosine and the curvature on the mask's bounding box only (they read nothing else).
     mb = m[box]
-    mu = surface_view_cosine(depth, normal, m, camera, box)
+    mu = entry_view_cosine(depth, normal, m, camera, box)
     shaped = energy == "object" and normal is not None and position is not None and mfp_su is not None
     if not shaped:
         a = np.asarray(albedo, dtype=np.float32)[m]

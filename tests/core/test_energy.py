@@ -64,6 +64,21 @@ def _plane_depth(camera: Camera, tilt_deg: float, h: int, w: int, z0: float = 2.
     return (math.cos(t) * z0 / (math.cos(t) - math.sin(t) * v)).astype(np.float32)
 
 
+def _plane_cosine(camera: Camera, tilt_deg: float, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the normal in camera space, the exact view cosine per pixel) of ``_plane_depth``'s plane
+    tilted by ``tilt_deg``, whose depth is ``z``: |n . v| with v the unit vector from each pixel's
+    point towards the camera (the axis under an orthographic camera)."""
+    h, w = z.shape
+    n = np.array([0.0, math.sin(math.radians(tilt_deg)), math.cos(math.radians(tilt_deg))])
+    if camera.type == "ORTHO":
+        return n, np.full((h, w), n[2])
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    f = camera.focal_px
+    p = np.stack([(xs + 0.5 - w / 2) / f * z, (h / 2 - ys - 0.5) / f * z, -z], -1)
+    v = -p / np.linalg.norm(p, axis=-1, keepdims=True)
+    return n, np.abs(v @ n)
+
+
 @pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
 @pytest.mark.parametrize("tilt", [0.0, 30.0, 60.0])
 def test_view_cosine_of_a_tilted_plane(kind, tilt):
@@ -72,15 +87,7 @@ def test_view_cosine_of_a_tilted_plane(kind, tilt):
     z = _plane_depth(camera, tilt, h, w)
     mask = np.ones((h, w), bool)
     mu = energy.view_cosine(z, mask, camera)
-    n = np.array([0.0, math.sin(math.radians(tilt)), math.cos(math.radians(tilt))])
-    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
-    if kind == "ORTHO":
-        expected = np.full((h, w), n[2])
-    else:
-        f = camera.focal_px
-        p = np.stack([(xs + 0.5 - w / 2) / f * z, (h / 2 - ys - 0.5) / f * z, -z], -1)
-        v = -p / np.linalg.norm(p, axis=-1, keepdims=True)
-        expected = np.abs(v @ n)
+    _, expected = _plane_cosine(camera, tilt, z)
     # A plane's differences span it exactly: only float32 depth rounding is left.
     np.testing.assert_allclose(mu, expected, atol=2e-3)
 
@@ -120,19 +127,11 @@ def test_the_normal_passs_view_cosine_is_the_planes(kind, tilt):
     h = w = 48
     camera, rotation = _turned_camera(kind, h, w)
     z = _plane_depth(camera, tilt, h, w).astype(np.float64)
-    n_camera = np.array([0.0, math.sin(math.radians(tilt)), math.cos(math.radians(tilt))])
+    n_camera, expected = _plane_cosine(camera, tilt, z)
     normal = np.broadcast_to((rotation @ n_camera).astype(np.float32), (h, w, 3)).copy()
     mask = np.ones((h, w), bool)
     mu, known = energy.normal_view_cosine(normal, mask, camera)
     assert known.all()
-    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
-    if kind == "ORTHO":
-        expected = np.full((h, w), n_camera[2])
-    else:
-        f = camera.focal_px
-        p = np.stack([(xs + 0.5 - w / 2) / f * z, (h / 2 - ys - 0.5) / f * z, -z], -1)
-        v = -p / np.linalg.norm(p, axis=-1, keepdims=True)
-        expected = np.abs(v @ n_camera)
     np.testing.assert_allclose(mu, expected, atol=1e-6)  # float32 products of unit vectors
 
 
@@ -154,11 +153,11 @@ def test_the_normal_passs_cosine_divides_the_length_and_falls_back_to_the_depth(
     assert np.all(mu[~known] == 1.0)
     # Where the normal is unknown the Depth pass's cosine stands in; the frame's window is read.
     box = (slice(0, h), slice(0, w - 2))
-    got = energy.surface_view_cosine(z, normal, mask, camera, box)
+    got = energy.entry_view_cosine(z, normal, mask, camera, box)
     depth_mu = energy.view_cosine(z[box], mask[box], camera)
     np.testing.assert_array_equal(got[:12, 8:], depth_mu[:12, 8:])
     np.testing.assert_allclose(got[12:], s, atol=1e-6)
-    np.testing.assert_array_equal(energy.surface_view_cosine(z, None, mask, camera, box), depth_mu)
+    np.testing.assert_array_equal(energy.entry_view_cosine(z, None, mask, camera, box), depth_mu)
 
 
 def test_the_entry_gain_reads_the_normal_pass_where_it_is_given():
