@@ -32,7 +32,7 @@ def add_parser(subparsers):
         p,
         "--pass-samples",
         default=16,
-        help="Cycles samples of the passes (default: 16; the fit averages 4x4 blocks, and on the fidelity suite"
+        help="Cycles samples of the passes (default: 16; the fit averages 2 x 2 blocks, and on the fidelity suite"
         " 16 and 64 samples give the same share removed on frame A within 1 point)",
     )
     p.add_argument(
