@@ -30,6 +30,20 @@ def add_parser(subparsers):
     add_samples(p, default=32, help="Cycles random-walk samples to fit to (default: 32)")
     add_samples(
         p,
+        "--max-samples",
+        help="for the fits the held-out check refuses: render again up to this many samples in all, within"
+        " --budget (default: 64, or --samples when higher; equal to --samples: never)",
+    )
+    p.add_argument(
+        "--budget",
+        type=float,
+        default=None,
+        metavar="SHARE",
+        help="the most the fit may cost, as a share of a 1024-sample render of the view, when it renders"
+        " again (default: 0.09)",
+    )
+    add_samples(
+        p,
         "--pass-samples",
         default=16,
         help="Cycles samples of the passes (default: 16; the fit averages 2 x 2 blocks, and on the fidelity suite"
@@ -66,6 +80,7 @@ def run(args) -> int:
         techniques=methods,
         samples=args.samples,
         pass_samples=args.pass_samples,
+        **{k: v for k, v in (("max_samples", args.max_samples), ("budget", args.budget)) if v is not None},
         resolution=resolution,
         seed=args.seed,
         log=log,
@@ -85,5 +100,10 @@ def run(args) -> int:
         with open(args.json, "w", encoding="utf-8") as fh:
             json.dump(data, fh, indent=2, default=str)
     s = data["seconds"]
-    print(f"calibrate: Cycles {s['reference']:.1f} s, passes {s['passes']:.1f} s, fit {s['fit']:.1f} s", flush=True)
+    line = f"calibrate: Cycles {s['reference']:.1f} s, passes {s['passes']:.1f} s, fit {s['fit']:.1f} s"
+    if "pilot" in s:
+        line += f", pilot {s['pilot']:.1f} s"
+    if "more" in s:
+        line += f", more samples {s['more']:.1f} s, second fit {s['fit_more']:.1f} s"
+    print(line, flush=True)
     return 0 if data["results"] and not data["problems"] else 1

@@ -27,7 +27,7 @@ import bpy
 
 from ..core import exr
 from ..core.errors import InputError
-from ..core.fit import BOX, fit_scene
+from ..core.fit import BOX, BUDGET, fit_scene, more_samples
 from ..core.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
 from ..core.sequence import load_scene
 from ..core.techniques import TECHNIQUES
@@ -39,6 +39,9 @@ from .state import SceneState
 PREFIX = "sss_lab_fit_"
 #: The techniques ``calibrate`` fits by default: the two that the fit improves most.
 DEFAULT_TECHNIQUES = ("burley", "combined")
+#: The most samples ``calibrate`` renders by default for fits its held-out check refused: the top
+#: of the 16-64 samples the fit is measured on (``benchmarks/fit.py``).
+MAX_SAMPLES = 64
 
 
 def fit_key(technique: str, name: str) -> str:
@@ -108,30 +111,49 @@ def calibrate_job(
     *,
     techniques=DEFAULT_TECHNIQUES,
     samples: int = 32,
+    max_samples: int | None = None,
+    budget: float = BUDGET,
     pass_samples: int = 16,
     resolution=None,
     seed: int = 0,
     box: int = BOX,
     log=print,
 ) -> Job:
-    """``calibrate`` as a job (``blender/jobs.py``) of three steps: the random-walk render, the
-    passes (16 samples by default: the fit averages blocks (``core.fit.BOX``), and on the fidelity
-    suite 16 and 64 samples give the same share of the error removed on frame A within 1 point,
-    ``benchmarks/fit.py``), the fit. Its checks raise before the first ``yield``; the materials are
-    written only after the last step, so that a job closed between steps (Esc in the panel) leaves
-    every material as it was (the scene itself is restored by the renders' own ``SceneState``)."""
+    """``calibrate`` as a job (``blender/jobs.py``): the random-walk render, the passes (16 samples
+    by default: the fit averages blocks (``core.fit.BOX``), and on the fidelity suite 16 and 64
+    samples give the same share of the error removed on frame A within 1 point,
+    ``benchmarks/fit.py``), the fit; then, for the fits the held-out check refused (the render may
+    be too noisy for them), a one-sample pilot render and, when ``core.fit.more_samples`` finds
+    the cost within ``budget`` of the render the fit stands in for, a render of ``max_samples`` -
+    ``samples`` more samples (seed + 1) and a second fit of those materials on the two renders'
+    mean. ``max_samples`` None: ``MAX_SAMPLES`` (64, the top of the range the fit is measured on),
+    or ``samples`` when that is more. Its checks raise before the first ``yield``; the materials
+    are written only after the last step, so that a job closed between steps (Esc in the panel)
+    leaves every material as it was (the scene itself is restored by the renders' own
+    ``SceneState``)."""
     from ..core.scene import parse_resolution
     from .reference_cache import _render_combined
     from .render_passes import render_passes
     from .thickness import thickness_aov_name, thickness_setup
 
     techniques = tuple(techniques)
+    if max_samples is None:
+        max_samples = max(samples, MAX_SAMPLES) if isinstance(samples, int) and not isinstance(samples, bool) else 1
     for t in techniques:
         if t not in FIT_PARAMETERS:
             raise InputError(f"methods: no fit exists for {t!r}; expected some of: {', '.join(FIT_PARAMETERS)}")
-    for name, value in (("samples", samples), ("pass_samples", pass_samples), ("box", box)):
+    for name, value in (
+        ("samples", samples),
+        ("max_samples", max_samples),
+        ("pass_samples", pass_samples),
+        ("box", box),
+    ):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise InputError(f"{name}: expected an integer >= 1, got {value!r}")
+    if max_samples < samples:
+        raise InputError(f"max_samples: expected at least samples ({samples}), got {max_samples}")
+    if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not 0.0 <= budget <= 1.0:
+        raise InputError(f"budget: expected a share of the reference render from 0 to 1, got {budget!r}")
     if scene.camera is None:
         raise InputError(f"scene {scene.name!r} has no active camera; set one in Scene Properties > Camera")
     materials = sss_materials(scene)
@@ -151,16 +173,18 @@ def calibrate_job(
             log(problems[-1])
             if not techniques:
                 raise InputError(problems[-1]) from None
-    seconds = {}
+    seconds: dict[str, float] = {}
     steps = Steps(3)
+
+    def render(n: int, s: int, path: str) -> float:
+        with SceneState() as state:
+            return _render_combined(scene, samples=n, seed=s, resolution=resolution, path=path, state=state)
+
     yield steps.next(f"Cycles random walk, {samples} samples")
     with tempfile.TemporaryDirectory(prefix="sss_lab_fit_") as tmp:
         log(f"Cycles random walk, {samples} samples (seed {seed})")
         ref_path = os.path.join(tmp, "reference.exr")
-        with SceneState() as state:
-            seconds["reference"] = _render_combined(
-                scene, samples=samples, seed=seed, resolution=resolution, path=ref_path, state=state
-            )
+        seconds["reference"] = render(samples, seed, ref_path)
         reference = exr.read_passes(ref_path)["Combined"]
         yield steps.next(f"passes, {pass_samples} samples")
         log(f"Passes, {pass_samples} samples")
@@ -179,10 +203,48 @@ def calibrate_job(
         exr_path = next(p for p in written if p.endswith(".exr"))
         passes = exr.read_passes(exr_path)
         desc = load_scene(exr_path)
-    yield steps.next(f"fit of {len(materials)} material(s)")
-    start = time.perf_counter()
-    results, fit_problems = fit_scene(passes, desc, reference, techniques=techniques, box=box, samples=samples, log=log)
-    seconds["fit"] = time.perf_counter() - start
+        yield steps.next(f"fit of {len(materials)} material(s)")
+        start = time.perf_counter()
+        refused: list = []
+        results, fit_problems = fit_scene(
+            passes, desc, reference, techniques=techniques, box=box, samples=samples, log=log, refused=refused
+        )
+        seconds["fit"] = time.perf_counter() - start
+        if refused and max_samples > samples:
+            # The held-out check refused some fits: the render may be too noisy for them. More
+            # samples, if the cost stays within the budget (core.fit.more_samples).
+            steps.total = 5
+            yield steps.next("a one-sample pilot render, to estimate the cost of more samples")
+            seconds["pilot"] = render(1, seed + 2, os.path.join(tmp, "pilot.exr"))
+            extra, why = more_samples(
+                samples=samples,
+                max_samples=max_samples,
+                spent_s=sum(seconds.values()),
+                render_s=seconds["reference"],
+                pilot_s=seconds["pilot"],
+                fit_s=seconds["fit"],
+                budget=budget,
+            )
+            log(f"{len(refused)} fit(s) refused by the held-out check; {why}")
+            if extra:
+                yield steps.next(f"Cycles random walk, {extra} more samples, and a second fit of {len(refused)}")
+                more_path = os.path.join(tmp, "more.exr")
+                seconds["more"] = render(extra, seed + 1, more_path)
+                more = exr.read_passes(more_path)["Combined"]
+                total = samples + extra
+                reference = (reference * (samples / total) + more * (extra / total)).astype(reference.dtype)
+                start = time.perf_counter()
+                again = {(m, t) for m, t, _line in refused}
+                redo, redo_problems = fit_scene(
+                    passes, desc, reference, techniques=techniques, box=box, samples=total, log=log, only=again
+                )
+                seconds["fit_more"] = time.perf_counter() - start
+                # The second fit's outcome replaces the first's refusals.
+                first = {line for _m, _t, line in refused}
+                fit_problems = [line for line in fit_problems if line not in first] + redo_problems
+                results += redo
+            else:
+                fit_problems.append(f"not rendered again for the refused fits: {why}")
     problems += fit_problems
     for r in results:
         material = bpy.data.materials.get(r.material)

@@ -86,6 +86,65 @@ FOLDS = 4
 TRANSMISSION_SCALE_MAX = 4.0
 
 
+#: The render a fit stands in for: Cycles random walk of the same view at this many samples (each
+#: of the fidelity suite's two converged reference renders, ``benchmarks/fit.py``).
+REFERENCE_SAMPLES = 1024
+#: The share of that render's time a fit may take (its passes, renders and fitting together): the
+#: budget within which ``more_samples`` adds samples for fits the held-out check refused. The fit's
+#: goal is 10 %; a point less leaves room for the estimate's error (on the fidelity suite the
+#: measured share came out 0.3 to 0.5 points above the estimate, ``benchmarks/fit.py``).
+BUDGET = 0.09
+
+
+def render_time_split(render_s: float, samples: int, pilot_s: float, pilot_samples: int = 1) -> tuple | None:
+    """(fixed seconds, seconds per sample) of a view's Cycles render, from two renders of it:
+    ``samples`` samples in ``render_s`` seconds and ``pilot_samples`` (fewer) in ``pilot_s``. A
+    render's time is a fixed part (synchronising the scene, building its BVH, starting the device)
+    plus a part per sample; one render cannot tell them apart, and on a small view the fixed part
+    is a large share of a short render. None when the two give no positive time per sample (too
+    noisy to tell) or are not such a pair."""
+    if not (isinstance(samples, int) and isinstance(pilot_samples, int) and 0 < pilot_samples < samples):
+        return None
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) and v >= 0 for v in (render_s, pilot_s)):
+        return None
+    per_sample = (render_s - pilot_s) / (samples - pilot_samples)
+    if not per_sample > 0:
+        return None
+    return max(pilot_s - pilot_samples * per_sample, 0.0), per_sample
+
+
+def more_samples(
+    *,
+    samples: int,
+    max_samples: int,
+    spent_s: float,
+    render_s: float,
+    pilot_s: float,
+    fit_s: float,
+    budget: float = BUDGET,
+) -> tuple[int, str]:
+    """How many samples to render again for the fits the held-out check refused (those materials
+    are then fitted again on the two renders' mean), and why: ``max_samples`` - ``samples`` when
+    the estimated total stays within ``budget`` of the render the fit stands in for (a
+    ``REFERENCE_SAMPLES``-sample render of the view, from ``render_time_split`` of the fit's render
+    and a one-sample pilot), else 0. ``spent_s``: the seconds spent so far (renders, passes, fit,
+    the pilot); the new render is estimated as its fixed part plus its samples, the second fit as
+    long as the first."""
+    extra = max_samples - samples
+    if extra <= 0:
+        return 0, f"{samples} samples already (at most {max_samples})"
+    split = render_time_split(render_s, samples, pilot_s)
+    if split is None:
+        return 0, "the renders' times give no estimate of a converged render's"
+    fixed, per_sample = split
+    reference = fixed + REFERENCE_SAMPLES * per_sample
+    share = (spent_s + fixed + extra * per_sample + fit_s) / reference
+    cost = f"{share:.1%} of a {REFERENCE_SAMPLES}-sample render (estimated {reference:.3g} s; budget {budget:.0%})"
+    if share > budget:
+        return 0, f"{extra} more samples would cost {cost}"
+    return extra, f"{extra} more samples: in all {cost}"
+
+
 def _fit_range(name: str) -> tuple[float, float]:
     """The bounds the fit gives the parameter ``name``: ``fit_params.PARAMETERS``' own, the light
     from behind's scale at most ``TRANSMISSION_SCALE_MAX``."""
@@ -115,6 +174,15 @@ _AFFINE_TOL = 1e-5
 
 class FitError(InputError):
     """A material cannot be fitted; the message names it and says why (it is left unchanged)."""
+
+
+class HeldOutError(FitError):
+    """A fit that does not hold on the held-out blocks: the render it was made on may be too noisy
+    for it (``calibrate`` renders more samples for it, ``blender/calibrate.py``)."""
+
+    def __init__(self, message: str, material: str, technique: str):
+        super().__init__(message)
+        self.material, self.technique = material, technique
 
 
 @dataclass
@@ -575,10 +643,13 @@ def _accept(result: FitResult, params: dict, samples, pixels: int, start: float,
         )
     if result.heldout_after >= result.heldout_before:
         if check:
-            raise FitError(
+            raise HeldOutError(
                 f"material {result.material!r} {result.technique}: the fit does not hold on the held-out pixels"
-                f" (error {result.heldout_before:.4g} before, {result.heldout_after:.4g} after): it would fit the"
-                " noise; left unchanged (render the fit with more samples)"
+                f" (error {result.heldout_before:.4g} before, {result.heldout_after:.4g} after"
+                f"{'' if samples is None else f', {samples} samples'}): it would fit the noise; left unchanged"
+                " (render the fit with more samples)",
+                result.material,
+                result.technique,
             )
         result.notes.append("kept although it does not hold on the held-out blocks (held-out check off)")
     result.seconds = time.perf_counter() - start
@@ -693,13 +764,18 @@ def fit_scene(
     *,
     techniques=("burley",),
     log=None,
+    only=None,
+    refused: list | None = None,
     **options,
 ) -> tuple[list[FitResult], list[str]]:
     """Fit every scattering material on screen for each of ``techniques``.
 
     Returns (results, problems): one ``FitResult`` per fitted (material, technique), and one line
     per material and technique that could not be fitted (it stays as it was). Raises FitError
-    when no material of the scene scatters light. ``options`` go to ``fit_material``.
+    when no material of the scene scatters light. ``options`` go to ``fit_material``. ``only``: a
+    set of (material name, technique) to fit, the others skipped. ``refused``: a list that gets
+    (material name, technique, its problem line) for each fit its held-out check refused
+    (``HeldOutError``).
     """
     scattering = [m for m in scene.materials if m.scatters]
     if not scattering:
@@ -707,9 +783,13 @@ def fit_scene(
     results, problems = [], []
     for material in scattering:
         for technique in techniques:
+            if only is not None and (material.name or str(material.index), technique) not in only:
+                continue
             try:
                 r = fit_material(passes, scene, reference, material, technique, **options)
             except FitError as exc:
+                if refused is not None and isinstance(exc, HeldOutError):
+                    refused.append((exc.material, exc.technique, str(exc)))
                 problems.append(str(exc))
                 if log:
                     log(f"  {exc}")

@@ -1,7 +1,8 @@
 """``bpy.ops.sss_lab.fit_to_cycles`` and ``clear_fit``: the fit to Cycles (``blender.calibrate``) for the panel.
 
 Fit to Cycles runs as a modal job (``operators/modal.py``): the random-walk render, the passes and
-the fit are its three steps, with progress in the status bar; Esc cancels between steps and leaves
+the fit are its three steps (five when it renders more samples for fits that did not hold), with
+progress in the status bar; Esc cancels between steps and leaves
 every material as it was (the fitted values are written only after the last step)."""
 
 from __future__ import annotations
@@ -23,16 +24,25 @@ class SSS_LAB_OT_fit_to_cycles(DialogModalJob, bpy.types.Operator):
     samples: bpy.props.IntProperty(
         name="Samples", min=1, default=32, description="Cycles random-walk samples of the image the fit is made on"
     )
+    max_samples: bpy.props.IntProperty(
+        name="Up to",
+        min=1,
+        default=64,
+        description="For the fits that do not hold on held-out pixels: render again up to this many samples in all,"
+        " while the fit costs at most 9 % of a 1024-sample render (at most Samples: never)",
+    )
 
     # Hidden flags of the dialog-then-modal run (``DialogModalJob``).
     confirmed: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
     from_dialog: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
 
     def dialog_settings(self) -> dict:
-        return dict(samples=self.samples)
+        return dict(samples=self.samples, max_samples=self.max_samples)
 
     def new_job(self, context):
-        return calibrate_job(context.scene, samples=self.samples, log=print)
+        return calibrate_job(
+            context.scene, samples=self.samples, max_samples=max(self.max_samples, self.samples), log=print
+        )
 
     def job_done(self, context, result):
         for line in result["problems"]:

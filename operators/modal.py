@@ -47,6 +47,7 @@ class ModalJob:
     _job = None
     _timer = None
     _progress: Progress | None = None
+    _total = 0
 
     # -- what the operator provides -------------------------------------------------------------
     def new_job(self, context) -> Job:
@@ -101,7 +102,8 @@ class ModalJob:
             self._job = None
             return self.job_failed(exc)
         wm = context.window_manager
-        wm.progress_begin(0, max(self._progress.total, 1))
+        self._total = self._progress.total
+        wm.progress_begin(0, max(self._total, 1))
         self._timer = wm.event_timer_add(self.timer_step_s, window=context.window)
         self.listen(context)
         self._status(context)
@@ -126,7 +128,11 @@ class ModalJob:
         except BaseException:
             self._end(context, failed=True)
             raise
-        context.window_manager.progress_update(self._progress.done)
+        wm = context.window_manager
+        if self._progress.total != self._total:  # a job that found more to do (Fit to Cycles' extra render)
+            self._total = self._progress.total
+            wm.progress_begin(0, max(self._total, 1))
+        wm.progress_update(self._progress.done)
         self._status(context)
         return {"RUNNING_MODAL"}
 

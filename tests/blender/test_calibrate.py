@@ -3,6 +3,7 @@ scene description reads them back, Clear Fit removes them, and bad input changes
 Small and quick: the backlit_thin sample scene (128 x 128) at 8 samples."""
 
 import bpy
+import numpy as np
 import pytest
 
 from sss_lab.addon.cli import main
@@ -68,6 +69,9 @@ def test_bad_input_changes_nothing(backlit, tmp_path):
         cal.calibrate(bpy.context.scene, techniques=("blur",))
     # The command line refuses to overwrite its input and writes nothing for a scene without SSS.
     assert main(["calibrate", backlit, "--out", backlit]) == 2
+    for bad in (["--budget", "2"], ["--samples", "16", "--max-samples", "8"]):
+        assert main(["calibrate", backlit, "--out", str(tmp_path / "bad.blend"), *bad]) == 2
+        assert not (tmp_path / "bad.blend").exists()
     bpy.ops.wm.read_factory_settings(use_empty=True)
     plain = str(tmp_path / "plain.blend")
     bpy.ops.wm.save_as_mainfile(filepath=plain)
@@ -110,3 +114,92 @@ def test_fit_to_cycles_runs_modal_and_esc_leaves_the_materials_unchanged(backlit
     assert op.modal(context, modal.event("TIMER")) == {"RUNNING_MODAL"}
     assert op.modal(context, modal.event("TIMER")) == {"FINISHED"}, op.reports
     assert any(_fits(scene).values()) and _state(scene) == before
+
+
+def _refusing(real, refuse: tuple[str, str]):
+    """``fit_scene`` whose first call refuses ``refuse`` (material, technique) as the held-out
+    check would (its result dropped, its line and its entry in ``refused`` added); later calls
+    are the real one. The rest of ``calibrate`` (renders, budget, second fit) runs as it is."""
+    calls: list = []
+
+    def fit_scene(passes, desc, reference, **kw):
+        calls.append({"reference": reference.copy(), **kw})
+        results, problems = real(passes, desc, reference, **kw)
+        if len(calls) == 1:
+            line = f"material {refuse[0]!r} {refuse[1]}: the fit does not hold on the held-out pixels (simulated)"
+            results = [r for r in results if (r.material, r.technique) != refuse]
+            problems = problems + [line]
+            kw["refused"].append((*refuse, line))
+        return results, problems
+
+    return fit_scene, calls
+
+
+def test_a_refused_fit_is_made_again_on_more_samples_within_the_budget(backlit, monkeypatch):
+    """A fit the held-out check refuses gets a one-sample pilot render, and, when
+    ``core.fit.more_samples`` finds the cost within the budget, ``max_samples`` - ``samples`` more
+    samples (another seed) and a second fit of that material and technique alone on the renders'
+    mean: its stored fit says it was made on ``max_samples`` samples and the refusal's line is
+    gone. With no budget, no second render: the line stays and another says why."""
+    from sss_lab.core import fit as core_fit
+
+    bpy.ops.wm.open_mainfile(filepath=backlit)
+    scene = bpy.context.scene
+    before = _state(scene)
+    material = sorted(m.name for m in sss_materials(scene))[0]
+    fake, calls = _refusing(core_fit.fit_scene, (material, "burley"))
+    monkeypatch.setattr(cal, "fit_scene", fake)
+    lines: list = []
+    data = cal.calibrate(scene, techniques=("burley",), samples=4, max_samples=12, budget=1.0, log=lines.append)
+    assert _state(scene) == before
+    assert len(calls) == 2 and calls[1]["only"] == {(material, "burley")} and calls[1]["samples"] == 12
+    # The second fit's reference is the mean of the two renders: not the first render.
+    assert not np.array_equal(calls[1]["reference"], calls[0]["reference"])
+    assert {"pilot", "more", "fit_more"} <= set(data["seconds"])
+    assert any("8 more samples: in all" in line for line in lines), lines
+    redone = [r for r in data["results"] if r["material"] == material]
+    assert [r["params"]["info"]["samples"] for r in redone] == [12]
+    assert not any("(simulated)" in p for p in data["problems"])
+    assert cal.read_fit(bpy.data.materials[material])["burley"]["info"]["samples"] == 12
+    # No budget: the pilot is rendered, not the more samples; the refusal stays, with the reason.
+    bpy.ops.wm.open_mainfile(filepath=backlit)
+    fake, calls = _refusing(core_fit.fit_scene, (material, "burley"))
+    monkeypatch.setattr(cal, "fit_scene", fake)
+    data = cal.calibrate(bpy.context.scene, techniques=("burley",), samples=4, max_samples=12, budget=0.0, log=print)
+    assert len(calls) == 1 and "pilot" in data["seconds"] and "more" not in data["seconds"]
+    assert any("(simulated)" in p for p in data["problems"])
+    why = "not rendered again for the refused fits: 8 more samples would cost"
+    assert any(p.startswith(why) for p in data["problems"])
+    assert not any(k.startswith(cal.PREFIX + "burley") for k in bpy.data.materials[material].keys())
+    with pytest.raises(InputError, match="max_samples: expected at least samples"):
+        cal.calibrate(bpy.context.scene, samples=8, max_samples=4)
+    with pytest.raises(InputError, match="budget: expected a share of the reference render from 0 to 1, got 2"):
+        cal.calibrate(bpy.context.scene, budget=2)
+
+
+def test_fit_to_cycles_shows_the_extra_steps_of_more_samples(backlit, modal, monkeypatch):
+    """The panel's operator when a fit is refused and more samples are within the budget (both
+    simulated: the refusal, and ``more_samples``' answer): five steps, the progress bar begun
+    again for five when the job finds the two more, and the fit made again on Up to's samples."""
+    from sss_lab.core import fit as core_fit
+    from sss_lab.operators.fit import SSS_LAB_OT_fit_to_cycles
+
+    bpy.ops.wm.open_mainfile(filepath=backlit)
+    scene = bpy.context.scene
+    material = sorted(m.name for m in sss_materials(scene))[0]
+    fake, calls = _refusing(core_fit.fit_scene, (material, "burley"))
+    monkeypatch.setattr(cal, "fit_scene", fake)
+    monkeypatch.setattr(cal, "more_samples", lambda **kw: (kw["max_samples"] - kw["samples"], "within (test)"))
+    window = modal.Window()
+    context = modal.context(window)
+    op = modal.driver(SSS_LAB_OT_fit_to_cycles, samples=4, max_samples=12, confirmed=True)
+    assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
+    for _ in range(3):  # the render, the passes, the fit (which finds the refusal)
+        assert op.modal(context, modal.event("TIMER")) == {"RUNNING_MODAL"}
+    assert window.progress[-2:] == [("begin", 0, 5), ("update", 3)]
+    assert window.status[-1].startswith("Fit to Cycles 4/5: a one-sample pilot render")
+    assert op.modal(context, modal.event("TIMER")) == {"RUNNING_MODAL"}
+    assert window.status[-1].startswith("Fit to Cycles 5/5: Cycles random walk, 8 more samples")
+    assert op.modal(context, modal.event("TIMER")) == {"FINISHED"}, op.reports
+    assert len(calls) == 2 and calls[1]["samples"] == 12
+    assert cal.read_fit(bpy.data.materials[material])["burley"]["info"]["samples"] == 12

@@ -261,3 +261,62 @@ def test_the_fit_travels_in_the_scene_description_and_apply_uses_it(synthetic):
         dataclasses.replace(scene.material(2), fit={"burley": {"gain": (5.0, 1.0, 1.0)}})
     with pytest.raises(ValueError, match="unknown parameter 'radius'"):
         dataclasses.replace(scene.material(2), fit={"burley": {"radius": 1.0}})
+
+
+def test_a_refused_fit_is_collected_and_only_the_pairs_asked_for_are_fitted(synthetic):
+    """``fit_scene``'s ``refused`` gets each fit the held-out check refused, with its problem
+    line (``calibrate`` renders more samples for those); ``only`` fits the pairs named and skips
+    every other material and technique."""
+    passes, scene = synthetic
+    skin = _skin(scene)
+    ref = _reference(passes, scene, "burley", {})
+    folds = _fold_pixels(passes, skin)
+    for j, factor in enumerate((1.2, 1.2, 0.8, 0.8)):  # as in the test of a fit that does not hold
+        ref[folds[j], :3] *= factor
+    refused: list = []
+    results, problems = fit_scene(
+        passes, scene, ref, techniques=("burley",), only={("Skin", "burley")}, refused=refused, samples=32
+    )
+    assert results == []
+    assert len(refused) == 1 and refused[0][:2] == ("Skin", "burley")
+    assert problems == [refused[0][2]]
+    assert "does not hold on the held-out pixels" in problems[0] and "32 samples" in problems[0]
+    # Without ``only`` the other scattering materials are fitted (or named) as well.
+    others, missed = fit_scene(passes, scene, ref, techniques=("burley",))
+    assert {r.material for r in others} | {p.split("'")[1] for p in missed} == {
+        m.name for m in scene.materials if m.scatters
+    }
+    assert len([m for m in scene.materials if m.scatters]) > 1
+
+
+def test_the_render_time_is_split_into_a_fixed_part_and_one_per_sample():
+    """Two renders of one view, 32 samples in 2.0 s and 1 in 0.45 s: 0.05 s per sample and 0.4 s
+    fixed (exact in binary up to rounding). Pairs that tell nothing give None."""
+    fixed, per = fit_mod.render_time_split(2.0, 32, 0.45)
+    assert per == pytest.approx(0.05, rel=1e-12) and fixed == pytest.approx(0.4, rel=1e-12)
+    assert fit_mod.render_time_split(2.0, 32, 2.5) is None  # the pilot slower: no time per sample
+    assert fit_mod.render_time_split(2.0, 32, 0.45, pilot_samples=32) is None
+    assert fit_mod.render_time_split(float("nan"), 32, 0.45) is None
+    assert fit_mod.render_time_split(2.0, True, 0.45) is None
+    # A fixed part the pilot cannot account for is 0, not negative.
+    assert fit_mod.render_time_split(3.1, 32, 0.05)[0] == 0.0
+
+
+def test_more_samples_stays_within_the_budget():
+    """The estimate of ``more_samples``: a converged render of 1024 samples takes 0.4 + 1024 x 0.05
+    = 51.6 s; spent so far 3.95 s; 32 more samples 0.4 + 1.6 s and a second fit of 0.5 s: 6.45 s in
+    all, 12.5 % of it. Within a budget of 15 %, 32 more samples; within 9 %, none, and the line
+    says what it would have cost (numbers exact up to rounding, checked to the printed digit)."""
+    times = dict(spent_s=3.95, render_s=2.0, pilot_s=0.45, fit_s=0.5)
+    extra, why = fit_mod.more_samples(samples=32, max_samples=64, budget=0.15, **times)
+    assert extra == 32 and "12.5% of a 1024-sample render" in why and "51.6 s" in why
+    extra, why = fit_mod.more_samples(samples=32, max_samples=64, budget=0.09, **times)
+    assert extra == 0 and why.startswith("32 more samples would cost 12.5%")
+    # The same times for a 16-sample render: 0.1033 s per sample, 0.3467 s fixed, a converged
+    # render of 106.2 s; 48 more samples bring the total to 9.76 s, 9.2 % of it.
+    extra, why = fit_mod.more_samples(samples=16, max_samples=64, budget=0.10, **times)
+    assert extra == 48 and "9.2% of a 1024-sample render" in why
+    assert fit_mod.more_samples(samples=16, max_samples=64, budget=0.09, **times)[0] == 0
+    assert fit_mod.more_samples(samples=64, max_samples=64, **times) == (0, "64 samples already (at most 64)")
+    extra, why = fit_mod.more_samples(samples=32, max_samples=64, **{**times, "pilot_s": 2.0})
+    assert extra == 0 and "no estimate" in why
