@@ -37,7 +37,8 @@ so that the two choosers are compared on the same measurements and machine load.
 With ``--fit``, the same again with each scene fitted as ``calibrate`` fits it (``benchmarks/fit.py``'s
 render and passes: Cycles random walk of the same view at 32 samples and passes at 16, its own
 seed, cached in ``out/fidelity_cache/fit``; ``core.fit.fit_scene`` for every technique that has
-a fit, or ``--fit-methods``): auto then chooses by the errors the fit measured
+a fit, or ``--fit-methods``, with ``calibrate``'s second render for the fits its held-out check
+refuses, ``benchmarks.fit.fit_like_calibrate``): auto then chooses by the errors the fit measured
 (``core.auto.measured_errors``), and **regret with the fit** = auto's error / the lowest error of
 no SSS and every technique at default quality, unfitted *or* fitted - 1 (the fitted techniques
 count among the choices). Its time saved is against the same unfitted most expensive technique
@@ -91,26 +92,44 @@ class Scene:
 
 def _fit(data, fit_samples: int, fit_pass_samples: int, methods, log) -> object:
     """``data.desc`` with each material's fit, made as ``calibrate`` makes it (``benchmarks/fit.py``'s
-    cached render and passes of the scene just loaded, ``core.fit.fit_scene`` for ``methods``)."""
+    cached render and passes of the scene just loaded, and its ``fit_like_calibrate`` for
+    ``methods``: with ``calibrate``'s second render, up to its ``MAX_SAMPLES`` within its budget,
+    for the fits the held-out check refuses)."""
     import bpy
 
     from benchmarks import fit as fit_bench
-    from sss_lab.core.fit import fit_scene
+    from sss_lab.blender.calibrate import MAX_SAMPLES
+    from sss_lab.core.fit import BUDGET
 
     cache = os.path.join(fit_bench.ROOT, "out", "fidelity_cache", "fit")
     os.makedirs(cache, exist_ok=True)
     scene = bpy.context.scene  # the suite's scene as load_scene built, prepared and baked it
-    noisy, _ = fit_bench._render(
+    noisy, render_cpu = fit_bench._render(
         scene, cache, samples=fit_samples, seed=fit_bench.FIT_SEED, fingerprint=data.fingerprint, log=log
     )
-    passes, desc, _ = fit_bench._fit_passes(scene, data.fingerprint, fit_pass_samples, cache, log)
-    results, problems = fit_scene(
-        passes, fit_bench._unfitted(desc), noisy, techniques=tuple(methods), samples=fit_samples
+    passes, desc, passes_cpu = fit_bench._fit_passes(scene, data.fingerprint, fit_pass_samples, cache, log)
+    made = fit_bench.fit_like_calibrate(
+        scene,
+        data.fingerprint,
+        passes,
+        desc,
+        noisy,
+        tuple(methods),
+        samples=fit_samples,
+        max_samples=max(MAX_SAMPLES, fit_samples),
+        budget=BUDGET,
+        cache=cache,
+        options={},
+        log=lambda _line: None,
+        render_cpu=render_cpu,
+        passes_cpu=passes_cpu,
     )
-    for line in problems:
+    if made["more"] is not None:
+        log(f"  fit: refused fits, {made['more']['why']}")
+    for line in made["problems"]:
         log(f"  fit: {line}")
     fits: dict = {}
-    for r in results:
+    for r in made["results"]:
         fits.setdefault(r.material, {})[r.technique] = r.params
     return fit_bench._carried(data.desc, fits)
 
