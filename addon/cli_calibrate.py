@@ -101,6 +101,8 @@ def run(args) -> int:
             json.dump(data, fh, indent=2, default=str)
     s = data["seconds"]
     line = f"calibrate: Cycles {s['reference']:.1f} s, passes {s['passes']:.1f} s, fit {s['fit']:.1f} s"
+    if "start_up" in s:
+        line += f", start-up {s['start_up']:.1f} s (once per process: imports, compiled kernels, tables)"
     if "pilot" in s:
         line += f", pilot {s['pilot']:.1f} s"
     if "more" in s:

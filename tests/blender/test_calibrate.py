@@ -203,3 +203,16 @@ def test_fit_to_cycles_shows_the_extra_steps_of_more_samples(backlit, modal, mon
     assert op.modal(context, modal.event("TIMER")) == {"FINISHED"}, op.reports
     assert len(calls) == 2 and calls[1]["samples"] == 12
     assert cal.read_fit(bpy.data.materials[material])["burley"]["info"]["samples"] == 12
+
+
+def test_the_start_up_is_timed_apart_once_per_process(backlit, monkeypatch):
+    """What a process does once before its first fit (imports, compiled kernels, tables) runs on a
+    synthetic frame and is timed apart ("start_up"), so that the budget for more samples counts the
+    fit as every later fit costs it: a second calibrate in the process has no start-up."""
+    monkeypatch.setattr(cal, "_STARTED", set())
+    bpy.ops.wm.open_mainfile(filepath=backlit)
+    first = cal.calibrate(bpy.context.scene, techniques=("burley",), samples=4, pass_samples=4, log=lambda _l: None)
+    assert first["seconds"]["start_up"] > 0
+    assert cal._STARTED == {"burley"}
+    again = cal.calibrate(bpy.context.scene, techniques=("burley",), samples=4, pass_samples=4, log=lambda _l: None)
+    assert "start_up" not in again["seconds"]
