@@ -196,6 +196,7 @@ def run_scene(name: str, args, log) -> dict:
         log=log,
         render_cpu=None if args.oracle else fit_render_cpu,
         passes_cpu=None if args.oracle else passes_cpu,
+        more_seed=args.more_seed,
     )
     fit_s = time.perf_counter() - start
     results, problems, fit_cpu_by, more = (
@@ -279,6 +280,7 @@ def fit_like_calibrate(
     log,
     render_cpu: float | None,
     passes_cpu: float | None,
+    more_seed: int = MORE_SEED,
 ) -> dict:
     """The fits ``calibrate`` makes of ``methods`` on ``passes`` (and their scene description
     ``desc``) and the ``samples``-sample render ``noisy``, one technique at a time (each one's CPU
@@ -287,7 +289,7 @@ def fit_like_calibrate(
     ``core.fit.more_samples``' decision on CPU seconds (``calibrate`` decides on wall seconds; on
     this shared machine CPU time is the steadier measure; what ``calibrate`` fits by default,
     ``DEFAULT_TECHNIQUES``, counts as the fit's time), and when it says so ``max_samples`` -
-    ``samples`` more samples (seed ``MORE_SEED``), the mean of the two renders, and the refused
+    ``samples`` more samples (seed ``more_seed``), the mean of the two renders, and the refused
     (material, technique) fitted again on it, replacing their refusals. Renders cached in ``cache``.
 
     Returns {"results", "problems" (lines), "fit_cpu_s_by_technique", "more": None or what the
@@ -325,7 +327,7 @@ def fit_like_calibrate(
     if not extra:
         problems.append(f"not rendered again for the refused fits: {why}")
         return out
-    image, more["render_cpu_s"] = _render(scene, cache, samples=extra, seed=MORE_SEED, fingerprint=fingerprint, log=log)
+    image, more["render_cpu_s"] = _render(scene, cache, samples=extra, seed=more_seed, fingerprint=fingerprint, log=log)
     total = samples + extra
     mean = noisy * (samples / total) + image * (extra / total)
     again = {(m, t) for m, t, _line in refused}
@@ -398,6 +400,13 @@ def main(argv=None) -> int:
     )
     parser.add_argument(
         "--budget", type=float, default=None, help="calibrate's cost budget for rendering again (default: its own)"
+    )
+    parser.add_argument(
+        "--more-seed",
+        type=int,
+        default=MORE_SEED,
+        help=f"seed of the second render for refused fits (default {MORE_SEED}; another shows how much the"
+        " outcome owes to that render's noise)",
     )
     parser.add_argument(
         "--timing-samples", type=int, default=1024, help="samples of the render the fit stands in for (timed)"
