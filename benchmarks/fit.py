@@ -349,7 +349,7 @@ def fit_like_calibrate(
         redo += got
         redo_problems += missed
     more["fits"] = [{"material": m, "technique": t} for m, t in sorted(again)]
-    out["results"] = [r for r in results if (r.material, r.technique) not in again] + redo
+    out["results"] = results + redo  # the refused pairs have no result of the first fit
     out["problems"] = [p for p in problems if p not in first] + redo_problems
     return out
 

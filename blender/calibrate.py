@@ -100,8 +100,8 @@ _STARTED: set = set()
 
 
 def _start_up(techniques) -> dict:
-    """What a process does once before its first fit of ``techniques``, done on a small synthetic
-    frame (``core.synthetic.sphere_scene``, as ``core.prepare`` uses): importing the fit's modules,
+    """What a process does once before its first fit of ``techniques``, done on the small synthetic
+    frame ``core.prepare`` compiles the kernels on (``synthetic_frame``): importing the fit's modules,
     loading (or compiling) the compiled kernels, building the energy stage's and the light from
     behind's tables. Returns {"start_up": its seconds} ({} when nothing was left to do); the fit
     that follows then takes what it takes on every later call, which is what ``calibrate``'s
@@ -109,18 +109,13 @@ def _start_up(techniques) -> dict:
     todo = tuple(t for t in techniques if t not in _STARTED)
     if not todo:
         return {}
-    import dataclasses
-
     from ..core import fit as core_fit
-    from ..core.exr import Passes
-    from ..core.synthetic import sphere_scene
+    from ..core.prepare import synthetic_frame
 
     start = time.perf_counter()
-    arrays, scene = sphere_scene(64, 48)
-    # A bake distance, so that the combined technique's light from behind runs as well.
-    materials = tuple(dataclasses.replace(m, thickness_distance=0.5) if m.scatters else m for m in scene.materials)
-    passes = Passes(arrays)
-    core_fit.fit_scene(passes, dataclasses.replace(scene, materials=materials), passes["Combined"], techniques=todo)
+    # The frame with a bake distance, so that the combined technique's light from behind runs too.
+    passes, _scene, far = synthetic_frame()
+    core_fit.fit_scene(passes, far, passes["Combined"], techniques=todo)
     _STARTED.update(todo)
     return {"start_up": time.perf_counter() - start}
 

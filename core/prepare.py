@@ -81,6 +81,19 @@ def is_prepared() -> bool:
     return os.path.isfile(marker_path())
 
 
+def synthetic_frame():
+    """The small frame kernels are prepared on: (its passes, its scene description, the same scene
+    with ``FAR``'s materials), ``core.synthetic.sphere_scene`` at ``SIZE``."""
+    from .exr import Passes
+    from .synthetic import sphere_scene
+
+    arrays, scene = sphere_scene(*SIZE)
+    far = dataclasses.replace(
+        scene, materials=tuple(dataclasses.replace(m, **FAR) if m.scatters else m for m in scene.materials)
+    )
+    return Passes(arrays), scene, far
+
+
 def prepare_kernels(techniques=None, *, log=None) -> dict:
     """Compile (or load from the cache) every kernel ``core.apply.apply`` runs for each technique of
     ``techniques`` (default: all registered) on ``SIZE``'s synthetic frame, on the compiled
@@ -91,8 +104,6 @@ def prepare_kernels(techniques=None, *, log=None) -> dict:
     before it runs. Raises ``PrepareError`` where Numba cannot load."""
     from ._back_light import streaming_every_region
     from .apply import apply
-    from .exr import Passes
-    from .synthetic import sphere_scene
     from .techniques import TECHNIQUES, check_technique
 
     if backend.compiled() is None:
@@ -101,11 +112,7 @@ def prepare_kernels(techniques=None, *, log=None) -> dict:
             "implementations, and there is nothing to compile"
         )
     names = list(TECHNIQUES) if techniques is None else [check_technique(t) for t in techniques]
-    arrays, scene = sphere_scene(*SIZE)
-    passes = Passes(arrays)
-    far = dataclasses.replace(
-        scene, materials=tuple(dataclasses.replace(m, **FAR) if m.scatters else m for m in scene.materials)
-    )
+    passes, scene, far = synthetic_frame()
     start = time.perf_counter()
     before = set(backend.first_call_seconds())
     with backend.use("numba"):
