@@ -13,7 +13,12 @@ the mask, n samples:
   distance (depth jumps) and pdf the area density of the widest channel's profile;
 - samples off the image, off the mask, from another object (object id) or background get no
   weight; out_c = A_c sum_i w_ic E_ic / sum_i w_ic (self-normalized per channel, so rejected
-  samples renormalize instead of darkening; the sum is guarded).
+  samples renormalize instead of darkening; the sum is guarded);
+- except a sample on something nearer the camera than its pixel (another object, a pixel off
+  the mask): the surface there is hidden, not absent, and the sample counts the pixel's own
+  light at the pixel's depth, with its surface (docs/references.md §1: measured on the fidelity
+  suite, where the walk carries light from behind occluders and from the surface that meets a
+  floor in front of it).
 
 A pixel whose footprint (16 d_max in pixels) is at most one pixel is left as it is, as EEVEE
 Next does; so is each channel whose own footprint is (a channel far narrower than a pixel).
@@ -319,6 +324,9 @@ def _gather(
     aflat = np.append(surface_area(z, ok, camera).ravel(), f32(0.0))
     idflat = None if ids is None else np.rint(ids).astype(np.int64).ravel()
     sflat = scale.ravel()
+    # The depth of every pixel, taking part or not (NaN and depths <= 0 are never in front).
+    zflat = np.asarray(z, f32).ravel()
+    okflat = ok.ravel()
     n = int(n_samples)
     block = max(128, _BLOCK_ELEMENTS // n)
     ones = np.ones(n, f32)
@@ -355,11 +363,24 @@ def _gather(
         j *= w
         j += xc.astype(np.intp)
         np.copyto(j, sentinel, where=outside)
-        if idflat is not None:
-            other = idflat[np.minimum(j, sentinel - 1)] != idflat[idx][:, None]
-            np.copyto(j, sentinel, where=other)
-        g = np.take(items, j).view(f32).reshape(b, n, 4)
         zc = zkey[idx][:, None]
+        # Samples on something nearer the camera that takes no part (another object, a pixel off
+        # the mask): the surface there is hidden, not absent; such a sample stands for the pixel's
+        # own light, at its depth and with its surface (docs/references.md §1).
+        on = np.minimum(j, sentinel - 1)
+        z_on = zflat[on]
+        hidden = ~outside & (z_on < zc) & (z_on > 0)
+        if idflat is not None:
+            other = idflat[on] != idflat[idx][:, None]
+            hidden &= other | ~okflat[on]
+            np.copyto(j, sentinel, where=other)
+        else:
+            hidden &= ~okflat[on]
+        g = np.take(items, j).view(f32).reshape(b, n, 4)
+        surface = np.take(aflat, j)
+        if hidden.any():
+            g[hidden] = packed[np.broadcast_to(idx[:, None], hidden.shape)[hidden]]
+            surface[hidden] = np.broadcast_to(aflat[idx][:, None], hidden.shape)[hidden]
         rp = np.subtract(g[..., 3], zc)
         rp *= rp
         rp += r2[None, :]
@@ -367,7 +388,7 @@ def _gather(
         # R_c(r') / pdf_area(r) up to constants: (e^{-r'/d} + e^{-r'/3d}) / r' x r / f(r).
         ratio = np.maximum(rp, f32(1e-30))
         np.divide(inv_pdf[None, :], ratio, out=ratio)
-        ratio *= np.take(aflat, j)  # the surface the sample's pixel covers
+        ratio *= surface  # the surface the sample's pixel covers
         e3 = np.empty_like(rp)
         wgt = np.empty_like(rp)
         for c in range(3):
@@ -490,9 +511,12 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
         reach_px = largest * float(tables[0].max()) * 1.001 + 2.0
     reach_px = int(math.ceil(reach_px)) if math.isfinite(reach_px) else h
     margin = min(radius + reach_px, h)
-    # Whole rows with object ids (the kernel finds a sample's id from its packed index).
-    px0 = 0 if ids is not None else max(c0 - margin, 0)
-    px1 = ok.shape[1] if ids is not None else min(c1 + margin, ok.shape[1])
+    # Whole rows with object ids (the kernel finds a sample's id from its packed index). The
+    # columns reach as far as the samples do (a frame may be wider than it is tall): a sample
+    # reads what it lands on, which may be something in front of its pixel (``_burley_pixel``).
+    side = min(radius + reach_px, ok.shape[1])
+    px0 = 0 if ids is not None else max(c0 - side, 0)
+    px1 = ok.shape[1] if ids is not None else min(c1 + side, ok.shape[1])
     packed = np.empty((min(band + 2 * margin, h), px1 - px0, 4), f32)
     packed_area = np.empty(packed.shape[:2], f32)
     rot_cos = np.ones((1, 1), f32)  # a rotation by 0 (cos 1, sin 0) leaves the spiral as it is

@@ -1000,11 +1000,19 @@ def _burley_pixel(packed, area, ids, id_base, q, tables, g, js, inside, k0, k1, 
     The loop over the samples vectorizes (a gather per value read), with the weights and sums
     reassociated and fused (``fastmath`` "reassoc" and "contract": the sums in another order,
     one rounding instead of two, within ``core.backend.tolerance``). A sample the reference
-    weights by exactly 0 (off the image, off the mask, another object) is selected away (its
-    light may be NaN)."""
+    weights by exactly 0 (off the image, off the mask or another object, not in front of the
+    pixel) is selected away (its light may be NaN). A sample on something in front of the
+    pixel that takes no part (another object, or off the mask: ``area`` holds minus its depth)
+    is hidden surface: it counts the pixel's own light at the pixel's depth, with the pixel's
+    surface (``core.burley._gather``)."""
     use_ids = ids.size > 1
     own = ids[q + id_base] if use_ids else ids[0]
-    zc = packed[np.int32(np.int32(4) * np.int32(q) + np.int32(3))]
+    q4 = np.int32(np.int32(4) * np.int32(q))
+    zc = packed[np.int32(q4 + np.int32(3))]
+    c0 = packed[q4]
+    c1 = packed[np.int32(q4 + np.int32(1))]
+    c2 = packed[np.int32(q4 + np.int32(2))]
+    ac = area[q]
     n0 = _ZERO
     n1 = _ZERO
     n2 = _ZERO
@@ -1014,27 +1022,32 @@ def _burley_pixel(packed, area, ids, id_base, q, tables, g, js, inside, k0, k1, 
     for k in range(js.size):
         j4 = np.int32(js[k] * np.int32(4))
         zj = packed[np.int32(j4 + np.int32(3))]
+        aj = area[js[k]]
         valid = inside[k] & (zj < _INF)
         if use_ids:
             valid &= ids[js[k] + id_base] == own
-        rp = zj - zc
+        # The depth of what the sample lands on: its key where it takes part, else -area.
+        zo = zj if zj < _INF else -aj
+        hidden = inside[k] & (not valid) & (zo < zc)
+        rp = (zc if hidden else zj) - zc
         rp *= rp
         rp += tables[1, g, k]
         rp = math.sqrt(rp)
         ratio = tables[4, g, k] / (rp if rp > _TINY else _TINY)
-        ratio *= area[js[k]]
+        ratio *= ac if hidden else aj
         e3 = _exp(rp * k0)
         w0 = (e3 * e3 * e3 + e3) * ratio
         e3 = _exp(rp * k1)
         w1 = (e3 * e3 * e3 + e3) * ratio
         e3 = _exp(rp * k2)
         w2 = (e3 * e3 * e3 + e3) * ratio
-        d0 += w0 if valid else _ZERO
-        d1 += w1 if valid else _ZERO
-        d2 += w2 if valid else _ZERO
-        n0 += w0 * packed[j4] if valid else _ZERO
-        n1 += w1 * packed[np.int32(j4 + np.int32(1))] if valid else _ZERO
-        n2 += w2 * packed[np.int32(j4 + np.int32(2))] if valid else _ZERO
+        use = valid | hidden
+        d0 += w0 if use else _ZERO
+        d1 += w1 if use else _ZERO
+        d2 += w2 if use else _ZERO
+        n0 += w0 * (c0 if hidden else packed[j4]) if use else _ZERO
+        n1 += w1 * (c1 if hidden else packed[np.int32(j4 + np.int32(1))]) if use else _ZERO
+        n2 += w2 * (c2 if hidden else packed[np.int32(j4 + np.int32(2))]) if use else _ZERO
     sums[0] = n0
     sums[1] = n1
     sums[2] = n2
@@ -1195,7 +1208,9 @@ def burley_pack(light, depth, ok, far, ortho, f, cx, cy, min_cos, y0, x0, packed
     pixel that takes no part gives no light and its weight is 0), so that a sample's four
     values are one aligned 16-byte read; ``packed_area`` (rows, columns) the surface each of
     these pixels covers (``surface_area``, with its parameters ``far`` .. ``min_cos``; computed
-    here for the pixels the band's samples reach, not for a frame)."""
+    here for the pixels the band's samples reach, not for a frame) where ``ok``, and minus its
+    depth elsewhere (-inf where that is not positive): whether a sample landing there is on
+    something in front of its pixel (``_burley_pixel``)."""
     for i in prange(packed.shape[0]):
         y = y0 + i
         for j in range(packed.shape[1]):
@@ -1205,7 +1220,10 @@ def burley_pack(light, depth, ok, far, ortho, f, cx, cy, min_cos, y0, x0, packed
             packed[i, j, 1] = light[y, x, 1] if o else _ZERO
             packed[i, j, 2] = light[y, x, 2] if o else _ZERO
             packed[i, j, 3] = depth[y, x] if o else _INF
-            packed_area[i, j] = _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x)
+            if o:
+                packed_area[i, j] = _area_at(depth, ok, far, ortho, f, cx, cy, min_cos, y, x)
+            else:
+                packed_area[i, j] = -depth[y, x] if depth[y, x] > _ZERO else -_INF
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

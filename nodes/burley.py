@@ -8,8 +8,10 @@ NumPy estimator renormalizes rejected samples; masking and compositing: ``nodes/
 
 Differences from ``core.burley`` (measured in docs/compositor.md): one kernel size for the
 whole image instead of one per pixel depth; no 3-D distance across depth jumps and no object-id
-rejection (only the mask separates surfaces); the exact profile instead of ``n_samples`` spiral
-samples (``n_samples``, ``random_rotation`` and ``seed`` do not apply).
+rejection (only the mask separates surfaces); what lies off the mask is dropped whether it is in
+front of a pixel or behind it (``core.burley`` counts the pixel's own light for a sample hidden
+by something in front); the exact profile instead of ``n_samples`` spiral samples
+(``n_samples``, ``random_rotation`` and ``seed`` do not apply).
 """
 
 from __future__ import annotations
