@@ -324,9 +324,12 @@ def _gather(
     aflat = np.append(surface_area(z, ok, camera).ravel(), f32(0.0))
     idflat = None if ids is None else np.rint(ids).astype(np.int64).ravel()
     sflat = scale.ravel()
-    # The depth of every pixel, taking part or not (NaN and depths <= 0 are never in front).
-    zflat = np.asarray(z, f32).ravel()
-    okflat = ok.ravel()
+    # The depth of each pixel that takes no part, +inf where it does or has no positive depth (and
+    # for the off-image sentinel): a sample there is on something in front of its pixel where this
+    # is nearer than the pixel (``run``).
+    zfront = np.full(h * w + 1, np.inf, f32)
+    apart = (~ok & (z > 0)).ravel()  # NaN depths compare false
+    zfront[: h * w][apart] = np.asarray(z, f32).ravel()[apart]
     n = int(n_samples)
     block = max(128, _BLOCK_ELEMENTS // n)
     ones = np.ones(n, f32)
@@ -367,15 +370,11 @@ def _gather(
         # Samples on something nearer the camera that takes no part (another object, a pixel off
         # the mask): the surface there is hidden, not absent; such a sample stands for the pixel's
         # own light, at its depth and with its surface (docs/references.md §1).
-        on = np.minimum(j, sentinel - 1)
-        z_on = zflat[on]
-        hidden = ~outside & (z_on < zc) & (z_on > 0)
+        hidden = zfront[j] < zc
         if idflat is not None:
-            other = idflat[on] != idflat[idx][:, None]
-            hidden &= other | ~okflat[on]
+            other = idflat[np.minimum(j, sentinel - 1)] != idflat[idx][:, None]
+            hidden |= other & (zkey[j] < zc)
             np.copyto(j, sentinel, where=other)
-        else:
-            hidden &= ~okflat[on]
         g = np.take(items, j).view(f32).reshape(b, n, 4)
         surface = np.take(aflat, j)
         if hidden.any():
