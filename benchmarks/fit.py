@@ -296,7 +296,7 @@ def fit_like_calibrate(
     second render did ("extra", "why", "pilot_cpu_s", "render_cpu_s", "fit_cpu_s_by_technique",
     "fits")}."""
     from sss_lab.blender.calibrate import DEFAULT_TECHNIQUES
-    from sss_lab.core.fit import fit_scene, more_samples
+    from sss_lab.core.fit import after_second_fit, fit_scene, mean_render, more_samples, refused_pairs
 
     results, problems, refused, by = [], [], [], {}
     for t in methods:
@@ -329,9 +329,8 @@ def fit_like_calibrate(
         return out
     image, more["render_cpu_s"] = _render(scene, cache, samples=extra, seed=more_seed, fingerprint=fingerprint, log=log)
     total = samples + extra
-    mean = noisy * (samples / total) + image * (extra / total)
-    again = {(m, t) for m, t, _line in refused}
-    first = {line for _m, _t, line in refused}
+    mean = mean_render(noisy, samples, image, extra)
+    again = refused_pairs(refused)
     redo, redo_problems, more["fit_cpu_s_by_technique"] = [], [], {}
     for t in sorted({t for _m, t in again}):
         cpu0 = time.process_time()
@@ -350,7 +349,7 @@ def fit_like_calibrate(
         redo_problems += missed
     more["fits"] = [{"material": m, "technique": t} for m, t in sorted(again)]
     out["results"] = results + redo  # the refused pairs have no result of the first fit
-    out["problems"] = [p for p in problems if p not in first] + redo_problems
+    out["problems"] = after_second_fit(problems, refused, redo_problems)
     return out
 
 

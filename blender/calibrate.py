@@ -27,7 +27,7 @@ import bpy
 
 from ..core import backend, exr
 from ..core.errors import InputError
-from ..core.fit import BOX, BUDGET, fit_scene, more_samples
+from ..core.fit import BOX, BUDGET, after_second_fit, fit_scene, mean_render, more_samples, refused_pairs
 from ..core.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
 from ..core.sequence import load_scene
 from ..core.techniques import TECHNIQUES
@@ -262,18 +262,21 @@ def calibrate_job(
                 yield steps.next(f"Cycles random walk, {extra} more samples, and a second fit of {len(refused)}")
                 more_path = os.path.join(tmp, "more.exr")
                 seconds["more"] = render(extra, seed + 1, more_path)
-                more = exr.read_passes(more_path)["Combined"]
-                total = samples + extra
-                reference = (reference * (samples / total) + more * (extra / total)).astype(reference.dtype)
+                reference = mean_render(reference, samples, exr.read_passes(more_path)["Combined"], extra)
                 start = time.perf_counter()
-                again = {(m, t) for m, t, _line in refused}
                 redo, redo_problems = fit_scene(
-                    passes, desc, reference, techniques=techniques, box=box, samples=total, log=log, only=again
+                    passes,
+                    desc,
+                    reference,
+                    techniques=techniques,
+                    box=box,
+                    samples=samples + extra,
+                    log=log,
+                    only=refused_pairs(refused),
                 )
                 seconds["fit_more"] = time.perf_counter() - start
                 # The second fit's outcome replaces the first's refusals.
-                first = {line for _m, _t, line in refused}
-                fit_problems = [line for line in fit_problems if line not in first] + redo_problems
+                fit_problems = after_second_fit(fit_problems, refused, redo_problems)
                 results += redo
             else:
                 fit_problems.append(f"not rendered again for the refused fits: {why}")

@@ -145,6 +145,26 @@ def more_samples(
     return extra, f"{extra} more samples: in all {cost}"
 
 
+def mean_render(first, first_samples: int, second, second_samples: int):
+    """Two renders of one view averaged by their sample counts, in the first's dtype: what the fits
+    the held-out check refused are made again on, after ``more_samples``."""
+    total = first_samples + second_samples
+    return (first * (first_samples / total) + second * (second_samples / total)).astype(first.dtype)
+
+
+def refused_pairs(refused) -> set:
+    """The (material name, technique) pairs of ``fit_scene``'s ``refused`` list: its ``only`` for
+    the second fit."""
+    return {(m, t) for m, t, _line in refused}
+
+
+def after_second_fit(problems, refused, second_problems) -> list:
+    """``problems`` (the first fit's lines) with the refusals of ``refused`` replaced by the second
+    fit's lines ``second_problems``."""
+    first = {line for _m, _t, line in refused}
+    return [line for line in problems if line not in first] + list(second_problems)
+
+
 def _fit_range(name: str) -> tuple[float, float]:
     """The bounds the fit gives the parameter ``name``: ``fit_params.PARAMETERS``' own, the light
     from behind's scale at most ``TRANSMISSION_SCALE_MAX``."""

@@ -320,3 +320,19 @@ def test_more_samples_stays_within_the_budget():
     assert fit_mod.more_samples(samples=64, max_samples=64, **times) == (0, "64 samples already (at most 64)")
     extra, why = fit_mod.more_samples(samples=32, max_samples=64, **{**times, "pilot_s": 2.0})
     assert extra == 0 and "no estimate" in why
+
+
+def test_the_second_fits_inputs_and_lines():
+    # The mean of two renders by their sample counts, in the first's dtype; the refusals replaced.
+    first = np.full((2, 2, 4), 1.0, np.float32)
+    second = np.full((2, 2, 4), 4.0, np.float32)
+    mean = fit_mod.mean_render(first, 32, second, 96)
+    assert mean.dtype == np.float32
+    np.testing.assert_array_equal(mean, np.full((2, 2, 4), 0.25 * 1.0 + 0.75 * 4.0, np.float32))
+    refused = [("Jade", "burley", "refused burley"), ("Jade", "combined", "refused combined")]
+    assert fit_mod.refused_pairs(refused) == {("Jade", "burley"), ("Jade", "combined")}
+    lines = ["too few pixels", "refused burley", "refused combined"]
+    assert fit_mod.after_second_fit(lines, refused, ["refused combined again"]) == [
+        "too few pixels",
+        "refused combined again",
+    ]
