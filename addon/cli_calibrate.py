@@ -17,6 +17,7 @@ from ..core.progress import saved_line
 
 
 def add_parser(subparsers):
+    from ..core.fit import BUDGET, MAX_SAMPLES, REFERENCE_SAMPLES
     from ..core.fit_params import FIT_PARAMETERS
     from .cli_options import add_blend_to_blend, add_resolution, add_samples, add_scene, add_seed
 
@@ -32,15 +33,15 @@ def add_parser(subparsers):
         p,
         "--max-samples",
         help="for the fits the held-out check refuses: render again up to this many samples in all, within"
-        " --budget (default: 64, or --samples when higher; equal to --samples: never)",
+        f" --budget (default: {MAX_SAMPLES}, or --samples when higher; equal to --samples: never)",
     )
     p.add_argument(
         "--budget",
         type=float,
         default=None,
         metavar="SHARE",
-        help="the most the fit may cost, as a share of a 1024-sample render of the view, when it renders"
-        " again (default: 0.09)",
+        help=f"the most the fit may cost, as a share of a {REFERENCE_SAMPLES}-sample render of the view, when it"
+        f" renders again (default: {BUDGET:g})",
     )
     add_samples(
         p,

@@ -98,8 +98,7 @@ def _fit(data, fit_samples: int, fit_pass_samples: int, methods, log) -> object:
     import bpy
 
     from benchmarks import fit as fit_bench
-    from sss_lab.blender.calibrate import MAX_SAMPLES
-    from sss_lab.core.fit import BUDGET
+    from sss_lab.core.fit import BUDGET, MAX_SAMPLES
 
     cache = os.path.join(fit_bench.ROOT, "out", "fidelity_cache", "fit")
     os.makedirs(cache, exist_ok=True)

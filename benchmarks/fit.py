@@ -431,8 +431,7 @@ def main(argv=None) -> int:
     parser.add_argument("--cache", default=os.path.join(ROOT, "out", "fidelity_cache"))
     parser.add_argument("--out", default=None, help=f"results file (default {os.path.relpath(RESULTS, ROOT)})")
     args = parser.parse_args(argv)
-    from sss_lab.blender.calibrate import MAX_SAMPLES
-    from sss_lab.core.fit import BUDGET
+    from sss_lab.core.fit import BUDGET, MAX_SAMPLES
 
     if args.max_samples is None:
         args.max_samples = max(MAX_SAMPLES, args.fit_samples)

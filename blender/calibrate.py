@@ -27,7 +27,16 @@ import bpy
 
 from ..core import backend, exr
 from ..core.errors import InputError
-from ..core.fit import BOX, BUDGET, after_second_fit, fit_scene, mean_render, more_samples, refused_pairs
+from ..core.fit import (
+    BOX,
+    BUDGET,
+    MAX_SAMPLES,
+    after_second_fit,
+    fit_scene,
+    mean_render,
+    more_samples,
+    refused_pairs,
+)
 from ..core.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
 from ..core.sequence import load_scene
 from ..core.techniques import TECHNIQUES
@@ -39,9 +48,6 @@ from .state import SceneState
 PREFIX = "sss_lab_fit_"
 #: The techniques ``calibrate`` fits by default: the two that the fit improves most.
 DEFAULT_TECHNIQUES = ("burley", "combined")
-#: The most samples ``calibrate`` renders by default for fits its held-out check refused: the top
-#: of the 16-64 samples the fit is measured on (``benchmarks/fit.py``).
-MAX_SAMPLES = 64
 
 
 def fit_key(technique: str, name: str) -> str:

@@ -89,6 +89,10 @@ TRANSMISSION_SCALE_MAX = 4.0
 #: The render a fit stands in for: Cycles random walk of the same view at this many samples (each
 #: of the fidelity suite's two converged reference renders, ``benchmarks/fit.py``).
 REFERENCE_SAMPLES = 1024
+#: The most samples ``calibrate`` renders by default for the fits the held-out check refused (the
+#: first render's and the second's together): the top of the 16-64 samples the fit is measured on
+#: (``benchmarks/fit.py``).
+MAX_SAMPLES = 64
 #: The share of that render's time a fit may take (its passes, renders and fitting together): the
 #: budget within which ``more_samples`` adds samples for fits the held-out check refused. The fit's
 #: goal is 10 %; a point less leaves room for the estimate's error (on the fidelity suite the

@@ -10,6 +10,7 @@ from __future__ import annotations
 import bpy
 
 from ..blender.calibrate import PREFIX, calibrate_job, clear_fit
+from ..core.fit import BUDGET, MAX_SAMPLES, REFERENCE_SAMPLES
 from .modal import DialogModalJob
 
 
@@ -27,9 +28,10 @@ class SSS_LAB_OT_fit_to_cycles(DialogModalJob, bpy.types.Operator):
     max_samples: bpy.props.IntProperty(
         name="Up to",
         min=1,
-        default=64,
-        description="For the fits that do not hold on held-out pixels: render again up to this many samples in all,"
-        " while the fit costs at most 9 % of a 1024-sample render (at most Samples: never)",
+        default=MAX_SAMPLES,
+        description="For the fits that do not hold on held-out pixels: render again up to this many samples in"
+        f" all, while the fit costs at most {100 * BUDGET:g} % of a {REFERENCE_SAMPLES}-sample render"
+        " (at most Samples: never)",
     )
 
     # Hidden flags of the dialog-then-modal run (``DialogModalJob``).
