@@ -7,7 +7,7 @@ from behind, a black world, an orthographic camera looking at the middle 2 cm of
 (16 x 16 px). Cycles (the material's own
 subsurface method) gives the front's radiance; the model gives W x (1 / pi) x T_c(x), with T_c
 the random walk's slab transmittance (``core/transmittance.py``; Christensen-Burley: Burley's
-law) and W the exit weight read from the Diffuse Color pass (``core.combined.exit_weight``). The
+law) and W the exit weight read from the Diffuse Color pass (``core.optics.medium.exit_weight``). The
 previous model, Burley's law with the diffusion's d and no exit weight, is listed beside it.
 
     nice -n 10 .venv/bin/python -m benchmarks.transmission_slab [--samples 256]
@@ -68,8 +68,8 @@ def _measure_one(name, material, mm: float, view: float, samples: int) -> dict:
     from sss_lab.blender.reference_cache import cached_reference
     from sss_lab.blender.render_passes import render_passes
     from sss_lab.core import exr
-    from sss_lab.core.combined import burley_transmittance_rgb, exit_weight, medium_of, slab_transmittance_rgb
     from sss_lab.core.mapping import burley_d, mean_free_path
+    from sss_lab.core.optics.medium import burley_transmittance_rgb, exit_weight, medium_of, slab_transmittance_rgb
 
     from .fidelity import scenes as suite
 

@@ -98,12 +98,13 @@ import numpy as np
 
 from . import _arrays, backend
 from . import apply as core_apply
-from .combined import medium_of, transmission, view_cosine
+from .combined import transmission, view_cosine
 from .energy import SLAB_ABOVE, _unseen_light, entry_gain, slab_factors
 from .errors import InputError
 from .exr import Passes
 from .fit_params import INFO, fitted
 from .mapping import burley_d, mean_free_path, technique_params
+from .optics.medium import medium_of
 from .plan import _EXACT_FLOAT32, Plan, _index_map, plan, required_passes
 from .scene import MaterialSSS, SceneDescription
 from .techniques import TECHNIQUES, get_spec

@@ -314,7 +314,7 @@ def _bound_ssss(args, reference):
 
 
 def _least_surface_ratio(camera, shape) -> float:
-    """The smallest ratio of two pixels' surface weights in SSSS (``core.burley.surface_area``,
+    """The smallest ratio of two pixels' surface weights in SSSS (``core.optics.surface.surface_area``,
     at most ``core.ssss.MAX_SURFACE``) in a frame of ``camera`` of ``shape`` (H, W): each is
     cos a / cos with cos <= 1 (at least cos a, the ray's angle a to the axis, smallest at the
     frame's corners) and at most MAX_SURFACE."""

@@ -208,7 +208,7 @@ def prepare_pixels(diffuse, albedo, depth, mask, is_ortho, focal, gate, threshol
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _unit(x, y, z):
-    """(x, y, z, |v|) normalized as core.sta._norm does it."""
+    """(x, y, z, |v|) normalized as core.optics.lights.norm does it."""
     length = x * x
     length += y * y
     length += z * z
@@ -1096,7 +1096,7 @@ def _axis_step(depth, ok, far, y, x, dy, dx, px, py, pz, ortho, f, cx, cy, oy, o
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def surface_area(depth, ok, far, ortho, f, cx, cy, min_cos, y0, y1, x0, x1, area):
-    """``core.burley.surface_area`` over rows ``y0``..``y1`` - 1 and columns ``x0``..``x1`` - 1
+    """``core.optics.surface.surface_area`` over rows ``y0``..``y1`` - 1 and columns ``x0``..``x1`` - 1
     (``area`` holds 1 elsewhere): min(cos a / cos, 1 / ``min_cos``) on the pixels ``ok``, with cos
     the view cosine of ``core.energy.view_cosine`` (in float64: on each axis the difference to a
     neighbour of ``ok`` with the smaller depth step, the normal their cross product; then rounded
@@ -1324,7 +1324,7 @@ def burley_kernel(
 
     ``packed`` (``burley_pack``) rows from ``py0`` and columns from ``px0`` (every pixel a sample
     of these pixels reaches; whole rows when there are ids), with ``packed_area`` the surface
-    each of them covers over a pixel facing the camera (``core.burley.surface_area``), a factor
+    each of them covers over a pixel facing the camera (``core.optics.surface.surface_area``), a factor
     of its samples' weights:
     per pixel (R, G, B, depth) where ``ok``, (0, 0, 0, +inf) elsewhere; ``tables``
     (5, G, n): per object group the spiral's radii, radii squared, cosines, sines and inverse
@@ -1705,7 +1705,7 @@ SPREAD_STRIP = 16
 @njit(cache=True, inline="always", error_model="numpy")
 def _lamp_at(lights, k, px, py, pz):
     """(lx, ly, lz, E_L) of light ``k`` of ``light_table``'s ``lights`` at the float32 point
-    (px, py, pz): ``core.sta.light_at``'s float32 operations in its order, NaN carried through its
+    (px, py, pz): ``core.optics.lights.light_at``'s float32 operations in its order, NaN carried through its
     maxima and clip as NumPy's do (a sun's direction and irradiance are its table's)."""
     kind = int(lights[k, 0])
     if kind == SUN:
@@ -1901,7 +1901,7 @@ def spread_light(e, mask, sigma, grid, n_full, radii, prev, out):
 
 def light_table(lights) -> np.ndarray:
     """core.scene.Light list as the STA kernel's (L, LIGHT_COLUMNS) float32 table, each value
-    rounded to float32 exactly where ``core.sta.light_at`` rounds it."""
+    rounded to float32 exactly where ``core.optics.lights.light_at`` rounds it."""
     table = np.zeros((len(lights), LIGHT_COLUMNS), np.float32)
     for k, light in enumerate(lights):
         row = table[k]
@@ -2059,7 +2059,7 @@ def back_light_pixels(
     chord and the visible normal). With ``walks`` the far normal is the visible one blended
     towards the view vector (``cam``: ``_view_vector``) by s = clip(x k / 2, 0, 1) in float64,
     rounded to float32. ``lights``: ``light_table`` of the lights with energy > 0, in order; per
-    light max(-(N . L), 0) E_L / pi (float32: ``core.sta.light_at``'s operations) times its
+    light max(-(N . L), 0) E_L / pi (float32: ``core.optics.lights.light_at``'s operations) times its
     colour, summed in float32 from 0."""
     h, w = e.shape[0], e.shape[1]
     ch, cw = largest.shape
@@ -2187,7 +2187,7 @@ WALK, SKIN, DISK = 0, 1, 2
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _transmittance(kind, x, mu_v, ior2, ell, grid, columns, nodes, c):
-    """``core.combined.slab_transmittance_rgb`` of one pixel and channel, float64 (``kind``
+    """``core.optics.medium.slab_transmittance_rgb`` of one pixel and channel, float64 (``kind``
     ``WALK``, ``SKIN`` or ``DISK``; ``ell`` the channel's length: the walk's reduced mean free
     path or Burley's d)."""
     if ell <= 0.0:
@@ -2893,7 +2893,7 @@ def part_results(light, on, part, out):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _exit_weight(a, pre_post, walks, base):
-    """``core.combined.exit_weight`` of one albedo value (float32)."""
+    """``core.optics.medium.exit_weight`` of one albedo value (float32)."""
     if pre_post:
         a = a * a
     if not walks:

@@ -565,7 +565,7 @@ def mean_lamp_irradiance(lights, normal, position) -> np.ndarray:
     Diffuse Direct pass's units), unshadowed, float64 (3,), for unit normals and positions (N,
     3): per light the mean of E_L max(0, N . L) / pi times its colour (one value per pixel, not
     three: a frame of colours per light cost a sixth of the energy stage at 1080p)."""
-    from .sta import light_at
+    from .optics.lights import light_at
 
     n = np.asarray(normal, np.float64)
     p = np.asarray(position, np.float32)

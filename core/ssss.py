@@ -19,7 +19,7 @@ stated in scene units, independent of the field of view (a documented difference
 
 Weighting by surface (``weighting="surface"``, the default): the diffusion profile integrates
 over the surface, a convolution sums over pixels, and a pixel seen at a grazing angle covers
-more surface than one facing the camera (``core.burley.surface_area``: cos a / cos, 1 on a plane
+more surface than one facing the camera (``core.optics.surface.surface_area``: cos a / cos, 1 on a plane
 facing the camera's axis; at most ``MAX_SURFACE`` = 2 here, against Burley's 5). Each pass
 weighs a tap's two samples by their pixels' surface relative to the centre pixel's and divides
 by the total weight, so that the kernel's weights still sum to one; the part of a tap that
@@ -34,10 +34,10 @@ from __future__ import annotations
 import numpy as np
 
 from . import _arrays, backend
-from .burley import surface_area, surface_area_args
 from .energy import ENERGY_PARAM, apply_energy, energy_inputs
 from .extent import object_extent
 from .kernels import SeparableKernel, bounded, check_taps, make_kernel
+from .optics.surface import surface_area, surface_area_args
 from .passes import THICKNESS
 from .scene import Camera
 from .spec import CALIBRATE_MAPPING, Param, Technique, profile_footprint

@@ -30,59 +30,13 @@ import math
 import numpy as np
 
 from . import _arrays, backend
+from .optics.lights import THICKNESS_CONVENTIONS, light_at, norm
+from .optics.medium import Medium, slab_transmittance_rgb
 from .passes import THICKNESS
 from .scene import Camera, Light
 from .spec import Param, Technique
 
-THICKNESS_CONVENTIONS = ("translucency", "thickness")
-
 _EPS = np.float32(1e-6)
-
-
-def _norm(x, y, z):
-    """Normalize planar vectors (rows x, y, z); returns (x, y, z, length)."""
-    length = x * x
-    length += y * y
-    length += z * z
-    np.sqrt(length, out=length)
-    inv = np.maximum(length, np.float32(1e-30))
-    np.divide(np.float32(1.0), inv, out=inv)
-    return x * inv, y * inv, z * inv, length
-
-
-def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
-    t = np.clip((x - e0) / np.float32(max(e1 - e0, 1e-30)), 0.0, 1.0)
-    return t * t * (3.0 - 2.0 * t)
-
-
-def light_at(light: Light, px, py, pz):
-    """(unit vector towards the light as planar rows lx, ly, lz; irradiance E_L) at world
-    positions given as planar rows (px, py, pz). A sun gives float32 scalars (the same everywhere)."""
-    f32 = np.float32
-    if light.type == "SUN":
-        d = (-light.direction).astype(f32)
-        return d[0], d[1], d[2], f32(light.energy)
-    c = light.position.astype(f32)
-    lx, ly, lz, dist = _norm(c[0] - px, c[1] - py, c[2] - pz)
-    r2 = np.maximum(dist * dist, f32(1e-12))
-    if light.type == "AREA":
-        a = light.direction.astype(f32)
-        cos_l = np.maximum(-(lx * a[0] + ly * a[1] + lz * a[2]), 0.0)
-        return lx, ly, lz, (f32(light.energy / math.pi) * cos_l / r2).astype(f32)
-    e = f32(light.energy / (4.0 * math.pi)) / r2
-    if light.type == "SPOT":
-        # Cycles' spot attenuation: zero outside the cone, smoothstep over the blend region.
-        a = light.direction.astype(f32)
-        cos_angle = -(lx * a[0] + ly * a[1] + lz * a[2])
-        half = math.cos(light.spot_size / 2.0)
-        smooth = (1.0 - half) * light.spot_blend
-        t = cos_angle - f32(half)
-        cone = (t > 0).astype(f32)
-        if smooth > 0:
-            cone = cone * _smoothstep(0.0, smooth, t)
-        e = e * cone
-    return lx, ly, lz, e.astype(f32)
-
 
 FALLOFFS = ("medium", "map", "burley")
 
@@ -133,10 +87,10 @@ def sta(
 
     ``falloff`` "medium" (the default): the map is read back as a slab thickness x (below) and the
     term is filtered through the material's medium as Cycles' subsurface method carries light
-    through a slab (``core.combined.slab_transmittance_rgb``, docs/references.md §14: the random
+    through a slab (``core.optics.medium.slab_transmittance_rgb``, docs/references.md §14: the random
     walk's per-channel transmittance for the walks, the disk probes' for Christensen-Burley,
     Burley's law with ``d_su`` without ``subsurface_method``), and the albedo is replaced by the
-    exit weight Cycles puts on that light (``core.combined.exit_weight``: Diffuse Color / Base
+    exit weight Cycles puts on that light (``core.optics.medium.exit_weight``: Diffuse Color / Base
     Color for a walk, whose medium does the colouring; Diffuse Color for Christensen-Burley).
     ``mfp_su`` (the method's mean free path per channel, ``core.mapping.mean_free_path``; ``d_su``
     without it), ``subsurface_method``, ``base_color``, ``subsurface_ior`` and
@@ -254,11 +208,11 @@ def sta(
             tt = f32(1.0) - tt
             if not all_ok:
                 tt[~ok] = 0.0
-        nx, ny, nz, _ = _norm(nx, ny, nz)
+        nx, ny, nz, _ = norm(nx, ny, nz)
         if cam_pos is None:
             vx, vy, vz = (view_dir[k] for k in range(3))
         else:
-            vx, vy, vz, _ = _norm(cam_pos[0] - px, cam_pos[1] - py, cam_pos[2] - pz)
+            vx, vy, vz, _ = norm(cam_pos[0] - px, cam_pos[1] - py, cam_pos[2] - pz)
         # Lights of equal R, G, B (white ones, say) share one accumulator; coloured ones one per channel.
         grey = coloured = None
         for light, color in zip(lights, colors, strict=True):
@@ -354,11 +308,9 @@ MEDIUM_MU = 17
 
 @functools.lru_cache(maxsize=64)
 def medium_table(length_su: tuple, distance_su: float, medium) -> np.ndarray:
-    """T_c(x, mu), float32 (MEDIUM_X, MEDIUM_MU, 3): ``core.combined.slab_transmittance_rgb``
+    """T_c(x, mu), float32 (MEDIUM_X, MEDIUM_MU, 3): ``core.optics.medium.slab_transmittance_rgb``
     through x = ``distance_su`` (i / (MEDIUM_X - 1))^2 for the view cosine mu = j / (MEDIUM_MU - 1)
-    (``medium`` a ``core.combined.Medium`` or None for Burley's law with d = ``length_su``)."""
-    from .combined import slab_transmittance_rgb
-
+    (``medium`` a ``core.optics.medium.Medium`` or None for Burley's law with d = ``length_su``)."""
     x = distance_su * np.linspace(0.0, 1.0, MEDIUM_X) ** 2
     mu = np.linspace(0.0, 1.0, MEDIUM_MU)
     xx, mm = np.meshgrid(x, mu, indexing="ij")
@@ -377,8 +329,6 @@ def _medium_inputs(length_su, distance_su, medium_args):
             f" material's lengths per channel, and thickness_distance_su > 0, the bake's distance (got"
             f" {length_su!r} and {distance_su!r}); falloff 'map' needs neither"
         )
-    from .combined import Medium
-
     length = tuple(float(v) for v in _arrays.rgb_lengths(length_su, "mfp_su"))
     distance = _arrays.positive_finite(distance_su, "thickness_distance_su", allow_zero=False)
     method, base_color, ior, anisotropy = medium_args
@@ -387,7 +337,7 @@ def _medium_inputs(length_su, distance_su, medium_args):
     )
     table = medium_table(length, float(distance), medium)
     if medium is not None and medium.walks:
-        # A walk divides the closure weight by Base Color (core.combined.exit_weight).
+        # A walk divides the closure weight by Base Color (core.optics.medium.exit_weight).
         base = np.asarray(medium.base_color, np.float64)
         inv = np.where(base > 0, 1.0 / np.maximum(base, 1e-6), 0.0).astype(np.float32)
         return table, inv, True

@@ -1,7 +1,7 @@
 """STA as a compositor node group: ``core.sta`` for one light, out of Math and Vector Math nodes.
 
 Per pixel, exactly the arithmetic of ``core.sta.sta`` (its docstring has the formulas): the light
-direction and irradiance of one light (sun, point, spot or area, as ``core.sta.light_at``),
+direction and irradiance of one light (sun, point, spot or area, as ``core.optics.lights.light_at``),
 L_T = normalize(L + distortion N), T_dir = scale max(0, V . -L_T)^power, and
 albedo x light colour x (E / pi) x t x (T_dir + ambient) on the mask. Several lights: chain one
 group per light (its Image output into the next one's Image input); ``blender/compositor.py``
@@ -19,8 +19,9 @@ from __future__ import annotations
 
 import math
 
+from ..core.optics.lights import THICKNESS_CONVENTIONS
 from ..core.scene import CAMERA_TYPES, LIGHT_TYPES
-from ..core.sta import TECHNIQUE, THICKNESS_CONVENTIONS
+from ..core.sta import TECHNIQUE
 from . import _graph
 from ._graph import Interface, Socket
 

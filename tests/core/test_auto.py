@@ -138,8 +138,9 @@ def test_light_from_behind_is_the_combined_techniques_transmission():
     passes = Passes(arrays)
     wax = scene.materials[2]
     f = auto.features(passes, scene, wax)
-    from sss_lab.core.combined import medium_of, transmission
+    from sss_lab.core.combined import transmission
     from sss_lab.core.mapping import mean_free_path
+    from sss_lab.core.optics.medium import medium_of
 
     mask = np.rint(arrays["Material Index"]) == wax.index
     # On the 2 x 2 block means wholly inside the material (the whole image's blocks).

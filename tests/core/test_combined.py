@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from sss_lab.core.burley import burley
-from sss_lab.core.combined import back_irradiance, combined, slab_thickness, transmission
+from sss_lab.core.combined import back_irradiance, combined, transmission
+from sss_lab.core.optics.medium import Medium, slab_thickness
 from sss_lab.core.profiles import burley_transmittance
 from sss_lab.core.scene import Camera, Light
 from sss_lab.core.transmittance import trapezoid
@@ -194,7 +195,7 @@ def test_light_from_behind_spreads_by_the_walks_lateral_distance():
     lateral distance the walk covers through the slab: a uniform light stays uniform (the blur
     is renormalized over the material), a half-lit back spreads across the edge, and the blur's
     variance is the sigma asked for (three box filters: exact up to the box width's rounding)."""
-    from sss_lab.core.combined import Medium, _blur, spread_back_light, spread_sigma
+    from sss_lab.core.combined import _blur, spread_back_light, spread_sigma
 
     e = np.ones((N, N, 3), np.float32)
     m = np.ones((N, N), bool)
@@ -261,7 +262,7 @@ def test_far_side_of_a_round_walk_faces_away_from_the_camera_and_a_slab_keeps_it
     # A sun straight behind a sphere (shining towards the camera). Its visible normal, reversed,
     # faces the sun fully at the centre and not at all at the rim; the back the light enters
     # through faces it everywhere (docs/references.md §14, the far side of a round object).
-    from sss_lab.core.combined import Medium, far_side
+    from sss_lab.core.combined import far_side
 
     cam, normal, position, mask = _sphere()
     radius, distance = 0.4, 1.0
@@ -348,7 +349,7 @@ def test_compiled_light_from_behind_equals_the_reference_to_the_bit(method, came
 
     from sss_lab.core import backend
     from sss_lab.core._back_light import CompiledBackLight
-    from sss_lab.core.combined import Medium, back_light
+    from sss_lab.core.combined import back_light
     from sss_lab.core.synthetic import sphere_scene
 
     passes, scene = sphere_scene(96, 64)
@@ -400,7 +401,6 @@ def _wide_spread_inputs(by_object: bool) -> dict:
     """``back_light``'s arguments for a spread past SPREAD_COARSE_FROM_PX at long lengths: a frame
     whose sides (121 x 87) are not multiples of the pyramid's blocks, a mask with holes, lamps
     behind, a Random Walk medium, and the Object Index (``by_object``) or one part."""
-    from sss_lab.core.combined import Medium
     from sss_lab.core.synthetic import sphere_scene
 
     passes, scene = sphere_scene(121, 87)

@@ -25,7 +25,8 @@ print('imported', len(sys.argv) - 1)
 
 
 def core_modules():
-    return sorted(f"sss_lab.core.{m.name}" for m in pkgutil.iter_modules([CORE_DIR]))
+    """Every module of core/ and its subpackages, by its dotted name."""
+    return sorted(m.name for m in pkgutil.walk_packages([CORE_DIR], prefix="sss_lab.core."))
 
 
 def test_every_core_module_imports_with_bpy_blocked():
@@ -44,10 +45,12 @@ def test_the_blocker_does_block_bpy():
 
 
 def test_core_sources_never_mention_bpy_imports():
-    for m in pkgutil.iter_modules([CORE_DIR]):
-        with open(os.path.join(CORE_DIR, m.name + ".py"), encoding="utf-8") as fh:
+    for m in pkgutil.walk_packages([CORE_DIR], prefix="sss_lab.core."):
+        parts = m.name.split(".")[2:]
+        path = os.path.join(CORE_DIR, *parts, "__init__.py") if m.ispkg else os.path.join(CORE_DIR, *parts) + ".py"
+        with open(path, encoding="utf-8") as fh:
             for number, line in enumerate(fh, 1):
                 stripped = line.strip()
                 assert not stripped.startswith(("import bpy", "from bpy", "import mathutils", "from mathutils")), (
-                    f"core/{m.name}.py:{number} imports Blender: {stripped}"
+                    f"{os.path.relpath(path, CORE_DIR)}:{number} imports Blender: {stripped}"
                 )

@@ -558,7 +558,7 @@ def test_a_material_below_a_pixel_still_gets_cycles_level():
 @pytest.mark.parametrize("tilt", [0.0, 60.0, 85.0])
 def test_burley_weighs_its_samples_by_the_surface_a_pixel_covers(kind, tilt):
     from sss_lab.core import backend
-    from sss_lab.core.burley import MIN_VIEW_COSINE, surface_area
+    from sss_lab.core.optics.surface import MIN_VIEW_COSINE, surface_area
 
     h, w = 32, 48
     camera = Camera(type=kind, width_px=w, height_px=h, lens_mm=50.0, ortho_scale=1.0)
@@ -643,7 +643,7 @@ def test_the_compiled_unseen_light_is_the_references_within_its_sums(ortho, pre_
     # Only the order of the float64 sums differs: within (2 n + 8) u of the terms' mean magnitude
     # (energy._U64's comment), here bounded by their largest: the light's, and each lamp's E_L / pi
     # on the visible and on the reversed unit normal (|N . L| <= 1) times its colour.
-    from sss_lab.core.sta import light_at
+    from sss_lab.core.optics.lights import light_at
 
     n = int(mask.sum()) - 2
     p = passes["Position"][mask]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sss_lab.core import backend, kernels
-from sss_lab.core.burley import surface_area
+from sss_lab.core.optics.surface import surface_area
 from sss_lab.core.scene import Camera
 from sss_lab.core.ssss import MAX_SURFACE, ssss
 

@@ -97,7 +97,7 @@ def test_sta_medium_falloff_filters_light_through_the_materials_medium():
     # A jade-like walk (green Base Color, red going furthest) seen straight on, a sun straight
     # behind: translucency 1, 0.75 and 0.19 against the bake distance D = 0.02 are slabs of 0,
     # 1 and 1.8 cm (x = D sqrt(1 - t), the bake's slab law).
-    from sss_lab.core.combined import Medium, slab_transmittance_rgb
+    from sss_lab.core.optics.medium import Medium, slab_transmittance_rgb
 
     cam, n, p, back = _three_pixels_lit_from_behind()
     base = (0.3, 0.8, 0.4)
@@ -145,7 +145,7 @@ def test_sta_medium_table_follows_the_transmittance_it_tabulates(method, distanc
     # within 0.01 of the light through no thickness (1) of the model itself, for pale, skin-like
     # and saturated materials at bake distances of 1 to 60 of the longest mean free path.
     from sss_lab.core import sta as sta_module
-    from sss_lab.core.combined import Medium, slab_transmittance_rgb
+    from sss_lab.core.optics.medium import Medium, slab_transmittance_rgb
 
     rng = np.random.default_rng(3)
     mfp = (0.004, 0.002, 0.001)
