@@ -26,6 +26,7 @@ import functools
 import json
 import os
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 import bpy
@@ -34,12 +35,12 @@ import numpy as np
 from ..core import apply as core_apply
 from ..core import exr, fidelity, metrics, plan, report, sequence
 from ..core import reference as core_reference
-from ..core.errors import InputError
+from ..core.errors import InputError, SSSLabError
 from ..core.progress import saved_line
 from ..core.scene import SUBSURFACE_METHODS, SceneDescription
-from ..core.spec import CALIBRATE_MAPPING
+from ..core.spec import CALIBRATE_MAPPING, Technique
 from ..core.sweep import calibrate
-from ..core.techniques import TECHNIQUES, check_technique
+from ..core.techniques import TECHNIQUES, check_technique, get_spec
 from . import compat
 from .describe import sss_materials
 from .jobs import Job, Steps, run
@@ -132,12 +133,89 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
 
     Raises ValueError for a scene without a camera or without subsurface materials (nothing to
     compare). A technique that cannot run on this scene (e.g. a subsurface method the mapping
-    does not know, or STA without a thickness map) is noted in the report, which then says it
-    is incomplete.
+    does not know, or STA without a thickness map) or that fails (``TECHNIQUE_ERRORS``) is noted
+    in the report, which then says it is incomplete; the other techniques are measured.
     """
-    from .render_passes import render_passes
+    settings, materials, notes = _checked(scene, settings or CompareSettings(), log)
+    steps = Steps(_step_count(settings, {m.method for m in materials}))
+    spp = settings.reference_samples
+    first = f"Cycles reference, {spp} samples, seed {settings.seed}"
+    yield steps.next("merged reference" if settings.reference_file else first)  # checked; nothing changed yet
+    os.makedirs(out_dir, exist_ok=True)
+    cache_dir = settings.cache_dir or os.path.join(out_dir, "cache")
+    timings: dict[str, float] = {}
+    res = settings.resolution
 
-    settings = settings or CompareSettings()
+    fingerprint = scene_fingerprint(scene)
+    # Every Cycles image of this comparison: same scene, folder and size; samples, seed and method vary.
+    reference = functools.partial(cached_reference, scene, cache_dir, resolution=res, log=log, fingerprint=fingerprint)
+    merged = None
+    if settings.reference_file:
+        merged, ref_seconds = _merged_reference(settings.reference_file, fingerprint, res, scene.frame_current, log)
+        settings = dataclasses.replace(settings, reference_samples=merged.samples, cycles_burley=False)
+        ref, second = merged.image, None
+    else:
+        ref, ref_seconds, _ = reference(samples=settings.reference_samples, seed=settings.seed, method=None)
+        yield steps.next(f"Cycles reference, {spp} samples, seed {settings.seed + 1} (noise floor)")
+        second, _, _ = reference(samples=settings.reference_samples, seed=settings.seed + 1, method=None)
+    passes, desc, high = yield from _render_passes(scene, out_dir, settings, steps, timings, log)
+    mask = _scattering_mask(passes, desc, ref)
+    rows = _Rows(ref, mask, settings, log)
+    rows.add("no SSS", "baseline", passes["Combined"], timings["passes"], image_high=high and high[0]["Combined"])
+    for technique in settings.techniques:
+        for quality in settings.qualities.get(technique, ({},)):
+            yield steps.next(TECHNIQUES[technique].quality_label(quality))
+            run = technique_run(passes, desc, technique, quality, high, notes, log)
+            if run is not None:
+                total = timings["passes"] + run.apply_s
+                extra = {"technique": technique, "quality": quality}
+                rows.add(run.label, "technique", run.image, total, run.apply_s, extra, image_high=run.image_high)
+    rw_at_pass_samples = yield from _peers(settings, reference, rows, timings, steps)
+
+    rows.images["Cycles reference"] = ref
+    if merged is not None:
+        noise = core_reference.noise_floor(merged, mask, box=settings.box)
+    else:
+        assert second is not None  # rendered above when there is no merged reference
+        noise = metrics.compare_images(second, ref, mask, box=settings.box)
+    calibration = yield from _calibration(settings, passes, desc, ref, mask, reference, steps)
+    yield steps.next("report")
+    data = {
+        "scene": {
+            "name": _scene_label(scene),
+            "file": bpy.data.filepath,
+            "materials": [asdict(m) for m in desc.materials],
+            "fingerprint": fingerprint,
+        },
+        "settings": _settings_data(settings, materials, ref, ref_seconds, merged),
+        "noise_floor": noise,
+        "timings": timings,
+        "costs": _costs(settings, timings, rw_at_pass_samples, rows.entries),
+        "entries": rows.entries,
+        "fidelity": _fidelity(desc, settings.techniques, notes),
+        "calibration": calibration,
+        "notes": notes,
+        "complete": not notes,
+    }
+    return _write(out_dir, data, rows, mask, log)
+
+
+#: What a technique's run (or its row of the fidelity table) may raise that leaves the comparison
+#: to measure the other techniques, with a note in the report: an error SSS Lab raises on purpose,
+#: a missing pass, a bad value, a technique function that does not take its inputs or overflows.
+TECHNIQUE_ERRORS = (SSSLabError, TypeError, ValueError, KeyError, ArithmeticError)
+
+
+def _error_text(exc: BaseException) -> str:
+    """The error for a note: its message, with its type for one SSS Lab does not raise on purpose."""
+    if isinstance(exc, (SSSLabError, ValueError, KeyError)):
+        return str(exc)
+    return f"{type(exc).__name__}: {exc}"
+
+
+def _checked(scene, settings: CompareSettings, log) -> tuple[CompareSettings, list, list[str]]:
+    """(the settings without the techniques that cannot run here, the scene's subsurface materials,
+    the notes on what is left out). Changes nothing but the thickness AOV's set-up."""
     settings.validate()
     if scene.camera is None:
         raise ValueError(f"scene {scene.name!r} has no active camera; set one in Scene Properties > Camera")
@@ -164,77 +242,69 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
             if not techniques:
                 raise
         settings = dataclasses.replace(settings, techniques=techniques)
-    steps = Steps(_step_count(settings, {m.method for m in materials}))
-    spp = settings.reference_samples
-    first = f"Cycles reference, {spp} samples, seed {settings.seed}"
-    yield steps.next("merged reference" if settings.reference_file else first)  # checked; nothing changed yet
-    os.makedirs(out_dir, exist_ok=True)
-    cache_dir = settings.cache_dir or os.path.join(out_dir, "cache")
-    timings: dict[str, float] = {}
-    res = settings.resolution
+    return settings, materials, notes
 
-    fingerprint = scene_fingerprint(scene)
-    # Every Cycles image of this comparison: same scene, folder and size; samples, seed and method vary.
-    reference = functools.partial(cached_reference, scene, cache_dir, resolution=res, log=log, fingerprint=fingerprint)
-    merged = None
-    if settings.reference_file:
-        merged, ref_seconds = _merged_reference(settings.reference_file, fingerprint, res, scene.frame_current, log)
-        settings = dataclasses.replace(settings, reference_samples=merged.samples, cycles_burley=False)
-        ref, second = merged.image, None
-    else:
-        ref, ref_seconds, _ = reference(samples=settings.reference_samples, seed=settings.seed, method=None)
-        yield steps.next(f"Cycles reference, {spp} samples, seed {settings.seed + 1} (noise floor)")
-        second, _, _ = reference(samples=settings.reference_samples, seed=settings.seed + 1, method=None)
+
+def _render_passes(scene, out_dir: str, settings: CompareSettings, steps: Steps, timings: dict, log):
+    """The passes the techniques read, and those at the bias samples (or None). A generator: one
+    step per render; returns (passes, scene description, (bias passes, their description) | None)."""
+    from .render_passes import render_passes
+
+    def render(folder: str, samples: int, seed: int, timing: str) -> tuple[exr.Passes, SceneDescription]:
+        start = time.perf_counter()
+        written = render_passes(
+            scene,
+            os.path.join(out_dir, folder),
+            techniques=settings.techniques,
+            samples=samples,
+            resolution=settings.resolution,
+            seed=seed,
+            overwrite=True,
+            log=log,
+        )
+        timings[timing] = time.perf_counter() - start
+        path = next(p for p in written if p.endswith(".exr"))
+        return exr.read_passes(path), sequence.load_scene(path)
+
     yield steps.next(f"passes, {settings.pass_samples} samples")
-    images: dict[str, np.ndarray] = {}
-    entries: list[dict] = []
-
     log(f"Passes: {settings.pass_samples} samples, subsurface as plain diffuse")
-    passes_dir = os.path.join(out_dir, "passes")
-    start = time.perf_counter()
-    written = render_passes(
-        scene,
-        passes_dir,
-        techniques=settings.techniques,
-        samples=settings.pass_samples,
-        resolution=res,
-        seed=settings.seed,
-        overwrite=True,
-        log=log,
-    )
-    timings["passes"] = time.perf_counter() - start
-    exr_path = next(p for p in written if p.endswith(".exr"))
-    passes = exr.read_passes(exr_path)
-    desc: SceneDescription = sequence.load_scene(exr_path)
+    passes, desc = render("passes", settings.pass_samples, settings.seed, "passes")
     high = None
     if settings.bias_pass_samples:
         yield steps.next(f"passes, {settings.bias_pass_samples} samples (bias and pass noise)")
         log(f"Passes: {settings.bias_pass_samples} samples, to split each technique's error into bias and pass noise")
-        start = time.perf_counter()
-        written_high = render_passes(
-            scene,
-            os.path.join(out_dir, "passes_bias"),
-            techniques=settings.techniques,
-            samples=settings.bias_pass_samples,
-            resolution=res,
-            seed=settings.seed + 4,
-            overwrite=True,
-            log=log,
-        )
-        timings["passes_bias"] = time.perf_counter() - start
-        high_path = next(p for p in written_high if p.endswith(".exr"))
-        high = (exr.read_passes(high_path), sequence.load_scene(high_path))
+        high = render("passes_bias", settings.bias_pass_samples, settings.seed + 4, "passes_bias")
+    return passes, desc, high
+
+
+def _scattering_mask(passes, desc: SceneDescription, ref: np.ndarray) -> np.ndarray:
+    """The pixels of the scattering materials, where every image is measured."""
     index = np.rint(np.nan_to_num(passes["Material Index"])).astype(np.int64)
     if index.ndim == 3:
         index = index[..., 0]
     mask = np.isin(index, [m.index for m in desc.materials if m.scatters])
     if ref.shape[:2] != mask.shape:
         raise ValueError(f"reference {ref.shape[:2]} and passes {mask.shape} differ in size")
+    return mask
 
-    def add(name, kind, image, total, apply_s=None, extra=None, image_high=None):
-        m = metrics.compare_images(image, ref, mask, box=settings.box)
+
+@dataclass
+class _Rows:
+    """The report's measured rows (``entries``) and their images, against the reference over the
+    scattering pixels."""
+
+    ref: np.ndarray
+    mask: np.ndarray
+    settings: CompareSettings
+    log: Callable[[str], object]
+    entries: list[dict] = field(default_factory=list)
+    images: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def add(self, name, kind, image, total, apply_s=None, extra=None, image_high=None) -> None:
+        settings = self.settings
+        m = metrics.compare_images(image, self.ref, self.mask, box=settings.box)
         if image_high is not None and m["rel_rmse"] is not None:
-            m_high = metrics.compare_images(image_high, ref, mask, box=settings.box)["rel_rmse"]
+            m_high = metrics.compare_images(image_high, self.ref, self.mask, box=settings.box)["rel_rmse"]
             m["bias"], m["pass_noise"] = metrics.split_error(
                 m["rel_rmse"], m_high, settings.pass_samples, settings.bias_pass_samples
             )
@@ -246,53 +316,61 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
             "time_s": {"total": total, "apply": apply_s, "sss_effect": apply_s},
         }
         entry.update(extra or {})
-        entries.append(entry)
-        images[name] = image
-        log(f"  {name}: rel. RMSE {_number(m['rel_rmse'])}, SSIM {_number(m['ssim'])}, {total:.2f} s")
+        self.entries.append(entry)
+        self.images[name] = image
+        self.log(f"  {name}: rel. RMSE {_number(m['rel_rmse'])}, SSIM {_number(m['ssim'])}, {total:.2f} s")
 
-    add("no SSS", "baseline", passes["Combined"], timings["passes"], image_high=high and high[0]["Combined"])
-    for technique in settings.techniques:
-        for quality in settings.qualities.get(technique, ({},)):
-            label = TECHNIQUES[technique].quality_label(quality)
-            yield steps.next(label)
-            try:
-                # Untimed first run of every quality: it compiles the kernels of the quality's own
-                # code path (or loads them from Numba's cache) and builds its one-off tables (STA's
-                # medium falloff: the walk's tables), seconds that are no part of what the
-                # technique costs a frame. Warming only a technique's first quality let STA's
-                # second quality report 0.4-19 s at 128 px where it takes milliseconds.
-                core_apply.apply(
-                    passes, desc, technique, prepared=plan.plan(passes, desc, technique, **quality), **quality
-                )
-                start = time.perf_counter()
-                prepared = plan.plan(passes, desc, technique, **quality)
-                layers = core_apply.apply(passes, desc, technique, prepared=prepared, **quality)
-                apply_s = time.perf_counter() - start
-            except (ValueError, KeyError) as exc:
-                notes.append(f"{label} did not run: {exc}")
-                log(f"  {label}: not run ({exc})")
-                continue
-            for m in prepared.applied:
-                if m.warning:  # a kernel beyond the material or the image (a units slip?): say so
-                    log(f"  {label}: warning: material {m.material.name or m.material.index!r}: {m.warning}")
-            if not layers:
-                notes.append(f"{label}: no material scattered on screen")
-                continue
-            image = layers[core_apply.layer_names(technique)[0]]
-            image_high = None
-            if high is not None:
-                layers_high = core_apply.apply(high[0], high[1], technique, **quality)
-                image_high = layers_high[core_apply.layer_names(technique)[0]] if layers_high else high[0]["Combined"]
-            add(
-                label,
-                "technique",
-                image,
-                timings["passes"] + apply_s,
-                apply_s,
-                {"technique": technique, "quality": quality},
-                image_high=image_high,
-            )
 
+@dataclass
+class TechniqueRun:
+    """One quality of a technique run on the passes: its image (and on the bias passes), seconds."""
+
+    label: str
+    image: np.ndarray
+    image_high: np.ndarray | None
+    apply_s: float
+
+
+def technique_run(
+    passes, desc: SceneDescription, technique: str | Technique, quality: dict, high, notes: list[str], log
+) -> TechniqueRun | None:
+    """``technique`` at ``quality`` on ``passes`` (and on ``high``, the bias passes and their
+    description, if given); None, with a note, when it fails (``TECHNIQUE_ERRORS``) or changes
+    no material on screen."""
+    spec = get_spec(technique)
+    label = spec.quality_label(quality)
+    try:
+        # Untimed first run of every quality: it compiles the kernels of the quality's own
+        # code path (or loads them from Numba's cache) and builds its one-off tables (STA's
+        # medium falloff: the walk's tables), seconds that are no part of what the
+        # technique costs a frame. Warming only a technique's first quality let STA's
+        # second quality report 0.4-19 s at 128 px where it takes milliseconds.
+        core_apply.apply(passes, desc, spec, prepared=plan.plan(passes, desc, spec, **quality), **quality)
+        start = time.perf_counter()
+        prepared = plan.plan(passes, desc, spec, **quality)
+        layers = core_apply.apply(passes, desc, spec, prepared=prepared, **quality)
+        apply_s = time.perf_counter() - start
+        for m in prepared.applied:
+            if m.warning:  # a kernel beyond the material or the image (a units slip?): say so
+                log(f"  {label}: warning: material {m.material.name or m.material.index!r}: {m.warning}")
+        if not layers:
+            notes.append(f"{label}: no material scattered on screen")
+            return None
+        name = core_apply.layer_names(spec.name)[0]
+        image_high = None
+        if high is not None:
+            layers_high = core_apply.apply(high[0], high[1], spec, **quality)
+            image_high = layers_high[name] if layers_high else high[0]["Combined"]
+    except TECHNIQUE_ERRORS as exc:
+        notes.append(f"{label} did not run: {_error_text(exc)}")
+        log(f"  {label}: not run ({_error_text(exc)})")
+        return None
+    return TechniqueRun(label, layers[name], image_high, apply_s)
+
+
+def _peers(settings: CompareSettings, reference, rows: _Rows, timings: dict, steps: Steps):
+    """Cycles at the peer sample counts (and Christensen-Burley). A generator: one step per
+    render; returns the seconds of Cycles random walk at the passes' samples (None: not rendered)."""
     # Cycles random walk at the passes' samples is always among the peers: against the passes (Cycles
     # without SSS at the same samples) it gives what the SSS effect costs Cycles.
     peers = sorted({*settings.peer_samples, settings.pass_samples})
@@ -302,55 +380,39 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
             continue
         yield steps.next(f"Cycles {samples} samples")
         img, secs, _ = reference(samples=samples, seed=settings.seed + 2, method=None)
-        add(f"Cycles {samples} spp", "cycles", img, secs)
-        entries[-1]["time_s"]["sss_effect"] = None
+        rows.add(f"Cycles {samples} spp", "cycles", img, secs)
+        rows.entries[-1]["time_s"]["sss_effect"] = None
         if samples == settings.pass_samples:
             rw_at_pass_samples = secs
-            entries[-1]["time_s"]["sss_effect"] = secs - timings["passes"]
+            rows.entries[-1]["time_s"]["sss_effect"] = secs - timings["passes"]
     if settings.cycles_burley:
-        yield steps.next(f"Cycles Christensen-Burley, {spp} samples")
+        yield steps.next(f"Cycles Christensen-Burley, {settings.reference_samples} samples")
         img, secs, _ = reference(samples=settings.reference_samples, seed=settings.seed + 3, method="BURLEY")
-        add(f"Cycles Christensen-Burley {settings.reference_samples} spp", "cycles", img, secs)
+        rows.add(f"Cycles Christensen-Burley {settings.reference_samples} spp", "cycles", img, secs)
+    return rw_at_pass_samples
 
-    images["Cycles reference"] = ref
-    if merged is not None:
-        noise = core_reference.noise_floor(merged, mask, box=settings.box)
-    else:
-        assert second is not None  # rendered above when there is no merged reference
-        noise = metrics.compare_images(second, ref, mask, box=settings.box)
-    calibration = yield from _calibration(settings, passes, desc, ref, mask, reference, steps)
-    yield steps.next("report")
-    data = {
-        "scene": {
-            "name": _scene_label(scene),
-            "file": bpy.data.filepath,
-            "materials": [asdict(m) for m in desc.materials],
-            "fingerprint": fingerprint,
-        },
-        "settings": {
-            "resolution": list(ref.shape[1::-1]),
-            "reference_samples": settings.reference_samples,
-            "reference_seconds": ref_seconds,
-            "pass_samples": settings.pass_samples,
-            "bias_pass_samples": settings.bias_pass_samples,
-            "seed": settings.seed,
-            "box": settings.box,
-            "reference_method": "scene's own subsurface method ("
-            + ", ".join(sorted({m.method for m in materials}))
-            + ")",
-            "blender": bpy.app.version_string,
-            "reference_file": settings.reference_file,
-            "reference_seeds": list(merged.seeds) if merged is not None else [settings.seed],
-        },
-        "noise_floor": noise,
-        "timings": timings,
-        "costs": _costs(settings, timings, rw_at_pass_samples, entries),
-        "entries": entries,
-        "fidelity": _fidelity(desc, settings.techniques, notes),
-        "calibration": calibration,
-        "notes": notes,
-        "complete": not notes,
+
+def _settings_data(settings: CompareSettings, materials, ref: np.ndarray, ref_seconds: float, merged) -> dict:
+    """The report's ``settings``: what was rendered and measured."""
+    return {
+        "resolution": list(ref.shape[1::-1]),
+        "reference_samples": settings.reference_samples,
+        "reference_seconds": ref_seconds,
+        "pass_samples": settings.pass_samples,
+        "bias_pass_samples": settings.bias_pass_samples,
+        "seed": settings.seed,
+        "box": settings.box,
+        "reference_method": "scene's own subsurface method (" + ", ".join(sorted({m.method for m in materials})) + ")",
+        "blender": bpy.app.version_string,
+        "reference_file": settings.reference_file,
+        "reference_seeds": list(merged.seeds) if merged is not None else [settings.seed],
     }
+
+
+def _write(out_dir: str, data: dict, rows: _Rows, mask: np.ndarray, log) -> dict:
+    """Write the report folder (``core.report``): the rows in the order no SSS, the techniques,
+    Cycles' renders, the reference."""
+    entries = rows.entries
     order = (
         ["no SSS"]
         + [e["name"] for e in entries if e["kind"] == "technique"]
@@ -358,7 +420,13 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
         + ["Cycles reference"]
     )
     out = report.write_report(
-        out_dir, data, images, reference="Cycles reference", mask=mask, order=order, summary=_summary(order, entries)
+        out_dir,
+        data,
+        rows.images,
+        reference="Cycles reference",
+        mask=mask,
+        order=order,
+        summary=_summary(order, entries),
     )
     log(saved_line(os.path.join(out_dir, "report.html")))
     return out
@@ -435,11 +503,25 @@ def _scene_label(scene) -> str:
 
 
 def _fidelity(desc: SceneDescription, techniques, notes: list) -> dict | None:
+    """The fidelity table of the techniques that can be measured (``core.fidelity``); each that
+    fails is left out with a note. None when no material scatters or no technique could be."""
     try:
-        return fidelity.fidelity_table(_main_material(desc), techniques=techniques)
+        material = _main_material(desc)
     except ValueError as exc:
         notes.append(f"fidelity table not measured: {exc}")
         return None
+    rows = {}
+    for technique in techniques:
+        spec = get_spec(technique)
+        try:
+            rows[spec.label] = fidelity.measure(spec, material)
+        except TECHNIQUE_ERRORS as exc:
+            notes.append(f"fidelity table: {spec.label} not measured: {_error_text(exc)}")
+    if not rows:
+        return None
+    table = fidelity.fidelity_table(material, techniques=())  # the definition and the profile's own row
+    table["rows"] = {**rows, **table["rows"]}
+    return table
 
 
 def _main_material(desc: SceneDescription):

@@ -22,11 +22,24 @@ from __future__ import annotations
 import numpy as np
 
 from . import _arrays, backend
+from .call import call_technique
 from .exr import Passes
 from .passes import THICKNESS
-from .plan import Plan, _accepted, _index_map, _plan, plan  # noqa: F401  (plan: callers read it from here too)
+from .plan import Plan, index_map, plan, plan_and_masks  # noqa: F401  (plan: callers read it from here too)
 from .scene import SceneDescription
 from .spec import Technique
+
+__all__ = [
+    "ALBEDO_MODES",
+    "LAYER_PREFIX",
+    "apply",
+    "bits_equal",
+    "clean",
+    "finite",
+    "layer_names",
+    "plan",
+    "technique_inputs",
+]
 
 ALBEDO_MODES = _arrays.ALBEDO_MODES
 
@@ -39,7 +52,7 @@ def layer_names(technique: str) -> tuple[str, str]:
     return f"{LAYER_PREFIX}.{technique}.Image", f"{LAYER_PREFIX}.{technique}.SSS"
 
 
-def _finite(a: np.ndarray) -> np.ndarray:
+def finite(a: np.ndarray) -> np.ndarray:
     """Per-pixel finiteness of an (H, W) or (H, W, C) array."""
     ok = np.isfinite(a)
     if a.ndim == 2:
@@ -52,16 +65,16 @@ def _finite(a: np.ndarray) -> np.ndarray:
     return out
 
 
-def _clean(a: np.ndarray) -> np.ndarray:
+def clean(a: np.ndarray) -> np.ndarray:
     """A float32 copy with NaN and +-Inf replaced by 0 (no other value changes; nothing clamped)."""
     out = np.array(a, dtype=np.float32)
-    finite = np.isfinite(out)
-    if not finite.all():
-        out[~finite] = 0.0
+    ok = np.isfinite(out)
+    if not ok.all():
+        out[~ok] = 0.0
     return out
 
 
-def _bits_equal(name: str, expected: np.ndarray, got: np.ndarray) -> None:
+def bits_equal(name: str, expected: np.ndarray, got: np.ndarray) -> None:
     if expected.shape != got.shape or expected.tobytes() != got.tobytes():
         raise backend.BackendMismatch(f"{name}: the compiled result differs from the NumPy code's bits")
 
@@ -76,8 +89,8 @@ def _read(raw: np.ndarray, first_channel: bool = False) -> tuple[np.ndarray, np.
     would be a new argument type for Numba, compiled again for every kernel on a cold cache."""
     if raw.dtype == np.float32 and _arrays.all_finite(raw):
         return np.array(raw[..., 0] if first_channel else raw, dtype=np.float32), None
-    ok = _finite(raw)
-    return _clean(raw[..., 0] if first_channel else raw), ok
+    ok = finite(raw)
+    return clean(raw[..., 0] if first_channel else raw), ok
 
 
 def _both(ok: np.ndarray | None, other: np.ndarray | None) -> np.ndarray | None:
@@ -95,16 +108,16 @@ def _both(ok: np.ndarray | None, other: np.ndarray | None) -> np.ndarray | None:
 _PASS_KEYWORDS = {"Normal": "normal", "Position": "position", "Object Index": "object_id", THICKNESS: "thickness"}
 
 
-def _inputs(spec: Technique, passes: Passes, scene: SceneDescription, albedo_mode: str):
+def technique_inputs(spec: Technique, passes: Passes, scene: SceneDescription, albedo_mode: str):
     """(keyword inputs of ``spec``'s function but the mask and the material's parameters; the
     diffuse light Combined holds (albedo x (Direct + Indirect)) or None; per-pixel finiteness of
-    the inputs): ``_technique_inputs`` with whole frames, as ``core.fit`` reads them."""
-    inputs, parts, ok = _technique_inputs(spec, passes, scene, albedo_mode)
+    the inputs): ``_gather_inputs`` with whole frames, as ``core.fit`` reads them."""
+    inputs, parts, ok = _gather_inputs(spec, passes, scene, albedo_mode)
     original = None if parts is None else parts[0] * parts[1]
     return inputs, original, np.ones(passes.shape, bool) if ok is None else ok
 
 
-def _technique_inputs(spec: Technique, passes: Passes, scene: SceneDescription, albedo_mode: str):
+def _gather_inputs(spec: Technique, passes: Passes, scene: SceneDescription, albedo_mode: str):
     """(keyword inputs of ``spec``'s function but the mask and the material's parameters;
     (albedo, Direct + Indirect), whose product is the diffuse light Combined holds,
     or None; per-pixel finiteness of the inputs, None when every pixel is finite)."""
@@ -123,9 +136,9 @@ def _technique_inputs(spec: Technique, passes: Passes, scene: SceneDescription, 
             continue
         raw = passes[scene.thickness_aov if name == THICKNESS else name]
         # A value AOV (thickness) stored with three channels is read from its first.
-        inputs[keyword], finite = _read(raw, first_channel=name == THICKNESS and raw.ndim == 3)
+        inputs[keyword], ok_pass = _read(raw, first_channel=name == THICKNESS and raw.ndim == 3)
         if name != "Object Index":  # an index pass is read as it is (Blender writes it finite)
-            ok = _both(ok, finite)
+            ok = _both(ok, ok_pass)
     original = None
     if spec.scatters:
         direct, indirect = passes["Diffuse Direct"], passes["Diffuse Indirect"]
@@ -136,7 +149,7 @@ def _technique_inputs(spec: Technique, passes: Passes, scene: SceneDescription, 
         depth = passes["Depth"]
         ok_depth = None
         if depth.dtype != np.float32 or not _arrays.all_finite(depth):
-            ok_depth = _finite(depth)
+            ok_depth = finite(depth)
             # Invalid depth becomes background (1e10), which gives and receives no light.
             depth = np.where(np.isfinite(depth), depth, np.float32(1e10)).astype(np.float32)
         ok = _both(_both(_both(ok, ok_direct), ok_indirect), ok_depth)
@@ -176,8 +189,8 @@ def _composite(image, sss, out, gain, original, mask, unchanged) -> int:
     backend.run_kernel("composite", result, gains, albedo, diffuse, held, zeroed, c(mask), image, sss, bad)
     count = int(bad.sum())
     if expected is not None:
-        _bits_equal("composite (image)", expected[0], image)
-        _bits_equal("composite (SSS)", expected[1], sss)
+        bits_equal("composite (image)", expected[0], image)
+        bits_equal("composite (SSS)", expected[1], sss)
         if count != expected[2]:
             raise backend.BackendMismatch(f"composite: {count} pixels overflowed, the NumPy code found {expected[2]}")
     return count
@@ -201,7 +214,7 @@ def _composite_numpy(image, sss, out, gain, original, mask, unchanged) -> int:
         good = m
     else:
         with np.errstate(over="ignore", invalid="ignore"):
-            good = m & _finite(out)
+            good = m & finite(out)
         overflow = int(np.count_nonzero(m) - np.count_nonzero(good))
     if held is None:
         term = out
@@ -223,13 +236,6 @@ def _composite_numpy(image, sss, out, gain, original, mask, unchanged) -> int:
             np.add(image_box[..., c], sss_box[..., c], out=total)  # Combined + term where good
         np.copyto(image_box[..., c], total, where=good)
     return overflow
-
-
-def _call(func, kwargs: dict):
-    accepted, var_kw = _accepted(func)
-    if not var_kw:
-        kwargs = {k: v for k, v in kwargs.items() if k in accepted}
-    return func(**kwargs)
 
 
 def apply(
@@ -259,7 +265,7 @@ def apply(
     the same arguments, to avoid planning twice.
     """
     if prepared is None:
-        p, index, masks = _plan(passes, scene, technique, albedo_mode, mapping, options)
+        p, index, masks = plan_and_masks(passes, scene, technique, albedo_mode, mapping, options)
     else:
         # The pixels its plan found on these passes, if it was made on them (else found below).
         p, index, masks = prepared, None, prepared.planned_masks(passes)
@@ -270,15 +276,15 @@ def apply(
     rgb = combined[..., :3]
     image = np.array(combined, dtype=np.float32)
     sss = np.zeros(rgb.shape, dtype=np.float32)
-    inputs, original, ok = _technique_inputs(spec, passes, scene, albedo_mode)
+    inputs, original, ok = _gather_inputs(spec, passes, scene, albedo_mode)
     if not _arrays.all_finite(combined):
-        ok = _both(ok, _finite(rgb))
+        ok = _both(ok, finite(rgb))
     nonfinite = overflow = 0
     for mp in p.applied:
         # The plan's pixels of the material (it found some), or the Material Index map's.
         mask = masks.get(mp.material.index)
         if mask is None:
-            index = _index_map(passes) if index is None else index
+            index = index_map(passes) if index is None else index
             mask = index == mp.material.index
             if not mask.any():
                 continue
@@ -298,7 +304,7 @@ def apply(
         # Light near float32's limit can overflow in a technique's sums: counted below and said
         # (overflow_pixels), instead of NumPy's raw RuntimeWarning.
         with np.errstate(over="ignore", invalid="ignore"):
-            out = np.asarray(_call(spec.function, kwargs), dtype=np.float32)
+            out = np.asarray(call_technique(spec, **kwargs), dtype=np.float32)
         if out.shape != rgb.shape:
             raise ValueError(f"{spec.name} returned shape {out.shape}; expected {rgb.shape}")
         # The techniques only read their inputs: the diffuse light Combined holds on the material

@@ -99,13 +99,13 @@ import numpy as np
 from . import _arrays, backend
 from . import apply as core_apply
 from .combined import transmission, view_cosine
-from .energy import SLAB_ABOVE, _unseen_light, entry_gain, slab_factors
+from .energy import SLAB_ABOVE, entry_gain, slab_factors, unseen_light
 from .errors import InputError
 from .exr import Passes
 from .fit_params import INFO, fitted
 from .mapping import burley_d, mean_free_path, technique_params
 from .optics.medium import medium_of
-from .plan import _EXACT_FLOAT32, Plan, _index_map, plan, required_passes
+from .plan import EXACT_FLOAT32, Plan, index_map, plan, required_passes
 from .scene import MaterialSSS, SceneDescription
 from .techniques import TECHNIQUES, get_spec
 
@@ -359,12 +359,12 @@ def _kernel_or_reference(name: str, reference, kernel, fits: bool = True):
 
 
 def _same_bits(name: str, expected, result) -> None:
-    """``core.apply._bits_equal`` over arrays, and tuples of them, slices or None."""
+    """``core.apply.bits_equal`` over arrays, and tuples of them, slices or None."""
     if isinstance(expected, tuple) and isinstance(result, tuple) and len(expected) == len(result):
         for a, b in zip(expected, result, strict=True):
             _same_bits(name, a, b)
     elif isinstance(expected, np.ndarray) and isinstance(result, np.ndarray):
-        core_apply._bits_equal(name, expected, result)
+        core_apply.bits_equal(name, expected, result)
     elif isinstance(expected, np.ndarray) or isinstance(result, np.ndarray) or expected != result:
         raise backend.BackendMismatch(f"{name}: the compiled result differs from the NumPy code's")
 
@@ -395,16 +395,16 @@ class _Shared:
 
     @functools.cached_property
     def index(self) -> np.ndarray:
-        """The Material Index map (``core.plan._index_map``), made at its first use: the compiled
+        """The Material Index map (``core.plan.index_map``), made at its first use: the compiled
         backend's window (``_window``) reads the pass without it."""
-        return _index_map(self._passes)
+        return index_map(self._passes)
 
 
 def _block_means(a: np.ndarray, size: int) -> np.ndarray:
     """The means of ``a`` ((H, W) or (H, W, C), cropped to a multiple of ``size``) over
     ``BOX`` x ``BOX`` pixels of each ``size`` x ``size`` block, one at the centre of each of its
     ``BOX`` x ``BOX`` equal parts (``_sample_offsets``), float32, NaN and +-Inf read as 0 (as
-    ``core.apply._clean`` reads them).
+    ``core.apply.clean`` reads them).
 
     With blocks of ``BOX`` (a window of at most ``BOX`` x ``GRID`` pixels) these are the blocks of the error measure
     (``core.metrics.box_downsample``), every pixel read. Larger blocks (a window wider than
@@ -481,7 +481,7 @@ def _window(sh: _Shared, index: int) -> tuple[tuple[slice, slice], np.ndarray] |
             return None
         win = _crop(on)
         seen = sh.combined[win]
-        return win, (on[win] if _arrays.all_finite(seen) else on[win] & core_apply._finite(seen))
+        return win, (on[win] if _arrays.all_finite(seen) else on[win] & core_apply.finite(seen))
 
     def kernel():
         box = np.zeros(4, np.int64)
@@ -494,7 +494,7 @@ def _window(sh: _Shared, index: int) -> tuple[tuple[slice, slice], np.ndarray] |
         return win, mask
 
     # A float32 holds every index below 2^24 exactly (as ``core.plan`` compares them).
-    fits = sh.raw_index.dtype == np.float32 and sh.raw_index.ndim == 2 and 0 <= index < _EXACT_FLOAT32
+    fits = sh.raw_index.dtype == np.float32 and sh.raw_index.ndim == 2 and 0 <= index < EXACT_FLOAT32
     fits = fits and sh.combined.ndim == 3 and sh.combined.shape[2] >= 3
     return _kernel_or_reference("auto window", reference, kernel, fits and sh.combined.dtype == np.float32)
 
@@ -512,7 +512,7 @@ def _energy_change(material, scene, sh, at, keep, albedo, e, visible, base) -> f
     "object") makes to the material's visible light, relative to the mean of ``base``: the entry's
     view dependence (each channel's total kept) times the finite object's light, computed as that
     function does on the blocks (the view cosine from the Normal and Position passes; the unseen
-    side's light by the energy stage's own ``_unseen_light``, a kernel on the compiled backend)."""
+    side's light by the energy stage's own ``unseen_light``, a kernel on the compiled backend)."""
     mean = float(np.mean(base[keep]))
     if mean <= 0:
         return 0.0
@@ -532,7 +532,7 @@ def _energy_change(material, scene, sh, at, keep, albedo, e, visible, base) -> f
         x = distance * np.sqrt(1.0 - tau)
         ell = np.maximum(np.asarray(mean_free_path(material), np.float64), 1e-30)
         f_above, f_below = slab_factors(material.method, a, x[:, None] / ell[None, :])
-        unseen = _unseen_light(
+        unseen = unseen_light(
             keep,
             diffuse=e,
             albedo=albedo,
@@ -587,7 +587,7 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
         read once: the light from behind and the energy read the Normal, Position and thickness
         passes both; a copy each time, since the callers are free to change what they get)."""
         if id(a) not in read:
-            read[id(a)] = core_apply._clean(a[win]) if step == 1 else _block_means(a[win], step)
+            read[id(a)] = core_apply.clean(a[win]) if step == 1 else _block_means(a[win], step)
         return read[id(a)].copy()
 
     combined = at(sh.combined)

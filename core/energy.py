@@ -613,7 +613,7 @@ def _float_frame(a) -> np.ndarray:
     return np.ascontiguousarray(a if a.dtype in (np.float32, np.float64) else a.astype(np.float64))
 
 
-def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, lights, lamps):
+def unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, lights, lamps):
     """``apply_energy``'s light of the surfaces the camera does not see: ``unseen_irradiance`` of
     the pixels of ``mask`` whose normal and position are finite and whose normal is longer than 0
     (their light ``diffuse``, over the albedo with ``pre_post``), float64 (3,), or None without
@@ -686,7 +686,7 @@ def _unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, lights, 
     return result
 
 
-#: The unit roundoff of float64. ``_unseen_light``'s check bounds |compiled - reference| of its
+#: The unit roundoff of float64. ``unseen_light``'s check bounds |compiled - reference| of its
 #: means of n pixels by (2 n + 8) u times the mean magnitude of the terms: each of the two float64
 #: sums (recursive along rows, or NumPy's pairwise) is within (n - 1) u of the exact sum relative to
 #: the sum of the terms' magnitudes (Higham, "Accuracy and Stability of Numerical Algorithms", 2nd
@@ -947,7 +947,7 @@ def apply_energy(
     finite = thickness is not None and thickness_distance_su > 0 and method in SLAB_ABOVE
     unseen = None
     if finite:
-        unseen = _unseen_light(
+        unseen = unseen_light(
             m,
             diffuse=diffuse,
             albedo=albedo,

@@ -28,8 +28,10 @@ import math
 import numpy as np
 
 from . import mapping as _mapping
+from .call import call_technique
 from .profiles import burley_cdf
 from .scene import Camera, Light, MaterialSSS
+from .spec import Technique
 from .techniques import TECHNIQUES, get_spec
 
 DEFINITION = (
@@ -91,7 +93,7 @@ def analytic_row(d_su) -> dict:
     return {"r90_su": r90, "bleeding_ratio": r90[0] / r90[2] if r90[2] > 0 else None, "energy_ratio": [1.0] * 3}
 
 
-def measure(technique: str, material: MaterialSSS, *, mapping=None, options=None) -> dict:
+def measure(technique: str | Technique, material: MaterialSSS, *, mapping=None, options=None) -> dict:
     """One row of the table for ``technique`` with ``material``'s parameters (and ``options``,
     keyword arguments of the technique that replace its defaults, e.g. Burley's ``seed``)."""
     d = np.broadcast_to(np.asarray(_mapping.burley_d(material, mapping=mapping), dtype=np.float64), (3,))
@@ -101,7 +103,6 @@ def measure(technique: str, material: MaterialSSS, *, mapping=None, options=None
     depth = np.ones((n, n), dtype=np.float32)
     mask = np.ones((n, n), dtype=bool)
     spec = get_spec(technique)
-    func = spec.function
     if not spec.scatters:  # it adds light only: measured on light from behind
         normal = np.zeros_like(diffuse)
         normal[..., 2] = 1.0  # facing the camera, which looks down -Z from +Z
@@ -114,7 +115,8 @@ def measure(technique: str, material: MaterialSSS, *, mapping=None, options=None
         if spec.prepare is not None:  # e.g. STA without a bake distance: the paper's map
             spec.prepare(params)
         added = np.asarray(
-            func(
+            call_technique(
+                spec,
                 **params,
                 albedo=albedo,
                 normal=normal,
@@ -139,7 +141,8 @@ def measure(technique: str, material: MaterialSSS, *, mapping=None, options=None
         if "energy" in spec.keywords:
             params["energy"] = "lambert"
         out = np.asarray(
-            func(diffuse=diffuse, albedo=albedo, depth=depth, mask=mask, camera=camera, **params), dtype=np.float64
+            call_technique(spec, diffuse=diffuse, albedo=albedo, depth=depth, mask=mask, camera=camera, **params),
+            dtype=np.float64,
         )
         incoming = diffuse.astype(np.float64)
         mid = out[n // 2]

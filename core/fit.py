@@ -52,12 +52,13 @@ import numpy as np
 from . import apply as core_apply
 from . import backend
 from . import mapping as _mapping
+from .call import call_technique
 from .combined import light_from_behind
 from .energy import apply_energy, energy_inputs
 from .errors import InputError
 from .fit_params import FIT_PARAMETERS, INFO, PARAMETERS
 from .metrics import box_downsample
-from .plan import _index_map, plan
+from .plan import index_map, plan
 from .scene import MaterialSSS, SceneDescription
 from .techniques import get_spec
 
@@ -266,11 +267,11 @@ def _blocks(image: np.ndarray, keep: np.ndarray, box: int) -> np.ndarray:
 
 
 def _material_mask(passes, material: MaterialSSS, reference: np.ndarray) -> np.ndarray:
-    index = _index_map(passes)
+    index = index_map(passes)
     ok = index == material.index
     for name in ("Combined", "Diffuse Color"):
-        ok &= core_apply._finite(passes[name][..., :3])
-    ok &= core_apply._finite(reference[..., :3])
+        ok &= core_apply.finite(passes[name][..., :3])
+    ok &= core_apply.finite(reference[..., :3])
     return ok
 
 
@@ -361,8 +362,8 @@ def fit_material(
             material, name, base, basis, target, fold, regularization, samples, start, pixels, heldout_check
         )
 
-    albedo = core_apply._clean(passes["Diffuse Color"])
-    original = albedo * (core_apply._clean(passes["Diffuse Direct"]) + core_apply._clean(passes["Diffuse Indirect"]))
+    albedo = core_apply.clean(passes["Diffuse Color"])
+    original = albedo * (core_apply.clean(passes["Diffuse Direct"]) + core_apply.clean(passes["Diffuse Indirect"]))
     rest = _blocks(combined_rgb - original, keep, box)
     y = target - rest
     params0 = _mapping.technique_params(plain, technique)
@@ -599,8 +600,8 @@ class _Diffusion:
         fitted = dataclasses.replace(material, fit={spec.name: {"gain": (1.0, 1.0, 1.0)}})
         p = plan(passes, dataclasses.replace(scene, materials=(fitted,)), spec)
         (mp,) = p.applied
-        inputs, original, ok = core_apply._inputs(spec, passes, scene, p.albedo_mode)
-        mask = (_index_map(passes) == mp.material.index) & ok & core_apply._finite(passes["Combined"][..., :3])
+        inputs, original, ok = core_apply.technique_inputs(spec, passes, scene, p.albedo_mode)
+        mask = (index_map(passes) == mp.material.index) & ok & core_apply.finite(passes["Combined"][..., :3])
         kwargs = {**inputs, **mp.params, "mask": mask, "energy": "lambert"}
         if "gain" not in spec.keywords:
             kwargs.pop("gain", None)
@@ -632,7 +633,7 @@ class _Diffusion:
     def scatter(self, k: float) -> np.ndarray:
         kwargs = {**self.kwargs, "d_su": tuple(self.d0 * k)}
         with np.errstate(over="ignore", invalid="ignore"):
-            return np.asarray(core_apply._call(self.spec.function, kwargs), np.float32)
+            return np.asarray(call_technique(self.spec, **kwargs), np.float32)
 
     def __call__(self, k: float) -> np.ndarray:
         if k == 1.0:

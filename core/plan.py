@@ -8,14 +8,13 @@ in scene units and in pixels, and why every other material is left as it is;
 
 from __future__ import annotations
 
-import functools
-import inspect
 import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import _arrays
+from .call import accepted_keywords
 from .exr import Passes
 from .extent import kernel_warning, mask_extent_px
 from .passes import THICKNESS
@@ -203,7 +202,7 @@ def _check_inputs(passes: Passes, scene: SceneDescription, technique: Technique,
         passes.require(name, _why(technique))
 
 
-def _index_map(passes: Passes) -> np.ndarray:
+def index_map(passes: Passes) -> np.ndarray:
     """Material Index as integers; -1 where the pass is not finite (never matches a material)."""
     raw = passes["Material Index"]
     if _arrays.all_finite(raw):  # the usual case: no pixel to mark
@@ -215,7 +214,7 @@ def _index_map(passes: Passes) -> np.ndarray:
 
 
 #: Integers below this are float32 values exactly (2^24).
-_EXACT_FLOAT32 = 1 << 24
+EXACT_FLOAT32 = 1 << 24
 
 
 def _mapping():
@@ -242,15 +241,6 @@ def _changes_level(technique: Technique, params: dict, material: MaterialSSS) ->
     return energy != "lambert" and material.method in CONVEX
 
 
-@functools.lru_cache(maxsize=64)
-def _accepted(func) -> tuple[frozenset[str], bool]:
-    """(the keyword arguments ``func`` takes, whether it takes any): read once per function."""
-    sig = inspect.signature(func)
-    names = frozenset(p.name for p in sig.parameters.values() if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD))
-    var_kw = any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values())
-    return names, var_kw
-
-
 def plan(
     passes: Passes,
     scene: SceneDescription,
@@ -266,20 +256,20 @@ def plan(
     not match the passes' size, or an option the technique does not take; MissingPassError
     (a KeyError) naming any missing pass and how to enable it.
     """
-    p, _, masks = _plan(passes, scene, technique, albedo_mode, mapping, options)
+    p, _, masks = plan_and_masks(passes, scene, technique, albedo_mode, mapping, options)
     p.found = (weakref.ref(passes["Material Index"]), masks)
     return p
 
 
-def _plan(
+def plan_and_masks(
     passes: Passes, scene: SceneDescription, technique: str | Technique, albedo_mode: str, mapping, options: dict
 ) -> tuple[Plan, np.ndarray | None, dict[int, np.ndarray]]:
-    """``plan``, the Material Index map (``_index_map``) if it needed one (else None) and the pixels
+    """``plan``, the Material Index map (``index_map``) if it needed one (else None) and the pixels
     of each pass index of a scattering material on screen (index -> bool (H, W)), which ``apply``
     reuses."""
     technique = get_spec(technique)
     _check_inputs(passes, scene, technique, albedo_mode)
-    accepted, var_kw = _accepted(technique.function)
+    accepted, var_kw = accepted_keywords(technique.function)
     unknown = sorted(k for k in options if k not in accepted)
     if unknown and not var_kw:
         raise ValueError(
@@ -287,7 +277,7 @@ def _plan(
         )
     raw = passes["Material Index"]
     index = None
-    # The pass rounded as float32 (half the bytes of ``_index_map``'s int64 map to compare): a
+    # The pass rounded as float32 (half the bytes of ``index_map``'s int64 map to compare): a
     # float32 holds every index below 2^24 exactly, and NaN and +-inf equal none of them, so each
     # such index has the same pixels in both. The int64 map only for the rest.
     rounded = np.rint(raw) if raw.dtype == np.float32 else None
@@ -300,10 +290,10 @@ def _plan(
     masks: dict[int, np.ndarray] = {}
     for k in sorted(known):
         if k > 0:
-            if rounded is not None and k < _EXACT_FLOAT32:
+            if rounded is not None and k < EXACT_FLOAT32:
                 on = rounded == np.float32(k)
             else:
-                index = _index_map(passes) if index is None else index
+                index = index_map(passes) if index is None else index
                 on = index == k
             counts[k] = int(np.count_nonzero(on))
             if k in scattering and counts[k]:
@@ -313,7 +303,7 @@ def _plan(
     # A positive rounded value is a positive index or one the int64 map marks -1 (+inf) or cannot
     # hold: more of them than listed pixels is checked on the int64 map.
     if rounded is None or np.count_nonzero(rounded > 0) > listed:
-        index = _index_map(passes) if index is None else index
+        index = index_map(passes) if index is None else index
     if index is not None and np.count_nonzero(index > 0) > listed:
         values, numbers = np.unique(index[index > 0], return_counts=True)
         unknown_indices = {int(i): int(c) for i, c in zip(values, numbers, strict=True) if int(i) not in known}

@@ -87,12 +87,12 @@ def test_group_extents_splits_by_label_as_sorting_does(labels):
 @pytest.mark.parametrize("listed", [(1, 2), (1, 2, 16777216, 16777218, 1 << 40)], ids=["small", "beyond float32"])
 def test_plan_finds_each_index_as_the_int64_map_does(listed):
     """``plan`` compares the pass rounded as float32 for indices below 2^24 and the int64 map
-    (``_index_map``) for the others: the same pixels and unlisted indices as the int64 map alone,
+    (``index_map``) for the others: the same pixels and unlisted indices as the int64 map alone,
     with NaN, +-inf and values beyond int64 in the pass."""
     from dataclasses import replace
 
     from sss_lab.core.exr import Passes
-    from sss_lab.core.plan import _index_map, plan
+    from sss_lab.core.plan import index_map, plan
     from sss_lab.core.synthetic import sphere_scene
 
     arrays, scene = sphere_scene(48, 32)
@@ -105,7 +105,7 @@ def test_plan_finds_each_index_as_the_int64_map_does(listed):
     passes = Passes({**arrays, "Material Index": mi})
     with np.errstate(invalid="ignore"):
         p = plan(passes, scene, "burley")
-        index = _index_map(passes)
+        index = index_map(passes)
     for mp in p.materials:
         assert mp.pixels == (int(np.count_nonzero(index == mp.material.index)) if mp.material.index > 0 else 0)
     known = {m.index for m in materials}

@@ -535,7 +535,7 @@ def test_the_features_block_means_are_the_error_measures_blocks():
 def test_larger_blocks_are_read_at_the_centres_of_their_quarters(size):
     """A block larger than ``auto.BOX`` (a window wider than ``GRID`` blocks) is represented by the
     pixel at the centre of each of its ``BOX`` x ``BOX`` parts: the features read BOX^2 values per
-    block at any resolution. NaN and +-Inf read as 0, as ``core.apply._clean`` reads them; pixels
+    block at any resolution. NaN and +-Inf read as 0, as ``core.apply.clean`` reads them; pixels
     between the samples are not read at all. Tolerance: float32 rounding of a float64 mean of four
     float32 values (exact sum), i.e. half a unit in the last place."""
     rng = np.random.default_rng(5)

@@ -14,14 +14,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from sss_lab.core import mapping
+from sss_lab.core import fidelity, mapping
 from sss_lab.core.apply import apply, layer_names
+from sss_lab.core.call import call_technique
 from sss_lab.core.exr import Passes
 from sss_lab.core.passes import PASSES, THICKNESS
 from sss_lab.core.plan import plan
-from sss_lab.core.spec import CALIBRATE_MAPPING
+from sss_lab.core.spec import CALIBRATE_MAPPING, Param, Technique
 from sss_lab.core.synthetic import DEFAULT_MATERIALS, sphere_scene
-from sss_lab.core.techniques import TECHNIQUES, parse_params
+from sss_lab.core.techniques import TECHNIQUES, Registry, parse_params
 
 SPECS = list(TECHNIQUES.values())
 IDS = list(TECHNIQUES)
@@ -120,3 +121,53 @@ def test_every_parameter_can_be_set_on_the_command_line(spec):
         assert parse_params([f"{p.name}={text}"], [spec.name]) == {spec.name: {p.name: p.default}}
         both = parse_params([f"{spec.name}.{p.name}={text}"], [spec.name, "burley" if spec.name != "burley" else "sta"])
         assert both[spec.name] == {p.name: p.default}
+
+
+def keep(*, diffuse, albedo, mask, share: float = 0.5) -> np.ndarray:
+    """A stand-in that takes neither ``depth`` nor ``camera``: keeps ``share`` of the light on the mask."""
+    out = (albedo * diffuse).astype(np.float32)
+    out[mask] *= np.float32(share)
+    return out
+
+
+KEEP = Technique(
+    name="keep",
+    label="Keep",
+    description="Keeps part of the diffuse light (a test stand-in without depth or camera)",
+    citation="tests/core/test_contract.py",
+    function=keep,
+    scatters=True,
+    adds_light=False,
+    passes=("Combined", "Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Depth", "Material Index"),
+    params=(Param("share", "Share", "Share of the diffuse light kept", min=0.0, max=1.0),),
+    qualities=({"share": 0.5},),
+)
+
+
+@pytest.mark.parametrize("spec", [*SPECS, Registry([KEEP]).get_spec("keep")], ids=[*IDS, "keep"])
+def test_the_fidelity_table_measures_every_technique(spec):
+    """Each technique is called with the inputs its function takes, whichever of the offered ones
+    it leaves out (``call_technique``)."""
+    material = DEFAULT_MATERIALS[1]
+    row = fidelity.measure(spec, material)
+    assert len(row["r90_su"]) == len(row["energy_ratio"]) == 3
+    assert all(np.isfinite(row["energy_ratio"]))
+    table = fidelity.fidelity_table(material, techniques=(spec,))
+    assert set(table["rows"]) == {spec.label, "Burley profile (analytic)"}
+    if spec is KEEP:
+        assert row["r90_su"] == [0.0, 0.0, 0.0]  # local
+        assert row["energy_ratio"] == pytest.approx([0.5] * 3)
+
+
+def test_call_technique_passes_only_the_keywords_a_function_takes():
+    got = call_technique(
+        KEEP,
+        diffuse=np.ones((1, 1, 3)),
+        albedo=np.ones((1, 1, 3)),
+        mask=np.ones((1, 1), bool),
+        depth=None,
+        camera=None,
+        share=0.25,
+    )
+    assert got.tolist() == [[[0.25] * 3]]
+    assert call_technique(lambda **kw: sorted(kw), a=1, b=2) == ["a", "b"]  # **kwargs takes them all

@@ -637,9 +637,9 @@ def test_the_compiled_unseen_light_is_the_references_within_its_sums(ortho, pre_
         lamps=lamps,
     )
     with backend.use("numpy"):
-        expected = energy._unseen_light(mask, **kw)
+        expected = energy.unseen_light(mask, **kw)
     with backend.use("numba"):
-        got = energy._unseen_light(mask, **kw)
+        got = energy.unseen_light(mask, **kw)
     # Only the order of the float64 sums differs: within (2 n + 8) u of the terms' mean magnitude
     # (energy._U64's comment), here bounded by their largest: the light's, and each lamp's E_L / pi
     # on the visible and on the reversed unit normal (|N . L| <= 1) times its colour.
@@ -657,13 +657,13 @@ def test_the_compiled_unseen_light_is_the_references_within_its_sums(ortho, pre_
     assert np.all(np.isfinite(got)) and got.shape == (3,)
     # Check mode runs both and compares them within that bound: a lamp dropped on one side is found.
     with backend.use("check"):
-        energy._unseen_light(mask, **kw)
+        energy.unseen_light(mask, **kw)
     if lamps:
         original = backend.compiled().light_table
         try:
             backend.compiled().light_table = lambda lights: original(lights[1:])
             with backend.use("check"), pytest.raises(backend.BackendMismatch, match="unseen_light"):
-                energy._unseen_light(mask, **kw)
+                energy.unseen_light(mask, **kw)
         finally:
             backend.compiled().light_table = original
 
@@ -687,7 +687,7 @@ def test_the_unseen_light_needs_a_pixel_with_a_normal_and_a_position():
     )
     for mode in ("numpy", "numba", "check"):
         with backend.use(mode):
-            assert energy._unseen_light(mask, **kw) is None
+            assert energy.unseen_light(mask, **kw) is None
 
 
 @pytest.mark.parametrize(

@@ -66,7 +66,7 @@ def test_sta_scale_is_found_and_its_provenance_counts_pixels(synthetic):
     assert r.params["scale"] == pytest.approx(2.0, rel=1e-6)
     assert r.heldout_after < 1e-3 * r.heldout_before
     # The provenance's pixels are the material's, as for the other techniques (not its blocks).
-    skin = int(np.count_nonzero(core_apply._index_map(passes) == 2))
+    skin = int(np.count_nonzero(core_apply.index_map(passes) == 2))
     assert r.params["info"] == {**r.params["info"], "samples": 32, "pixels": skin}
     assert r.blocks == r.heldout_blocks < skin
 
@@ -131,7 +131,7 @@ def test_noisy_fit_is_close_and_holds(synthetic, box):
 def _fold_pixels(passes, material):
     """{fold: its blocks' pixels} as ``fit_material`` deals the blocks of ``material`` (defaults)."""
     box = fit_mod.BOX
-    mask = core_apply._index_map(passes) == material.index
+    mask = core_apply.index_map(passes) == material.index
     keep = fit_mod.box_downsample(mask.astype(float), box) >= 1.0
     fold = block_folds(int(keep.sum()), folds=fit_mod.FOLDS, seed=0)
     out = {}
@@ -249,7 +249,7 @@ def test_the_fit_travels_in_the_scene_description_and_apply_uses_it(synthetic):
     assert again.material(2).fit["burley"]["d_scale"] == pytest.approx(2**-0.5)
     assert again.material(3).fit == {}
     out = core_apply.apply(passes, again, "burley")["SSSLab.burley.Image"]
-    skin = core_apply._index_map(passes) == 2
+    skin = core_apply.index_map(passes) == 2
     np.testing.assert_allclose(out[skin], ref[skin], rtol=2e-3, atol=1e-5)
     text = core_apply.plan(passes, again, "burley").explain()
     found = re.search(r"fitted to Cycles: d_scale=0\.7071, gain=\(([\d.]+), ([\d.]+), ([\d.]+)\)", text)

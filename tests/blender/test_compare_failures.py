@@ -1,0 +1,82 @@
+"""A technique that fails leaves the comparison to the others: its run and its row of the fidelity
+table become notes with the error (no render: synthetic passes, techniques of a registry of
+their own)."""
+
+import numpy as np
+import pytest
+
+from sss_lab.blender import compare as compare_mod
+from sss_lab.core.exr import Passes
+from sss_lab.core.report_schema import Report
+from sss_lab.core.spec import Technique
+from sss_lab.core.synthetic import sphere_scene
+from sss_lab.core.techniques import Registry
+
+PASSES = ("Combined", "Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Depth", "Material Index")
+
+
+def halve(*, diffuse, albedo, mask):
+    out = (albedo * diffuse).astype(np.float32)
+    out[mask] *= np.float32(0.5)
+    return out
+
+
+def wants_more(*, diffuse, albedo, mask, light_probe):
+    """Takes an input nobody offers: calling it raises TypeError."""
+    raise AssertionError("never called")
+
+
+def divides(*, diffuse, albedo, mask):
+    """Overflows its arithmetic: raises ZeroDivisionError, an ArithmeticError."""
+    return diffuse * (len(mask) // 0)
+
+
+def _spec(name, function):
+    return Technique(
+        name=name,
+        label=name.title(),
+        description="a test stand-in",
+        citation="tests/blender/test_compare_failures.py",
+        function=function,
+        scatters=True,
+        adds_light=False,
+        passes=PASSES,
+    )
+
+
+REGISTRY = Registry([_spec("halve", halve), _spec("wants_more", wants_more), _spec("divides", divides)])
+
+
+@pytest.fixture(scope="module")
+def scene():
+    arrays, desc = sphere_scene(24, 16)
+    return Passes(arrays), desc
+
+
+def test_a_failing_technique_is_a_note_and_the_others_run(scene):
+    passes, desc = scene
+    notes, lines = [], []
+    runs = {
+        name: compare_mod.technique_run(passes, desc, REGISTRY[name], {}, (passes, desc), notes, lines.append)
+        for name in REGISTRY
+    }
+    assert runs["wants_more"] is None and runs["divides"] is None
+    good = runs["halve"]
+    assert good.label == "Halve" and good.image.shape == passes["Combined"].shape and good.apply_s >= 0
+    assert good.image_high is not None
+    assert notes == [
+        "Wants_More did not run: TypeError: wants_more() missing 1 required keyword-only argument: 'light_probe'",
+        "Divides did not run: ZeroDivisionError: integer division or modulo by zero",
+    ]
+    assert any("not run (TypeError" in line for line in lines)
+
+    fidelity_notes = []
+    table = compare_mod._fidelity(desc, tuple(REGISTRY.values()), fidelity_notes)
+    assert list(table["rows"]) == ["Halve", "Burley profile (analytic)"]
+    assert [n.split(":")[:2] for n in fidelity_notes] == [
+        ["fidelity table", " Wants_More not measured"],
+        ["fidelity table", " Divides not measured"],
+    ]
+    # The notes are what the report's schema reads: an incomplete report that says why.
+    report = Report.from_dict({"entries": [], "notes": notes + fidelity_notes, "complete": False, "fidelity": table})
+    assert not report.complete and len(report.notes) == 4

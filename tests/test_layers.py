@@ -1,0 +1,219 @@
+"""The import graph of the source tree (every tracked .py file outside tests/), read with ``ast``:
+no import cycle, no import upward across the layers, no private name of another module.
+
+Every ``import`` and ``from ... import`` counts, relative or absolute, also inside a function.
+The allow-lists hold what exists today; each may only shrink: an entry that no longer matches
+fails too, so that it is taken out.
+"""
+
+import ast
+import subprocess
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = "sss_lab"
+
+#: Layers of top-level folders, highest first: a module imports its own layer's and lower ones'.
+LAYERS = (("__init__", "__main__"), ("addon",), ("operators",), ("nodes", "blender"), ("core",))
+#: Folders beside the layers: they may import anything but these.
+TOOLS = {f: {"addon", "operators"} for f in ("benchmarks", "tools", "sample_blends", "farm")}
+#: (importer, imported) dotted prefixes that may not import each other, beyond the layers, e.g.
+#: ("core.techniques", "core.pipeline").
+RULES: list[tuple[str, str]] = []
+#: What ``core`` never imports (it runs without Blender).
+NOT_IN_CORE = {"bpy", "bmesh", "mathutils", "gpu", "bl_math", "idprop"}
+
+#: Import edges (importer, imported) that close today's cycles; taking one away breaks its cycle.
+CYCLE_EDGES_ALLOWED = {
+    ("blender/describe.py", "blender/calibrate.py"),
+    ("blender/describe.py", "blender/thickness.py"),
+    ("core/backend.py", "core/_arrays.py"),
+    ("core/backend.py", "core/ssss.py"),
+    ("core/combined.py", "core/_back_light.py"),
+}
+#: Upward imports across the layers that exist today: (importer, imported).
+LAYER_EDGES_ALLOWED = {
+    ("benchmarks/compare_steps.py", "addon/cli_demo.py"),
+    ("benchmarks/random_walk_versions.py", "addon/cli_demo.py"),
+    ("benchmarks/reliability.py", "addon/cli.py"),
+    ("benchmarks/seed_split.py", "addon/cli_demo.py"),
+}
+#: Private names read from another module today: (importer, "module.name").
+PRIVATE_ALLOWED = {
+    ("addon/cli_bake.py", "core._files"),
+    ("addon/cli_calibrate.py", "core._files"),
+    ("addon/interrupt.py", "core._files"),
+    ("benchmarks/fidelity/backlit_extra.py", "benchmarks.fidelity.scenes._h"),
+    ("benchmarks/fidelity/backlit_extra.py", "benchmarks.fidelity.scenes._milk"),
+    ("benchmarks/fidelity/backlit_extra.py", "benchmarks.fidelity.scenes._skin"),
+    ("benchmarks/fidelity/backlit_extra.py", "benchmarks.fidelity.scenes._torus"),
+    ("benchmarks/speed.py", "core._arrays"),
+    ("benchmarks/speed.py", "core._arrays._WORKERS"),
+    ("benchmarks/thickness_oracle.py", "benchmarks.fidelity.run._load_scenes_module"),
+    ("benchmarks/transmission_slab.py", "benchmarks.fidelity.scenes._h"),
+    ("benchmarks/transmission_slab.py", "benchmarks.fidelity.scenes._jade"),
+    ("benchmarks/transmission_slab.py", "benchmarks.fidelity.scenes._milk"),
+    ("benchmarks/transmission_slab.py", "benchmarks.fidelity.scenes._skin"),
+    ("benchmarks/transmission_slab.py", "benchmarks.fidelity.scenes._wax"),
+    ("blender/bake.py", "blender.bake_nodes._add_map_nodes"),
+    ("blender/bake.py", "blender.bake_nodes._bake_material"),
+    ("blender/bake.py", "blender.bake_nodes._result_image"),
+    ("blender/bake.py", "blender.bake_nodes._use_material"),
+    ("blender/bake.py", "core._files"),
+    ("blender/calibrate.py", "blender.reference_cache._render_combined"),
+    ("blender/reference.py", "blender.reference_cache._render_combined"),
+    ("blender/reference_cache.py", "core._files"),
+    ("blender/render_passes.py", "core._files"),
+    ("core/optics/medium.py", "core._arrays"),
+    ("core/optics/surface.py", "core._arrays"),
+    ("core/_back_light.py", "core.combined._box_radius"),
+    ("core/_back_light.py", "core.combined._coarse_radii"),
+    ("core/_back_light.py", "core.combined._full_levels"),
+    ("core/_back_light.py", "core.combined._pyramid_layout"),
+    ("core/_back_light.py", "core.combined._spread_levels"),
+}
+
+
+def _sources() -> list[str]:
+    try:
+        out = subprocess.run(["git", "ls-files", "*.py"], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+        files = out.split()
+    except (OSError, subprocess.CalledProcessError):  # not a git checkout: every .py file
+        files = [p.relative_to(ROOT).as_posix() for p in ROOT.rglob("*.py") if ".venv" not in p.parts]
+    return sorted(f for f in files if not f.startswith("tests/") and (ROOT / f).is_file())
+
+
+def _module_file(parts: list[str]) -> str | None:
+    """The file of module ``parts`` of the tree (a .py file or a package's __init__.py), or None."""
+    for cand in (["/".join(parts) + ".py"] if parts else []) + ["/".join([*parts, "__init__.py"])]:
+        if (ROOT / cand).is_file():
+            return cand
+    return None
+
+
+def _dotted(path: str) -> str:
+    return path.removesuffix(".py").removesuffix("/__init__").replace("/", ".")
+
+
+def _scan(path: str):
+    """(imported files, external top-level names, private reads as "module.name") of ``path``."""
+    tree = ast.parse((ROOT / path).read_text(encoding="utf-8"), path)
+    package = path.split("/")[:-1]
+    edges, external, private, aliases = set(), set(), set(), {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                parts = a.name.split(".")
+                if parts[0] != PACKAGE:
+                    external.add(parts[0])
+                elif target := _module_file(parts[1:]):
+                    edges.add(target)
+                    if a.asname:
+                        aliases[a.asname] = target
+        elif isinstance(node, ast.ImportFrom) and node.module != "__future__":
+            parts = (node.module or "").split(".") if node.module else []
+            if node.level:
+                base = package[: len(package) - node.level + 1] + parts
+            elif parts[0] == PACKAGE:
+                base = parts[1:]
+            else:
+                external.add(parts[0])
+                continue
+            for a in node.names:
+                if sub := _module_file([*base, a.name]):  # a module of the package
+                    edges.add(sub)
+                    aliases[a.asname or a.name] = sub
+                    if a.name.startswith("_") and base != package:
+                        private.add(f"{_dotted(sub)}")
+                elif target := _module_file(base):
+                    edges.add(target)
+                    if a.name.startswith("_") and not a.name.startswith("__"):
+                        private.add(f"{_dotted(target)}.{a.name}")
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases:
+            if node.attr.startswith("_") and not node.attr.startswith("__"):
+                private.add(f"{_dotted(aliases[node.value.id])}.{node.attr}")
+    edges.discard(path)
+    return edges, external, private
+
+
+GRAPH = {f: _scan(f) for f in _sources()}
+
+
+def _cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one file (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in sorted(edges.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def _layer(path: str) -> str:
+    return path.split("/")[0].removesuffix(".py")
+
+
+def _upward(importer: str, imported: str) -> str | None:
+    """Why ``importer`` may not import ``imported``, or None."""
+    a, b = _layer(importer), _layer(imported)
+    rank = {name: i for i, names in enumerate(LAYERS) for name in names}
+    if a in TOOLS:
+        return f"{a} may not import {b}" if b in TOOLS[a] else None
+    if b in TOOLS or (a in rank and b in rank and rank[b] < rank[a]):
+        return f"{a} is below {b}"
+    for low, high in RULES:
+        if _dotted(importer).startswith(low) and _dotted(imported).startswith(high):
+            return f"{low} may not import {high}"
+    return None
+
+
+def test_no_import_cycle():
+    stale = sorted(e for e in CYCLE_EDGES_ALLOWED if e[1] not in GRAPH.get(e[0], ((),))[0])
+    assert not stale, f"CYCLE_EDGES_ALLOWED: these imports are gone, take them out: {stale}"
+    edges = {f: {t for t in e if (f, t) not in CYCLE_EDGES_ALLOWED} for f, (e, _, _) in GRAPH.items()}
+    cycles = _cycles(edges)
+    assert not cycles, "import cycles among source files:\n" + "\n".join(" <-> ".join(c) for c in cycles)
+    needed = sorted(e for e in CYCLE_EDGES_ALLOWED if not _cycles({**edges, e[0]: edges[e[0]] | {e[1]}}))
+    assert not needed, f"CYCLE_EDGES_ALLOWED: these imports close no cycle any more, take them out: {needed}"
+
+
+def test_no_import_upward_across_the_layers():
+    found = {(f, t): why for f, (e, _, _) in GRAPH.items() for t in e if (why := _upward(f, t))}
+    for f, (_, external, _) in GRAPH.items():
+        if _layer(f) == "core":
+            found |= {(f, name): "core runs without Blender" for name in external & NOT_IN_CORE}
+    new = sorted(f"{f} imports {t}: {why}" for (f, t), why in found.items() if (f, t) not in LAYER_EDGES_ALLOWED)
+    assert not new, "imports upward across the layers:\n" + "\n".join(new)
+    stale = sorted(LAYER_EDGES_ALLOWED - set(found))
+    assert not stale, f"LAYER_EDGES_ALLOWED: these imports are gone, take them out: {stale}"
+
+
+def test_no_private_name_of_another_module():
+    found = {(f, name) for f, (_, _, private) in GRAPH.items() for name in private}
+    new = sorted(f"{f} reads {name}" for f, name in found - PRIVATE_ALLOWED)
+    assert not new, "private names read from another module (make them public or keep them inside):\n" + "\n".join(new)
+    stale = sorted(PRIVATE_ALLOWED - found)
+    assert not stale, f"PRIVATE_ALLOWED: these are gone, take them out: {stale}"
