@@ -605,4 +605,5 @@ TECHNIQUE = Technique(
     default_quality=2,
     footprint=profile_footprint("n_samples"),
     calibration=CALIBRATE_MAPPING,
+    fit=("gain", "d_scale"),
 )

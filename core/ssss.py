@@ -546,4 +546,5 @@ TECHNIQUE = Technique(
     default_quality=1,
     footprint=profile_footprint("n_taps"),
     calibration=CALIBRATE_MAPPING,
+    fit=("gain", "d_scale"),
 )

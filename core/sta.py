@@ -522,4 +522,5 @@ TECHNIQUE = Technique(
     default_quality=1,
     calibration={"falloff": FALLOFFS, "scale": (0.25, 0.5, 1.0, 2.0, 4.0)},
     prepare=_prepare,
+    fit=("scale",),
 )
