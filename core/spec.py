@@ -6,7 +6,8 @@ spec instead of branching on a technique's name: planning and compositing (``pas
 ``scatters``, ``adds_light``, ``footprint``), the material mapping (the function's keywords),
 the fidelity table, the comparison (``qualities``, ``default_quality``, ``calibration``), the
 render passes and the compositor set-up (``passes``), the panel's properties and rows and the
-command line's ``--param`` (``params``). Adding a technique: ``docs/adding-a-technique.md``.
+command line's ``--param`` (``params``), what ``calibrate`` fits (``fit``), whether ``auto`` may
+choose it (``auto``). Adding a technique: ``docs/adding-a-technique.md``.
 
 Defaults live in the function's signature only: a ``Param`` is declared without one and the
 ``Technique`` fills it in from the signature (a parameter the function does not take, or takes
@@ -203,6 +204,9 @@ class Technique:
     #: What ``calibrate`` may fit per material (``core/fit.py``): names of ``core/fit_params.py``'s
     #: ``PARAMETERS``, e.g. ("gain", "d_scale"); () when it has no fit (calibrate refuses it).
     fit: tuple[str, ...] = ()
+    #: True when ``auto`` (``core/auto.py``) may choose it; False: listed there as not a candidate
+    #: (its learnt model then needs no coefficients for it).
+    auto: bool = True
 
     def __post_init__(self) -> None:
         where = f"technique {self.name!r}"
