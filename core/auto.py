@@ -899,6 +899,9 @@ def choose(
         cands = [Candidate(NONE, model.predict(NONE, f), 0.0)]
         unmodelled = []
         for t in names:
+            if not get_spec(t).auto:
+                cands.append(Candidate(t, math.nan, math.nan, "its spec keeps it out of auto (auto=False)"))
+                continue
             every = variants(t)
             runs = {n: o for n, o in every.items() if n in model.coefficients}
             if not runs:

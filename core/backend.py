@@ -22,6 +22,7 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -224,7 +225,7 @@ def one_thread():
         numba.set_num_threads(before)
 
 
-def tolerance(terms: int, magnitude: np.ndarray) -> np.ndarray:
+def tolerance(terms: float, magnitude: np.ndarray) -> np.ndarray:
     """Per-pixel bound on |compiled - reference| (float64, the shape of ``magnitude``).
 
     Both compute the same float32 operations on the same values; they differ in the order of
@@ -261,88 +262,6 @@ def local_max(values: np.ndarray, radius: int) -> np.ndarray:
     return out
 
 
-def _gather_bound(args: dict, reference: np.ndarray, terms: int, radius_su: float) -> np.ndarray:
-    """SSSS and Burley: each result is the albedo after the scatter times a weighted average,
-    with non-negative weights, of the light before it within the footprint; its sums are made of
-    values up to the largest light there."""
-    from . import _arrays
-
-    a = _arrays.image(args["albedo"], "albedo")
-    e = _arrays.image(args["diffuse"], "diffuse")
-    pre, post = _arrays.split_albedo(a, args.get("albedo_mode", "post"))
-    light = e if pre is None else pre * e
-    with np.errstate(invalid="ignore", over="ignore"):
-        scale = args["camera"].pixels_per_unit(_arrays.image(args["depth"], "depth", None))
-    finite = scale[np.isfinite(scale)]
-    with np.errstate(over="ignore"):
-        reach_px = radius_su * float(finite.max()) if finite.size else 0.0
-    reach = int(min(reach_px, max(light.shape[:2]))) + 2
-    big = local_max(light, reach)
-    return tolerance(terms, np.abs(post) * big)
-
-
-def _bound_sta(args, reference):
-    # Per pixel, a sum over the lights of non-negative terms (the result itself is their size).
-    return tolerance(len(args["lights"]), reference)
-
-
-def _bound_ssss(args, reference):
-    from .kernels import make_kernel
-
-    kernel = args.get("kernel") or make_kernel(
-        args["kernel_type"],
-        args["n_taps"],
-        d_su=args["d_su"],
-        unit_su=args["unit_su"],
-        falloff=args["falloff"],
-        strength=args["strength"],
-    )
-    # Two passes of 2 samples per tap each (the second sums the first's rounded results).
-    n = len(kernel)
-    per_pass = 2 * n + 1
-    if args.get("weighting", "surface") == "surface":
-        # Weighted by surface (core.ssss._pass), each pass's result is the weighted sum N times
-        # wsum / D, D = wsum + sum_k w_k sum_j a_j (rho_j - 1). The weights a_j rho_j are the same
-        # float32 operations on both backends (the surface of the column pass is each pixel's
-        # own, not a sum), so only the sums differ. N's terms are at most the largest light times
-        # D: N / D is within 2 (2 n + 1) u of it, as before. D's 2 n terms have either sign and
-        # magnitudes summing to at most sum w a (rho + 1) <= D + wsum, with D >= rho_min wsum
-        # (rho, a surface over another, is at least rho_min): D is within 2 (2 n) (1 + 1 /
-        # rho_min) u of itself, relatively. The quotient and its product: 2 roundings each.
-        per_pass += 2 * n * (1 + 1 / _least_surface_ratio(args["camera"], reference.shape[:2])) + 2
-    return _gather_bound(args, reference, 2 * per_pass, kernel.radius_su)
-
-
-def _least_surface_ratio(camera, shape) -> float:
-    """The smallest ratio of two pixels' surface weights in SSSS (``core.optics.surface.surface_area``,
-    at most ``core.ssss.MAX_SURFACE``) in a frame of ``camera`` of ``shape`` (H, W): each is
-    cos a / cos with cos <= 1 (at least cos a, the ray's angle a to the axis, smallest at the
-    frame's corners) and at most MAX_SURFACE."""
-    from .ssss import MAX_SURFACE
-
-    if camera.type == "ORTHO":
-        least_axis = 1.0
-    else:
-        h, w = shape
-        f = camera.focal_px
-        cx, cy = camera.principal_point(w, h)
-        u = max(abs(0.5 - cx), abs(w - 0.5 - cx)) / f
-        v = max(abs(cy - 0.5), abs(cy - h + 0.5)) / f
-        least_axis = 1.0 / float(np.sqrt(1.0 + u * u + v * v))
-    return min(least_axis, 1.0) / MAX_SURFACE
-
-
-def _bound_burley(args, reference):
-    from .profiles import TRUNCATION
-
-    d = float(np.max(np.asarray(args["d_su"], np.float64)))
-    # The weighted sum and the sum of the weights, n samples each.
-    return _gather_bound(args, reference, 2 * int(args["n_samples"]), TRUNCATION * d)
-
-
-_BOUNDS = {"sta": _bound_sta, "ssss": _bound_ssss, "burley": _bound_burley}
-
-
 def compare(name: str, reference: np.ndarray, result: np.ndarray, bound: np.ndarray) -> None:
     """Raise ``BackendMismatch`` where ``result`` differs from ``reference`` by more than
     ``bound``; NaN and infinities must sit at the same places with the same values."""
@@ -360,9 +279,11 @@ def compare(name: str, reference: np.ndarray, result: np.ndarray, bound: np.ndar
         )
 
 
-def checked(name: str):
-    """Decorator for the technique function ``name``: in ``check`` mode, run it on both
-    backends and compare them within the technique's bound (``_BOUNDS``)."""
+def checked(*, bound: Callable[[dict[str, Any], np.ndarray], np.ndarray]):
+    """Decorator for a technique's function: in ``check`` mode, run it on both backends and
+    compare them (``compare``, named after the function) within ``bound(arguments, reference)``:
+    the per-pixel bound (``tolerance``) its module gives, from the function's keyword arguments
+    with their defaults filled in and the NumPy reference's result."""
 
     def wrap(fn):
         signature = inspect.signature(fn)
@@ -377,7 +298,7 @@ def checked(name: str):
                 result = fn(**kwargs)
             args = signature.bind(**kwargs)
             args.apply_defaults()
-            compare(name, reference, result, _BOUNDS[name](args.arguments, reference))
+            compare(fn.__name__, reference, result, bound(args.arguments, reference))
             return result
 
         return run

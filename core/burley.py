@@ -31,6 +31,7 @@ import math
 import numpy as np
 
 from . import _arrays, backend
+from ._bounds import gather_bound
 from .energy import ENERGY_PARAM, apply_energy, energy_inputs
 from .extent import group_extents, object_extent
 from .optics.surface import MIN_VIEW_COSINE, surface_area, surface_area_args
@@ -145,7 +146,14 @@ def _smooth(result, idx_all, shape, px_per_unit, d, extent_su, zkey, idflat, rad
     return out
 
 
-@backend.checked("burley")
+def _check_bound(args: dict, reference: np.ndarray) -> np.ndarray:
+    """Check mode's bound (``backend.checked``): the weighted sum and the sum of the weights, n
+    samples each, within the profile's reach."""
+    d = float(np.max(np.asarray(args["d_su"], np.float64)))
+    return gather_bound(args, reference, 2 * int(args["n_samples"]), TRUNCATION * d)
+
+
+@backend.checked(bound=_check_bound)
 def burley(
     *,
     diffuse,
@@ -551,4 +559,5 @@ TECHNIQUE = Technique(
     default_quality=2,
     footprint=profile_footprint("n_samples"),
     calibration=CALIBRATE_MAPPING,
+    fit=("gain", "d_scale"),
 )

@@ -820,4 +820,5 @@ TECHNIQUE = Technique(
     # Its diffusion alone, for the fidelity table: no light from behind on the lit line.
     diffusion_only={"transmission_scale": 0.0, "normal": None, "position": None, "thickness": None, "lights": ()},
     prepare=_prepare,
+    fit=("gain", "d_scale", "transmission_scale", "transmission_d_su"),
 )

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import math
 
+from .techniques import TECHNIQUES
+
 #: name -> (number of values, lower bound, upper bound). The fit never leaves these bounds, and
 #: a hand-edited value outside them is rejected with the bounds in the message.
 PARAMETERS: dict[str, tuple[int, float, float]] = {
@@ -32,13 +34,22 @@ PARAMETERS: dict[str, tuple[int, float, float]] = {
     "scale": (1, 0.0, 64.0),
 }
 
-#: The techniques a fit exists for (their parameters, in ``PARAMETERS``).
-FIT_PARAMETERS: dict[str, tuple[str, ...]] = {
-    "burley": ("gain", "d_scale"),
-    "ssss": ("gain", "d_scale"),
-    "combined": ("gain", "d_scale", "transmission_scale", "transmission_d_su"),
-    "sta": ("scale",),
-}
+
+def _fit_parameters() -> dict[str, tuple[str, ...]]:
+    """Each registered technique's ``fit`` (its spec's), checked against ``PARAMETERS``."""
+    out = {}
+    for t in TECHNIQUES.values():
+        unknown = [name for name in t.fit if name not in PARAMETERS]
+        if unknown:
+            raise TypeError(f"technique {t.name!r}: fit names {unknown}, which are not in fit_params.PARAMETERS")
+        if t.fit:
+            out[t.name] = t.fit
+    return out
+
+
+#: The techniques a fit exists for and what it may change (their specs' ``fit``), in the
+#: registry's order.
+FIT_PARAMETERS: dict[str, tuple[str, ...]] = _fit_parameters()
 
 #: Key of the provenance entry (fit samples, errors before and after, pixels).
 INFO = "info"

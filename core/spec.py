@@ -6,7 +6,8 @@ spec instead of branching on a technique's name: planning and compositing (``pas
 ``scatters``, ``adds_light``, ``footprint``), the material mapping (the function's keywords),
 the fidelity table, the comparison (``qualities``, ``default_quality``, ``calibration``), the
 render passes and the compositor set-up (``passes``), the panel's properties and rows and the
-command line's ``--param`` (``params``). Adding a technique: ``docs/adding-a-technique.md``.
+command line's ``--param`` (``params``), what ``calibrate`` fits (``fit``), whether ``auto`` may
+choose it (``auto``). Adding a technique: ``docs/adding-a-technique.md``.
 
 Defaults live in the function's signature only: a ``Param`` is declared without one and the
 ``Technique`` fills it in from the signature (a parameter the function does not take, or takes
@@ -200,6 +201,12 @@ class Technique:
     #: Adjusts one material's parameters before it runs (may change them); returns notes for the
     #: plan, one line each. None: nothing to adjust.
     prepare: Callable[[dict[str, Any]], list[str]] | None = None
+    #: What ``calibrate`` may fit per material (``core/fit.py``): names of ``core/fit_params.py``'s
+    #: ``PARAMETERS``, e.g. ("gain", "d_scale"); () when it has no fit (calibrate refuses it).
+    fit: tuple[str, ...] = ()
+    #: True when ``auto`` (``core/auto.py``) may choose it; False: listed there as not a candidate
+    #: (its learnt model then needs no coefficients for it).
+    auto: bool = True
 
     def __post_init__(self) -> None:
         where = f"technique {self.name!r}"
@@ -226,6 +233,10 @@ class Technique:
                 raise TypeError(f"{where}: parameter {p.name!r} declares a default; it belongs in the signature")
             filled.append(dataclasses.replace(p, default=sp.default))
         object.__setattr__(self, "params", tuple(filled))
+        if not isinstance(self.fit, tuple) or not all(isinstance(n, str) for n in self.fit):
+            raise TypeError(f"{where}: fit must be a tuple of parameter names, got {self.fit!r}")
+        if len(set(self.fit)) != len(self.fit):
+            raise TypeError(f"{where}: fit {self.fit} names a parameter twice")
         if not self.qualities or not 0 <= self.default_quality < len(self.qualities):
             raise TypeError(f"{where}: default_quality {self.default_quality} is not an index of its qualities")
         for quality in self.qualities:

@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _arrays, backend
+from ._bounds import gather_bound
 from .energy import ENERGY_PARAM, apply_energy, energy_inputs
 from .extent import object_extent
 from .kernels import SeparableKernel, bounded, check_taps, make_kernel
@@ -227,7 +228,50 @@ def filter_1d(image, *, offsets_px, weights, axis: int, mask=None) -> np.ndarray
     return out
 
 
-@backend.checked("ssss")
+def _check_bound(args: dict, reference: np.ndarray) -> np.ndarray:
+    """Check mode's bound (``backend.checked``)."""
+    kernel = args.get("kernel") or make_kernel(
+        args["kernel_type"],
+        args["n_taps"],
+        d_su=args["d_su"],
+        unit_su=args["unit_su"],
+        falloff=args["falloff"],
+        strength=args["strength"],
+    )
+    # Two passes of 2 samples per tap each (the second sums the first's rounded results).
+    n = len(kernel)
+    per_pass: float = 2 * n + 1
+    if args.get("weighting", "surface") == "surface":
+        # Weighted by surface (_pass), each pass's result is the weighted sum N times wsum / D,
+        # D = wsum + sum_k w_k sum_j a_j (rho_j - 1). The weights a_j rho_j are the same float32
+        # operations on both backends (the surface of the column pass is each pixel's own, not a
+        # sum), so only the sums differ. N's terms are at most the largest light times D: N / D
+        # is within 2 (2 n + 1) u of it, as before. D's 2 n terms have either sign and magnitudes
+        # summing to at most sum w a (rho + 1) <= D + wsum, with D >= rho_min wsum (rho, a
+        # surface over another, is at least rho_min): D is within 2 (2 n) (1 + 1 / rho_min) u of
+        # itself, relatively. The quotient and its product: 2 roundings each.
+        per_pass += 2 * n * (1 + 1 / _least_surface_ratio(args["camera"], reference.shape[:2])) + 2
+    return gather_bound(args, reference, 2 * per_pass, kernel.radius_su)
+
+
+def _least_surface_ratio(camera: Camera, shape: tuple[int, ...]) -> float:
+    """The smallest ratio of two pixels' surface weights (``surface_area``, at most
+    ``MAX_SURFACE``) in a frame of ``camera`` of ``shape`` (H, W): each is cos a / cos with
+    cos <= 1 (at least cos a, the ray's angle a to the axis, smallest at the frame's corners)
+    and at most MAX_SURFACE."""
+    if camera.type == "ORTHO":
+        least_axis = 1.0
+    else:
+        h, w = shape
+        f = camera.focal_px
+        cx, cy = camera.principal_point(w, h)
+        u = max(abs(0.5 - cx), abs(w - 0.5 - cx)) / f
+        v = max(abs(cy - 0.5), abs(cy - h + 0.5)) / f
+        least_axis = 1.0 / float(np.sqrt(1.0 + u * u + v * v))
+    return min(least_axis, 1.0) / MAX_SURFACE
+
+
+@backend.checked(bound=_check_bound)
 def ssss(
     *,
     diffuse,
@@ -502,4 +546,5 @@ TECHNIQUE = Technique(
     default_quality=1,
     footprint=profile_footprint("n_taps"),
     calibration=CALIBRATE_MAPPING,
+    fit=("gain", "d_scale"),
 )

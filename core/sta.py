@@ -59,7 +59,13 @@ def _transmittance(translucency: np.ndarray, distance: float, d_c: np.ndarray) -
 _BLOCK = 1 << 16
 
 
-@backend.checked("sta")
+def _check_bound(args: dict, reference: np.ndarray) -> np.ndarray:
+    """Check mode's bound (``backend.checked``): per pixel, a sum over the lights of non-negative
+    terms (the result itself is their size)."""
+    return backend.tolerance(len(args["lights"]), reference)
+
+
+@backend.checked(bound=_check_bound)
 def sta(
     *,
     albedo,
@@ -466,4 +472,5 @@ TECHNIQUE = Technique(
     default_quality=1,
     calibration={"falloff": FALLOFFS, "scale": (0.25, 0.5, 1.0, 2.0, 4.0)},
     prepare=_prepare,
+    fit=("scale",),
 )

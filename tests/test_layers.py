@@ -27,8 +27,6 @@ NOT_IN_CORE = {"bpy", "bmesh", "mathutils", "gpu", "bl_math", "idprop"}
 CYCLE_EDGES_ALLOWED = {
     ("blender/describe.py", "blender/calibrate.py"),
     ("blender/describe.py", "blender/thickness.py"),
-    ("core/backend.py", "core/_arrays.py"),
-    ("core/backend.py", "core/ssss.py"),
     ("core/combined.py", "core/_back_light.py"),
 }
 #: Upward imports across the layers that exist today: (importer, imported).

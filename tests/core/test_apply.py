@@ -7,6 +7,7 @@ too, for the properties that hold whatever they compute (untouched pixels, finit
 """
 
 import dataclasses
+import inspect
 import math
 
 import numpy as np
@@ -14,6 +15,7 @@ import pytest
 
 from sss_lab.core import plan as plan_mod
 from sss_lab.core.apply import apply
+from sss_lab.core.energy import ENERGY_PARAM
 from sss_lab.core.exr import MissingPassError, Passes
 from sss_lab.core.plan import plan, required_passes
 from sss_lab.core.scene import MaterialSSS
@@ -29,11 +31,11 @@ def scene_passes():
 
 class Recorder:
     """A stand-in technique: records its calls and returns ``factor`` x albedo x diffuse on the
-    mask and albedo x diffuse elsewhere (the contract of ssss and burley), or for STA a
-    constant ``added`` light on the mask."""
+    mask and albedo x diffuse elsewhere (the contract of a technique that scatters), or for one
+    that only adds light (STA) a constant ``added`` light on the mask."""
 
-    def __init__(self, technique, factor=2.0, added=(0.25, 0.5, 1.0)):
-        self.technique = technique
+    def __init__(self, spec, factor=2.0, added=(0.25, 0.5, 1.0)):
+        self.spec = spec
         self.factor = factor
         self.added = np.asarray(added, dtype=np.float32)
         self.calls = []
@@ -41,7 +43,7 @@ class Recorder:
     def __call__(self, **kw):
         self.calls.append(kw)
         mask = kw["mask"]
-        if self.technique == "sta":
+        if not self.spec.scatters:
             out = np.zeros(kw["albedo"].shape, np.float32)
             out[mask] = self.added
             return out
@@ -61,38 +63,37 @@ class StubMapping:
 
     @staticmethod
     def technique_params(material, technique, *, mapping=None):
-        technique = technique.name
-        if technique == "combined":
-            return {"d_su": StubMapping.burley_d(material), "n_samples": 32, "thickness_distance_su": 1.0}
-        if technique == "burley":
-            return {"d_su": StubMapping.burley_d(material), "n_samples": 32}
-        if technique == "ssss":
-            return {"radius_su": material.radius}
-        return {"distortion": 0.1, "power": 2.0, "scale": 1.0, "ambient": 0.0}
+        """Fixed values, of the keywords the technique takes."""
+        values = {"d_su": StubMapping.burley_d(material), "n_samples": 32, "thickness_distance_su": 1.0}
+        values.update(distortion=0.1, power=2.0, scale=1.0, ambient=0.0)
+        return {k: v for k, v in values.items() if k in technique.keywords}
 
 
 @pytest.fixture
 def stub(monkeypatch):
     """Replace the techniques and the parameter mapping with stand-ins; returns the recorders."""
-    recorders = {name: Recorder(name) for name in TECHNIQUES}
-    signatures = {
-        "sta": "albedo, normal, position, thickness, mask, camera, lights, distortion, power, scale, ambient, "
-        "thickness_convention",
-        "ssss": "diffuse, albedo, depth, mask, camera, radius_su",
-        "burley": "diffuse, albedo, depth, mask, camera, d_su, object_id, n_samples",
-        "combined": "diffuse, albedo, depth, mask, camera, d_su, object_id, n_samples, normal, position, thickness, "
-        "lights, thickness_distance_su",
-    }
-    funcs = {}
-    for name, params in signatures.items():
-        # Real keyword-only signatures, so that apply's signature checks see what the techniques take.
-        namespace = {"rec": recorders[name]}
-        exec(f"def f(*, {params}):\n    return rec(**{{k: v for k, v in locals().items() if k != 'rec'}})", namespace)
-        funcs[name] = namespace["f"]
-    # The registered specs with the stand-in functions (and no parameters: the stand-ins have no defaults).
+    recorders = {name: Recorder(spec) for name, spec in TECHNIQUES.items()}
+
+    def stand_in(spec):
+        # The technique's own signature, so that apply's signature checks see what it takes and a
+        # call without a required keyword, or with one it does not take, fails as it would; without
+        # the energy stage (core/energy.py), which the stand-in does not model.
+        signature = inspect.signature(spec.function)
+        signature = signature.replace(parameters=[p for n, p in signature.parameters.items() if n != ENERGY_PARAM.name])
+
+        def function(**kw):
+            signature.bind(**kw)
+            return recorders[spec.name](**kw)
+
+        function.__signature__ = signature
+        return function
+
+    # The registered specs with the stand-in functions.
     specs = {
-        name: dataclasses.replace(TECHNIQUES[name], function=funcs[name], params=(), qualities=({},), default_quality=0)
-        for name in funcs
+        name: dataclasses.replace(
+            spec, function=stand_in(spec), params=tuple(p for p in spec.params if p.name != ENERGY_PARAM.name)
+        )
+        for name, spec in TECHNIQUES.items()
     }
     monkeypatch.setattr(plan_mod, "get_spec", lambda t: specs[TECHNIQUES.get_spec(t).name])
     monkeypatch.setattr(plan_mod, "_mapping", lambda: StubMapping)

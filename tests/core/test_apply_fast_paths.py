@@ -16,6 +16,7 @@ from sss_lab.core.exr import Passes
 from sss_lab.core.extent import mask_extent_px
 from sss_lab.core.plan import plan
 from sss_lab.core.synthetic import sphere_scene
+from sss_lab.core.techniques import TECHNIQUES
 
 F32_MAX = np.finfo(np.float32).max
 
@@ -174,7 +175,7 @@ def _spoil(arrays: dict) -> dict:
     return arrays
 
 
-@pytest.mark.parametrize("technique", ["sta", "ssss", "burley", "combined"])
+@pytest.mark.parametrize("technique", list(TECHNIQUES))
 def test_apply_equals_the_long_way_with_nan_and_inf_in_every_pass(technique):
     clean, scene = sphere_scene(64, 40)
     arrays = _spoil(clean)

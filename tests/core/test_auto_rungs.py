@@ -192,11 +192,24 @@ def test_train_learns_each_rung_from_its_own_errors_and_times():
 
 def test_the_shipped_model_knows_every_rung_and_how_it_was_made():
     shipped = auto.load_model()
-    for t in TECHNIQUES:
+    for t in (t for t, spec in TECHNIQUES.items() if spec.auto):
         for name in auto.variants(t):
             assert name in shipped.coefficients, name
             assert name in shipped.seconds_per_work, name
     assert "benchmarks.auto" in shipped.command and len(shipped.trained_on) >= 10
+
+
+def test_a_technique_its_spec_keeps_out_of_auto_is_not_a_candidate(monkeypatch):
+    passes, scene = _scene()
+    model = _model({"burley": (0.19, 1.0, 0.0), "ssss": (0.01, 0.01, 0.0)}, {"burley": 1.0, "ssss": 1.0})
+    kept_out = dataclasses.replace(get_spec("ssss"), auto=False)
+    monkeypatch.setattr(auto, "get_spec", lambda t: kept_out if t in ("ssss", kept_out) else get_spec(t))
+    plan = auto.choose(passes, scene, model=model, techniques=("burley", "ssss"))
+    assert set(plan.chosen.values()) == {"burley"}, plan.explain()
+    for c in plan.choices:
+        (ssss,) = [k for k in c.candidates if k.technique == "ssss"]
+        assert ssss.name == "ssss" and "auto=False" in ssss.excluded
+    assert "ssss" in plan.explain() and "not a candidate: its spec keeps it out of auto" in plan.explain()
 
 
 def test_command_line_explain_lists_the_rungs_and_the_chosen_one(tmp_path, capsys):

@@ -15,6 +15,7 @@ import pytest
 from sss_lab.core.exr import read_layers, read_passes
 from sss_lab.core.scene import SceneDescription
 from sss_lab.core.synthetic import sphere_scene, write_scene
+from sss_lab.core.techniques import TECHNIQUES
 
 _RUN_WITHOUT_BPY = """
 import runpy, sys
@@ -74,7 +75,7 @@ def test_round_trip_all_methods_without_bpy(passes_file):
     # The input layers are kept, and each technique adds its image and its SSS term.
     for name in arrays:
         np.testing.assert_array_equal(contents.layers[f"ViewLayer.{name}"], arrays[name])
-    for technique in ("sta", "ssss", "burley"):
+    for technique in TECHNIQUES:
         image = contents.layers[f"SSSLab.{technique}.Image"]
         sss = contents.layers[f"SSSLab.{technique}.SSS"]
         assert image.shape == arrays["Combined"].shape and sss.shape == arrays["Diffuse Color"].shape

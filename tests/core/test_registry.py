@@ -95,3 +95,19 @@ def test_a_grid_calibration_sweeps_its_parameters(scene):
     rows = sweep.calibrate(passes, desc, reference, mask, box=2, techniques=[calibrated])["rows"]
     assert [r["mapping"] for r in rows] == ["strength=0", "strength=0.5", "strength=1"]
     assert rows[0]["rel_rmse"] == pytest.approx(0.0, abs=1e-6) and rows[0]["chosen"]
+
+
+def test_what_calibrate_fits_is_the_specs_fit(monkeypatch):
+    from sss_lab.core import fit_params
+
+    assert fit_params.FIT_PARAMETERS == {t.name: t.fit for t in TECHNIQUES.values() if t.fit}
+    # A technique without a fit is not offered to calibrate; one with a fit is, without an edit elsewhere.
+    monkeypatch.setattr(fit_params, "TECHNIQUES", Registry([DIM, replace(DIM, name="dim2", fit=("gain",))]))
+    assert fit_params._fit_parameters() == {"dim2": ("gain",)}
+    monkeypatch.setattr(fit_params, "TECHNIQUES", Registry([replace(DIM, fit=("radius",))]))
+    with pytest.raises(TypeError, match=r"technique 'dim': fit names \['radius'\], which are not in"):
+        fit_params._fit_parameters()
+    with pytest.raises(TypeError, match="fit must be a tuple of parameter names"):
+        replace(DIM, fit="gain")
+    with pytest.raises(TypeError, match="names a parameter twice"):
+        replace(DIM, fit=("gain", "gain"))
