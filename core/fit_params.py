@@ -20,19 +20,11 @@ Anything else in the dict (``info``: samples, errors) is provenance and never re
 
 from __future__ import annotations
 
-import math
-
+from .fit_values import INFO, PARAMETERS, check_value
+from .fit_values import check_fit as check_form
 from .techniques import TECHNIQUES
 
-#: name -> (number of values, lower bound, upper bound). The fit never leaves these bounds, and
-#: a hand-edited value outside them is rejected with the bounds in the message.
-PARAMETERS: dict[str, tuple[int, float, float]] = {
-    "gain": (3, 0.25, 4.0),
-    "d_scale": (1, 0.25, 4.0),
-    "transmission_scale": (3, 0.0, 16.0),
-    "transmission_d_su": (3, 0.0, 1e6),
-    "scale": (1, 0.0, 64.0),
-}
+__all__ = ["FIT_PARAMETERS", "INFO", "PARAMETERS", "check_fit", "check_value", "fitted"]
 
 
 def _fit_parameters() -> dict[str, tuple[str, ...]]:
@@ -51,59 +43,16 @@ def _fit_parameters() -> dict[str, tuple[str, ...]]:
 #: registry's order.
 FIT_PARAMETERS: dict[str, tuple[str, ...]] = _fit_parameters()
 
-#: Key of the provenance entry (fit samples, errors before and after, pixels).
-INFO = "info"
-
-
-def check_value(name: str, value, where: str):
-    """``value`` as a float or a 3-tuple of floats within the bounds of ``name``; ValueError naming
-    ``where``, the parameter, the value and the bounds otherwise."""
-    count, lo, hi = PARAMETERS[name]
-    if count == 3 and isinstance(value, (int, float)) and not isinstance(value, bool):
-        value = (value, value, value)
-    try:
-        values = [float(v) for v in value] if count == 3 else [float(value)]
-    except (TypeError, ValueError):
-        values = None
-    if values is None or len(values) != count:
-        what = "three numbers (R, G, B)" if count == 3 else "a number"
-        raise ValueError(f"{where} fitted {name}: expected {what}, got {value!r}")
-    for v in values:
-        if not (math.isfinite(v) and lo <= v <= hi):
-            raise ValueError(f"{where} fitted {name}: {value!r} is outside {lo:g}..{hi:g}")
-    return tuple(values) if count == 3 else values[0]
-
 
 def check_fit(fit, where: str) -> dict:
-    """A validated copy of a material's fit: {technique: {parameter: value, "info": {...}}}."""
-    if fit is None:
-        return {}
-    if not isinstance(fit, dict):
-        raise ValueError(f"{where} fit: expected a mapping technique -> parameters, got {type(fit).__name__}")
-    out = {}
-    for technique, params in fit.items():
-        if technique not in FIT_PARAMETERS:
-            raise ValueError(
-                f"{where} fit: unknown technique {technique!r}; expected one of: {', '.join(FIT_PARAMETERS)}"
-            )
-        if not isinstance(params, dict):
-            raise ValueError(f"{where} fit for {technique}: expected a mapping of parameters, got {params!r}")
-        clean = {}
-        for name, value in params.items():
-            if name == INFO:
-                clean[name] = dict(value) if isinstance(value, dict) else {}
-                continue
-            if name not in FIT_PARAMETERS[technique]:
-                raise ValueError(
-                    f"{where} fit for {technique}: unknown parameter {name!r}; expected: "
-                    f"{', '.join(FIT_PARAMETERS[technique])}"
-                )
-            clean[name] = check_value(name, value, f"{where} {technique}")
-        if clean:
-            out[technique] = clean
-    return out
+    """A validated copy of a material's fit whose techniques and parameters are the registered
+    techniques' ``fit`` (``core.fit_values.check_fit``)."""
+    return check_form(fit, where, FIT_PARAMETERS)
 
 
 def fitted(fit: dict, technique: str) -> dict:
-    """The fitted parameters of ``technique`` (without the provenance), {} when none."""
+    """The fitted parameters of ``technique`` (without the provenance), {} when none. ValueError
+    when the fit holds a technique that has no fit or a parameter its fit does not change (the
+    scene description checks a fit's values, not which technique fits what)."""
+    check_fit(fit, "material")
     return {k: v for k, v in (fit or {}).get(technique, {}).items() if k != INFO}

@@ -20,6 +20,7 @@ from dataclasses import MISSING, asdict, dataclass, field, fields
 import numpy as np
 
 from . import _arrays
+from .fit_values import check_fit
 
 #: Version of the JSON layout; bump on any incompatible change.
 SCENE_DESCRIPTION_VERSION = 1
@@ -279,8 +280,6 @@ class MaterialSSS:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"material {self.name!r} {name}: expected a finite number >= 0, got {v!r}")
-        from .fit_params import check_fit
-
         object.__setattr__(self, "fit", check_fit(self.fit, f"material {self.name!r}"))
         if not (math.isfinite(self.subsurface_ior) and self.subsurface_ior > 0):
             raise ValueError(

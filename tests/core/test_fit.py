@@ -336,3 +336,15 @@ def test_the_second_fits_inputs_and_lines():
         "too few pixels",
         "refused combined again",
     ]
+
+
+def test_a_fit_a_technique_does_not_make_is_refused_where_it_is_read():
+    # The scene description checks a fit's values against the bounds (core.fit_values); which
+    # technique fits which parameters is the registry's, checked where a technique's fit is read.
+    from sss_lab.core.fit_params import fitted
+
+    assert fitted({"burley": {"gain": (1.0, 2.0, 1.5), "info": {"samples": 4}}}, "burley") == {"gain": (1.0, 2.0, 1.5)}
+    with pytest.raises(ValueError, match="unknown parameter 'scale'"):
+        fitted({"burley": {"scale": 2.0}}, "burley")
+    with pytest.raises(ValueError, match="unknown technique 'nope'"):
+        fitted({"nope": {"gain": 1.0}}, "burley")
