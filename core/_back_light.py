@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from . import _arrays, backend
+from .pyramid import box_radius, coarse_radii, full_levels, pyramid_layout, spread_levels
 from .scene import Light
 from .transmittance import (
     COSINE_ENTRY,
@@ -558,7 +559,6 @@ class CompiledBackLight:
     def _part(self, part_rows, p) -> _Part | None:
         """Part ``p``'s box, widths and levels from ``transmit_pixels``' rows, or None where its
         light does not spread (no pixel, or every width below the first level)."""
-        from .combined import _box_radius, _full_levels, _pyramid_layout, _spread_levels
 
         assert self.region is not None
         y0, _, x0, _ = self._region
@@ -570,7 +570,7 @@ class CompiledBackLight:
         rows = _width_ranges(part_rows[box[0] : box[1], p], fill)
         least, most = rows[..., 0].min(axis=0), rows[..., 1].max(axis=0)
         top = float(most.max(initial=0.0))
-        sigmas = _spread_levels(top)
+        sigmas = spread_levels(top)
         if len(sigmas) == 1:
             return None
         # The reference's box: the part's, widened by the widest blur's reach, within the frame.
@@ -584,12 +584,12 @@ class CompiledBackLight:
             ],
             np.int64,
         )
-        radii = np.array([_box_radius(sg) for sg in sigmas[1:]], np.int64)
+        radii = np.array([box_radius(sg) for sg in sigmas[1:]], np.int64)
         grid = np.asarray(sigmas, np.float64)
         needed = _needed_levels(grid, least, most)
-        levels, size = _pyramid_layout(sigmas, wide, needed[:, 3])
+        levels, size = pyramid_layout(sigmas, wide, needed[:, 3])
         return _Part(
-            box, np.array(box, np.int64), fill, rows, sigmas, grid, wide, radii, needed, _full_levels(sigmas), levels,
+            box, np.array(box, np.int64), fill, rows, sigmas, grid, wide, radii, needed, full_levels(sigmas), levels,
             size,
         )  # fmt: skip
 
@@ -604,13 +604,12 @@ class CompiledBackLight:
 
     def _blur_levels(self, q: _Part, flat) -> None:
         """``blur_reduced`` of each reduced level of ``flat`` (``_reduced_levels``' second half)."""
-        from .combined import _coarse_radii
 
         for k in range(q.n_full, len(q.sigmas)):
             f, off, hc, wc = (int(v) for v in q.levels[k - q.n_full])
             if f == 0:
                 continue
-            radii = np.array(_coarse_radii(q.sigmas[k], f), np.int64)
+            radii = np.array(coarse_radii(q.sigmas[k], f), np.int64)
             backend.run_kernel("blur_reduced", radii, flat[off : off + 4 * hc * wc].reshape(4, hc, wc))
 
     def _bands_of(self, q: _Part, p, light, l0, on, o0, curvature, flat, band_light) -> None:

@@ -69,6 +69,19 @@ from .burley import burley
 from .optics.lights import THICKNESS_CONVENTIONS, light_at, norm
 from .optics.medium import Medium, exit_weight, slab_transmittance_rgb
 from .passes import THICKNESS
+from .pyramid import (
+    SPREAD_LEVELS_PX,
+    block_sums,
+    blur,
+    box_radius,
+    box_sum,
+    coarse_radii,
+    full_levels,
+    pyramid_layout,
+    read_back,
+    spread_factor,
+    spread_levels,
+)
 from .scene import Camera, Light
 from .spec import Footprint, Param, Technique, profile_footprint
 from .ssss import TECHNIQUE as SSSS
@@ -179,94 +192,6 @@ def view_cosine(normal, position, camera: Camera) -> np.ndarray:
     return np.abs(np.nan_to_num(d[..., 0] + d[..., 1] + d[..., 2])).astype(np.float32)
 
 
-def _box(a: np.ndarray, radius: int, axis: int) -> np.ndarray:
-    """Sum over a window of 2 radius + 1 along ``axis`` (zero outside), by cumulative sums."""
-    pad = [(0, 0)] * a.ndim
-    pad[axis] = (radius + 1, radius)
-    c = np.cumsum(np.pad(a, pad), axis=axis, dtype=np.float64)
-    n = a.shape[axis]
-    hi = np.take(c, np.arange(2 * radius + 1, 2 * radius + 1 + n), axis=axis)
-    lo = np.take(c, np.arange(0, n), axis=axis)
-    return (hi - lo).astype(np.float32)
-
-
-def _box_radius(sigma_px: float) -> int:
-    """Half-width r of the boxes ``_blur`` uses for ``sigma_px``."""
-    return max(1, int(round((math.sqrt(4.0 * sigma_px * sigma_px + 1.0) - 1.0) / 2.0)))
-
-
-def _blur(a: np.ndarray, sigma_px: float) -> np.ndarray:
-    """Three box filters per axis, whose variance is sigma_px^2 (an approximate Gaussian; the width
-    2 r + 1 of each box satisfies 3 ((2 r + 1)^2 - 1) / 12 = sigma^2 to the nearest integer r)."""
-    r = _box_radius(sigma_px)
-    for axis in (0, 1):
-        for _ in range(3):
-            a = _box(a, r, axis)
-    return a
-
-
-#: Blur widths (px) the light from behind is spread at; a pixel's width is interpolated between two.
-SPREAD_LEVELS_PX = tuple(0.5 * 2.0**k for k in range(1, 9))
-
-#: The first width blurred on a reduced grid (a pyramid): a level of width sigma >= this is blurred
-#: on the box's f x f block sums, f = sigma / ``SPREAD_REDUCED_PX``, so each level costs a quarter
-#: of the one below it and the cost per pixel no longer grows with the widest width.
-SPREAD_COARSE_FROM_PX = 16.0
-
-#: The width (reduced pixels) a reduced level is blurred at: 8, where three boxes of half-width
-#: 7 or 8 mixed (``_coarse_radii``) come within 2 % of it (the full-resolution level 8 px's three
-#: equal boxes are 6 % wide). At 4 the blocks would be twice as wide for the same boxes' error,
-#: but the read back's spread, which varies across a block, would be 4 times the share.
-SPREAD_REDUCED_PX = 8.0
-
-
-def _spread_factor(sigma_px: float) -> int:
-    """The block size f (a power of two) ``spread_back_light`` blurs the level ``sigma_px`` at: 1
-    below ``SPREAD_COARSE_FROM_PX``, else ``sigma_px`` / ``SPREAD_REDUCED_PX``."""
-    if sigma_px < SPREAD_COARSE_FROM_PX:
-        return 1
-    return int(sigma_px / SPREAD_REDUCED_PX)
-
-
-def _coarse_radii(sigma_px: float, f: int) -> tuple[int, ...]:
-    """Half-widths of the three boxes (per axis, reduced pixels) that blur the level ``sigma_px``
-    on blocks of f x f: their variance sum_i r_i (r_i + 1) / 3 the nearest, with each r_i r or
-    r + 1, to sigma_px^2 / f^2 - 1 / 4. The 1 / 4 (f^2 / 4 in pixels) is what the blocks
-    ((f^2 - 1) / 12: a box of f) and the bilinear read back ((2 f^2 + 1) / 12: the two-point
-    spread t (1 - t) f^2 averaged over a block's f phases) add, so the total stays sigma_px^2."""
-    var = sigma_px * sigma_px / (f * f) - 0.25
-    r = max(1, int(math.floor((math.sqrt(4.0 * var + 1.0) - 1.0) / 2.0)))
-    best = min(range(4), key=lambda n: abs((n * (r + 1) * (r + 2) + (3 - n) * r * (r + 1)) / 3.0 - var))
-    return (r,) * (3 - best) + (r + 1,) * best
-
-
-def _block_sums(a: np.ndarray) -> np.ndarray:
-    """float64 sums of ``a``'s (H, W, P) 2 x 2 blocks from its origin (zeros beyond an odd edge):
-    (a00 + a01) + (a10 + a11), shape (ceil(H / 2), ceil(W / 2), P)."""
-    h, w = a.shape[:2]
-    a = np.pad(a.astype(np.float64, copy=False), ((0, h % 2), (0, w % 2), (0, 0)))
-    rows = a[:, 0::2] + a[:, 1::2]
-    return rows[0::2] + rows[1::2]
-
-
-def _read_back(c: np.ndarray, f: int, h: int, w: int) -> np.ndarray:
-    """float64 (h, w, P): the reduced grid ``c`` (float32 (Hc, Wc, P), blocks of f x f from the
-    origin) read at each pixel's centre by bilinear interpolation between the blocks' centres
-    (clamped at the edges): between two rows first, then along the row."""
-
-    def axis(n: int, nc: int):
-        u = np.clip((np.arange(n) + 0.5) / f - 0.5, 0.0, nc - 1.0)
-        i0 = np.minimum(np.floor(u).astype(np.int64), max(nc - 2, 0))
-        return i0, np.minimum(i0 + 1, nc - 1), u - i0
-
-    y0, y1, ty = axis(h, c.shape[0])
-    x0, x1, tx = axis(w, c.shape[1])
-    ty = ty[:, None, None]
-    rows = (1.0 - ty) * c[y0] + ty * c[y1]
-    tx = tx[None, :, None]
-    return (1.0 - tx) * rows[:, x0] + tx * rows[:, x1]
-
-
 def spread_sigma(x_su: np.ndarray, length_su, medium: Medium | None) -> np.ndarray:
     """Per-axis standard deviation (scene units, (..., 3)) of the Gaussian whose second moment is the
     light-weighted mean squared lateral distance between where light enters the far side and
@@ -306,8 +231,8 @@ def spread_back_light(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> 
     normalization keeps a uniform light unchanged): interpolated between blurs at
     ``SPREAD_LEVELS_PX``. Pixels with sigma below the first level keep a share of their own value.
     Levels of width ``SPREAD_COARSE_FROM_PX`` and more are blurred on reduced grids (a pyramid:
-    block sums of the light on the mask and of the mask, ``_block_sums``; boxes of
-    ``_coarse_radii``; bilinear read back, ``_read_back``), each a quarter of the one below it.
+    block sums of the light on the mask and of the mask, ``block_sums``; boxes of
+    ``coarse_radii``; bilinear read back, ``read_back``), each a quarter of the one below it.
     Against the same levels at full resolution: max 2.8 %, RMS 0.4-0.6 % relative difference for
     widths 2-40 px (``tests/core/test_combined.py``), less than those levels themselves miss a
     direct Gaussian by (3.6-5.4 % / 1.2-1.3 %).
@@ -325,22 +250,11 @@ def spread_back_light(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> 
     return result
 
 
-def _spread_levels(top: float) -> list[float]:
-    """The widths of the levels ``spread_back_light`` blurs at for a largest width ``top`` (0 first:
-    the light itself), up to the first that reaches ``top``."""
-    sigmas = [0.0]
-    for sg in SPREAD_LEVELS_PX:
-        if sigmas[-1] >= top:
-            break
-        sigmas.append(sg)
-    return sigmas
-
-
 def _spread_compiled(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> np.ndarray:
     """``spread_back_light`` on the compiled backend (``core.compiled.spread_light`` for the levels
     at full resolution, ``_reduced_levels`` and ``spread_reduced_frame`` for the wider ones)."""
     top = float(np.max(sigma_px[mask], initial=0.0))
-    sigmas = _spread_levels(top)
+    sigmas = spread_levels(top)
     if len(sigmas) == 1:
         return e
     c = np.ascontiguousarray
@@ -349,49 +263,26 @@ def _spread_compiled(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> n
     sig = c(sigma_px, np.float32)
     out = np.empty(e32.shape, np.float32)
     prev = np.empty((3,) + m.shape, np.float32)
-    radii = np.array([_box_radius(sg) for sg in sigmas[1:]], np.int64)
+    radii = np.array([box_radius(sg) for sg in sigmas[1:]], np.int64)
     grid = np.asarray(sigmas, np.float64)
-    n_full = _full_levels(sigmas)
+    n_full = full_levels(sigmas)
     backend.run_kernel("spread_light", e32, m, sig, grid, n_full, radii, prev, out)
     whole = np.array([0, m.shape[0], 0, m.shape[1]], np.int64)
-    levels, size = _pyramid_layout(sigmas, whole, None)
+    levels, size = pyramid_layout(sigmas, whole, None)
     flat = np.empty(size, np.float32)
     for k, f, reduced in _reduced_levels(e32, m.view(np.uint8), whole, whole, sigmas, levels, flat):
         backend.run_kernel("spread_reduced_frame", m, sig, f, reduced, grid, k, prev, out)
     return out
 
 
-def _full_levels(sigmas: list[float]) -> int:
-    """How many of the levels ``sigmas`` (0 first) are blurred at full resolution."""
-    return sum(1 for sg in sigmas if _spread_factor(sg) == 1)
-
-
-def _pyramid_layout(sigmas, box, wanted) -> tuple[np.ndarray, int]:
-    """Where ``_reduced_levels`` puts the reduced levels of ``sigmas`` (the levels from
-    ``_full_levels``) in one float32 buffer: per level (block size f, or 0 where ``wanted[k]`` is
-    False (None: every level wanted), offset, rows, columns), (levels, 4) int64, and the
-    buffer's size. Each grid is (4, rows, columns): R, G, B and the mask, blocks of f x f from
-    ``box``'s origin."""
-    n_full = _full_levels(sigmas)
-    levels = np.zeros((len(sigmas) - n_full, 4), np.int64)
-    size = 0
-    for k in range(n_full, len(sigmas)):
-        f = _spread_factor(sigmas[k])
-        hc, wc = -(-(box[1] - box[0]) // f), -(-(box[3] - box[2]) // f)
-        on = wanted is None or bool(wanted[k])
-        levels[k - n_full] = (f if on else 0, size, hc, wc)
-        size += 4 * hc * wc if on else 0
-    return levels, size
-
-
 def _reduced_levels(light, on, part, box, sigmas, levels, flat):
     """The compiled pyramid (``_spread_reference``'s reduced levels): yields (k, f, the level's
     blurred reduced grid (4, rows, columns) float32: R, G, B and the mask) for each level k of
     ``sigmas`` blurred on blocks of f x f of ``box``, in ``flat`` as ``levels`` lays them out
-    (``_pyramid_layout``; a level with f = 0 is not made). ``core.compiled.spread_pyramid``
+    (``pyramid_layout``; a level with f = 0 is not made). ``core.compiled.spread_pyramid``
     makes the float32 of their block sums from the light ``light`` on the pixels ``on`` of
     ``part`` (region coordinates), ``blur_reduced`` blurs each."""
-    n_full = _full_levels(sigmas)
+    n_full = full_levels(sigmas)
     if not np.any(levels[:, 0] > 0):
         return
     backend.run_kernel("spread_pyramid", light, on, part, box, levels, flat, 0, 1 << 62, 0, part[0])
@@ -400,7 +291,7 @@ def _reduced_levels(light, on, part, box, sigmas, levels, flat):
         if f == 0:
             continue
         reduced = flat[off : off + 4 * hc * wc].reshape(4, hc, wc)
-        radii = np.array(_coarse_radii(sigmas[k], f), np.int64)
+        radii = np.array(coarse_radii(sigmas[k], f), np.int64)
         backend.run_kernel("blur_reduced", radii, reduced)
         yield k, f, reduced
 
@@ -417,21 +308,21 @@ def _spread_reference(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> 
         if sigmas[-1] >= top:
             break
         lit = e * m[..., None]
-        if _spread_factor(sg) == 1:
-            num = _blur(lit, sg)
-            den = _blur(m, sg)
+        if spread_factor(sg) == 1:
+            num = blur(lit, sg)
+            den = blur(m, sg)
         else:
             # The pyramid: halve the grid until the blocks are f x f, blur there, read back.
             if sums is None:
                 sums = np.concatenate([lit, m[..., None]], axis=2)
-            while f < _spread_factor(sg):
-                sums = _block_sums(sums)
+            while f < spread_factor(sg):
+                sums = block_sums(sums)
                 f *= 2
             reduced = sums.astype(np.float32)
             for axis in (0, 1):
-                for r in _coarse_radii(sg, f):
-                    reduced = _box(reduced, r, axis)
-            both = _read_back(reduced, f, *m.shape)
+                for r in coarse_radii(sg, f):
+                    reduced = box_sum(reduced, r, axis)
+            both = read_back(reduced, f, *m.shape)
             num = both[..., :3].astype(np.float32)
             den = both[..., 3].astype(np.float32)
         levels.append(num / np.maximum(den, np.float32(1e-6))[..., None])

@@ -1828,7 +1828,7 @@ def _frame_level(mask, sigma, grid, k, y, x, c, cur, prev, out):
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def spread_light(e, mask, sigma, grid, n_full, radii, prev, out):
-    """``core.combined.spread_back_light`` (the reference: its docstring and ``_blur``) of ``e``
+    """``core.combined.spread_back_light`` (the reference: its docstring and ``core.pyramid.blur``) of ``e``
     (H, W, 3) over ``mask`` with per-pixel and channel widths ``sigma`` (H, W, 3) into ``out``:
     level k (1 <= k < len(``grid``)) is the light on the mask (``e`` x mask) and the mask itself,
     each blurred by three box sums of half-width ``radii[k - 1]`` along the columns, then three
@@ -2396,7 +2396,7 @@ def _running_box(buf, cum, lo, hi, out_lo, out_hi, r, bw):
     ``buf``, whose rows ``lo``..``hi`` - 1 hold the values (zero beyond them, where the
     reference's values are zero or its box ends): the float64 running sum of the values from
     ``lo``, and for the rows ``out_lo``..``out_hi`` - 1 the float32 of the difference of its values
-    2 r + 1 apart, as ``core.combined._box``'s cumulative sums give it (zeros before the first
+    2 r + 1 apart, as ``core.pyramid.box_sum``'s cumulative sums give it (zeros before the first
     value add nothing). Vectorized across the columns. The running sums are kept in ``cum``, a
     ring of ``_ring(r)`` rows (the sum of the first k values in row k mod its size), which stays
     in the cache where a whole line's would not; a row of ``buf`` is overwritten once summed."""
@@ -2635,7 +2635,7 @@ def spread_pyramid(light, on, part, box, levels, flat, band_a, band_b, l0, o0):
     3]``) (R, G, B and the mask; a block size ``levels[m, 0]`` of 0: not made), the float32 of
     the float64 sums of blocks of ``levels[m, 0]`` x ``levels[m, 0]`` from ``box``'s origin
     (region coordinates) of the light on the part (``light`` x ``on`` within ``part``'s rows
-    and columns, 0 elsewhere in the box) and of the part itself, as ``core.combined._block_sums``
+    and columns, 0 elsewhere in the box) and of the part itself, as ``core.pyramid.block_sums``
     adds them from one factor to the next: (a00 + a01) + (a10 + a11), zeros beyond the box.
     Block sizes are powers of two, ascending (0s anywhere). Per band of rows of the largest
     block, its sums are made factor by factor, so nothing of the frame's size is held in
@@ -2656,7 +2656,7 @@ def spread_pyramid(light, on, part, box, levels, flat, band_a, band_b, l0, o0):
         y = box[0] + band * top_f
         rows = max(top_f // 2, 1)
         sums = np.zeros((4, rows, w2), np.float64)
-        # Blocks of 2 from the pixels (the reference's first _block_sums).
+        # Blocks of 2 from the pixels (the reference's first core.pyramid.block_sums).
         for bi in range(rows):
             for bj in range(w2):
                 for q in range(4):
@@ -2713,7 +2713,7 @@ def spread_pyramid(light, on, part, box, levels, flat, band_a, band_b, l0, o0):
 def blur_reduced(radii, reduced):
     """A reduced level's blur, in place: ``reduced`` (P, Hc, Wc) float32 (the float32 of its block
     sums, ``spread_pyramid``) through three box sums of half-widths ``radii`` along the columns
-    and three along the rows, each the reference's ``core.combined._box`` (float64 running sums,
+    and three along the rows, each the reference's ``core.pyramid.box_sum`` (float64 running sums,
     ``_running_box``)."""
     n_planes, h, w = reduced.shape
     n_col = (w + SPREAD_STRIP - 1) // SPREAD_STRIP
@@ -2752,7 +2752,7 @@ def blur_reduced(radii, reduced):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _read_axis(n, f, t):
-    """``core.combined._read_back``'s interpolation along one axis at pixel ``n`` of blocks of
+    """``core.pyramid.read_back``'s interpolation along one axis at pixel ``n`` of blocks of
     ``f`` over ``t`` of them: (first block, second block, weight of the second, float64)."""
     u = (n + 0.5) / f - 0.5
     u = min(max(u, 0.0), t - 1.0)
@@ -2773,7 +2773,7 @@ def _read_columns(n0, n1, f, t):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _read_row(reduced, y0, y1, ty, between):
-    """``core.combined._read_back``'s first step for one row: the reduced grid's rows ``y0`` and
+    """``core.pyramid.read_back``'s first step for one row: the reduced grid's rows ``y0`` and
     ``y1`` mixed by ``ty`` (float64, every plane and block column) into ``between`` (Wc, P)."""
     for jc in range(reduced.shape[2]):
         for q in range(reduced.shape[0]):
@@ -2787,7 +2787,7 @@ def spread_reduced_part(light, sig, on, part, box, grid, n_full, flat, levels, o
     ``flat[levels[k - n_full, 1]:]`` as (4, ``levels[k - n_full, 2]``, ``levels[k - n_full, 3]``)
     (R, G, B and the mask; blocks of ``levels[k - n_full, 0]`` from ``box``'s origin; a block
     size of 0: no pixel reads the level). At each pixel and channel whose width lies next to
-    such a level, the grid is read back bilinearly as ``core.combined._read_back`` does (between
+    such a level, the grid is read back bilinearly as ``core.pyramid.read_back`` does (between
     two rows, then along the row; numerator and mask in float64, each then float32), the
     numerator divided by the mask (at least 1e-6), and the pixel's share of it put into ``out``
     as ``spread_band`` does for its levels: (1 - w) times the level below its width, then plus w

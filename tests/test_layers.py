@@ -27,7 +27,6 @@ NOT_IN_CORE = {"bpy", "bmesh", "mathutils", "gpu", "bl_math", "idprop"}
 CYCLE_EDGES_ALLOWED = {
     ("blender/describe.py", "blender/calibrate.py"),
     ("blender/describe.py", "blender/thickness.py"),
-    ("core/combined.py", "core/_back_light.py"),
 }
 #: Upward imports across the layers that exist today: (importer, imported).
 LAYER_EDGES_ALLOWED = {
@@ -64,11 +63,6 @@ PRIVATE_ALLOWED = {
     ("blender/render_passes.py", "core._files"),
     ("core/optics/medium.py", "core._arrays"),
     ("core/optics/surface.py", "core._arrays"),
-    ("core/_back_light.py", "core.combined._box_radius"),
-    ("core/_back_light.py", "core.combined._coarse_radii"),
-    ("core/_back_light.py", "core.combined._full_levels"),
-    ("core/_back_light.py", "core.combined._pyramid_layout"),
-    ("core/_back_light.py", "core.combined._spread_levels"),
 }
 
 

@@ -195,7 +195,8 @@ def test_light_from_behind_spreads_by_the_walks_lateral_distance():
     lateral distance the walk covers through the slab: a uniform light stays uniform (the blur
     is renormalized over the material), a half-lit back spreads across the edge, and the blur's
     variance is the sigma asked for (three box filters: exact up to the box width's rounding)."""
-    from sss_lab.core.combined import _blur, spread_back_light, spread_sigma
+    from sss_lab.core.combined import spread_back_light, spread_sigma
+    from sss_lab.core.pyramid import blur as _blur
 
     e = np.ones((N, N, 3), np.float32)
     m = np.ones((N, N), bool)
