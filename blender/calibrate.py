@@ -4,11 +4,11 @@
 samples (fixed seed, adaptive sampling off, docs/references.md §8) and the passes the techniques
 need — fits per material and technique with ``core.fit.fit_scene``, and stores the fitted values
 on each material as custom properties ``sss_lab_fit_<technique>_<parameter>`` (plus
-``sss_lab_fit_<technique>_info``, a JSON string with the samples and the held-out errors). The
-scene description reads them back (``describe.material_sss``), so Render Passes, Apply, Compare
-and the command line use them with no extra option. The properties are shown and editable in the
-panel and cleared by Clear Fit (``bpy.ops.sss_lab.fit_to_cycles`` and ``clear_fit``:
-``operators/fit.py``).
+``sss_lab_fit_<technique>_info``, a JSON string with the samples and the held-out errors;
+``blender/stored.py`` reads and writes them). The scene description reads them back
+(``describe.material_sss``), so Render Passes, Apply, Compare and the command line use them with
+no extra option. The properties are shown and editable in the panel and cleared by Clear Fit
+(``bpy.ops.sss_lab.fit_to_cycles`` and ``stored.clear_fit``: ``operators/fit.py``).
 
 The scene is left as it was apart from the new properties (``SceneState``); a material that
 cannot be fitted (too few pixels, no bake distance, a fit that does not hold) keeps its old
@@ -17,11 +17,9 @@ values, and the reason is one line in the result.
 
 from __future__ import annotations
 
-import json
 import os
 import tempfile
 import time
-from typing import Any
 
 import bpy
 
@@ -37,68 +35,20 @@ from ..core.fit import (
     more_samples,
     refused_pairs,
 )
-from ..core.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
+from ..core.fit_params import FIT_PARAMETERS
+from ..core.scene import parse_resolution
 from ..core.sequence import load_scene
 from ..core.techniques import TECHNIQUES
 from .describe import sss_materials
 from .jobs import Job, Steps, run
+from .reference_cache import render_combined
+from .render_passes import render_passes
 from .state import SceneState
+from .stored import write_fit
+from .thickness import thickness_aov_name, thickness_setup
 
-#: Custom-property prefix of the fitted values on a material.
-PREFIX = "sss_lab_fit_"
 #: The techniques ``calibrate`` fits by default: the two that the fit improves most.
 DEFAULT_TECHNIQUES = ("burley", "combined")
-
-
-def fit_key(technique: str, name: str) -> str:
-    return f"{PREFIX}{technique}_{name}"
-
-
-def read_fit(material) -> dict:
-    """The fit stored on ``material``'s custom properties, validated ({} when none).
-
-    A hand-edited value outside its bounds raises ValueError naming the material and the bounds."""
-    fit: dict = {}
-    keys = set(material.keys())
-    for technique, names in FIT_PARAMETERS.items():
-        params: dict[str, Any] = {}
-        for name in names:
-            key = fit_key(technique, name)
-            if key in keys:
-                value = material[key]
-                params[name] = tuple(value) if hasattr(value, "__len__") else float(value)
-        if params:
-            info = material.get(fit_key(technique, INFO))
-            try:
-                params[INFO] = json.loads(info) if isinstance(info, str) else {}
-            except json.JSONDecodeError:
-                params[INFO] = {}
-            fit[technique] = params
-    return check_fit(fit, f"material {material.name!r}")
-
-
-def write_fit(material, technique: str, params: dict) -> None:
-    """Store ``params`` (``core/fit_params.py`` names, plus ``info``) on ``material`` for ``technique``,
-    replacing that technique's earlier fit."""
-    clear_fit(material, technique)
-    for name, value in params.items():
-        if name == INFO:
-            material[fit_key(technique, INFO)] = json.dumps(value, sort_keys=True)
-            continue
-        key = fit_key(technique, name)
-        material[key] = list(value) if isinstance(value, (tuple, list)) else float(value)
-        ui = material.id_properties_ui(key)
-        _, lo, hi = PARAMETERS[name]
-        ui.update(min=lo, max=hi, description=f"Fitted to Cycles by SSS Lab ({technique}); Clear Fit removes it")
-
-
-def clear_fit(material, technique: str | None = None) -> list[str]:
-    """Remove the fitted properties of ``technique`` (all techniques when None); returns the keys removed."""
-    prefix = PREFIX if technique is None else fit_key(technique, "")
-    removed = [k for k in material.keys() if k.startswith(prefix)]
-    for k in removed:
-        del material[k]
-    return removed
 
 
 #: The techniques whose fit this process has run once (``_start_up``).
@@ -164,11 +114,6 @@ def calibrate_job(
     raise before the first ``yield``; the materials are written only after the last step, so that
     a job closed between steps (Esc in the panel) leaves every material as it was (the scene
     itself is restored by the renders' own ``SceneState``)."""
-    from ..core.scene import parse_resolution
-    from .reference_cache import _render_combined
-    from .render_passes import render_passes
-    from .thickness import thickness_aov_name, thickness_setup
-
     techniques = tuple(techniques)
     if max_samples is None:
         max_samples = max(samples, MAX_SAMPLES) if isinstance(samples, int) and not isinstance(samples, bool) else 1
@@ -211,7 +156,7 @@ def calibrate_job(
 
     def render(n: int, s: int, path: str) -> float:
         with SceneState() as state:
-            return _render_combined(scene, samples=n, seed=s, resolution=resolution, path=path, state=state)
+            return render_combined(scene, samples=n, seed=s, resolution=resolution, path=path, state=state)
 
     yield steps.next(f"Cycles random walk, {samples} samples")
     with tempfile.TemporaryDirectory(prefix="sss_lab_fit_") as tmp:

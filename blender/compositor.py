@@ -33,10 +33,8 @@ from ..core.passes import THICKNESS, view_layer_flag
 from ..nodes import setup as chain
 from . import compat
 from .describe import describe_scene, principled_node, sss_materials, world_corners
+from .stored import KEPT_WEIGHT
 from .thickness import thickness_aov_name, thickness_setup
-
-#: Custom property on a material: the Subsurface Weight the last compositor set-up saw.
-KEPT_WEIGHT = "sss_lab_subsurface_weight"
 
 
 def material_depths(scene, camera) -> dict[str, float]:

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from sss_lab.blender import compat, compositor_render
-from sss_lab.blender.compositor import KEPT_WEIGHT
 from sss_lab.blender.reference_cache import cached_reference
+from sss_lab.blender.stored import KEPT_WEIGHT
 from sss_lab.core import exr
 from sss_lab.nodes import _graph
 from sss_lab.nodes.setup import NODE_TAG, group_name
