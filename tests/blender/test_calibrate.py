@@ -10,7 +10,7 @@ from sss_lab.addon.cli import main
 from sss_lab.blender import calibrate as cal
 from sss_lab.blender import stored
 from sss_lab.blender.describe import sss_materials
-from sss_lab.addon.cli_demo import load_sample_scenes
+from sss_lab.blender.samples import load_sample_scenes
 from sss_lab.core.errors import InputError
 
 
