@@ -28,11 +28,13 @@ the compositor path once required) still finds the material.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import bpy
 import numpy as np
 
 from ..core.passes import THICKNESS, view_layer_flag
+from ..core.scene import SceneDescription
 from .describe import describe_scene, principled_node, sss_materials, world_corners
 from .stored import KEPT_WEIGHT
 from .thickness import thickness_aov_name, thickness_setup
@@ -115,9 +117,9 @@ class PreparedScene:
     """What ``prepare_scene`` found and changed, for the tree's wiring and the set-up's report."""
 
     #: The view layer whose Render Layers node the groups read.
-    layer: object
+    layer: Any
     #: The scene description the groups are built from (its subsurface materials, camera, lights).
-    desc: object
+    desc: SceneDescription
     #: Material index -> the kernel's fixed screen scale (per-material builders only).
     pixels_per_unit: dict = field(default_factory=dict)
     #: Subsurface material names by index (for the report's ``pixels_per_unit``).
