@@ -35,9 +35,9 @@ def _modules():
     return [importlib.import_module(name, root) for name in _MODULES]
 
 
-def compositor_render():
+def _render_handlers():
     """The render handlers of the compositor path (registered with the classes)."""
-    return importlib.import_module(".blender.compositor_render", __package__.rpartition(".")[0])
+    return importlib.import_module(".addon.compositor_render", __package__.rpartition(".")[0])
 
 
 def register():
@@ -57,7 +57,7 @@ def register():
                 bpy.utils.register_class(cls)
                 _registered.append(cls)
         properties.attach()
-        compositor_render().register_handlers()
+        _render_handlers().register_handlers()
         global _cli_handle
         _cli_handle = bpy.utils.register_cli_command(cli.BLENDER_COMMAND, cli.blender_command)
     except Exception:
@@ -100,7 +100,7 @@ def unregister():
     if _cli_handle is not None:
         bpy.utils.unregister_cli_command(_cli_handle)
         _cli_handle = None
-    compositor_render().unregister_handlers()
+    _render_handlers().unregister_handlers()
     properties.detach()
     while _registered:
         bpy.utils.unregister_class(_registered.pop())

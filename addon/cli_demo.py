@@ -8,11 +8,8 @@ report.md, report.html, the image grid and the error-against-time plot.
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import time
-
-_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def add_parser(subparsers):
@@ -27,23 +24,12 @@ def add_parser(subparsers):
     p.set_defaults(run=run)
 
 
-def load_sample_scenes():
-    """The sample-scene builder module (a source checkout only: the extension zip leaves it out)."""
-    from .cli import CommandError
-
-    path = os.path.join(_ROOT, "sample_blends", "build_scenes.py")
-    if not os.path.isfile(path):
-        raise CommandError(f"the sample scenes are not here ({path} is missing); run from a source checkout")
-    spec = importlib.util.spec_from_file_location("sss_lab_sample_scenes", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def run(args) -> int:
     from .cli import CommandError, require_bpy
 
     require_bpy()
+    from ..blender.samples import load_sample_scenes
+
     for name in ("samples", "reference_samples"):
         if getattr(args, name) < 1:
             raise CommandError(f"--{name.replace('_', '-')}: expected an integer >= 1, got {getattr(args, name)}")

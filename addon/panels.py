@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import bpy
 
-from ..blender.calibrate import PREFIX, fit_key
+from ..blender.stored import PREFIX, fit_key
 from ..core.fit_params import FIT_PARAMETERS
 from ..core.techniques import TECHNIQUES
 

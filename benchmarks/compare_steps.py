@@ -24,8 +24,8 @@ def main(argv=None) -> int:
 
     import bpy
 
-    from sss_lab.addon.cli_demo import load_sample_scenes
     from sss_lab.blender.compare import CompareSettings, compare_job
+    from sss_lab.blender.samples import load_sample_scenes
     from sss_lab.core.scene import SUBSURFACE_METHODS
 
     scenes = load_sample_scenes()

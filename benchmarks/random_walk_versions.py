@@ -89,7 +89,7 @@ def _apply_variant(scene, variant: str) -> list[dict]:
 def render_all(out: str, *, samples: int, size: int, scenes) -> None:
     import bpy
 
-    from sss_lab.addon.cli_demo import load_sample_scenes
+    from sss_lab.blender.samples import load_sample_scenes
 
     builder = load_sample_scenes()
     version = ".".join(map(str, bpy.app.version[:2]))

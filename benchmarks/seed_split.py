@@ -39,9 +39,9 @@ def main(argv=None) -> int:
     import bpy
 
     from benchmarks._common import resolution, write_results
-    from sss_lab.addon.cli_demo import load_sample_scenes
     from sss_lab.blender.reference import render_reference_parts
     from sss_lab.blender.render_passes import render_passes
+    from sss_lab.blender.samples import load_sample_scenes
     from sss_lab.core import exr, metrics, png
     from sss_lab.core import reference as ref
     from sss_lab.core import sequence as core_sequence

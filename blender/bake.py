@@ -30,7 +30,7 @@ Targets:
 A mesh used by several objects is baked once, with the first of them (transform, modifiers and
 surroundings of that object); the others report that they share it. The settings and the
 convention are stored with the result: ``mesh["sss_lab_thickness"][attribute name]`` or
-``image["sss_lab_thickness"]`` (read them back with ``blender.thickness.thickness_metadata``).
+``image["sss_lab_thickness"]`` (read them back with ``blender.stored.thickness_metadata``).
 
 With ``link_materials`` the result is added to the object's materials: an Attribute or UV Map +
 Image Texture node feeding a Shader AOV output named ``aov_name`` ("Thickness", the AOV the
@@ -65,11 +65,11 @@ from ..core.thickness import (
     to_convention,
 )
 from . import compat
-from .bake_nodes import _add_map_nodes, _bake_material, _result_image, _use_material
-from .describe import world_corners
+from .bake_nodes import add_map_nodes, bake_material, result_image, use_material
+from .describe import principled_node, world_corners
 from .jobs import Job, Progress
 from .state import SceneState
-from .thickness import META_KEY, thickness_metadata
+from .stored import META_KEY, thickness_metadata
 
 _TMP_ATTRIBUTE = "SSSLab_thickness_bake"
 
@@ -373,7 +373,7 @@ class ThicknessBake:
                 ("view_from", "ABOVE_SURFACE"),
             ):
                 st.set(bake, attr, value)
-            self._material = _bake_material(s, node_samples)
+            self._material = bake_material(s, node_samples)
             material = self._material
             st.on_restore(lambda: bpy.data.materials.remove(material))
             if s.target == "image" and self._image_folder:  # empty when every object is skipped
@@ -461,13 +461,13 @@ class ThicknessBake:
                         o.select_set(False, view_layer=vl)
                 obj.select_set(True, view_layer=vl)
                 vl.objects.active = obj
-                _use_material(st, obj, self._material)
+                use_material(st, obj, self._material)
                 nodes = self._material.node_tree.nodes
                 nodes["AO"].inputs["Distance"].default_value = item.distance_su
                 if s.target == "attribute":
                     self._bake_attribute(st, item)
                 else:
-                    image, created = _result_image(mesh, s)
+                    image, created = result_image(mesh, s)
                     nodes["Image"].image = image
                     self._material.node_tree.nodes.active = nodes["Image"]
                     compat.run_bake(target="IMAGE_TEXTURES", margin=s.margin_px, uv_layer=item.uv_map)
@@ -615,7 +615,7 @@ class ThicknessBake:
                         f"it now shows {image.name!r}"
                     )
                 self._material_images[mat.name_full] = image.name
-            warning = _add_map_nodes(mat, self.settings, image, item.uv_map)
+            warning = add_map_nodes(mat, self.settings, image, item.uv_map)
             if warning:
                 warnings.append(warning)
         return warnings
@@ -665,8 +665,6 @@ class ThicknessBake:
 
 def carries_subsurface(obj) -> bool:
     """Whether a material of ``obj`` scatters (its Principled BSDF's Subsurface Weight > 0)."""
-    from .describe import principled_node
-
     for slot in obj.material_slots:
         node = principled_node(slot.material)
         if node is not None and node.inputs["Subsurface Weight"].default_value > 0.0:

@@ -8,24 +8,20 @@ import bpy
 from ..core.thickness import BakeSettings
 from . import compat
 from .state import SceneState
-from .thickness import thickness_metadata
-
-#: Names of the nodes SSS Lab adds to materials.
+from .stored import thickness_metadata
 
 #: Names of the nodes SSS Lab adds to materials.
 NODE_NAME = "SSS Lab Thickness"
-
-
 NODE_UV = "SSS Lab Thickness UV"
-
-
 NODE_AOV = "SSS Lab Thickness AOV"
 
 
 _TMP_MATERIAL = "SSS Lab thickness bake (temporary)"
 
 
-def _bake_material(s: BakeSettings, node_samples: int):
+def bake_material(s: BakeSettings, node_samples: int):
+    """A new temporary material that emits the Ambient Occlusion node's inside AO (inverted for
+    the translucency convention), with an empty Image node for the bake's target."""
     mat = bpy.data.materials.new(_TMP_MATERIAL)
     compat.ensure_node_tree(mat)
     tree = mat.node_tree
@@ -52,7 +48,7 @@ def _bake_material(s: BakeSettings, node_samples: int):
     return mat
 
 
-def _use_material(st: SceneState, obj, material) -> None:
+def use_material(st: SceneState, obj, material) -> None:
     """Give every face of ``obj`` the bake material, for the duration of ``st``."""
     if len(obj.material_slots) == 0:
         obj.data.materials.append(material)
@@ -62,7 +58,7 @@ def _use_material(st: SceneState, obj, material) -> None:
         st.set(slot, "material", material)
 
 
-def _result_image(mesh, s: BakeSettings):
+def result_image(mesh, s: BakeSettings):
     """(image, created): the image the previous bake of this mesh made, emptied and resized, or
     a new float image (linear, Non-Color)."""
     name = f"{mesh.name}_thickness"
@@ -93,7 +89,7 @@ def _node(tree, name: str, bl_idname: str, location):
     return node
 
 
-def _add_map_nodes(mat, s: BakeSettings, image, uv_map: str) -> str:
+def add_map_nodes(mat, s: BakeSettings, image, uv_map: str) -> str:
     """Add (or update) the nodes that read the map and feed the thickness AOV; returns a
     warning or ''."""
     compat.ensure_node_tree(mat)

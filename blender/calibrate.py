@@ -4,11 +4,11 @@
 samples (fixed seed, adaptive sampling off, docs/references.md §8) and the passes the techniques
 need — fits per material and technique with ``core.fit.fit_scene``, and stores the fitted values
 on each material as custom properties ``sss_lab_fit_<technique>_<parameter>`` (plus
-``sss_lab_fit_<technique>_info``, a JSON string with the samples and the held-out errors). The
-scene description reads them back (``describe.material_sss``), so Render Passes, Apply, Compare
-and the command line use them with no extra option. The properties are shown and editable in the
-panel and cleared by Clear Fit (``bpy.ops.sss_lab.fit_to_cycles`` and ``clear_fit``:
-``operators/fit.py``).
+``sss_lab_fit_<technique>_info``, a JSON string with the samples and the held-out errors;
+``blender/stored.py`` reads and writes them). The scene description reads them back
+(``describe.material_sss``), so Render Passes, Apply, Compare and the command line use them with
+no extra option. The properties are shown and editable in the panel and cleared by Clear Fit
+(``bpy.ops.sss_lab.fit_to_cycles`` and ``stored.clear_fit``: ``operators/fit.py``).
 
 The scene is left as it was apart from the new properties (``SceneState``); a material that
 cannot be fitted (too few pixels, no bake distance, a fit that does not hold) keeps its old
@@ -17,11 +17,10 @@ values, and the reason is one line in the result.
 
 from __future__ import annotations
 
-import json
+import functools
 import os
 import tempfile
 import time
-from typing import Any
 
 import bpy
 
@@ -37,68 +36,20 @@ from ..core.fit import (
     more_samples,
     refused_pairs,
 )
-from ..core.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
+from ..core.fit_params import FIT_PARAMETERS
+from ..core.scene import parse_resolution
 from ..core.sequence import load_scene
 from ..core.techniques import TECHNIQUES
 from .describe import sss_materials
 from .jobs import Job, Steps, run
+from .reference_cache import render_combined
+from .render_passes import render_passes
 from .state import SceneState
+from .stored import write_fit
+from .thickness import thickness_aov_name, thickness_setup
 
-#: Custom-property prefix of the fitted values on a material.
-PREFIX = "sss_lab_fit_"
 #: The techniques ``calibrate`` fits by default: the two that the fit improves most.
 DEFAULT_TECHNIQUES = ("burley", "combined")
-
-
-def fit_key(technique: str, name: str) -> str:
-    return f"{PREFIX}{technique}_{name}"
-
-
-def read_fit(material) -> dict:
-    """The fit stored on ``material``'s custom properties, validated ({} when none).
-
-    A hand-edited value outside its bounds raises ValueError naming the material and the bounds."""
-    fit: dict = {}
-    keys = set(material.keys())
-    for technique, names in FIT_PARAMETERS.items():
-        params: dict[str, Any] = {}
-        for name in names:
-            key = fit_key(technique, name)
-            if key in keys:
-                value = material[key]
-                params[name] = tuple(value) if hasattr(value, "__len__") else float(value)
-        if params:
-            info = material.get(fit_key(technique, INFO))
-            try:
-                params[INFO] = json.loads(info) if isinstance(info, str) else {}
-            except json.JSONDecodeError:
-                params[INFO] = {}
-            fit[technique] = params
-    return check_fit(fit, f"material {material.name!r}")
-
-
-def write_fit(material, technique: str, params: dict) -> None:
-    """Store ``params`` (``core/fit_params.py`` names, plus ``info``) on ``material`` for ``technique``,
-    replacing that technique's earlier fit."""
-    clear_fit(material, technique)
-    for name, value in params.items():
-        if name == INFO:
-            material[fit_key(technique, INFO)] = json.dumps(value, sort_keys=True)
-            continue
-        key = fit_key(technique, name)
-        material[key] = list(value) if isinstance(value, (tuple, list)) else float(value)
-        ui = material.id_properties_ui(key)
-        _, lo, hi = PARAMETERS[name]
-        ui.update(min=lo, max=hi, description=f"Fitted to Cycles by SSS Lab ({technique}); Clear Fit removes it")
-
-
-def clear_fit(material, technique: str | None = None) -> list[str]:
-    """Remove the fitted properties of ``technique`` (all techniques when None); returns the keys removed."""
-    prefix = PREFIX if technique is None else fit_key(technique, "")
-    removed = [k for k in material.keys() if k.startswith(prefix)]
-    for k in removed:
-        del material[k]
-    return removed
 
 
 #: The techniques whose fit this process has run once (``_start_up``).
@@ -137,6 +88,136 @@ def calibrate(scene, **options) -> dict:
     return run(calibrate_job(scene, **options))
 
 
+def _check(scene, *, techniques, samples, max_samples, pass_samples, box, budget) -> tuple[tuple, int, list]:
+    """(techniques, max_samples, the scene's subsurface materials) for ``calibrate_job``;
+    InputError for a bad argument, a scene without a camera or without subsurface materials."""
+    techniques = tuple(techniques)
+    if max_samples is None:
+        max_samples = max(samples, MAX_SAMPLES) if isinstance(samples, int) and not isinstance(samples, bool) else 1
+    for t in techniques:
+        if t not in FIT_PARAMETERS:
+            raise InputError(f"methods: no fit exists for {t!r}; expected some of: {', '.join(FIT_PARAMETERS)}")
+    for name, value in (
+        ("samples", samples),
+        ("max_samples", max_samples),
+        ("pass_samples", pass_samples),
+        ("box", box),
+    ):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise InputError(f"{name}: expected an integer >= 1, got {value!r}")
+    if max_samples < samples:
+        raise InputError(f"max_samples: expected at least samples ({samples}), got {max_samples}")
+    if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not 0.0 <= budget <= 1.0:
+        raise InputError(f"budget: expected a share of the reference render from 0 to 1, got {budget!r}")
+    if scene.camera is None:
+        raise InputError(f"scene {scene.name!r} has no active camera; set one in Scene Properties > Camera")
+    materials = sss_materials(scene)
+    if not materials:
+        raise InputError(
+            f"scene {scene.name!r} has no material with subsurface scattering (Subsurface Weight > 0): nothing to fit"
+        )
+    return techniques, max_samples, materials
+
+
+def _with_maps(scene, techniques: tuple, materials: list, log) -> tuple[tuple, list[str]]:
+    """(the techniques that can be fitted, problems): a technique that reads the thickness map is
+    left out, with one line saying why, when the scene's maps do not serve it; InputError when
+    none is left."""
+    problems: list[str] = []
+    needs_map = [t for t in techniques if TECHNIQUES[t].reads_thickness]
+    if needs_map:
+        try:
+            thickness_setup(scene, materials, thickness_aov_name(scene))
+        except ValueError as exc:
+            techniques = tuple(t for t in techniques if t not in needs_map)
+            problems.append(f"{', '.join(needs_map)} not fitted: {exc}")
+            log(problems[-1])
+            if not techniques:
+                raise InputError(problems[-1]) from None
+    return techniques, problems
+
+
+def _passes(scene, folder: str, *, techniques, pass_samples, resolution, seed, seconds, log) -> tuple:
+    """(passes, scene description) rendered into ``folder``; their seconds go to ``seconds``."""
+    log(f"Passes, {pass_samples} samples")
+    start = time.perf_counter()
+    written = render_passes(
+        scene,
+        os.path.join(folder, "passes"),
+        techniques=techniques,
+        samples=pass_samples,
+        resolution=resolution,
+        seed=seed,
+        overwrite=True,
+        log=log,
+    )
+    seconds["passes"] = time.perf_counter() - start
+    exr_path = next(p for p in written if p.endswith(".exr"))
+    return exr.read_passes(exr_path), load_scene(exr_path)
+
+
+def _more_samples(
+    steps: Steps,
+    render,
+    folder: str,
+    fit,
+    *,
+    reference,
+    results,
+    fit_problems,
+    refused,
+    samples,
+    max_samples,
+    budget,
+    seed,
+    seconds,
+    once,
+    log,
+):
+    """The steps after a first fit some of whose fits the held-out check refused (the render may
+    be too noisy for them): a one-sample pilot render, then, if the cost stays within the budget
+    (``core.fit.more_samples``), more samples and a second fit of the refused materials on the two
+    renders' mean. ``render(samples, seed, path)``: a timed random-walk render; ``fit(reference,
+    samples=, only=)``: the first fit's ``fit_scene`` on other samples. Adds the second fit's
+    results to ``results``; a job's steps, returning the problems that stand after it."""
+    steps.total = 5
+    yield steps.next("a one-sample pilot render, to estimate the cost of more samples")
+    seconds["pilot"] = render(1, seed + 2, os.path.join(folder, "pilot.exr"))
+    fit_s = seconds["fit"] - once
+    extra, why = more_samples(
+        samples=samples,
+        max_samples=max_samples,
+        spent_s=seconds["reference"] + seconds["passes"] + fit_s + seconds["pilot"],
+        render_s=seconds["reference"],
+        pilot_s=seconds["pilot"],
+        fit_s=fit_s,
+        budget=budget,
+    )
+    log(f"{len(refused)} fit(s) refused by the held-out check; {why}")
+    if not extra:
+        return fit_problems + [f"not rendered again for the refused fits: {why}"]
+    yield steps.next(f"Cycles random walk, {extra} more samples, and a second fit of {len(refused)}")
+    more_path = os.path.join(folder, "more.exr")
+    seconds["more"] = render(extra, seed + 1, more_path)
+    reference = mean_render(reference, samples, exr.read_passes(more_path)["Combined"], extra)
+    start = time.perf_counter()
+    redo, redo_problems = fit(reference, samples=samples + extra, only=refused_pairs(refused))
+    seconds["fit_more"] = time.perf_counter() - start
+    results += redo
+    # The second fit's outcome replaces the first's refusals.
+    return after_second_fit(fit_problems, refused, redo_problems)
+
+
+def _store(results, problems: list[str]) -> None:
+    """Write each fit on its material; a material renamed while fitting is one more problem."""
+    for r in results:
+        material = bpy.data.materials.get(r.material)
+        if material is None:  # renamed while fitting: nothing to store it on
+            problems.append(f"material {r.material!r} no longer exists: its fit is not stored")
+            continue
+        write_fit(material, r.technique, r.params)
+
+
 def calibrate_job(
     scene,
     *,
@@ -164,54 +245,23 @@ def calibrate_job(
     raise before the first ``yield``; the materials are written only after the last step, so that
     a job closed between steps (Esc in the panel) leaves every material as it was (the scene
     itself is restored by the renders' own ``SceneState``)."""
-    from ..core.scene import parse_resolution
-    from .reference_cache import _render_combined
-    from .render_passes import render_passes
-    from .thickness import thickness_aov_name, thickness_setup
-
-    techniques = tuple(techniques)
-    if max_samples is None:
-        max_samples = max(samples, MAX_SAMPLES) if isinstance(samples, int) and not isinstance(samples, bool) else 1
-    for t in techniques:
-        if t not in FIT_PARAMETERS:
-            raise InputError(f"methods: no fit exists for {t!r}; expected some of: {', '.join(FIT_PARAMETERS)}")
-    for name, value in (
-        ("samples", samples),
-        ("max_samples", max_samples),
-        ("pass_samples", pass_samples),
-        ("box", box),
-    ):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise InputError(f"{name}: expected an integer >= 1, got {value!r}")
-    if max_samples < samples:
-        raise InputError(f"max_samples: expected at least samples ({samples}), got {max_samples}")
-    if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not 0.0 <= budget <= 1.0:
-        raise InputError(f"budget: expected a share of the reference render from 0 to 1, got {budget!r}")
-    if scene.camera is None:
-        raise InputError(f"scene {scene.name!r} has no active camera; set one in Scene Properties > Camera")
-    materials = sss_materials(scene)
-    if not materials:
-        raise InputError(
-            f"scene {scene.name!r} has no material with subsurface scattering (Subsurface Weight > 0): nothing to fit"
-        )
+    techniques, max_samples, materials = _check(
+        scene,
+        techniques=techniques,
+        samples=samples,
+        max_samples=max_samples,
+        pass_samples=pass_samples,
+        box=box,
+        budget=budget,
+    )
     resolution = parse_resolution(resolution) if resolution is not None else None
-    problems: list[str] = []
-    needs_map = [t for t in techniques if TECHNIQUES[t].reads_thickness]
-    if needs_map:
-        try:
-            thickness_setup(scene, materials, thickness_aov_name(scene))
-        except ValueError as exc:
-            techniques = tuple(t for t in techniques if t not in needs_map)
-            problems.append(f"{', '.join(needs_map)} not fitted: {exc}")
-            log(problems[-1])
-            if not techniques:
-                raise InputError(problems[-1]) from None
+    techniques, problems = _with_maps(scene, techniques, materials, log)
     seconds: dict[str, float] = {}
     steps = Steps(3)
 
     def render(n: int, s: int, path: str) -> float:
         with SceneState() as state:
-            return _render_combined(scene, samples=n, seed=s, resolution=resolution, path=path, state=state)
+            return render_combined(scene, samples=n, seed=s, resolution=resolution, path=path, state=state)
 
     yield steps.next(f"Cycles random walk, {samples} samples")
     with tempfile.TemporaryDirectory(prefix="sss_lab_fit_") as tmp:
@@ -220,22 +270,16 @@ def calibrate_job(
         seconds["reference"] = render(samples, seed, ref_path)
         reference = exr.read_passes(ref_path)["Combined"]
         yield steps.next(f"passes, {pass_samples} samples")
-        log(f"Passes, {pass_samples} samples")
-        start = time.perf_counter()
-        written = render_passes(
+        passes, desc = _passes(
             scene,
-            os.path.join(tmp, "passes"),
+            tmp,
             techniques=techniques,
-            samples=pass_samples,
+            pass_samples=pass_samples,
             resolution=resolution,
             seed=seed,
-            overwrite=True,
+            seconds=seconds,
             log=log,
         )
-        seconds["passes"] = time.perf_counter() - start
-        exr_path = next(p for p in written if p.endswith(".exr"))
-        passes = exr.read_passes(exr_path)
-        desc = load_scene(exr_path)
         yield steps.next(f"fit of {len(materials)} material(s)")
         seconds.update(_start_up(techniques))
         once = sum(backend.first_call_seconds().values())
@@ -248,49 +292,24 @@ def calibrate_job(
         # A kernel the start-up did not load (another array type) loads on its first call here.
         once = min(max(sum(backend.first_call_seconds().values()) - once, 0.0), seconds["fit"])
         if refused and max_samples > samples:
-            # The held-out check refused some fits: the render may be too noisy for them. More
-            # samples, if the cost stays within the budget (core.fit.more_samples).
-            steps.total = 5
-            yield steps.next("a one-sample pilot render, to estimate the cost of more samples")
-            seconds["pilot"] = render(1, seed + 2, os.path.join(tmp, "pilot.exr"))
-            fit_s = seconds["fit"] - once
-            extra, why = more_samples(
+            fit = functools.partial(fit_scene, passes, desc, techniques=techniques, box=box, log=log)
+            fit_problems = yield from _more_samples(
+                steps,
+                render,
+                tmp,
+                fit,
+                reference=reference,
+                results=results,
+                fit_problems=fit_problems,
+                refused=refused,
                 samples=samples,
                 max_samples=max_samples,
-                spent_s=seconds["reference"] + seconds["passes"] + fit_s + seconds["pilot"],
-                render_s=seconds["reference"],
-                pilot_s=seconds["pilot"],
-                fit_s=fit_s,
                 budget=budget,
+                seed=seed,
+                seconds=seconds,
+                once=once,
+                log=log,
             )
-            log(f"{len(refused)} fit(s) refused by the held-out check; {why}")
-            if extra:
-                yield steps.next(f"Cycles random walk, {extra} more samples, and a second fit of {len(refused)}")
-                more_path = os.path.join(tmp, "more.exr")
-                seconds["more"] = render(extra, seed + 1, more_path)
-                reference = mean_render(reference, samples, exr.read_passes(more_path)["Combined"], extra)
-                start = time.perf_counter()
-                redo, redo_problems = fit_scene(
-                    passes,
-                    desc,
-                    reference,
-                    techniques=techniques,
-                    box=box,
-                    samples=samples + extra,
-                    log=log,
-                    only=refused_pairs(refused),
-                )
-                seconds["fit_more"] = time.perf_counter() - start
-                # The second fit's outcome replaces the first's refusals.
-                fit_problems = after_second_fit(fit_problems, refused, redo_problems)
-                results += redo
-            else:
-                fit_problems.append(f"not rendered again for the refused fits: {why}")
     problems += fit_problems
-    for r in results:
-        material = bpy.data.materials.get(r.material)
-        if material is None:  # renamed while fitting: nothing to store it on
-            problems.append(f"material {r.material!r} no longer exists: its fit is not stored")
-            continue
-        write_fit(material, r.technique, r.params)
+    _store(results, problems)
     return {"results": [r.to_dict() for r in results], "problems": problems, "seconds": seconds}

@@ -1,9 +1,10 @@
-"""Set up the scene's compositor with a technique's node groups, reading from Render Layers.
+"""The scene side of the compositor set-up: what a technique's node groups need from the scene.
 
-``setup_compositor(scene, technique)`` is the plain function; ``bpy.ops.sss_lab.setup_compositor``
-(``operators/compositing.py``) wraps it for the panel (technique, parameters and albedo mode from
-``scene.sss_lab``). What it changes, on purpose and for good (it is a set-up, undoable with
-Ctrl+Z, not a temporary change):
+``operators/compositing.py``'s ``setup_compositor(scene, technique)`` is the plain function of the
+set-up (``bpy.ops.sss_lab.setup_compositor`` wraps it for the panel); it calls ``prepare_scene``
+here, then ``nodes.setup.insert_chain``, which wires the groups into the compositor tree. What the
+set-up changes, on purpose and for good (it is a set-up, undoable with Ctrl+Z, not a temporary
+change):
 
 - the scene gets a compositor node group if it has none (5.x: ``scene.compositing_node_group``);
 - a Render Layers node for the view layer is reused, or added; the technique's group nodes are
@@ -17,26 +18,26 @@ Ctrl+Z, not a temporary change):
 
 Not changed: the materials' subsurface settings. Cycles puts its own subsurface light into the
 Diffuse passes, so the groups need the materials rendered as plain diffuse: the render handlers
-of ``compositor_render`` do that around every render of the scene (Subsurface Weight 0 while it
-renders, put back after, as Render Passes does), and the set-up switches on Lock Interface for
-them. Each subsurface material keeps the weight the set-up saw (custom property
-``sss_lab_subsurface_weight``), so that a set-up run again after the weight was set to 0 (by
-hand, as the compositor path once required) still finds the material.
+of ``addon/compositor_render.py`` do that around every render of the scene (Subsurface Weight 0
+while it renders, put back after, as Render Passes does), and the set-up switches on Lock
+Interface for them. Each subsurface material keeps the weight the set-up saw (custom property
+``stored.KEPT_WEIGHT``), so that a set-up run again after the weight was set to 0 (by hand, as
+the compositor path once required) still finds the material.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
 
 import bpy
 import numpy as np
 
 from ..core.passes import THICKNESS, view_layer_flag
-from ..nodes import setup as chain
-from . import compat
+from ..core.scene import SceneDescription
 from .describe import describe_scene, principled_node, sss_materials, world_corners
+from .stored import KEPT_WEIGHT
 from .thickness import thickness_aov_name, thickness_setup
-
-#: Custom property on a material: the Subsurface Weight the last compositor set-up saw.
-KEPT_WEIGHT = "sss_lab_subsurface_weight"
 
 
 def material_depths(scene, camera) -> dict[str, float]:
@@ -55,18 +56,6 @@ def material_depths(scene, camera) -> dict[str, float]:
             if slot.material is not None:
                 depths.setdefault(slot.material.name, []).append(z)
     return {name: float(np.median(zs)) for name, zs in depths.items()}
-
-
-def _render_layers(tree, scene, layer):
-    for node in tree.nodes:
-        if node.bl_idname == "CompositorNodeRLayers" and node.layer == layer.name:
-            if node.scene in (None, scene):
-                return node
-    node = tree.nodes.new("CompositorNodeRLayers")
-    node.scene = scene
-    node.layer = layer.name
-    node.location = (-300.0, 0.0)
-    return node
 
 
 def _enable_passes(layer, names, aov_name: str | None) -> list[str]:
@@ -123,17 +112,36 @@ def _keep_weights(materials) -> list[str]:
     return notes
 
 
-def setup_compositor(scene, technique: str, *, options: dict | None = None, view_layer=None) -> dict:
-    """Insert ``technique``'s node groups into ``scene``'s compositor; returns a report dict
-    (technique, groups, nodes, passes_enabled, pass_indices, notes, warnings).
+@dataclass
+class PreparedScene:
+    """What ``prepare_scene`` found and changed, for the tree's wiring and the set-up's report."""
 
-    ``options``: technique parameters under ``core``'s names (and ``albedo_mode``).
-    Raises ValueError (no camera, no subsurface material) with a clear message, and
-    ``compat.MissingFeature`` on a Blender whose compositor cannot run the groups (4.5), before
-    changing anything.
+    #: The view layer whose Render Layers node the groups read.
+    layer: Any
+    #: The scene description the groups are built from (its subsurface materials, camera, lights).
+    desc: SceneDescription
+    #: Material index -> the kernel's fixed screen scale (per-material builders only).
+    pixels_per_unit: dict = field(default_factory=dict)
+    #: Subsurface material names by index (for the report's ``pixels_per_unit``).
+    materials: list = field(default_factory=list)
+    passes_enabled: list = field(default_factory=list)
+    pass_indices: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+
+
+def prepare_scene(
+    scene, *, passes: tuple[str, ...], per_material: bool, unmodelled: list[str], view_layer=None
+) -> PreparedScene:
+    """Ready ``scene`` for node groups that read ``passes`` (``nodes.setup.ChainBuilder.passes``):
+    the checks, the thickness AOV's convention (STA), the passes, the pass indices, the kept
+    weights, Lock Interface, and each material's screen scale when the builder has one group per
+    material (``per_material``). ``unmodelled``: the builder's warnings for the options it does
+    not model (they follow the thickness warnings in the report).
+
+    Raises ValueError (not Cycles, no subsurface material, thickness maps that do not fit STA)
+    before changing anything.
     """
-    compat.require_compositor_groups()
-    builder = chain.builder(technique)  # ValueError naming why for a technique without node groups
     layer = view_layer or bpy.context.view_layer
     if layer is None or layer.name not in scene.view_layers:
         layer = scene.view_layers[0]
@@ -152,16 +160,16 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
     warnings, notes = [], []
     extra = {}
     aov = None
-    if THICKNESS in builder.passes:
+    if THICKNESS in passes:
         aov = thickness_aov_name(scene)
         convention, missing = thickness_setup(scene, materials, aov)
         extra = {"thickness_aov": aov, "thickness_convention": convention}
         warnings += [f"{name}: no thickness map feeds the AOV {aov!r}; its thickness reads 0" for name in missing]
-    warnings += builder.unmodelled(options or {})
+    warnings += unmodelled
     desc = describe_scene(scene, materials, **extra)
     changed, index_warnings = _set_pass_indices(materials)
     warnings += index_warnings
-    enabled = _enable_passes(layer, [n for n in builder.passes if n != THICKNESS], aov)
+    enabled = _enable_passes(layer, [n for n in passes if n != THICKNESS], aov)
     notes += _keep_weights(materials)
     if not scene.render.use_lock_interface:
         scene.render.use_lock_interface = True
@@ -171,47 +179,19 @@ def setup_compositor(scene, technique: str, *, options: dict | None = None, view
         "and get their weights back after the render"
     )
     scale = {}
-    if builder.per_material:
+    if per_material:
         depths = material_depths(scene, desc.camera)
         for m in materials:
             if m.name in depths:
                 z = np.array([[depths[m.name]]], np.float32)
                 scale[m.index] = float(desc.camera.pixels_per_unit(z)[0, 0])
-
-    tree = compat.compositor_tree(scene, create=True)
-    result = compat.compositor_result_socket(tree)
-    removed = chain.remove_chain(tree)
-    rl = _render_layers(tree, scene, layer)
-    image = rl.outputs["Image"]
-    readers = [link.to_socket for link in tree.links if link.from_socket == image]
-    if not readers and not result.is_linked:
-        readers = [result]
-    for link in [lk for lk in tree.links if lk.from_socket == image]:
-        tree.links.remove(link)
-    location = (rl.location[0] + 300.0, rl.location[1])
-    output, chain_notes = chain.build_chain(
-        tree,
-        rl,
-        image=image,
-        technique=technique,
-        scene=desc,
-        options=options,
+    return PreparedScene(
+        layer=layer,
+        desc=desc,
         pixels_per_unit=scale,
-        location=location,
+        materials=materials,
+        passes_enabled=enabled,
+        pass_indices=changed,
+        notes=notes,
+        warnings=warnings,
     )
-    for socket in readers:
-        tree.links.new(output, socket)
-    added = [n.name for n in tree.nodes if chain.NODE_TAG in n.keys()]
-    groups = sorted({n.node_tree.name for n in tree.nodes if n.name in added and getattr(n, "node_tree", None)})
-    return {
-        "technique": technique,
-        "tree": tree.name,
-        "groups": groups,
-        "nodes": added,
-        "removed": removed,
-        "passes_enabled": enabled,
-        "pass_indices": changed,
-        "pixels_per_unit": {m.name: scale[m.index] for m in materials if m.index in scale},
-        "notes": notes + chain_notes,
-        "warnings": warnings,
-    }

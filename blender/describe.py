@@ -12,6 +12,7 @@ import numpy as np
 
 from ..core.scene import Camera, Light, MaterialSSS, SceneDescription
 from . import compat
+from .stored import read_fit, thickness_metadata
 
 _SUBSURFACE_INPUTS = {
     "subsurface_weight": "Subsurface Weight",
@@ -57,8 +58,6 @@ def material_sss(material, index: int) -> MaterialSSS | None:
         value = socket.default_value
         values[key] = tuple(value)[:3] if key == "subsurface_radius" else float(value)
     base = node.inputs["Base Color"].default_value
-    from .calibrate import read_fit
-
     return MaterialSSS(
         index=index,
         name=material.name,
@@ -85,8 +84,6 @@ def bake_distance(scene, material) -> float:
     """The largest thickness-bake distance (scene units) among the scene's baked maps of
     ``material``: the metadata of its objects' meshes (attribute target) and of the images in its
     node tree (image target); 0 when none was baked by SSS Lab."""
-    from .thickness import thickness_metadata  # thickness reads scene_materials from here
-
     found = []
     for obj in scene.objects:
         if obj.type != "MESH" or obj.hide_render:

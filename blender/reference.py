@@ -23,7 +23,7 @@ from ..core._files import atomic_write, write_text
 from ..core.errors import InputError
 from ..core.progress import Progress, saved_line
 from ..core.reference import part_path, sidecar
-from .reference_cache import _render_combined, scene_fingerprint
+from .reference_cache import render_combined, scene_fingerprint
 from .state import SceneState
 
 
@@ -118,7 +118,7 @@ def render_reference_parts(
 
             def render_to(tmp, seed=seed, timing=timing):
                 timing.append(
-                    _render_combined(scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state)
+                    render_combined(scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state)
                 )
 
             # Written under a temporary name: a cancelled task leaves no part that looks finished.

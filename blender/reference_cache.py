@@ -178,7 +178,7 @@ def _hash_node_tree(h, tree) -> None:
         )
 
 
-def _render_combined(scene, *, samples: int, seed: int, resolution, path: str, state: SceneState) -> float:
+def render_combined(scene, *, samples: int, seed: int, resolution, path: str, state: SceneState) -> float:
     """Render ``scene`` with Cycles to a float32 multilayer EXR at ``path``; returns seconds."""
     cy = scene.cycles
     state.set(scene.render, "engine", "CYCLES")
@@ -244,7 +244,7 @@ def cached_reference(
         if method is not None:
             _with_method(scene, method, state)
         with _files.temporary_beside(path, suffix=".exr") as tmp:
-            seconds = _render_combined(scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state)
+            seconds = render_combined(scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state)
             try:
                 image = exr.read_passes(tmp)["Combined"]
             except (exr.DamagedFileError, exr.MissingPassError) as exc:

@@ -37,6 +37,8 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any
 
 import bpy
 import numpy as np
@@ -304,6 +306,143 @@ def render_passes(scene, out_dir: str, *, progress: Callable[[int, int], None] |
     return written
 
 
+@dataclass(frozen=True)
+class _Plan:
+    """What ``render_passes_job`` renders, checked before anything changes."""
+
+    techniques: list
+    layer: Any
+    materials: list
+    aov_name: str
+    needs_thickness: bool
+    convention: str
+    names: list
+    out_dir: str
+    #: (frame, EXR path) per frame.
+    targets: list
+
+
+def _check_numbers(samples, seed) -> None:
+    if samples is not None and (not isinstance(samples, int) or isinstance(samples, bool) or samples < 1):
+        raise ValueError(f"samples: expected an integer >= 1, got {samples!r}")
+    if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool) or seed < 0):
+        raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
+
+
+def _targets(out_dir: str, frames: list[int], overwrite: bool) -> tuple[str, list]:
+    """(the absolute output folder, (frame, EXR path) per frame); FileExistsError for a file
+    in the way (any existing one unless ``overwrite``)."""
+    out_dir = os.path.abspath(os.fspath(out_dir))
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise ValueError(f"output folder {out_dir!r} exists and is not a folder")
+    targets = [(f, os.path.join(out_dir, frame_path(FILE_PATTERN, f))) for f in frames]
+    if not overwrite:
+        existing = [p for _, exr in targets for p in (exr, sidecar_path(exr)) if os.path.exists(p)]
+        if existing:
+            raise FileExistsError(
+                f"{existing[0]} already exists; refusing to overwrite it (choose another folder or overwrite; "
+                "on the command line --overwrite, or --skip-existing to keep the finished frames)"
+            )
+    not_files = [
+        p for _, exr in targets for p in (exr, sidecar_path(exr)) if os.path.lexists(p) and not os.path.isfile(p)
+    ]
+    if not_files:
+        raise FileExistsError(f"{not_files[0]} is a folder or not a regular file; refusing to write over it")
+    return out_dir, targets
+
+
+def _plan(scene, out_dir, *, techniques, frames, view_layer, overwrite, say) -> _Plan:
+    """Check the scene and the output for ``render_passes_job``; raises before anything changes."""
+    frames = [scene.frame_current] if frames is None else [int(f) for f in frames]
+    if not frames:
+        raise ValueError("frames: expected at least one frame")
+    if scene.camera is None:
+        raise ValueError(f"scene {scene.name!r} has no active camera; set one in Scene Properties > Camera")
+    layer = _pick_layer(scene, view_layer)
+    materials = sss_materials(scene)
+    if not materials:
+        raise NoSubsurfaceError(
+            f"scene {scene.name!r} has no material with subsurface scattering (Subsurface Weight > 0, "
+            "a Subsurface Radius and Scale above 0): nothing to render"
+        )
+    aov_name = thickness_aov_name(scene)
+    convention = "translucency"
+    needs_thickness = any(aov_name in required_passes(t, aov_name) for t in techniques)
+    if needs_thickness:
+        convention, without = thickness_setup(scene, materials, aov_name)
+        if without:
+            say(f"no thickness map in {', '.join(repr(n) for n in without)}: STA reads thickness 0 there")
+    assert convention in CONVENTIONS
+    names = needed_passes(techniques, aov_name)
+    out_dir, targets = _targets(out_dir, frames, overwrite)
+    return _Plan(techniques, layer, materials, aov_name, needs_thickness, convention, names, out_dir, targets)
+
+
+def _set_up(st: SceneState, scene, plan: _Plan, *, samples, seed, res, say) -> dict[str, int]:
+    """Put ``scene`` in the render state of the module's docstring, through ``st``; returns the
+    objects given a Pass Index for the Object Index pass."""
+    render = scene.render
+    cycles = scene.cycles
+    layer = plan.layer
+    old_frame, old_subframe = scene.frame_current, scene.frame_subframe
+    st.on_restore(lambda: scene.frame_set(old_frame, subframe=old_subframe))
+    st.set(render, "engine", "CYCLES")
+    if samples is not None:
+        st.set(cycles, "samples", samples)
+    if seed is not None:
+        st.set(cycles, "seed", seed)
+    for attr, value in (("use_adaptive_sampling", False), ("use_denoising", False), ("time_limit", 0.0)):
+        if getattr(cycles, attr) != value:
+            st.set(cycles, attr, value)
+    if res is not None:
+        st.set(render, "resolution_x", res[0])
+        st.set(render, "resolution_y", res[1])
+        st.set(render, "resolution_percentage", 100)
+    for attr in ("use_compositing", "use_sequencer", "use_single_layer"):
+        if getattr(render, attr):
+            st.set(render, attr, False)
+    for vl in scene.view_layers:
+        if vl.use != (vl == layer):
+            st.set(vl, "use", vl == layer)
+    _set_passes(st, scene, layer, plan.names, plan.aov_name if plan.needs_thickness else None)
+    _, other_sss = zero_subsurface(st, scene)
+    if other_sss:
+        say(
+            f"material(s) {', '.join(map(repr, other_sss))} use a Subsurface Scattering node, which SSS Lab "
+            "does not model: it still scatters in these passes"
+        )
+    _material_indices(st, scene, plan.materials)
+    assigned = _object_indices(st, scene) if "Object Index" in plan.names else {}
+    if assigned:
+        say(f"objects without a Pass Index got one for the Object Index pass: {assigned}")
+    image_settings = render.image_settings
+    fmt = compat.image_format_state(image_settings)
+    st.on_restore(lambda: compat.restore_image_format(image_settings, fmt))
+    compat.set_multilayer_exr(image_settings)
+    return assigned
+
+
+def _render_frame(scene, frame: int, exr: str, plan: _Plan) -> None:
+    """Render the current frame and write its passes to ``exr`` (a temporary file beside it, read
+    back and checked, then moved into place)."""
+    _render(scene)
+    result = bpy.data.images.get("Render Result")
+    if result is None:
+        raise RuntimeError(f"frame {frame}: Blender produced no Render Result")
+    with _files.temporary_beside(exr, suffix=os.path.splitext(exr)[1]) as tmp:
+        try:
+            result.save_render(filepath=tmp, scene=scene)
+            if os.path.getsize(tmp) == 0:
+                raise RuntimeError(f"frame {frame}: Blender did not write {tmp}")
+            verify_passes(tmp, plan.names, plan.layer.name, [m.index for m in plan.materials])
+        except (RuntimeError, DamagedFileError) as exc:
+            # Blender's saver leaves a short file on a full disk instead of failing.
+            if _files.disk_full(tmp):
+                raise _files.write_failure(exr, exc) from None
+            raise
+        _files.move_into_place(tmp, exr)
+
+
 def render_passes_job(
     scene,
     out_dir: str,
@@ -332,137 +471,49 @@ def render_passes_job(
     FileExistsError before rendering when a file exists. The scene is restored in every case.
     """
     techniques = _check_techniques(techniques)
-    if samples is not None and (not isinstance(samples, int) or isinstance(samples, bool) or samples < 1):
-        raise ValueError(f"samples: expected an integer >= 1, got {samples!r}")
-    if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool) or seed < 0):
-        raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
+    _check_numbers(samples, seed)
     res = parse_resolution(resolution) if resolution is not None else None
-    frames = [scene.frame_current] if frames is None else [int(f) for f in frames]
-    if not frames:
-        raise ValueError("frames: expected at least one frame")
-    if scene.camera is None:
-        raise ValueError(f"scene {scene.name!r} has no active camera; set one in Scene Properties > Camera")
-    layer = _pick_layer(scene, view_layer)
     say = log or (lambda _line: None)
-
-    materials = sss_materials(scene)
-    if not materials:
-        raise NoSubsurfaceError(
-            f"scene {scene.name!r} has no material with subsurface scattering (Subsurface Weight > 0, "
-            "a Subsurface Radius and Scale above 0): nothing to render"
-        )
-    aov_name = thickness_aov_name(scene)
-    convention = "translucency"
-    needs_thickness = any(aov_name in required_passes(t, aov_name) for t in techniques)
-    if needs_thickness:
-        convention, without = thickness_setup(scene, materials, aov_name)
-        if without:
-            say(f"no thickness map in {', '.join(repr(n) for n in without)}: STA reads thickness 0 there")
-    assert convention in CONVENTIONS
-    names = needed_passes(techniques, aov_name)
-
-    out_dir = os.path.abspath(os.fspath(out_dir))
-    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
-        raise ValueError(f"output folder {out_dir!r} exists and is not a folder")
-    targets = [(f, os.path.join(out_dir, frame_path(FILE_PATTERN, f))) for f in frames]
-    if not overwrite:
-        existing = [p for _, exr in targets for p in (exr, sidecar_path(exr)) if os.path.exists(p)]
-        if existing:
-            raise FileExistsError(
-                f"{existing[0]} already exists; refusing to overwrite it (choose another folder or overwrite; "
-                "on the command line --overwrite, or --skip-existing to keep the finished frames)"
-            )
-    not_files = [
-        p for _, exr in targets for p in (exr, sidecar_path(exr)) if os.path.lexists(p) and not os.path.isfile(p)
-    ]
-    if not_files:
-        raise FileExistsError(f"{not_files[0]} is a folder or not a regular file; refusing to write over it")
+    plan = _plan(
+        scene, out_dir, techniques=techniques, frames=frames, view_layer=view_layer, overwrite=overwrite, say=say
+    )
+    targets = plan.targets
     # Checked and planned; nothing has changed yet.
     yield Progress(0, len(targets), f"frame {targets[0][0]}")
     try:
-        os.makedirs(out_dir, exist_ok=True)
+        os.makedirs(plan.out_dir, exist_ok=True)
     except OSError as exc:
-        raise OutputError(exc.errno, describe_os_error(exc, out_dir)) from None
+        raise OutputError(exc.errno, describe_os_error(exc, plan.out_dir)) from None
 
     written: list[str] = []
     render = scene.render
     cycles = scene.cycles
     with SceneState() as st:
-        old_frame, old_subframe = scene.frame_current, scene.frame_subframe
-        st.on_restore(lambda: scene.frame_set(old_frame, subframe=old_subframe))
-        st.set(render, "engine", "CYCLES")
-        if samples is not None:
-            st.set(cycles, "samples", samples)
-        if seed is not None:
-            st.set(cycles, "seed", seed)
-        for attr, value in (("use_adaptive_sampling", False), ("use_denoising", False), ("time_limit", 0.0)):
-            if getattr(cycles, attr) != value:
-                st.set(cycles, attr, value)
-        if res is not None:
-            st.set(render, "resolution_x", res[0])
-            st.set(render, "resolution_y", res[1])
-            st.set(render, "resolution_percentage", 100)
-        for attr in ("use_compositing", "use_sequencer", "use_single_layer"):
-            if getattr(render, attr):
-                st.set(render, attr, False)
-        for vl in scene.view_layers:
-            if vl.use != (vl == layer):
-                st.set(vl, "use", vl == layer)
-        _set_passes(st, scene, layer, names, aov_name if needs_thickness else None)
-        _, other_sss = zero_subsurface(st, scene)
-        if other_sss:
-            say(
-                f"material(s) {', '.join(map(repr, other_sss))} use a Subsurface Scattering node, which SSS Lab "
-                "does not model: it still scatters in these passes"
-            )
-        _material_indices(st, scene, materials)
-        assigned = _object_indices(st, scene) if "Object Index" in names else {}
-        if assigned:
-            say(f"objects without a Pass Index got one for the Object Index pass: {assigned}")
-        image_settings = render.image_settings
-        fmt = compat.image_format_state(image_settings)
-        st.on_restore(lambda: compat.restore_image_format(image_settings, fmt))
-        compat.set_multilayer_exr(image_settings)
-
+        assigned = _set_up(st, scene, plan, samples=samples, seed=seed, res=res, say=say)
         meta = {
             "techniques": list(techniques),
-            "passes": names,
+            "passes": plan.names,
             "samples": int(cycles.samples),
             "seed": int(cycles.seed),
-            "view_layer": layer.name,
+            "view_layer": plan.layer.name,
             "object_pass_index_assigned": assigned,
         }
         for number, (frame, exr) in enumerate(targets, 1):
             scene.frame_set(frame)
             description = describe_scene(
                 scene,
-                materials,
-                thickness_aov=aov_name,
-                thickness_convention=convention,
+                plan.materials,
+                thickness_aov=plan.aov_name,
+                thickness_convention=plan.convention,
                 meta=dict(meta),
             )
             say(
-                f"[{number}/{len(targets)}] frame {frame}: rendering {', '.join(names)} "
+                f"[{number}/{len(targets)}] frame {frame}: rendering {', '.join(plan.names)} "
                 f"({render.resolution_x * render.resolution_percentage // 100}x"
                 f"{render.resolution_y * render.resolution_percentage // 100}, {cycles.samples} samples)"
             )
             t0 = time.perf_counter()
-            _render(scene)
-            result = bpy.data.images.get("Render Result")
-            if result is None:
-                raise RuntimeError(f"frame {frame}: Blender produced no Render Result")
-            with _files.temporary_beside(exr, suffix=os.path.splitext(exr)[1]) as tmp:
-                try:
-                    result.save_render(filepath=tmp, scene=scene)
-                    if os.path.getsize(tmp) == 0:
-                        raise RuntimeError(f"frame {frame}: Blender did not write {tmp}")
-                    verify_passes(tmp, names, layer.name, [m.index for m in materials])
-                except (RuntimeError, DamagedFileError) as exc:
-                    # Blender's saver leaves a short file on a full disk instead of failing.
-                    if _files.disk_full(tmp):
-                        raise _files.write_failure(exr, exc) from None
-                    raise
-                _files.move_into_place(tmp, exr)
+            _render_frame(scene, frame, exr, plan)
             written.append(exr)
             say(saved_line(exr))
             json_path = sidecar_path(exr)

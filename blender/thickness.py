@@ -1,28 +1,14 @@
 """Thickness maps as the bake left them: their stored settings and where a material reads them.
 
-``thickness_metadata`` reads the settings ``blender.bake`` stores with a map (on the mesh per
-attribute, or on the image); ``thickness_setup`` finds, for STA, which subsurface materials feed
-the thickness AOV and with which convention.
+``thickness_setup`` finds, for STA, which subsurface materials feed the thickness AOV and with
+which convention, reading the settings ``blender.bake`` stores with a map (on the mesh per
+attribute, or on the image: ``stored.thickness_metadata``).
 """
 
 from __future__ import annotations
 
 from .describe import scene_materials
-
-#: Custom property holding the bake settings, on the mesh (per attribute) or on the image.
-META_KEY = "sss_lab_thickness"
-
-
-def thickness_metadata(idblock, attribute: str | None = None) -> dict | None:
-    """The settings stored with a baked map: ``image`` or (``mesh``, attribute name); None if
-    SSS Lab did not bake it."""
-    meta = idblock.get(META_KEY)
-    if meta is None:
-        return None
-    meta = meta.to_dict() if hasattr(meta, "to_dict") else dict(meta)
-    if attribute is not None:
-        meta = meta.get(attribute)
-    return dict(meta) if meta is not None else None
+from .stored import thickness_metadata
 
 
 def thickness_aov_name(scene) -> str:

@@ -2,10 +2,11 @@
 
 ``build_chain`` adds one group node per light (STA) or per scattering material (SSSS, Burley),
 chained Image -> Image, with the passes taken by name from a ``source`` node: a Render Layers
-node (``blender/compositor.py``) or an Image node holding a multilayer EXR (the tests, the
-benchmark), whose outputs carry the same pass names. Each node it adds is tagged with the
-custom property ``sss_lab``; ``remove_chain`` removes exactly those and reconnects whatever
-read the chain's result to the chain's input, so the user's own nodes are never deleted.
+node (``insert_chain``, for the compositor set-up: ``operators/compositing.py``) or an Image node
+holding a multilayer EXR (the tests, the benchmark), whose outputs carry the same pass names.
+Each node it adds is tagged with the custom property ``sss_lab``; ``remove_chain`` removes
+exactly those and reconnects whatever read the chain's result to the chain's input, so the
+user's own nodes are never deleted; ``uses_node_groups`` says whether a render runs them.
 """
 
 from __future__ import annotations
@@ -280,3 +281,66 @@ def remove_chain(tree) -> int:
         for socket in readers:
             tree.links.new(source, socket)
     return len(ours)
+
+
+def _render_layers(tree, scene, layer):
+    for node in tree.nodes:
+        if node.bl_idname == "CompositorNodeRLayers" and node.layer == layer.name:
+            if node.scene in (None, scene):
+                return node
+    node = tree.nodes.new("CompositorNodeRLayers")
+    node.scene = scene
+    node.layer = layer.name
+    node.location = (-300.0, 0.0)
+    return node
+
+
+def insert_chain(
+    scene,
+    layer,
+    *,
+    technique: str,
+    desc: SceneDescription,
+    options: Mapping | None = None,
+    pixels_per_unit: Mapping[int, float] | None = None,
+) -> dict:
+    """Insert ``technique``'s chain (``build_chain``) into ``scene``'s compositor tree (made if it
+    has none) after the Image output of ``layer``'s Render Layers node (reused, or added): what read
+    that output now reads the chain's result (with a new tree, the tree's output). A chain added
+    earlier is removed first (``remove_chain``). Returns {"tree": its name, "groups", "nodes": the
+    names of the nodes added, "removed": how many were, "notes": ``build_chain``'s}."""
+    tree = compat.compositor_tree(scene, create=True)
+    result = compat.compositor_result_socket(tree)
+    removed = remove_chain(tree)
+    rl = _render_layers(tree, scene, layer)
+    image = rl.outputs["Image"]
+    readers = [link.to_socket for link in tree.links if link.from_socket == image]
+    if not readers and not result.is_linked:
+        readers = [result]
+    for link in [lk for lk in tree.links if lk.from_socket == image]:
+        tree.links.remove(link)
+    location = (rl.location[0] + 300.0, rl.location[1])
+    output, notes = build_chain(
+        tree,
+        rl,
+        image=image,
+        technique=technique,
+        scene=desc,
+        options=options,
+        pixels_per_unit=pixels_per_unit,
+        location=location,
+    )
+    for socket in readers:
+        tree.links.new(output, socket)
+    added = [n.name for n in tree.nodes if NODE_TAG in n.keys()]
+    groups = sorted({n.node_tree.name for n in tree.nodes if n.name in added and getattr(n, "node_tree", None)})
+    return {"tree": tree.name, "groups": groups, "nodes": added, "removed": removed, "notes": notes}
+
+
+def uses_node_groups(scene) -> bool:
+    """True when a render of ``scene`` runs SSS Lab's compositor node groups: Cycles, compositing
+    on, and a node ``build_chain`` added (not muted) in the scene's compositor tree."""
+    if scene is None or scene.render.engine != "CYCLES" or not scene.render.use_compositing:
+        return False
+    tree = compat.compositor_tree(scene)
+    return tree is not None and any(NODE_TAG in node.keys() and not node.mute for node in tree.nodes)

@@ -4,7 +4,7 @@ Per pixel, exactly the arithmetic of ``core.sta.sta`` (its docstring has the for
 direction and irradiance of one light (sun, point, spot or area, as ``core.optics.lights.light_at``),
 L_T = normalize(L + distortion N), T_dir = scale max(0, V . -L_T)^power, and
 albedo x light colour x (E / pi) x t x (T_dir + ambient) on the mask. Several lights: chain one
-group per light (its Image output into the next one's Image input); ``blender/compositor.py``
+group per light (its Image output into the next one's Image input); ``setup.build_chain``
 does that for the scene's lights.
 
 Inputs are the passes (Diffuse Color, Normal, Position, the thickness AOV), the mask, STA's
@@ -32,7 +32,7 @@ VERSION = 1
 _LEN_EPS = 1e-6  # core.sta._EPS: below this |L + d N| has no direction and the light adds nothing
 
 #: STA's number parameters as group inputs, made from its parameter specs (the other, the
-#: falloff, is not modelled by the group: ``blender/compositor.py`` warns).
+#: falloff, is not modelled by the group: the compositor set-up warns).
 PARAM_SOCKETS = [Socket(p.name, "FLOAT", p.default, p.description, p.min) for p in TECHNIQUE.params if p.type is float]
 
 INTERFACE = Interface(

@@ -1,4 +1,5 @@
-"""``bpy.ops.sss_lab.fit_to_cycles`` and ``clear_fit``: the fit to Cycles (``blender.calibrate``) for the panel.
+"""``bpy.ops.sss_lab.fit_to_cycles`` and ``clear_fit``: the fit to Cycles (``blender.calibrate``) for the panel;
+the fit's stored values are read and cleared through ``blender.stored``.
 
 Fit to Cycles runs as a modal job (``operators/modal.py``): the random-walk render, the passes and
 the fit are its three steps (five when it renders more samples for fits that did not hold), with
@@ -9,7 +10,8 @@ from __future__ import annotations
 
 import bpy
 
-from ..blender.calibrate import PREFIX, calibrate_job, clear_fit
+from ..blender.calibrate import calibrate_job
+from ..blender.stored import PREFIX, clear_fit
 from ..core.fit import BUDGET, MAX_SAMPLES, REFERENCE_SAMPLES
 from .modal import DialogModalJob
 

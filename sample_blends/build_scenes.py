@@ -2,7 +2,7 @@
 
 This script is the source of the sample scenes: the .blend files are generated from it
 (``python sample_blends/build_scenes.py [NAME ...] --out DIR``; the project's commands load
-this file with ``addon.cli_demo.load_sample_scenes`` and call ``build(name, path)``). Every scene uses Principled BSDF
+this file with ``blender.samples.load_sample_scenes`` and call ``build(name, path)``). Every scene uses Principled BSDF
 materials with Blender 5.2's Random Walk subsurface method and realistic scales (metres); on
 Blender 4.5 the legacy Random Walk, its only one, with the Subsurface Scale that gives the same
 mean free path (see ``_material``).

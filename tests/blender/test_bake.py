@@ -31,7 +31,7 @@ from sss_lab.blender import bake as bake_mod
 from sss_lab.blender import compat
 from sss_lab.blender.bake import BakeError, bake_thickness
 from sss_lab.blender.bake_nodes import NODE_AOV, NODE_NAME
-from sss_lab.blender.thickness import META_KEY, thickness_metadata
+from sss_lab.blender.stored import META_KEY, thickness_metadata
 from sss_lab.core.thickness import BakeSettings, binomial_sigma, slab_unoccluded_fraction
 from sss_lab.operators.thickness import SSS_LAB_OT_bake_thickness
 

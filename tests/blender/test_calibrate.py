@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from sss_lab.addon.cli import main
-from sss_lab.addon.cli_demo import load_sample_scenes
 from sss_lab.blender import calibrate as cal
+from sss_lab.blender import stored
 from sss_lab.blender.describe import sss_materials
+from sss_lab.blender.samples import load_sample_scenes
 from sss_lab.core.errors import InputError
 
 
@@ -46,17 +47,17 @@ def test_calibrate_stores_the_fit_and_the_description_reads_it(backlit):
         assert described.fit[r["technique"]]["d_scale"] == pytest.approx(r["params"]["d_scale"])
     # Clear Fit: back to the unfitted mapping.
     mat = bpy.data.materials[data["results"][0]["material"]]
-    assert cal.clear_fit(mat)
-    assert not any(k.startswith(cal.PREFIX) for k in mat.keys())
+    assert stored.clear_fit(mat)
+    assert not any(k.startswith(stored.PREFIX) for k in mat.keys())
     assert next(m for m in sss_materials(scene) if m.name == mat.name).fit == {}
 
 
 def test_a_hand_edited_value_out_of_bounds_is_named():
     mat = bpy.data.materials.new("Edited")
-    cal.write_fit(mat, "burley", {"gain": (1.0, 1.0, 1.0), "d_scale": 1.0})
+    stored.write_fit(mat, "burley", {"gain": (1.0, 1.0, 1.0), "d_scale": 1.0})
     mat["sss_lab_fit_burley_d_scale"] = 9.0  # the panel's soft limits do not stop a script
     with pytest.raises(ValueError, match="material 'Edited' burley fitted d_scale: 9.0 is outside 0.25..4"):
-        cal.read_fit(mat)
+        stored.read_fit(mat)
 
 
 def test_bad_input_changes_nothing(backlit, tmp_path):
@@ -81,7 +82,7 @@ def test_bad_input_changes_nothing(backlit, tmp_path):
 
 def _fits(scene):
     return {
-        m.name: sorted(k for k in bpy.data.materials[m.name].keys() if k.startswith(cal.PREFIX))
+        m.name: sorted(k for k in bpy.data.materials[m.name].keys() if k.startswith(stored.PREFIX))
         for m in sss_materials(scene)
     }
 
@@ -160,7 +161,7 @@ def test_a_refused_fit_is_made_again_on_more_samples_within_the_budget(backlit, 
     redone = [r for r in data["results"] if r["material"] == material]
     assert [r["params"]["info"]["samples"] for r in redone] == [12]
     assert not any("(simulated)" in p for p in data["problems"])
-    assert cal.read_fit(bpy.data.materials[material])["burley"]["info"]["samples"] == 12
+    assert stored.read_fit(bpy.data.materials[material])["burley"]["info"]["samples"] == 12
     # No budget: the pilot is rendered, not the more samples; the refusal stays, with the reason.
     bpy.ops.wm.open_mainfile(filepath=backlit)
     fake, calls = _refusing(core_fit.fit_scene, (material, "burley"))
@@ -170,7 +171,7 @@ def test_a_refused_fit_is_made_again_on_more_samples_within_the_budget(backlit, 
     assert any("(simulated)" in p for p in data["problems"])
     why = "not rendered again for the refused fits: 8 more samples would cost"
     assert any(p.startswith(why) for p in data["problems"])
-    assert not any(k.startswith(cal.PREFIX + "burley") for k in bpy.data.materials[material].keys())
+    assert not any(k.startswith(stored.PREFIX + "burley") for k in bpy.data.materials[material].keys())
     with pytest.raises(InputError, match="max_samples: expected at least samples"):
         cal.calibrate(bpy.context.scene, samples=8, max_samples=4)
     with pytest.raises(InputError, match="budget: expected a share of the reference render from 0 to 1, got 2"):
@@ -202,7 +203,7 @@ def test_fit_to_cycles_shows_the_extra_steps_of_more_samples(backlit, modal, mon
     assert window.status[-1].startswith("Fit to Cycles 5/5: Cycles random walk, 8 more samples")
     assert op.modal(context, modal.event("TIMER")) == {"FINISHED"}, op.reports
     assert len(calls) == 2 and calls[1]["samples"] == 12
-    assert cal.read_fit(bpy.data.materials[material])["burley"]["info"]["samples"] == 12
+    assert stored.read_fit(bpy.data.materials[material])["burley"]["info"]["samples"] == 12
 
 
 def test_the_start_up_is_timed_apart_once_per_process(backlit, monkeypatch):

@@ -7,7 +7,7 @@ import os
 import pytest
 
 from sss_lab.addon import cli
-from sss_lab.addon.cli_demo import load_sample_scenes
+from sss_lab.blender.samples import load_sample_scenes
 
 SAMPLES = "2"
 

@@ -20,11 +20,11 @@ import re
 import bpy
 import pytest
 
-from sss_lab.addon.cli_demo import load_sample_scenes
 from sss_lab.blender import compare as compare_mod
 from sss_lab.blender import compat, reference_cache
 from sss_lab.blender.compare import CompareSettings, compare
 from sss_lab.blender.reference_cache import cached_reference
+from sss_lab.blender.samples import load_sample_scenes
 from sss_lab.core import mapping
 
 pytestmark = pytest.mark.slow

@@ -77,7 +77,7 @@ def test_multires_bake_switch_and_eevee_name_exist_in_this_version():
 
 def test_compositor_groups_are_available_or_the_set_up_says_what_this_blender_lacks(addon, sss_quads):
     from sss_lab.addon.panels import SSS_LAB_PT_compositor
-    from sss_lab.blender.compositor import setup_compositor
+    from sss_lab.operators.compositing import setup_compositor
 
     scene = sss_quads
     missing = compat.compositor_groups_missing()

@@ -1,4 +1,4 @@
-"""The compositor path without hand work (blender/compositor_render.py, blender/compositor.py).
+"""The compositor path without hand work (addon/compositor_render.py, operators/compositing.py).
 
 Set Up Compositor leaves the materials' Subsurface Weight as it is; every render that runs SSS
 Lab's node groups renders the subsurface materials as plain diffuse and puts the weights (and
@@ -13,9 +13,10 @@ import bpy
 import numpy as np
 import pytest
 
-from sss_lab.blender import compat, compositor_render
-from sss_lab.blender.compositor import KEPT_WEIGHT
+from sss_lab.addon import compositor_render
+from sss_lab.blender import compat
 from sss_lab.blender.reference_cache import cached_reference
+from sss_lab.blender.stored import KEPT_WEIGHT
 from sss_lab.core import exr
 from sss_lab.nodes import _graph
 from sss_lab.nodes.setup import NODE_TAG, group_name

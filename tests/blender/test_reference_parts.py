@@ -12,7 +12,7 @@ import os
 import numpy as np
 import pytest
 
-from sss_lab.addon.cli_demo import load_sample_scenes
+from sss_lab.blender.samples import load_sample_scenes
 from sss_lab.core import exr, metrics
 from sss_lab.core import reference as ref
 from sss_lab.core import sequence as core_sequence

@@ -14,9 +14,9 @@ import bpy
 import numpy as np
 import pytest
 
-from sss_lab.addon.cli_demo import load_sample_scenes
 from sss_lab.blender import compat
 from sss_lab.blender.describe import material_sss, principled_node, sss_materials
+from sss_lab.blender.samples import load_sample_scenes
 from sss_lab.core import mapping
 from sss_lab.core.exr import read_passes
 

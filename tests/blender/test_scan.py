@@ -51,7 +51,7 @@ def test_describe_scene_needs_a_camera(addon):
 
 def test_scan_recommend_renders_small_passes_and_leaves_the_scene_as_it_was(tmp_path, capsys):
     from sss_lab.addon.cli import main
-    from sss_lab.addon.cli_demo import load_sample_scenes
+    from sss_lab.blender.samples import load_sample_scenes
 
     blend = load_sample_scenes().build("backlit_thin", str(tmp_path / "backlit_thin.blend"))
     before = open(blend, "rb").read()

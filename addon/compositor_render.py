@@ -5,17 +5,17 @@ a material rendered with Subsurface Weight > 0 would be scattered twice. Instead
 artist to zero the weights by hand (and to put them back for every other use of the file),
 render handlers do around every render of such a scene what Render Passes does around its
 own: when the render job starts (``render_init``) every Principled BSDF of the rendered
-materials gets Subsurface Weight 0, its links cut (``render_passes.zero_subsurface``), and
+materials gets Subsurface Weight 0, its links cut (``blender.render_passes.zero_subsurface``), and
 when it ends (``render_complete`` or ``render_cancel``) everything is put back
 (``SceneState``). The file keeps its weights: the viewport, EEVEE, Compare and a new set-up
 still see them. The handlers are registered with the add-on and stay across file loads.
 
 They act only when the scene's compositor holds a node SSS Lab added (not muted), the render
-uses compositing (Output Properties > Post Processing > Compositing) and the engine is Cycles.
-Render Passes renders with compositing off and Compare renders its references with compositing
-off, so neither is touched. The set-up switches on Lock Interface (``render.use_lock_interface``):
-Blender's documentation asks for it when handlers change data during a render, so that the
-viewport does not read the materials while they change.
+uses compositing (Output Properties > Post Processing > Compositing) and the engine is Cycles
+(``nodes.setup.uses_node_groups``). Render Passes renders with compositing off and Compare
+renders its references with compositing off, so neither is touched. The set-up switches on Lock
+Interface (``render.use_lock_interface``): Blender's documentation asks for it when handlers
+change data during a render, so that the viewport does not read the materials while they change.
 """
 
 from __future__ import annotations
@@ -23,26 +23,17 @@ from __future__ import annotations
 import bpy
 from bpy.app.handlers import persistent
 
-from ..nodes.setup import NODE_TAG
-from . import compat
-from .state import SceneState
+from ..blender.state import SceneState
+from ..nodes.setup import uses_node_groups
 
 #: Scenes whose materials are changed for the render that is running (key: the scene's pointer).
 _active: dict[int, SceneState] = {}
 
 
-def uses_node_groups(scene) -> bool:
-    """True when a render of ``scene`` runs SSS Lab's compositor node groups."""
-    if scene is None or scene.render.engine != "CYCLES" or not scene.render.use_compositing:
-        return False
-    tree = compat.compositor_tree(scene)
-    return tree is not None and any(NODE_TAG in node.keys() and not node.mute for node in tree.nodes)
-
-
 def begin(scene) -> list[str]:
     """Render ``scene``'s subsurface materials as plain diffuse until ``end(scene)``; returns the
     names of the materials whose Principled BSDF changed (empty when nothing applies)."""
-    from .render_passes import zero_subsurface
+    from ..blender.render_passes import zero_subsurface
 
     if not uses_node_groups(scene) or scene.as_pointer() in _active:
         return []
