@@ -32,9 +32,10 @@ import numpy as np
 
 from . import _arrays, backend
 from ._bounds import gather_bound
-from .energy import ENERGY_PARAM, apply_energy, energy_inputs
+from .energy import apply_energy, energy_inputs
 from .extent import group_extents, object_extent
 from .optics.surface import MIN_VIEW_COSINE, surface_area, surface_area_args
+from .params import ENERGY_PARAM
 from .passes import THICKNESS
 from .profiles import TRUNCATION, burley_icdf
 from .scene import Camera

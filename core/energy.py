@@ -54,32 +54,9 @@ import numpy as np
 
 from . import _arrays, backend
 from .scene import Camera
-from .spec import Param
 
 #: Choices of the techniques' ``energy`` parameter (``apply_energy``).
 ENERGY_MODES = ("object", "view", "lambert")
-
-#: The diffusion techniques' ``energy`` parameter (Burley, SSSS, the combined technique).
-ENERGY_PARAM = Param(
-    "energy",
-    "Energy",
-    "How much light the scattered light returns, and at which view angles",
-    type=str,
-    choices=(
-        (
-            "object",
-            "Object",
-            "As Cycles' method returns it: at each view angle and curvature, less what leaves through a "
-            "thin object's far side, plus what comes through it",
-        ),
-        (
-            "view",
-            "View Angle",
-            "The passes' light of each material, spread over the view angles as the Cycles method returns it",
-        ),
-        ("lambert", "Lambert", "The passes' plain diffuse light"),
-    ),
-)
 
 #: View angles (degrees from the surface normal) and albedos of ``SEMI_INFINITE``.
 VIEW_DEG = (0.0, 20.0, 40.0, 55.0, 65.0, 75.0, 85.0)

@@ -35,10 +35,11 @@ import numpy as np
 
 from . import _arrays, backend
 from ._bounds import gather_bound
-from .energy import ENERGY_PARAM, apply_energy, energy_inputs
+from .energy import apply_energy, energy_inputs
 from .extent import object_extent
 from .kernels import SeparableKernel, bounded, check_taps, make_kernel
 from .optics.surface import surface_area, surface_area_args
+from .params import ENERGY_PARAM
 from .passes import THICKNESS
 from .scene import Camera
 from .spec import CALIBRATE_MAPPING, Param, Technique, profile_footprint

@@ -15,8 +15,8 @@ import pytest
 
 from sss_lab.core import plan as plan_mod
 from sss_lab.core.apply import apply
-from sss_lab.core.energy import ENERGY_PARAM
 from sss_lab.core.exr import MissingPassError, Passes
+from sss_lab.core.params import ENERGY_PARAM
 from sss_lab.core.plan import plan, required_passes
 from sss_lab.core.scene import MaterialSSS
 from sss_lab.core.synthetic import DEFAULT_MATERIALS, sphere_scene
