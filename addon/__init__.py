@@ -68,10 +68,10 @@ def register():
 def _numba_cache_in_user_directory():
     """The compiled kernels' cache goes to the extension's user directory (an installed
     extension's own folder may not be writable); a package that is not an installed extension
-    (tests, the bpy module) keeps ``core.backend``'s user cache folder."""
+    (tests, the bpy module) keeps ``core.compute.backend``'s user cache folder."""
     import bpy
 
-    from ..core import backend
+    from ..core.compute import backend
 
     root = __package__.rpartition(".")[0]
     if root.startswith("bl_ext."):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import bpy
 
-from ..core.thickness import BakeSettings, default_source
+from ..core.scene.thickness import BakeSettings, default_source
 
 _DEFAULTS = BakeSettings()
 

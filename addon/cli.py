@@ -12,8 +12,8 @@ import importlib
 import sys
 import traceback
 
-from ..core.errors import SSSLabError, describe_os_error
-from ..core.techniques import TECHNIQUES, check_technique
+from ..core.base.errors import SSSLabError, describe_os_error
+from ..core.techniques.registry import TECHNIQUES, check_technique
 from .interrupt import EXIT_INTERRUPTED, finished_summary, interrupt_guard
 
 #: Command modules, relative to this package, in the order ``--help`` lists them.
@@ -37,7 +37,7 @@ EXIT_NOTHING_TO_DO = 3
 
 def parse_methods(text: str, *, allow_auto: bool = False) -> list[str]:
     """``"burley"``, ``"sta,ssss"`` or ``"all"`` -> technique names; ValueError lists the known ones.
-    With ``allow_auto`` (``apply``), ``"auto"`` alone: a technique chosen per material (``core/auto.py``)."""
+    With ``allow_auto`` (``apply``), ``"auto"`` alone: a technique chosen per material (``core/pipeline/auto.py``)."""
     names = [t.strip() for t in str(text).split(",") if t.strip()]
     if not names:
         raise ValueError(f"method: expected one of {', '.join(TECHNIQUES)} or all, got {text!r}")

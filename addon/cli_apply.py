@@ -1,7 +1,7 @@
 """``python -m sss_lab apply PASSES.exr --method ...``: apply techniques to rendered passes.
 
 Needs only NumPy and OpenEXR (a render-farm node without Blender). Parses and reports; the
-work is ``core.sequence.apply_file``. Prints one ``Saved: '<path>'`` line per written file (render
+work is ``core.pipeline.sequence.apply_file``. Prints one ``Saved: '<path>'`` line per written file (render
 farms read it), progress per frame with the elapsed time and the ETA on stdout, and errors on
 stderr. ``--skip-existing`` keeps the outputs already written (a re-queued farm chunk) and says
 which. Exit status: 0 done,
@@ -17,7 +17,7 @@ import sys
 import time
 import traceback
 
-from ..core.techniques import TECHNIQUES
+from ..core.techniques.registry import TECHNIQUES
 
 
 def add_parser(subparsers):
@@ -76,7 +76,7 @@ def add_parser(subparsers):
 
 def _outputs(args, frames):
     """Output path per (frame, input path); ValueError when a sequence would share one output."""
-    from ..core.sequence import default_output, frame_path, is_sequence
+    from ..core.pipeline.sequence import default_output, frame_path, is_sequence
 
     if args.out is None:
         return [default_output(path) for _, path in frames]
@@ -86,9 +86,9 @@ def _outputs(args, frames):
 
 
 def run(args) -> int:
-    from ..core.apply import ALBEDO_MODES
-    from ..core.sequence import apply_file, frame_path, parse_frames, sequence_frames
-    from ..core.techniques import parse_params
+    from ..core.pipeline.apply import ALBEDO_MODES
+    from ..core.pipeline.sequence import apply_file, frame_path, parse_frames, sequence_frames
+    from ..core.techniques.registry import parse_params
     from .cli import EXIT_NOTHING_TO_DO, parse_methods
 
     techniques = parse_methods(args.method, allow_auto=True)
@@ -107,7 +107,7 @@ def run(args) -> int:
         if os.path.exists(path) and os.path.exists(out) and os.path.samefile(path, out):
             raise FileExistsError(f"the output {out} is the input; refusing to overwrite it")
 
-    from ..core.progress import Progress, saved_line
+    from ..core.base.progress import Progress, saved_line
 
     failed = nothing = 0
     total = len(frames)

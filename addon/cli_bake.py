@@ -15,7 +15,7 @@ import errno
 import os
 import time
 
-from ..core.thickness import CONVENTIONS, SOURCES, TARGETS, BakeSettings
+from ..core.scene.thickness import CONVENTIONS, SOURCES, TARGETS, BakeSettings
 
 _FORMATS = {"exr": "OPEN_EXR", "png": "PNG"}
 
@@ -121,7 +121,7 @@ def run(args) -> int:
     def log(line):
         print(f"bake-thickness: {line}", flush=True)
 
-    from ..core.progress import saved_line
+    from ..core.base.progress import saved_line
     from .cli_options import render_device
 
     with render_device(args, scene, log):  # put back before saving: OUT keeps the scene's own settings
@@ -141,14 +141,14 @@ def run(args) -> int:
     if not counts["baked"] and not counts["shared"]:
         tally = ", ".join(f"{n} {s}" for s, n in counts.items() if n)
         raise CommandError(f"nothing was baked ({tally}; the reasons are above); {out} not written")
-    from ..core import _files
+    from ..core.base import files
 
-    _files.check_interrupted()  # a bake cut short by Ctrl-C is not saved
+    files.check_interrupted()  # a bake cut short by Ctrl-C is not saved
     try:
         os.makedirs(os.path.dirname(out), exist_ok=True)
         bpy.ops.wm.save_as_mainfile(filepath=out, copy=True, check_existing=False, relative_remap=True)
     except (OSError, RuntimeError) as exc:  # Blender reports a failed save as a RuntimeError
-        raise _files.write_failure(out, exc) from None
+        raise files.write_failure(out, exc) from None
     for r in results:
         if r.status == "baked" and r.filepath:
             print(saved_line(r.filepath))
@@ -163,7 +163,7 @@ def run(args) -> int:
 def _check_writable(folder: str) -> None:
     """Refuse at once an output folder on a read-only file system or without permission, rather
     than after baking every object."""
-    from ..core.errors import OutputError, describe_os_error
+    from ..core.base.errors import OutputError, describe_os_error
 
     existing = folder
     while existing and not os.path.isdir(existing):

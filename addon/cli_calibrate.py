@@ -13,12 +13,12 @@ from __future__ import annotations
 import json
 import os
 
-from ..core.progress import saved_line
+from ..core.base.progress import saved_line
 
 
 def add_parser(subparsers):
-    from ..core.fit import BUDGET, MAX_SAMPLES, REFERENCE_SAMPLES
-    from ..core.fit_params import FIT_PARAMETERS
+    from ..core.pipeline.fit_params import FIT_PARAMETERS
+    from ..core.study.fit import BUDGET, MAX_SAMPLES, REFERENCE_SAMPLES
     from .cli_options import add_blend_to_blend, add_resolution, add_samples, add_scene, add_seed
 
     p = subparsers.add_parser(
@@ -90,9 +90,9 @@ def run(args) -> int:
         print(f"sss_lab calibrate: {line}", flush=True)
     if data["results"]:
         os.makedirs(os.path.dirname(out), exist_ok=True)
-        from ..core import _files
+        from ..core.base import files
 
-        _files.check_interrupted()  # a fit cut short by Ctrl-C is not saved
+        files.check_interrupted()  # a fit cut short by Ctrl-C is not saved
         bpy.ops.wm.save_as_mainfile(filepath=out, copy=True, check_existing=False, relative_remap=True)
         print(saved_line(out), flush=True)
     else:

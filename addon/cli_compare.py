@@ -6,7 +6,7 @@ import os
 
 
 def _methods(text: str) -> tuple[str, ...]:
-    from ..core.scene import SUBSURFACE_METHODS
+    from ..core.scene.scene import SUBSURFACE_METHODS
     from .cli import CommandError
 
     names = [t.strip().upper() for t in text.split(",") if t.strip()]

@@ -41,7 +41,7 @@ def run(args) -> int:
     os.makedirs(out, exist_ok=True)
     start = time.perf_counter()
     blend = scenes.build(name, os.path.join(out, f"{name}.blend"))
-    from ..core.progress import saved_line
+    from ..core.base.progress import saved_line
 
     print(saved_line(blend))
 
@@ -49,7 +49,7 @@ def run(args) -> int:
 
     from ..blender import compat
     from ..blender.compare import CompareSettings, compare
-    from ..core.report_schema import Report
+    from ..core.study.report_schema import Report
 
     # Every subsurface method of this Blender gets its mapping calibrated (one more cached
     # reference each).

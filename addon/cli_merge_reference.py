@@ -26,7 +26,7 @@ def add_parser(subparsers):
 
 
 def _part_files(items: list[str]) -> list[str]:
-    from ..core.reference import PART_PATTERN
+    from ..core.study.reference import PART_PATTERN
 
     pattern = PART_PATTERN.split("{", 1)[0] + "*.exr"
     files = []
@@ -42,8 +42,8 @@ def _part_files(items: list[str]) -> list[str]:
 
 
 def run(args) -> int:
-    from ..core import reference
-    from ..core.progress import saved_line
+    from ..core.base.progress import saved_line
+    from ..core.study import reference
 
     files = _part_files(args.parts)
     out = os.path.abspath(args.out)

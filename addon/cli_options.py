@@ -66,7 +66,7 @@ def add_resolution(p, help: str = "render size WIDTHxHEIGHT at 100%% (default: t
 
 def read_resolution(args) -> tuple[int, int] | None:
     """``--resolution`` as (width, height), None when not given; CommandError naming the flag."""
-    from ..core.scene import parse_resolution
+    from ..core.scene.scene import parse_resolution
     from .cli import CommandError
 
     if args.resolution is None:
@@ -97,7 +97,7 @@ def add_view_layer(p, help: str) -> None:
 def add_methods(p, *, default: str = "all", what: str = "techniques") -> None:
     """``--methods``: techniques of the registry, a comma-separated list, or all (read with
     ``cli.parse_methods``)."""
-    from ..core.techniques import TECHNIQUES
+    from ..core.techniques.registry import TECHNIQUES
 
     p.add_argument(
         "--methods",

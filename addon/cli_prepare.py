@@ -1,5 +1,5 @@
 """``python -m sss_lab prepare``: compile the kernels into the cache before the first frame needs
-them (``core/prepare.py``): on a render-farm node before its first task, or after installing or
+them (``core/study/prepare.py``): on a render-farm node before its first task, or after installing or
 updating SSS Lab. No Blender needed."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    from ..core.prepare import prepare_kernels
+    from ..core.study.prepare import prepare_kernels
     from .cli import parse_methods
 
     names = parse_methods(args.method)

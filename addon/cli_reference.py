@@ -33,7 +33,7 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    from ..core.sequence import parse_frames
+    from ..core.pipeline.sequence import parse_frames
     from .cli import CommandError, require_bpy
     from .cli_options import check_at_least, read_resolution, render_device
     from .cli_scan import open_blend

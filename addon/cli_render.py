@@ -55,7 +55,7 @@ def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | No
     None when the frame must be rendered. CommandError when the kept frame was rendered for
     other techniques or samples: skipping it would deliver files the job did not ask for."""
     from ..blender.render_passes import FILE_PATTERN
-    from ..core.sequence import frame_path, sidecar_path
+    from ..core.pipeline.sequence import frame_path, sidecar_path
     from .cli import CommandError
 
     exr = os.path.join(out_dir, frame_path(FILE_PATTERN, frame))
@@ -81,7 +81,7 @@ def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | No
 
 
 def run(args) -> int:
-    from ..core.sequence import parse_frames
+    from ..core.pipeline.sequence import parse_frames
     from .cli import EXIT_NOTHING_TO_DO, parse_methods, require_bpy
     from .cli_options import check_at_least, read_resolution
     from .cli_scan import open_blend
@@ -95,7 +95,7 @@ def run(args) -> int:
 
     resolution = read_resolution(args)
     scene = open_blend(args.blend, args.scene)
-    from ..core.progress import Progress
+    from ..core.base.progress import Progress
     from .cli_options import render_device
 
     def log(line: str):

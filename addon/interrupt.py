@@ -12,13 +12,13 @@ So the guard also watches from a second thread: the C-level part of Python's han
 each signal's number to a pipe (``signal.set_wakeup_fd``) at once, whatever the main thread
 does. When SIGINT arrives the watcher gives the main thread ``GRACE_SECONDS`` to unwind by
 itself; if it has not finished by then (it is inside a render), the watcher removes the
-temporary files being written (``core._files``), says which files were finished, and ends
+temporary files being written (``core.base.files``), says which files were finished, and ends
 the process with status 130. Nothing on disk needs putting back at that point: inputs are
 never written, and every output is moved into place whole or not at all.
 
 Blender catches a KeyboardInterrupt raised inside its render and bake callbacks, and the job
 may then go on with a cut-short result. So once SIGINT has arrived no output is moved into
-place any more (``core._files.INTERRUPTED``), and a job that finishes anyway exits 130.
+place any more (``core.base.files.INTERRUPTED``), and a job that finishes anyway exits 130.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import signal
 import sys
 import threading
 
-from ..core import _files
+from ..core.base import files
 
 #: Seconds the main thread gets to unwind after Ctrl-C before the process is ended for it.
 GRACE_SECONDS = 2.0
@@ -41,14 +41,14 @@ EXIT_INTERRUPTED = 130
 
 def finished_summary() -> str:
     """'; N file(s) finished and kept (the last: PATH)' or '' when none was."""
-    done = _files.FINISHED
+    done = files.FINISHED
     if not done:
         return "; no file was finished"
     return f"; {len(done)} file(s) finished and kept (the last: {done[-1]})"
 
 
 def _force_exit(command: str) -> None:
-    _files.remove_pending_temporaries()
+    files.remove_pending_temporaries()
     try:
         sys.stdout.flush()
     except (OSError, ValueError):
@@ -126,18 +126,18 @@ def interrupt_guard(command: str, grace: float = GRACE_SECONDS):
             if done.is_set() or not data:
                 return
             if signal.SIGINT in data:
-                _files.INTERRUPTED.set()
+                files.INTERRUPTED.set()
                 if not done.wait(grace):
                     _force_exit(command)
 
     watcher = threading.Thread(target=watch, name="sss_lab-interrupt", daemon=True)
-    _files.INTERRUPTED.clear()
+    files.INTERRUPTED.clear()
     watcher.start()
     try:
         yield
         # Blender may have swallowed the KeyboardInterrupt (raised inside its render or bake
         # callback) and let the job finish on a cut-short result: it is not a success.
-        _files.check_interrupted()
+        files.check_interrupted()
     finally:
         done.set()
         signal.set_wakeup_fd(previous_fd)

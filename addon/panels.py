@@ -12,8 +12,8 @@ from __future__ import annotations
 import bpy
 
 from ..blender.stored import PREFIX, fit_key
-from ..core.fit_params import FIT_PARAMETERS
-from ..core.techniques import TECHNIQUES
+from ..core.pipeline.fit_params import FIT_PARAMETERS
+from ..core.techniques.registry import TECHNIQUES
 
 
 def draw_technique_parameters(layout, settings) -> None:

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import bpy
 
-from ..core.apply import ALBEDO_MODES
-from ..core.spec import Param, Technique
-from ..core.techniques import DEFAULT_TECHNIQUE, TECHNIQUES
+from ..core.pipeline.apply import ALBEDO_MODES
+from ..core.techniques.registry import DEFAULT_TECHNIQUE, TECHNIQUES
+from ..core.techniques.spec import Param, Technique
 from .bake_settings import SSSLabBakeSettings
 
 # Blender keeps a reference to the items of a dynamic enum; a static list avoids that trap.
@@ -107,7 +107,7 @@ class SSSLabSettings(bpy.types.PropertyGroup):
     )
 
     def technique_options(self, technique: str) -> dict:
-        """The panel's parameters of ``technique`` as keyword options of ``core.apply``."""
+        """The panel's parameters of ``technique`` as keyword options of ``core.pipeline.apply``."""
         spec = TECHNIQUES.get_spec(technique)
         return technique_values(spec, getattr(self, spec.name))
 

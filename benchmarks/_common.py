@@ -6,8 +6,8 @@ from __future__ import annotations
 import json
 import time
 
-from sss_lab.core._files import write_text
-from sss_lab.core.progress import saved_line
+from sss_lab.core.base.files import write_text
+from sss_lab.core.base.progress import saved_line
 
 
 def fastest(fn, repeat: int, *, warm_up: bool = False) -> float:

@@ -3,7 +3,7 @@
 For every scene (the fidelity suite, ``benchmarks/fidelity``, when it is present; else the four
 sample scenes with references rendered here, ``--source samples``):
 
-1. each technique at every rung ``core.auto.variants`` lists (its quality ladder, the runs ``compare``
+1. each technique at every rung ``core.pipeline.auto.variants`` lists (its quality ladder, the runs ``compare``
    sweeps, and each diffusion without its energy stage; at its default quality only with
    ``--no-rungs``) on the scene's passes, and no SSS: relative RMSE against
    the scene's Cycles reference over the subsurface pixels after 2 x 2 box downsampling (the
@@ -11,10 +11,10 @@ sample scenes with references rendered here, ``--source samples``):
    and per material; apply time (process CPU time on one thread, fastest of ``--repeat`` runs) on the same
    passes repeated ``--time-scale`` x ``--time-scale`` per pixel with the camera as many times
    finer (at the suite's 128 px a technique takes a few ms and fixed costs would dominate);
-2. the features of every material (``core.auto.features``).
+2. the features of every material (``core.pipeline.auto.features``).
 
 Then, for each scene in turn, the auto model is learnt on the *other* scenes only
-(``core.auto.train``: coefficients and a cost rate for every rung measured there) and ``auto`` runs
+(``core.pipeline.auto.train``: coefficients and a cost rate for every rung measured there) and ``auto`` runs
 on the held-out scene with it, scored the same way, and timed the same way (its features and
 choice included). In the same run, a second model learnt on no SSS and the techniques' default
 qualities only (``techniques_only``: ``auto`` as a chooser of techniques) is validated the same way,
@@ -36,10 +36,10 @@ so that the two choosers are compared on the same measurements and machine load.
 
 With ``--fit``, the same again with each scene fitted as ``calibrate`` fits it (``benchmarks/fit.py``'s
 render and passes: Cycles random walk of the same view at 32 samples and passes at 16, its own
-seed, cached in ``out/fidelity_cache/fit``; ``core.fit.fit_scene`` for every technique that has
+seed, cached in ``out/fidelity_cache/fit``; ``core.study.fit.fit_scene`` for every technique that has
 a fit, or ``--fit-methods``, with ``calibrate``'s second render for the fits its held-out check
 refuses, ``benchmarks.fit.fit_like_calibrate``): auto then chooses by the errors the fit measured
-(``core.auto.measured_errors``), and **regret with the fit** = auto's error / the lowest error of
+(``core.pipeline.auto.measured_errors``), and **regret with the fit** = auto's error / the lowest error of
 no SSS and every technique at default quality, unfitted *or* fitted - 1 (the fitted techniques
 count among the choices). Its time saved is against the same unfitted most expensive technique
 (a fit changes a technique's parameters, not its work); the fit's own cost (a one-off per asset,
@@ -84,7 +84,7 @@ class Scene:
         self.mask = np.isin(self.index, [m.index for m in self.materials])
 
     def error(self, image, mask=None) -> float:
-        from sss_lab.core import metrics
+        from sss_lab.core.study import metrics
 
         r = metrics.compare_images(image[..., :3], self.reference, self.mask if mask is None else mask, box=BOX)
         return float("nan") if r["rel_rmse"] is None else float(r["rel_rmse"])
@@ -98,7 +98,7 @@ def _fit(data, fit_samples: int, fit_pass_samples: int, methods, log) -> object:
     import bpy
 
     from benchmarks import fit as fit_bench
-    from sss_lab.core.fit import BUDGET, MAX_SAMPLES
+    from sss_lab.core.study.fit import BUDGET, MAX_SAMPLES
 
     cache = os.path.join(fit_bench.ROOT, "out", "fidelity_cache", "fit")
     os.makedirs(cache, exist_ok=True)
@@ -153,7 +153,8 @@ def _sample_scenes(names, args, log):
 
     from sss_lab.blender.reference_cache import cached_reference, scene_fingerprint
     from sss_lab.blender.render_passes import render_passes
-    from sss_lab.core import exr, sequence
+    from sss_lab.core.pipeline import sequence
+    from sss_lab.core.scene import exr
 
     names = list(names or SAMPLE_SCENES)
     work = os.path.join(args.cache, "blends")
@@ -215,8 +216,8 @@ def _in_turn(fns, repeat) -> list:
 def _chosen_run(plan, passes, desc):
     """The one technique and rung ``plan`` chose for every material it computes, run by itself
     (what auto's run would cost if its choice were free); None when it chose several."""
-    from sss_lab.core import apply as core_apply
-    from sss_lab.core import auto
+    from sss_lab.core.pipeline import apply as core_apply
+    from sss_lab.core.pipeline import auto
 
     if len(plan.plans) != 1 or any(c.chosen == auto.NONE for c in plan.choices):
         return None
@@ -227,7 +228,7 @@ def _chosen_run(plan, passes, desc):
 
 def _reference(m: dict, priciest: str):
     """The most expensive technique at its default quality on the scene's larger passes."""
-    from sss_lab.core import apply as core_apply
+    from sss_lab.core.pipeline import apply as core_apply
 
     big, big_desc = m["big"]
     return lambda: core_apply.apply(big, big_desc, priciest)
@@ -236,7 +237,7 @@ def _reference(m: dict, priciest: str):
 def upscaled(passes, desc, k: int):
     """The passes repeated ``k`` x ``k`` per pixel and the camera ``k`` times finer: the same view
     at ``k`` times the resolution, for timing at a size where the techniques' work dominates."""
-    from sss_lab.core.exr import Passes
+    from sss_lab.core.scene.exr import Passes
 
     if k == 1:
         return passes, desc
@@ -248,11 +249,11 @@ def upscaled(passes, desc, k: int):
 
 def measure(scene: Scene, techniques, repeat: int, time_scale: int = 1, rungs: bool = True) -> dict:
     """Errors (scene and per material) of no SSS and each technique at default quality and, with
-    ``rungs``, at every other rung ``core.auto.variants`` lists (its quality ladder, and without
+    ``rungs``, at every other rung ``core.pipeline.auto.variants`` lists (its quality ladder, and without
     its energy stage); their times on the passes at ``time_scale`` x the resolution, and the
     features of every material."""
-    from sss_lab.core import apply as core_apply
-    from sss_lab.core import auto
+    from sss_lab.core.pipeline import apply as core_apply
+    from sss_lab.core.pipeline import auto
 
     images = {auto.NONE: scene.passes["Combined"]}
     seconds = {auto.NONE: 0.0}
@@ -312,7 +313,7 @@ CHOOSERS = ("auto", "techniques_only")
 def _learn(measured, names, chooser: str, techniques, command: str):
     """The model learnt on the scenes ``names``; for ``techniques_only``, on no SSS and each
     technique at its default quality only."""
-    from sss_lab.core import auto
+    from sss_lab.core.pipeline import auto
 
     keep = None if chooser == "auto" else {auto.NONE, *techniques}
     samples = [
@@ -346,7 +347,7 @@ def _scored_and_timed(s: Scene, desc, big, choose_and_apply, m: dict, priciest: 
 def _run_chooser(s: Scene, m: dict, model, *, techniques, max_error, repeat, priciest) -> dict:
     """``auto`` with ``model`` on the held-out scene ``s``: its choice, error, regret and time (its
     features and choice included), and the same with the scene's fits."""
-    from sss_lab.core import auto
+    from sss_lab.core.pipeline import auto
 
     def choose_and_apply(passes, desc, keep=None):
         plan = auto.choose(passes, desc, max_error=max_error, model=model, techniques=techniques, keep=keep)
@@ -581,7 +582,7 @@ def sweep(scenes, technique: str, parameter: str, values, log=print) -> dict:
     """``technique`` at its default quality with ``parameter`` set to each of ``values`` on every
     scene: per value the errors, and over the suite the median of error / no-SSS error (the
     share of the no-SSS error left) and the scenes where it is worse than no SSS."""
-    from sss_lab.core import apply as core_apply
+    from sss_lab.core.pipeline import apply as core_apply
 
     per_value = {}
     for v in values:
@@ -612,10 +613,10 @@ def quality_oracle(rows, *, max_error: float, log=print) -> dict:
     """What a chooser knowing every true error could save if it chose each technique's quality too:
     from ``run``'s measurements of every candidate (each rung of each technique's quality ladder,
     the ladder ``compare`` sweeps, and each diffusion's rungs without its energy stage,
-    ``core.auto.variants``), per scene the cheapest whose error is within ``max_error`` of the best
+    ``core.pipeline.auto.variants``), per scene the cheapest whose error is within ``max_error`` of the best
     one's, against the most expensive technique at its default (largest total time over the scenes),
     over the suite; the same with the default qualities only, for comparison."""
-    from sss_lab.core import auto
+    from sss_lab.core.pipeline import auto
 
     def saved(keep) -> tuple[float, dict]:
         chosen, t_chosen, t_max = {}, 0.0, 0.0
@@ -668,7 +669,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.auto", description=__doc__.split("\n\n")[0])
     parser.add_argument("names", nargs="*", help="scenes (default: all of the source)")
     parser.add_argument("--source", choices=("fidelity", "samples"), default=None, help="default: fidelity if present")
-    parser.add_argument("--max-error", type=float, default=None, help="auto's margin (default: core.auto's)")
+    parser.add_argument("--max-error", type=float, default=None, help="auto's margin (default: core.pipeline.auto's)")
     parser.add_argument("--repeat", type=int, default=7, help="timed runs per case, fastest kept (default 7)")
     parser.add_argument(
         "--time-scale",
@@ -713,8 +714,8 @@ def main(argv=None) -> int:
     import bpy
 
     from benchmarks._common import write_results
-    from sss_lab.core import auto
-    from sss_lab.core.techniques import TECHNIQUES
+    from sss_lab.core.pipeline import auto
+    from sss_lab.core.techniques.registry import TECHNIQUES
 
     try:  # timed on one thread: an idle thread pool spins, and its CPU time would count against the next run
         import numba
@@ -728,7 +729,7 @@ def main(argv=None) -> int:
     start = time.perf_counter()
     if args.fit and source != "fidelity":
         parser.error("--fit: only with the fidelity suite (the fit's render is cached by benchmarks/fit.py)")
-    from sss_lab.core.fit_params import FIT_PARAMETERS
+    from sss_lab.core.pipeline.fit_params import FIT_PARAMETERS
 
     methods = args.fit_methods.split(",") if args.fit_methods else list(FIT_PARAMETERS)
     unknown = [m for m in methods if m not in FIT_PARAMETERS]

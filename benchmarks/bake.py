@@ -43,7 +43,7 @@ def main(argv=None) -> int:
     import bpy  # noqa: I001  (bmesh only imports once bpy has)
     import bmesh
 
-    from sss_lab.core.thickness import BakeSettings
+    from sss_lab.core.scene.thickness import BakeSettings
     from sss_lab.blender.bake import bake_thickness
 
     bpy.ops.wm.read_factory_settings(use_empty=True)

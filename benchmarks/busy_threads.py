@@ -3,7 +3,7 @@ cores are busy with other work, with OpenMP's waiting threads spinning for a whi
 and sleeping at once (``OMP_WAIT_POLICY=PASSIVE``; docs/references.md §11).
 
 Each case runs in a fresh process (OpenMP reads its policy once, when Numba starts its threads):
-``core.apply.apply`` of ``core.synthetic.sphere_scene`` with STA and Burley at the defaults, at
+``core.pipeline.apply.apply`` of ``core.study.synthetic.sphere_scene`` with STA and Burley at the defaults, at
 96 x 54, 480 x 270 and 1920 x 1080, two threads, one untimed call then ``--calls`` timed ones;
 the fastest and the median call. "twin": while another process applies Burley in a loop with the
 same policy (two farm tasks on one node; Blender beside a background job); "busy": while other
@@ -33,9 +33,9 @@ _CASE = """
 import json, sys, time
 import numba
 from sss_lab.core import backend
-from sss_lab.core.apply import apply
-from sss_lab.core.exr import Passes
-from sss_lab.core.synthetic import sphere_scene
+from sss_lab.core.pipeline.apply import apply
+from sss_lab.core.scene.exr import Passes
+from sss_lab.core.study.synthetic import sphere_scene
 calls = int(sys.argv[1])
 out = {}
 with backend.use("numba"):
@@ -63,9 +63,9 @@ _SPIN = "while True:\n    pass\n"
 _TWIN = """
 import sys
 from sss_lab.core import backend
-from sss_lab.core.apply import apply
-from sss_lab.core.exr import Passes
-from sss_lab.core.synthetic import sphere_scene
+from sss_lab.core.pipeline.apply import apply
+from sss_lab.core.scene.exr import Passes
+from sss_lab.core.study.synthetic import sphere_scene
 arrays, scene = sphere_scene(480, 270)
 passes = Passes(arrays)
 with backend.use("numba"):

@@ -26,7 +26,7 @@ def main(argv=None) -> int:
 
     from sss_lab.blender.compare import CompareSettings, compare_job
     from sss_lab.blender.samples import load_sample_scenes
-    from sss_lab.core.scene import SUBSURFACE_METHODS
+    from sss_lab.core.scene.scene import SUBSURFACE_METHODS
 
     scenes = load_sample_scenes()
     name = args.scene or scenes.DEFAULT_SCENE

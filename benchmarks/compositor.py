@@ -1,13 +1,13 @@
 """Compositor node groups against the NumPy passes at 1920 x 1080:
 ``.venv/bin/python -m benchmarks.compositor`` (from the repository root).
 
-Inputs: the synthetic plane-and-spheres passes of ``core/synthetic.py`` (two scattering
+Inputs: the synthetic plane-and-spheres passes of ``core/study/synthetic.py`` (two scattering
 materials, Skin and Wax, two sun lights), written to a multilayer EXR in a temporary folder,
 with the profiles of ``benchmarks/speed.py``: Skin d = (4, 1.6, 0.8) mm (its red kernel spans
 about 30 pixels at the spheres' depth, a face in a close-up), Wax 1.5 times that (both as
 Christensen-Burley materials, d = radius / (4 pi)). Per technique:
 
-- NumPy: ``core.apply.apply`` on the passes (every scattering material, composited), with the
+- NumPy: ``core.pipeline.apply.apply`` on the passes (every scattering material, composited), with the
   default parameters (SSSS 17 taps pre-integrated, Burley 32 samples, STA's defaults);
 - compositor: the chain ``nodes.setup.build_chain`` builds (one group per material or light,
   read from an Image node: no Render Layers node, so Blender only composites), timed as
@@ -57,10 +57,10 @@ def main(argv=None) -> int:
     import bpy
 
     from sss_lab.blender import compat
-    from sss_lab.core import mapping
-    from sss_lab.core.apply import apply
-    from sss_lab.core.exr import Passes, read_layers, read_passes
-    from sss_lab.core.synthetic import sphere_scene, write_scene
+    from sss_lab.core.pipeline import mapping
+    from sss_lab.core.pipeline.apply import apply
+    from sss_lab.core.scene.exr import Passes, read_layers, read_passes
+    from sss_lab.core.study.synthetic import sphere_scene, write_scene
     from sss_lab.nodes import setup
     from sss_lab.nodes.burley import ensure_burley_group
     from sss_lab.nodes.ssss import ensure_ssss_group
@@ -182,7 +182,7 @@ def main(argv=None) -> int:
         "resolution": [width, height],
         "repeat": args.repeat,
         "statistic": "fastest of the repeats after a warm-up",
-        "scene": "core.synthetic.sphere_scene (Skin and Wax scatter, two sun lights)",
+        "scene": "core.study.synthetic.sphere_scene (Skin and Wax scatter, two sun lights)",
         "d_su": {name: [round(d * f, 6) for d in D_SU] for name, f in widths.items()},
         "compositor_device": "CPU",
         "compositor_image_only_ms": round(baseline * 1e3, 1),

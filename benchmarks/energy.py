@@ -3,13 +3,13 @@ Base Color: canonical renders, not scenes of the fidelity suite.
 
 ``python -m benchmarks.energy`` (about 15 minutes on a loaded 2-core machine) writes
 ``benchmarks/results/energy.json``; ``python -m benchmarks.energy --write-table`` copies its table
-into ``core/energy.py`` (``SEMI_INFINITE``), which reads nothing else.
+into ``core/optics/energy.py`` (``SEMI_INFINITE``), which reads nothing else.
 
 The scene: four boxes 20 x 20 x 10 cm side by side, their top faces at z = 0, lit straight from
 above by a sun (no world light, nothing else in the scene), seen by an orthographic camera tilted
 by the view angle from the vertical. Every channel of a box has its own Base Color (12 albedos
 over the four boxes) and the same mean free path, 0.5 mm as the method reads Radius x Scale
-(``core.mapping.mean_free_path``): even at albedo 0.95 the diffusion length (about 13 mm) is a
+(``core.pipeline.mapping.mean_free_path``): even at albedo 0.95 the diffusion length (about 13 mm) is a
 small fraction of the box, so the middle of each top face sees a semi-infinite medium under
 uniform light. Per box and channel the figure is the light of the Diffuse passes (Diffuse Color
 x (Direct + Indirect), where Cycles writes subsurface light) averaged over the middle half of the
@@ -77,7 +77,7 @@ def build(
     from mathutils import Vector
 
     from benchmarks.fidelity.scenes import _h as h
-    from sss_lab.core.mapping import skin_radius_factor
+    from sss_lab.core.pipeline.mapping import skin_radius_factor
 
     scene = h._reset(world_color=(0.0, 0.0, 0.0))
     scale = mfp * (4.0 * math.pi if method in ("BURLEY", "RANDOM_WALK_LEGACY") else 1.0)
@@ -122,7 +122,7 @@ def _render(scene, samples: int, seed: int) -> dict[str, np.ndarray]:
     import bpy
 
     from sss_lab.blender import compat
-    from sss_lab.core import exr
+    from sss_lab.core.scene import exr
 
     scene.cycles.samples, scene.cycles.seed = samples, seed
     compat.set_multilayer_exr(scene.render.image_settings)
@@ -226,7 +226,7 @@ def build_spheres(method: str, radius_mfp: float, *, weight: float, mfp: float =
     from mathutils import Vector
 
     from benchmarks.fidelity.scenes import _h as h
-    from sss_lab.core.mapping import skin_radius_factor
+    from sss_lab.core.pipeline.mapping import skin_radius_factor
 
     scene = h._reset(world_color=(1.0, 1.0, 1.0))
     r = radius_mfp * mfp
@@ -313,11 +313,11 @@ def cases(quick: bool = False) -> list[dict]:
 
 
 TABLE_METHODS = ("RANDOM_WALK", "RANDOM_WALK_SKIN", "RANDOM_WALK_LEGACY")
-ENERGY_MODULE = os.path.join(ROOT, "core", "energy.py")
+ENERGY_MODULE = os.path.join(ROOT, "core", "optics", "energy.py")
 
 
 def table_block(data: dict) -> str:
-    """The tables of ``core/energy.py`` from the results ``data``: ``SEMI_INFINITE`` per method of
+    """The tables of ``core/optics/energy.py`` from the results ``data``: ``SEMI_INFINITE`` per method of
     ``TABLE_METHODS`` (the rows at the canonical IOR, roughness and mean free path, seed 0), then
     ``SLAB_ABOVE`` and ``SLAB_BELOW`` per method measured."""
     lines = ["SEMI_INFINITE: dict[str, tuple[tuple[float, ...], ...]] = {"]
@@ -354,12 +354,12 @@ def table_block(data: dict) -> str:
 
 
 def convex_block(data: dict) -> list[str]:
-    """``CONVEX`` of ``core/energy.py`` from the sphere measurements of ``data``: per method and
-    albedo, for each radius of ``core.energy.CONVEX_RADII``, the sphere's light over the largest
+    """``CONVEX`` of ``core/optics/energy.py`` from the sphere measurements of ``data``: per method and
+    albedo, for each radius of ``core.optics.energy.CONVEX_RADII``, the sphere's light over the largest
     sphere's (a flat surface), divided by what the slab tables give a slab as thick as the
     sphere's chord along the normal (2 R) under the same light on both faces (f_above + f_below):
-    the light a convex surface returns beyond a slab's (``core.energy.apply_energy``)."""
-    from sss_lab.core.energy import CONVEX_RADII, slab_factors
+    the light a convex surface returns beyond a slab's (``core.optics.energy.apply_energy``)."""
+    from sss_lab.core.optics.energy import CONVEX_RADII, slab_factors
 
     lines = ["CONVEX: dict[str, tuple[tuple[float, ...], ...]] = {"]
     for s in data.get("spheres", []):
@@ -379,7 +379,7 @@ def convex_block(data: dict) -> list[str]:
 
 def write_table(results: str = RESULTS, module: str = ENERGY_MODULE) -> None:
     """Replace the table between ``# BEGIN TABLE`` and ``# END TABLE`` of ``module``."""
-    from sss_lab.core._files import write_text
+    from sss_lab.core.base.files import write_text
 
     with open(results, encoding="utf-8") as fh:
         data = json.load(fh)
@@ -402,7 +402,9 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--out", default=RESULTS)
     parser.add_argument(
-        "--write-table", action="store_true", help="only copy the tables of --out into core/energy.py (no rendering)"
+        "--write-table",
+        action="store_true",
+        help="only copy the tables of --out into core/optics/energy.py (no rendering)",
     )
     args = parser.parse_args(argv)
     if args.write_table:

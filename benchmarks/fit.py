@@ -8,7 +8,7 @@ and metric, nothing duplicated here):
 2. **the fit, as** ``calibrate`` **makes it**: Cycles random walk of the same view at
    ``--fit-samples`` (16-64) with a seed of its own (2, neither the reference's 0 and 1 nor the
    passes' 7, whose noise it would share) through the same render function ``calibrate`` uses, its
-   own passes at ``--fit-pass-samples`` (seed 2), and ``core.fit.fit_scene`` with ``calibrate``'s
+   own passes at ``--fit-pass-samples`` (seed 2), and ``core.study.fit.fit_scene`` with ``calibrate``'s
    options, for each technique of ``--methods``;
 3. each technique at its default quality, unfitted and with the fit, on the suite's passes,
    scored against the converged reference with the suite's metric (relative RMSE over the
@@ -33,7 +33,7 @@ technique (per scene, the technique with the lowest error, unfitted or fitted: t
 "best"), and by each technique alone. Renders are cached in ``out/fidelity_cache`` (with the
 CPU seconds they took). Writes ``benchmarks/results/fit.json`` and prints a table.
 
-``--keep-refused`` keeps the fits that fail their held-out check (``core.fit``'s
+``--keep-refused`` keeps the fits that fail their held-out check (``core.study.fit``'s
 ``heldout_check=False``: the training blocks' values, a note says so) and scores them the same
 way, into ``benchmarks/results/fit_keep_refused.json``: whether what the check refuses on the
 noisy render would have been better against the converged references, on both frames.
@@ -134,7 +134,7 @@ def _carried(desc, fits: dict):
 def _score(data, desc, methods) -> dict:
     """{technique: relative RMSE} of no SSS ("none") and each technique at its default quality on
     the suite's passes of ``data`` with the fits of ``desc``."""
-    from sss_lab.core import apply as core_apply
+    from sss_lab.core.pipeline import apply as core_apply
 
     out = {"none": data.score(data.passes["Combined"])["rel_rmse"]}
     for t in methods:
@@ -155,7 +155,7 @@ def run_scene(name: str, args, log) -> dict:
     from benchmarks.fidelity import frame_b, references
     from benchmarks.fidelity import run as fidelity
     from sss_lab.blender.calibrate import DEFAULT_TECHNIQUES
-    from sss_lab.core import apply as core_apply
+    from sss_lab.core.pipeline import apply as core_apply
 
     methods = tuple(args.methods.split(","))
     cache = os.path.join(args.cache, "fit")
@@ -286,7 +286,7 @@ def fit_like_calibrate(
     ``desc``) and the ``samples``-sample render ``noisy``, one technique at a time (each one's CPU
     seconds), and then ``calibrate``'s second render for the fits the held-out check refused (when
     ``max_samples`` exceeds ``samples``): the one-sample pilot (seed ``PILOT_SEED``),
-    ``core.fit.more_samples``' decision on CPU seconds (``calibrate`` decides on wall seconds; on
+    ``core.study.fit.more_samples``' decision on CPU seconds (``calibrate`` decides on wall seconds; on
     this shared machine CPU time is the steadier measure; what ``calibrate`` fits by default,
     ``DEFAULT_TECHNIQUES``, counts as the fit's time), and when it says so ``max_samples`` -
     ``samples`` more samples (seed ``more_seed``), the mean of the two renders, and the refused
@@ -296,7 +296,7 @@ def fit_like_calibrate(
     second render did ("extra", "why", "pilot_cpu_s", "render_cpu_s", "fit_cpu_s_by_technique",
     "fits")}."""
     from sss_lab.blender.calibrate import DEFAULT_TECHNIQUES
-    from sss_lab.core.fit import after_second_fit, fit_scene, mean_render, more_samples, refused_pairs
+    from sss_lab.core.study.fit import after_second_fit, fit_scene, mean_render, more_samples, refused_pairs
 
     results, problems, refused, by = [], [], [], {}
     for t in methods:
@@ -413,7 +413,7 @@ def main(argv=None) -> int:
     parser.add_argument("--methods", default="ssss,burley,combined,sta")
     parser.add_argument("--box", type=int, default=None, help="the fit's block size (default: calibrate's)")
     parser.add_argument(
-        "--regularization", type=float, default=None, help="the fit's ridge weight (default: core.fit's)"
+        "--regularization", type=float, default=None, help="the fit's ridge weight (default: core.study.fit's)"
     )
     parser.add_argument(
         "--keep-refused",
@@ -431,7 +431,7 @@ def main(argv=None) -> int:
     parser.add_argument("--cache", default=os.path.join(ROOT, "out", "fidelity_cache"))
     parser.add_argument("--out", default=None, help=f"results file (default {os.path.relpath(RESULTS, ROOT)})")
     args = parser.parse_args(argv)
-    from sss_lab.core.fit import BUDGET, MAX_SAMPLES
+    from sss_lab.core.study.fit import BUDGET, MAX_SAMPLES
 
     if args.max_samples is None:
         args.max_samples = max(MAX_SAMPLES, args.fit_samples)

@@ -1,9 +1,9 @@
 """Why the fit runs the compiled kernels on one thread: ``.venv/bin/python -m benchmarks.fit_threads``.
 
-The fit (``core/fit.py``) runs each technique a dozen times on one frame, and its cost is its CPU
-time (``benchmarks/fit.py``: process time, all threads). This measures one ``core.apply`` call of
+The fit (``core/study/fit.py``) runs each technique a dozen times on one frame, and its cost is its CPU
+time (``benchmarks/fit.py``: process time, all threads). This measures one ``core.pipeline.apply`` call of
 SSSS and Burley (their light transport alone, ``energy="lambert"``, what the fit runs per value of
-d's scale) on the synthetic spheres of ``core.synthetic`` at a few sizes, with Numba's default
+d's scale) on the synthetic spheres of ``core.study.synthetic`` at a few sizes, with Numba's default
 number of threads and with one: CPU seconds (process time) and wall seconds, each the fastest of
 ``--repeat`` rounds of ``--calls`` calls (after an untimed call that loads the kernels). Writes
 ``benchmarks/results/fit_threads.json`` and prints a table.
@@ -43,10 +43,10 @@ def main(argv=None) -> int:
     import numba
 
     from benchmarks._common import write_results
-    from sss_lab.core import apply as core_apply
-    from sss_lab.core import backend
-    from sss_lab.core.exr import Passes
-    from sss_lab.core.synthetic import sphere_scene
+    from sss_lab.core.compute import backend
+    from sss_lab.core.pipeline import apply as core_apply
+    from sss_lab.core.scene.exr import Passes
+    from sss_lab.core.study.synthetic import sphere_scene
 
     if backend.active() == "numpy":
         raise SystemExit("benchmarks.fit_threads: Numba is not available; nothing to measure")

@@ -9,7 +9,7 @@ compared to the bit. Prints the best and median wall and CPU times of each and t
     .venv/bin/python -m benchmarks.kernel_ab --base origin/main            # STA, 1080p
     .venv/bin/python -m benchmarks.kernel_ab --base HEAD~1 --threads 1 --mask "25 % mask"
 
-The revision's ``core/compiled.py`` is compiled from a temporary folder, with its own Numba
+The revision's ``core/compute/compiled.py`` is compiled from a temporary folder, with its own Numba
 cache there (never beside the module). Arguments are matched by name, so that a kernel that
 gained or lost one can still be compared with its earlier self.
 """
@@ -28,17 +28,17 @@ import time
 import numpy as np
 
 from benchmarks import speed
-from sss_lab.core import backend
+from sss_lab.core.compute import backend
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-#: The technique's kernel in ``core.compiled``.
+#: The technique's kernel in ``core.compute.compiled``.
 KERNELS = {"sta": "sta_kernel"}
 
 
 def _load_revision(rev: str, folder: str):
-    """``core/compiled.py`` of ``rev`` as a module, compiled and cached inside ``folder``."""
+    """``core/compute/compiled.py`` of ``rev`` as a module, compiled and cached inside ``folder``."""
     source = subprocess.run(
-        ["git", "-C", ROOT, "show", f"{rev}:core/compiled.py"], check=True, capture_output=True, text=True
+        ["git", "-C", ROOT, "show", f"{rev}:core/compute/compiled.py"], check=True, capture_output=True, text=True
     ).stdout
     path = os.path.join(folder, "compiled_base.py")
     with open(path, "w") as f:

@@ -6,7 +6,7 @@ techniques give it: how the light spreads, measured on a canonical scene (no sui
 
 The scene: a box 30 x 30 x 15 cm, its top face at z = 0, with three albedos in its three channels
 and the same mean free path ``MFP`` in each (as the method reads Radius x Scale,
-``core.mapping.mean_free_path``); a sun straight down (angle 0: a sharp shadow); a plate 4 cm
+``core.pipeline.mapping.mean_free_path``); a sun straight down (angle 0: a sharp shadow); a plate 4 cm
 above the face covering x < 0, which casts its shadow but is invisible to the camera; an
 orthographic camera straight down over x in [-``HALF_WIDTH``, ``HALF_WIDTH``]. No world light; the
 plate is seen by shadow rays only (no light bounces off it into its shadow). Per
@@ -18,7 +18,7 @@ A radial profile R on a semi-infinite medium under a step of light (E for x > 0,
 m(x) = c Q(x), with Q the cumulative distribution of R's 1-D marginal q(u) = int R(sqrt(u^2 + v^2))
 dv and c the lit level. Burley's R(r) = (e^{-r/d} + e^{-r/3d}) / (8 pi d r) has q(u) = (K0(|u| / d)
 + K0(|u| / 3d)) / (4 pi d) (K0: the modified Bessel function, computed as int_0^inf e^{-z cosh t}
-dt). Per channel the benchmark fits c and a scale k on the d the techniques use (``core.mapping``:
+dt). Per channel the benchmark fits c and a scale k on the d the techniques use (``core.pipeline.mapping``:
 the method's mean free path over its albedo scaling) by least squares over x, and reports:
 
 - ``k``: the scale on d that best matches the random walk (1: the mapping is right);
@@ -61,7 +61,7 @@ def build(method: str, colors, *, weight: float):
     from mathutils import Vector
 
     from benchmarks.fidelity.scenes import _h as h
-    from sss_lab.core.mapping import skin_radius_factor
+    from sss_lab.core.pipeline.mapping import skin_radius_factor
 
     scene = h._reset(world_color=(0.0, 0.0, 0.0))
     radius = (1.0, 1.0, 1.0)
@@ -174,8 +174,8 @@ def _shadow_mm(x: np.ndarray, y: np.ndarray) -> float:
 
 def measure(method: str, colors, *, samples: int, seed: int) -> list[dict]:
     from benchmarks.energy import _render
-    from sss_lab.core.mapping import MAPPINGS
-    from sss_lab.core.profiles import d_from_mean_free_path
+    from sss_lab.core.optics.profiles import d_from_mean_free_path
+    from sss_lab.core.pipeline.mapping import MAPPINGS
 
     start = time.perf_counter()
     x, m = edge_profile(_render(build(method, colors, weight=1.0), samples, seed))
@@ -236,7 +236,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     import bpy  # noqa: F401  (the module's Blender)
 
-    from sss_lab.core._files import write_text
+    from sss_lab.core.base.files import write_text
 
     start = time.perf_counter()
     rows = []

@@ -59,7 +59,7 @@ def _apply_variant(scene, variant: str) -> list[dict]:
     """Change the scene's subsurface materials for ``variant``; returns what each one is then."""
     from sss_lab.blender import compat
     from sss_lab.blender.describe import material_sss, principled_node, scene_materials
-    from sss_lab.core import mapping
+    from sss_lab.core.pipeline import mapping
 
     described = []
     for mat in scene_materials(scene):

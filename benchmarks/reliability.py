@@ -1,6 +1,6 @@
 """Fault corpora and the reliability table: ``python -m benchmarks.reliability``.
 
-Generates damaged inputs from the analytic scene of ``core/synthetic.py`` (and, with bpy, from
+Generates damaged inputs from the analytic scene of ``core/study/synthetic.py`` (and, with bpy, from
 a .blend saved by Blender), feeds each to the code a user runs, and sorts the outcome:
 
 - **handled**: one clear error (an ``SSSLabError`` naming the file), or a complete result
@@ -35,11 +35,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sss_lab.core import sequence
-from sss_lab.core.errors import SSSLabError
-from sss_lab.core.exr import read_layers
-from sss_lab.core.scene import SceneDescription
-from sss_lab.core.synthetic import sphere_scene, write_scene
+from sss_lab.core.base.errors import SSSLabError
+from sss_lab.core.pipeline import sequence
+from sss_lab.core.scene.exr import read_layers
+from sss_lab.core.scene.scene import SceneDescription
+from sss_lab.core.study.synthetic import sphere_scene, write_scene
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DOC = os.path.join(ROOT, "docs", "reliability.md")
@@ -575,7 +575,7 @@ import hashlib, json, os, signal, subprocess, sys, time
 folder = sys.argv[1]
 blend = cube_blend(os.path.join(folder, "cube.blend"))
 digest = lambda p: hashlib.sha256(open(p, "rb").read()).hexdigest()
-from sss_lab.core.synthetic import sphere_scene, write_scene
+from sss_lab.core.study.synthetic import sphere_scene, write_scene
 arrays, scene = sphere_scene(width=1024, height=768)
 big = os.path.join(folder, "big.exr")
 write_scene(big, arrays, scene)
@@ -715,7 +715,7 @@ def markdown(results: list[ClassResult], *, size: str, seed: int, seconds: float
         f"`{size}`, seed {seed}; {seconds:.0f} s on the development machine). Do not edit by hand: run it again.",
         "",
         "Each class of fault is a generator of damaged inputs made from the analytic scene of",
-        "`core/synthetic.py` (and a .blend saved by Blender). A case is **handled** when the code gives one",
+        "`core/study/synthetic.py` (and a .blend saved by Blender). A case is **handled** when the code gives one",
         "clear error naming the file (an `SSSLabError`) or a complete result (every input layer and every",
         "technique in the output, inputs unchanged, no temporary file left); anything else (a traceback,",
         "a result that silently lacks a layer or a technique, a changed input, a crash) is not.",
@@ -780,7 +780,7 @@ def main(argv=None) -> int:
     text = markdown(results, size=args.size, seed=args.seed, seconds=time.perf_counter() - start)
     out = args.out or (DOC if args.size == "full" else None)
     if out:
-        from sss_lab.core._files import write_text
+        from sss_lab.core.base.files import write_text
 
         write_text(out, text)
         print(f"Saved: {out}")

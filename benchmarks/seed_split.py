@@ -2,13 +2,13 @@
 ``.venv/bin/python -m benchmarks.seed_split`` (from the repository root).
 
 Builds a sample scene (default ``head_frontlit``), renders N parts of S samples with seeds
-1..N (``sss_lab reference``, as farm tasks do), merges them (``core.reference``), and renders
+1..N (``sss_lab reference``, as farm tasks do), merges them (``core.study.reference``), and renders
 the same scene twice more in one piece with N × S samples (seeds 1000 and 1001). Measures, with
 the comparison's metric (relative RMSE over the subsurface pixels after 2 × 2 box downsampling,
-``core/metrics.py``):
+``core/study/metrics.py``):
 
 - merged against single: within noise when it is about the noise floor;
-- the noise floor from the merged reference's two halves (``core.reference.noise_floor``);
+- the noise floor from the merged reference's two halves (``core.study.reference.noise_floor``);
 - the two-seed noise floor of the comparison (single against single), which the halves' floor
   stands for.
 
@@ -42,10 +42,11 @@ def main(argv=None) -> int:
     from sss_lab.blender.reference import render_reference_parts
     from sss_lab.blender.render_passes import render_passes
     from sss_lab.blender.samples import load_sample_scenes
-    from sss_lab.core import exr, metrics, png
-    from sss_lab.core import reference as ref
-    from sss_lab.core import sequence as core_sequence
-    from sss_lab.core.progress import saved_line
+    from sss_lab.core.base.progress import saved_line
+    from sss_lab.core.pipeline import sequence as core_sequence
+    from sss_lab.core.scene import exr
+    from sss_lab.core.study import metrics, png
+    from sss_lab.core.study import reference as ref
 
     size = resolution(parser, args.resolution)
     work = tempfile.mkdtemp(prefix="sss_lab_seed_split_")

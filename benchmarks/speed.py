@@ -1,9 +1,9 @@
 """Speed of the four techniques on both backends: ``make bench`` (``python -m benchmarks.speed``).
 
-Inputs are the synthetic plane-and-spheres passes of ``core/synthetic.py`` (perspective camera,
+Inputs are the synthetic plane-and-spheres passes of ``core/study/synthetic.py`` (perspective camera,
 35 mm lens), with the background replaced by the plane's depth so that the full-screen case
 really covers every pixel. Cases per technique and backend (compiled ``numba``, reference
-``numpy``; ``core.backend``):
+``numpy``; ``core.compute.backend``):
 
 - full screen at 1920 x 1080 (the goals' resolution), on two threads and on one;
 - 25 % mask: the central rectangle of half the width and half the height;
@@ -18,11 +18,11 @@ really covers every pixel. Cases per technique and backend (compiled ``numba``, 
   (loading), at 64 x 48;
 - where the compiled backend's full-screen time goes: each kernel, and the NumPy work around
   them (``profile, full screen``);
-- the diffusions' energy stage on its own (``energy_stage``: ``core.energy.apply_energy`` at its
+- the diffusions' energy stage on its own (``energy_stage``: ``core.optics.energy.apply_energy`` at its
   default "object" on Burley's result, the Random Walk medium, full screen and 25 % mask at
   1080p, two threads, on both backends, fastest of two: its table reads and curvature are
   compiled, the rest is NumPy); the cases above leave it out;
-- what ``core.apply.apply`` costs per frame with each technique at its defaults on the synthetic
+- what ``core.pipeline.apply.apply`` costs per frame with each technique at its defaults on the synthetic
   scene's own description (``whole_frame``: the energy stage, the passes' checks, one call per
   material and the compositing included), compiled backend, two threads.
 
@@ -31,7 +31,7 @@ kernel (16 d) spans about 30 pixels at the spheres' depth: a face in a close-up;
 taps (pre-integrated kernel, built once outside the timing, as a renderer would cache it), Burley
 with 32 samples; STA with the scene's two sun lights, through a Random Walk medium (its default
 falloff, ``STA_MEDIUM``); the combined technique as Burley's case plus its light from behind
-through the same Random Walk medium (``COMBINED_MEDIUM``: ``core.combined.transmission``, with its
+through the same Random Walk medium (``COMBINED_MEDIUM``: ``core.techniques.combined.technique.transmission``, with its
 lateral spread), with the energy stage left out as in the other cases (``energy="lambert"``: the
 kernels' time). Each case runs ``--repeat`` times, the 1080p ones also until they have taken
 ``FLOOR_S`` (4K: fewer for NumPy; the NumPy combined technique, 10 s a call at 1080p, once per
@@ -63,13 +63,15 @@ import tracemalloc
 import numpy as np
 
 from benchmarks._common import add_options, resolution, write_results
-from sss_lab.core import _arrays, backend, kernels
-from sss_lab.core.burley import burley
-from sss_lab.core.combined import combined
-from sss_lab.core.energy import apply_energy
-from sss_lab.core.ssss import ssss
-from sss_lab.core.sta import sta
-from sss_lab.core.synthetic import PLANE_Z, sphere_scene
+from sss_lab.core.base import arrays as _arrays
+from sss_lab.core.compute import backend
+from sss_lab.core.optics import kernels
+from sss_lab.core.optics.energy import apply_energy
+from sss_lab.core.study.synthetic import PLANE_Z, sphere_scene
+from sss_lab.core.techniques.burley.technique import burley
+from sss_lab.core.techniques.combined.technique import combined
+from sss_lab.core.techniques.ssss.technique import ssss
+from sss_lab.core.techniques.sta.technique import sta
 
 #: Goals on this project's 2-core machine (issue 15), at 1920 x 1080, in milliseconds (the issue
 #: sets none for the combined technique: its time is reported without a goal).
@@ -78,7 +80,7 @@ MASK_RATIO_GOAL = 0.30
 THREAD_SCALING_GOAL = 1.7
 SCALE_4K_GOAL = 4.3
 D_SU = (0.004, 0.0016, 0.0008)
-#: STA's default falloff filters its light through the material (core/sta.py): a Random Walk skin
+#: STA's default falloff filters its light through the material (core/techniques/sta/technique.py): a Random Walk skin
 #: with the same lengths, the thickness map read against a 5 cm bake distance.
 STA_MEDIUM = {
     "mfp_su": D_SU,
@@ -186,7 +188,7 @@ def _cases(width: int, height: int):
 
 
 def energy_stage(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
-    """Wall and CPU time of the energy stage alone (``core.energy.apply_energy``, "object") on
+    """Wall and CPU time of the energy stage alone (``core.optics.energy.apply_energy``, "object") on
     Burley's result, with the passes and medium of the combined case, fastest of ``repeat``, on
     each backend of ``names``."""
     passes, scene, depth, normal, masks = _inputs(width, height)
@@ -213,17 +215,17 @@ def energy_stage(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
 
 
 def whole_frame(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
-    """What ``core.apply.apply`` costs per frame with each technique at its defaults, on the
+    """What ``core.pipeline.apply.apply`` costs per frame with each technique at its defaults, on the
     compiled backend (the default): the synthetic passes and scene description of
-    ``core.synthetic.sphere_scene`` (a Christensen-Burley skin sphere and a Random Walk wax one
+    ``core.study.synthetic.sphere_scene`` (a Christensen-Burley skin sphere and a Random Walk wax one
     on a plain plane), two threads and one (its wall and CPU time: on a busy machine the CPU time
     of one thread is the steadier figure), fastest of ``repeat`` calls and at least ``FLOOR_S``; with
     the energy stage at its default ("object": without a bake distance, the entry's and the
     convex surface's gains), the passes' checks, one call per material and the compositing.
     ``profile``: where the time goes (each kernel, and the NumPy work around them)."""
-    from sss_lab.core.apply import apply
-    from sss_lab.core.exr import Passes
-    from sss_lab.core.synthetic import sphere_scene
+    from sss_lab.core.pipeline.apply import apply
+    from sss_lab.core.scene.exr import Passes
+    from sss_lab.core.study.synthetic import sphere_scene
 
     if "numba" not in names or backend.compiled() is None:
         return {}
@@ -275,7 +277,7 @@ def _best(fn, repeat: int, floor_s: float = 0.0) -> tuple[float, float]:
 
 def _profile(fn, repeat: int) -> dict:
     """Where a call's wall time goes on the compiled backend, fastest of ``repeat`` calls: each
-    compiled kernel (``core.backend.run_kernel``) and the rest, the NumPy work around them
+    compiled kernel (``core.compute.backend.run_kernel``) and the rest, the NumPy work around them
     (checking the inputs, the pixels that take part, the footprint, tables)."""
     best: dict | None = None
     original = backend.run_kernel

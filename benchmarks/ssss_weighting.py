@@ -17,8 +17,9 @@ import time
 
 from benchmarks import speed
 from benchmarks._common import add_options, resolution, write_results
-from sss_lab.core import backend, kernels
-from sss_lab.core.ssss import ssss
+from sss_lab.core.compute import backend
+from sss_lab.core.optics import kernels
+from sss_lab.core.techniques.ssss.technique import ssss
 
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "ssss_weighting.json")
 WEIGHTINGS = ("screen", "surface")

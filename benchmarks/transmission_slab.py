@@ -6,7 +6,7 @@ to the normal): a 40 x 40 cm slab, x thick, under a sun of strength 1 shining st
 from behind, a black world, an orthographic camera looking at the middle 2 cm of the front face
 (16 x 16 px). Cycles (the material's own
 subsurface method) gives the front's radiance; the model gives W x (1 / pi) x T_c(x), with T_c
-the random walk's slab transmittance (``core/transmittance.py``; Christensen-Burley: Burley's
+the random walk's slab transmittance (``core/optics/transmittance.py``; Christensen-Burley: Burley's
 law) and W the exit weight read from the Diffuse Color pass (``core.optics.medium.exit_weight``). The
 previous model, Burley's law with the diffusion's d and no exit weight, is listed beside it.
 
@@ -67,9 +67,9 @@ def _measure_one(name, material, mm: float, view: float, samples: int) -> dict:
     from sss_lab.blender.describe import describe_scene
     from sss_lab.blender.reference_cache import cached_reference
     from sss_lab.blender.render_passes import render_passes
-    from sss_lab.core import exr
-    from sss_lab.core.mapping import burley_d, mean_free_path
     from sss_lab.core.optics.medium import burley_transmittance_rgb, exit_weight, medium_of, slab_transmittance_rgb
+    from sss_lab.core.pipeline.mapping import burley_d, mean_free_path
+    from sss_lab.core.scene import exr
 
     from .fidelity import scenes as suite
 

@@ -1,6 +1,6 @@
 """Apply a technique to a passes EXR from inside Blender and load the result as an image.
 
-``apply_passes(path, technique, ...)`` runs ``core.sequence.apply_file`` (NumPy, the same code as
+``apply_passes(path, technique, ...)`` runs ``core.pipeline.sequence.apply_file`` (NumPy, the same code as
 ``python -m sss_lab apply``), which writes ``<stem>.sss.exr`` beside the passes, and loads the
 result as a Blender image (a new data-block, or the same one reloaded when applied again).
 """
@@ -11,8 +11,8 @@ import os
 
 import bpy
 
-from ..core.sequence import apply_file, default_output
-from ..core.techniques import check_technique
+from ..core.pipeline.sequence import apply_file, default_output
+from ..core.techniques.registry import check_technique
 
 
 def load_result_image(path: str):

@@ -5,14 +5,14 @@ operator ``bpy.ops.sss_lab.bake_thickness`` (``operators/thickness.py``) wraps i
 step, Esc cancels between objects, Blender's progress API) and blocking headless.
 
 How: a temporary material — Ambient Occlusion node (Inside, Only Local per setting) into an
-Emission shader, inverted for the translucency convention (``core/thickness.py`` explains the
+Emission shader, inverted for the translucency convention (``core/scene/thickness.py`` explains the
 values) — replaces the object's materials while Cycles bakes the Emit pass; then everything is
 put back (``SceneState``): render engine, samples, film exposure, bake settings, materials,
 visibility, selection and active object, also when a bake fails or the batch is cancelled.
 
 With ``BakeSettings.source`` "ray" (attribute target) there is no Cycles bake: ``ray_thickness``
 casts rays inwards along the normals around each vertex and the map holds the AO a slab of the
-shortest distance found would bake (``core/thickness.py`` ``SOURCES``).
+shortest distance found would bake (``core/scene/thickness.py`` ``SOURCES``).
 
 What is baked is the mesh as Cycles renders it: modifiers applied with their render settings.
 Targets:
@@ -54,8 +54,8 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ..core import _files
-from ..core.thickness import (
+from ..core.base import files
+from ..core.scene.thickness import (
     IMAGE_FORMATS,
     SOURCES,
     BakeSettings,
@@ -580,13 +580,13 @@ class ThicknessBake:
         meta = dict(meta, file=filename, format=s.image_format, bit_depth=32 if s.image_format == "OPEN_EXR" else 16)
         previous = image.filepath_raw
         try:
-            with _files.temporary_beside(path) as tmp:
+            with files.temporary_beside(path) as tmp:
                 try:
                     compat.save_float_image(image, tmp, s.image_format)
                 except RuntimeError as exc:  # "Could not write image: Invalid argument" on a full disk
-                    raise _files.write_failure(path, exc) from None
-                _files.move_into_place(tmp, path)
-            _files.write_text(sidecar, json.dumps(meta, indent=2, sort_keys=True))
+                    raise files.write_failure(path, exc) from None
+                files.move_into_place(tmp, path)
+            files.write_text(sidecar, json.dumps(meta, indent=2, sort_keys=True))
         except BaseException:
             image.filepath_raw = previous
             raise

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import bpy
 
-from ..core.thickness import BakeSettings
+from ..core.scene.thickness import BakeSettings
 from . import compat
 from .state import SceneState
 from .stored import thickness_metadata

@@ -2,7 +2,7 @@
 
 ``calibrate(scene)`` renders the scene's own view twice — Cycles random walk at a few dozen
 samples (fixed seed, adaptive sampling off, docs/references.md §8) and the passes the techniques
-need — fits per material and technique with ``core.fit.fit_scene``, and stores the fitted values
+need — fits per material and technique with ``core.study.fit.fit_scene``, and stores the fitted values
 on each material as custom properties ``sss_lab_fit_<technique>_<parameter>`` (plus
 ``sss_lab_fit_<technique>_info``, a JSON string with the samples and the held-out errors;
 ``blender/stored.py`` reads and writes them). The scene description reads them back
@@ -24,9 +24,13 @@ import time
 
 import bpy
 
-from ..core import backend, exr
-from ..core.errors import InputError
-from ..core.fit import (
+from ..core.base.errors import InputError
+from ..core.compute import backend
+from ..core.pipeline.fit_params import FIT_PARAMETERS
+from ..core.pipeline.sequence import load_scene
+from ..core.scene import exr
+from ..core.scene.scene import parse_resolution
+from ..core.study.fit import (
     BOX,
     BUDGET,
     MAX_SAMPLES,
@@ -36,10 +40,7 @@ from ..core.fit import (
     more_samples,
     refused_pairs,
 )
-from ..core.fit_params import FIT_PARAMETERS
-from ..core.scene import parse_resolution
-from ..core.sequence import load_scene
-from ..core.techniques import TECHNIQUES
+from ..core.techniques.registry import TECHNIQUES
 from .describe import sss_materials
 from .jobs import Job, Steps, run
 from .reference_cache import render_combined
@@ -58,7 +59,7 @@ _STARTED: set = set()
 
 def _start_up(techniques) -> dict:
     """What a process does once before its first fit of ``techniques``, done on the small synthetic
-    frame ``core.prepare`` compiles the kernels on (``synthetic_frame``): importing the fit's modules,
+    frame ``core.study.prepare`` compiles the kernels on (``synthetic_frame``): importing the fit's modules,
     loading (or compiling) the compiled kernels, building the energy stage's and the light from
     behind's tables. Returns {"start_up": its seconds} ({} when nothing was left to do); the fit
     that follows then takes what it takes on every later call, which is what ``calibrate``'s
@@ -66,8 +67,8 @@ def _start_up(techniques) -> dict:
     todo = tuple(t for t in techniques if t not in _STARTED)
     if not todo:
         return {}
-    from ..core import fit as core_fit
-    from ..core.prepare import synthetic_frame
+    from ..core.study import fit as core_fit
+    from ..core.study.prepare import synthetic_frame
 
     start = time.perf_counter()
     # The frame with a bake distance, so that the combined technique's light from behind runs too.
@@ -176,7 +177,7 @@ def _more_samples(
 ):
     """The steps after a first fit some of whose fits the held-out check refused (the render may
     be too noisy for them): a one-sample pilot render, then, if the cost stays within the budget
-    (``core.fit.more_samples``), more samples and a second fit of the refused materials on the two
+    (``core.study.fit.more_samples``), more samples and a second fit of the refused materials on the two
     renders' mean. ``render(samples, seed, path)``: a timed random-walk render; ``fit(reference,
     samples=, only=)``: the first fit's ``fit_scene`` on other samples. Adds the second fit's
     results to ``results``; a job's steps, returning the problems that stand after it."""
@@ -232,10 +233,10 @@ def calibrate_job(
     log=print,
 ) -> Job:
     """``calibrate`` as a job (``blender/jobs.py``): the random-walk render, the passes (16 samples
-    by default: the fit averages blocks (``core.fit.BOX``), and on the fidelity suite 16 and 64
+    by default: the fit averages blocks (``core.study.fit.BOX``), and on the fidelity suite 16 and 64
     samples give the same share of the error removed on frame A within 1 point,
     ``benchmarks/fit.py``), the fit; then, for the fits the held-out check refused (the render may
-    be too noisy for them), a one-sample pilot render and, when ``core.fit.more_samples`` finds
+    be too noisy for them), a one-sample pilot render and, when ``core.study.fit.more_samples`` finds
     the cost within ``budget`` of the render the fit stands in for, a render of ``max_samples`` -
     ``samples`` more samples (seed + 1) and a second fit of those materials on the two renders'
     mean. The budget counts the renders, the passes and the fits, not what a process does once

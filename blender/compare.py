@@ -9,10 +9,10 @@
 - peers: Cycles at lower sample counts, and Cycles' own Christensen-Burley method;
 - the passes the techniques need (``render_passes``: SSS rendered as plain diffuse), and the same
   passes at ``bias_samples`` to split each technique's error into bias and pass noise
-  (``core.metrics.split_error``);
+  (``core.study.metrics.split_error``);
 
-then applies every technique at several quality settings with ``core.apply``, and writes the
-report (``core.report``): metrics.json, report.md, report.html, grid.png, pareto.svg.
+then applies every technique at several quality settings with ``core.pipeline.apply``, and writes the
+report (``core.study.report``): metrics.json, report.md, report.html, grid.png, pareto.svg.
 
 The Cycles images come from ``blender.reference_cache``. The scene is left as it was
 (``SceneState``), also when a step fails. ``bpy.ops.sss_lab.compare`` (``operators/comparison.py``)
@@ -32,15 +32,17 @@ from dataclasses import asdict, dataclass, field
 import bpy
 import numpy as np
 
-from ..core import apply as core_apply
-from ..core import exr, fidelity, metrics, plan, report, sequence
-from ..core import reference as core_reference
-from ..core.errors import InputError, SSSLabError
-from ..core.progress import saved_line
-from ..core.scene import SUBSURFACE_METHODS, SceneDescription
-from ..core.spec import CALIBRATE_MAPPING, Technique
-from ..core.sweep import calibrate
-from ..core.techniques import TECHNIQUES, check_technique, get_spec
+from ..core.base.errors import InputError, SSSLabError
+from ..core.base.progress import saved_line
+from ..core.pipeline import apply as core_apply
+from ..core.pipeline import plan, sequence
+from ..core.scene import exr
+from ..core.scene.scene import SUBSURFACE_METHODS, SceneDescription
+from ..core.study import fidelity, metrics, report
+from ..core.study import reference as core_reference
+from ..core.study.sweep import calibrate
+from ..core.techniques.registry import TECHNIQUES, check_technique, get_spec
+from ..core.techniques.spec import CALIBRATE_MAPPING, Technique
 from . import compat
 from .describe import sss_materials
 from .jobs import Job, Steps, run
@@ -410,7 +412,7 @@ def _settings_data(settings: CompareSettings, materials, ref: np.ndarray, ref_se
 
 
 def _write(out_dir: str, data: dict, rows: _Rows, mask: np.ndarray, log) -> dict:
-    """Write the report folder (``core.report``): the rows in the order no SSS, the techniques,
+    """Write the report folder (``core.study.report``): the rows in the order no SSS, the techniques,
     Cycles' renders, the reference."""
     entries = rows.entries
     order = (
@@ -503,7 +505,7 @@ def _scene_label(scene) -> str:
 
 
 def _fidelity(desc: SceneDescription, techniques, notes: list) -> dict | None:
-    """The fidelity table of the techniques that can be measured (``core.fidelity``); each that
+    """The fidelity table of the techniques that can be measured (``core.study.fidelity``); each that
     fails is left out with a note. None when no material scatters or no technique could be."""
     try:
         material = _main_material(desc)

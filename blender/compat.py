@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import bpy
 
-from ..core.errors import SSSLabError
-from ..core.passes import PASSES
+from ..core.base.errors import SSSLabError
+from ..core.scene.passes import PASSES
 
 #: Oldest Blender this module knows how to drive (blender_manifest.toml says the same).
 MIN_VERSION = (4, 5, 0)
@@ -26,7 +26,7 @@ def is_supported() -> bool:
 
 # --- Subsurface methods -----------------------------------------------------------------------
 # The scene description and core/ name a method by its Cycles convention in Blender 5.x's words
-# (core.scene.SUBSURFACE_METHODS). 4.5's "Random Walk" is what 5.x calls "Random Walk (Legacy)"
+# (core.scene.scene.SUBSURFACE_METHODS). 4.5's "Random Walk" is what 5.x calls "Random Walk (Legacy)"
 # (mean free path = radius / 4 pi; 5.x converts it so when it opens a 4.5 file, and renders it
 # alike: docs/blender45.md); 4.5 has no counterpart of 5.x's new "Random Walk".
 
@@ -98,7 +98,7 @@ def set_multilayer_exr(image_settings, *, color_depth: str = "32") -> None:
 
 def exr_part_per_pass() -> bool:
     """Whether this Blender writes a multilayer EXR as one part per pass (5.x) rather than one
-    part holding every channel (4.5; ``core.exr`` reads both)."""
+    part holding every channel (4.5; ``core.scene.exr`` reads both)."""
     return bpy.app.version >= (5, 0, 0)
 
 

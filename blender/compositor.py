@@ -33,8 +33,8 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ..core.passes import THICKNESS, view_layer_flag
-from ..core.scene import SceneDescription
+from ..core.scene.passes import THICKNESS, view_layer_flag
+from ..core.scene.scene import SceneDescription
 from .describe import describe_scene, principled_node, sss_materials, world_corners
 from .stored import KEPT_WEIGHT
 from .thickness import thickness_aov_name, thickness_setup

@@ -1,4 +1,4 @@
-"""Read a Blender scene into SSS Lab's plain scene description (``core.scene``).
+"""Read a Blender scene into SSS Lab's plain scene description (``core.scene.scene``).
 
 Reads only; never changes the scene.
 """
@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.scene import Camera, Light, MaterialSSS, SceneDescription
+from ..core.scene.scene import Camera, Light, MaterialSSS, SceneDescription
 from . import compat
 from .stored import read_fit, thickness_metadata
 

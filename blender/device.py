@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import bpy
 
-from ..core.errors import InputError
+from ..core.base.errors import InputError
 
 #: Cycles devices: the CPU, or a GPU back-end of the Cycles preferences.
 DEVICES = ("CPU", "CUDA", "OPTIX", "HIP", "ONEAPI", "METAL")

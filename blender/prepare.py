@@ -1,9 +1,9 @@
 """The compiled kernels prepared in a background process once the extension is enabled.
 
 With an empty kernel cache, the first Apply of each technique waits while Numba compiles its
-kernels (``core/prepare.py``), and Blender does not redraw meanwhile. When the extension is
+kernels (``core/study/prepare.py``), and Blender does not redraw meanwhile. When the extension is
 registered in an interactive Blender and this version's kernels are not in the cache yet,
-``start`` runs ``core.prepare.prepare_kernels`` in a separate Python process (Blender's own
+``start`` runs ``core.study.prepare.prepare_kernels`` in a separate Python process (Blender's own
 interpreter, ``sys.executable``, at low priority), which fills the same cache folder; Blender
 goes on at once, and the panel says while it runs. Nothing starts in background Blender
 (``blender -b``: a render-farm task or a script, which can run ``sss_lab prepare`` itself), for
@@ -65,8 +65,8 @@ def start(package: str, cache_dir: str) -> subprocess.Popen | None:
     returns it (None when nothing was started)."""
     import bpy
 
-    from ..core import backend
-    from ..core.prepare import marker_path
+    from ..core.compute import backend
+    from ..core.study.prepare import marker_path
 
     if bpy.app.background or not package.startswith("bl_ext.") or running():
         return None

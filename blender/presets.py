@@ -1,8 +1,8 @@
-"""Set a material's Principled BSDF to a preset of ``core/presets.py``."""
+"""Set a material's Principled BSDF to a preset of ``core/study/presets.py``."""
 
 from __future__ import annotations
 
-from ..core.presets import get_preset
+from ..core.study.presets import get_preset
 from .describe import principled_node
 
 

@@ -3,7 +3,7 @@
 ``render_reference_parts(scene, out_dir, seeds=..., samples=...)`` renders the scene as it is
 (its own subsurface method), Combined only as the comparison reads it, once per seed, into
 ``reference_seed_#####.exr`` with a JSON beside it (samples, seed, frame, size, the scene's
-fingerprint). ``core.reference`` merges the parts into one reference of the summed samples and
+fingerprint). ``core.study.reference`` merges the parts into one reference of the summed samples and
 takes the noise floor from two halves of them; ``compare --reference`` uses the result.
 
 The render settings are those of the comparison's own reference (adaptive sampling, denoising
@@ -19,10 +19,10 @@ from collections.abc import Callable, Iterable
 
 import bpy
 
-from ..core._files import atomic_write, write_text
-from ..core.errors import InputError
-from ..core.progress import Progress, saved_line
-from ..core.reference import part_path, sidecar
+from ..core.base.errors import InputError
+from ..core.base.files import atomic_write, write_text
+from ..core.base.progress import Progress, saved_line
+from ..core.study.reference import part_path, sidecar
 from .reference_cache import render_combined, scene_fingerprint
 from .state import SceneState
 

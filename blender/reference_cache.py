@@ -18,7 +18,8 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ..core import _files, exr
+from ..core.base import files
+from ..core.scene import exr
 from . import compat
 from .describe import principled_node, scene_materials
 from .state import SceneState
@@ -243,18 +244,18 @@ def cached_reference(
     with SceneState() as state:
         if method is not None:
             _with_method(scene, method, state)
-        with _files.temporary_beside(path, suffix=".exr") as tmp:
+        with files.temporary_beside(path, suffix=".exr") as tmp:
             seconds = render_combined(scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state)
             try:
                 image = exr.read_passes(tmp)["Combined"]
             except (exr.DamagedFileError, exr.MissingPassError) as exc:
-                if _files.disk_full(tmp):
-                    raise _files.write_failure(path, exc) from None
+                if files.disk_full(tmp):
+                    raise files.write_failure(path, exc) from None
                 raise
-            _files.move_into_place(tmp, path)
+            files.move_into_place(tmp, path)
     # The metadata last, atomically: an entry without it is rendered again, never half-read.
     meta = {"seconds": seconds, "samples": samples, "seed": seed, "method": method}
-    _files.write_text(meta_path, json.dumps(meta))
+    files.write_text(meta_path, json.dumps(meta))
     return image, seconds, False
 
 

@@ -11,7 +11,7 @@ render or a save fails):
   the given seed, no denoising (Combined must hold the same noise as the diffuse passes the
   techniques subtract from it), no time limit, optionally a WxH resolution at 100 %.
 - Only the chosen view layer renders, with exactly the passes of
-  ``core.plan.required_passes`` for the techniques switched on and every other pass, shader
+  ``core.pipeline.plan.required_passes`` for the techniques switched on and every other pass, shader
   AOV and light group switched off (so a file holds what the techniques read, nothing else).
 - Every Principled BSDF of the scene's materials renders as plain diffuse: Subsurface Weight 0
   (its links cut), the way a real-time engine sees the material (docs/references.md §7: the
@@ -28,7 +28,7 @@ render or a save fails):
   use.) Subsurface materials without it are listed in the log; their thickness reads 0.
 
 Each frame's file is written under a temporary name and renamed when complete, read back with
-``core.exr.read_passes`` and checked (every needed pass present, nothing else, Material Index
+``core.scene.exr.read_passes`` and checked (every needed pass present, nothing else, Material Index
 values known to the scene description).
 """
 
@@ -43,15 +43,15 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ..core import _files
-from ..core.errors import DamagedFileError, OutputError, describe_os_error
-from ..core.passes import PASSES
-from ..core.plan import required_passes
-from ..core.progress import saved_line
-from ..core.scene import parse_resolution
-from ..core.sequence import frame_path, sidecar_path
-from ..core.techniques import TECHNIQUES, check_technique
-from ..core.thickness import CONVENTIONS
+from ..core.base import files
+from ..core.base.errors import DamagedFileError, OutputError, describe_os_error
+from ..core.base.progress import saved_line
+from ..core.pipeline.plan import required_passes
+from ..core.pipeline.sequence import frame_path, sidecar_path
+from ..core.scene.passes import PASSES
+from ..core.scene.scene import parse_resolution
+from ..core.scene.thickness import CONVENTIONS
+from ..core.techniques.registry import TECHNIQUES, check_technique
 from . import compat
 from .describe import describe_scene, sss_materials, walk_trees
 from .jobs import Job, Progress, run
@@ -191,7 +191,7 @@ def _object_indices(st: SceneState, scene) -> dict[str, int]:
 
 def _set_passes(st: SceneState, scene, layer, names: list[str], aov_name: str | None) -> None:
     """Exactly ``names`` on ``layer``: every other pass flag, AOV and light group off."""
-    # The view-layer flags of the pass table (core/passes.py); AOVs are set below.
+    # The view-layer flags of the pass table (core/scene/passes.py); AOVs are set below.
     flags: set[str] = set()
     for n in names:
         flag = PASSES[n].flag if n in PASSES else None
@@ -269,7 +269,7 @@ def _render(scene) -> None:
 
 def verify_passes(path: str, names: list[str], view_layer: str, indices: Iterable[int]) -> None:
     """Read ``path`` back: exactly the passes ``names``, and only known Material Index values."""
-    from ..core.exr import read_passes
+    from ..core.scene.exr import read_passes
 
     p = read_passes(path, view_layer)
     missing = [n for n in names if n not in p]
@@ -429,7 +429,7 @@ def _render_frame(scene, frame: int, exr: str, plan: _Plan) -> None:
     result = bpy.data.images.get("Render Result")
     if result is None:
         raise RuntimeError(f"frame {frame}: Blender produced no Render Result")
-    with _files.temporary_beside(exr, suffix=os.path.splitext(exr)[1]) as tmp:
+    with files.temporary_beside(exr, suffix=os.path.splitext(exr)[1]) as tmp:
         try:
             result.save_render(filepath=tmp, scene=scene)
             if os.path.getsize(tmp) == 0:
@@ -437,10 +437,10 @@ def _render_frame(scene, frame: int, exr: str, plan: _Plan) -> None:
             verify_passes(tmp, plan.names, plan.layer.name, [m.index for m in plan.materials])
         except (RuntimeError, DamagedFileError) as exc:
             # Blender's saver leaves a short file on a full disk instead of failing.
-            if _files.disk_full(tmp):
-                raise _files.write_failure(exr, exc) from None
+            if files.disk_full(tmp):
+                raise files.write_failure(exr, exc) from None
             raise
-        _files.move_into_place(tmp, exr)
+        files.move_into_place(tmp, exr)
 
 
 def render_passes_job(
@@ -460,7 +460,7 @@ def render_passes_job(
     (``blender/jobs.py``) with one step per frame; Render Passes runs it modal.
 
     Writes ``passes_####.exr`` (multilayer, float32) and ``passes_####.json`` (the scene
-    description, ``core.sequence.sidecar_path``) per frame and returns the paths written, EXR then
+    description, ``core.pipeline.sequence.sidecar_path``) per frame and returns the paths written, EXR then
     JSON per frame. ``frames``: frame numbers (default: the current frame). ``samples``,
     ``seed``: Cycles samples and seed (default: the scene's). ``resolution``: ``"WxH"`` or
     (W, H) rendered at 100 % (default: the scene's). ``view_layer``: name or ViewLayer
@@ -517,7 +517,7 @@ def render_passes_job(
             written.append(exr)
             say(saved_line(exr))
             json_path = sidecar_path(exr)
-            _files.write_text(json_path, description.to_json())
+            files.write_text(json_path, description.to_json())
             written.append(json_path)
             say(saved_line(json_path))
             say(f"frame {frame} done in {time.perf_counter() - t0:.2f} s")

@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib.util
 import os
 
-from ..core.errors import InputError
+from ..core.base.errors import InputError
 
 _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

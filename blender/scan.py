@@ -19,13 +19,14 @@ def scan_report(scene) -> list[str]:
 
 def recommend(scene, *, resolution=None, samples: int = 16, max_error: float | None = None, log=None) -> list[str]:
     """Per subsurface material of ``scene``, the technique and quality (a rung of its ladder)
-    ``apply --method auto`` would choose, and why (``core.auto``): renders the passes of the
+    ``apply --method auto`` would choose, and why (``core.pipeline.auto``): renders the passes of the
     scene's view once, small and at few samples (``resolution`` "WxH", default the scene's scaled
     so that its long side is at most 160 px), into a temporary folder; the scene is left as it
     was. Returns the lines to print."""
     import tempfile
 
-    from ..core import auto, exr, sequence
+    from ..core.pipeline import auto, sequence
+    from ..core.scene import exr
     from .render_passes import render_passes
 
     if sss_materials(scene) == []:

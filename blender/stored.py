@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from ..core.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
+from ..core.pipeline.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
 
 #: Custom-property prefix of the fitted values on a material.
 PREFIX = "sss_lab_fit_"
@@ -58,7 +58,7 @@ def read_fit(material) -> dict:
 
 
 def write_fit(material, technique: str, params: dict) -> None:
-    """Store ``params`` (``core/fit_params.py`` names, plus ``info``) on ``material`` for ``technique``,
+    """Store ``params`` (``core/pipeline/fit_params.py`` names, plus ``info``) on ``material`` for ``technique``,
     replacing that technique's earlier fit."""
     clear_fit(material, technique)
     for name, value in params.items():

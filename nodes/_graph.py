@@ -310,7 +310,7 @@ class Graph:
 
     def convolve(self, value, kernel_image, label: str = ""):
         """Convolve ``value`` (a colour) with a per-channel kernel image (Color kernel, not
-        normalized: the kernels of core.kernel_images sum to one per channel)."""
+        normalized: the kernels of core.optics.kernel_images sum to one per channel)."""
         kernel = self.image(kernel_image, label=f"{label} kernel" if label else "")
         node, image_in, kernel_in, output = compat.new_convolve(self.tree, color_kernel=True, normalize=False)
         self._place(node, label)

@@ -1,16 +1,17 @@
 """What the SSSS and Burley node groups share: their interface, the albedo modes, compositing.
 
 Both scatter the diffuse light E = diffuse + diffuse_indirect of the masked pixels with
-Convolve nodes and rebuild the image as ``core.apply`` does: on the mask,
+Convolve nodes and rebuild the image as ``core.pipeline.apply`` does: on the mask,
 Image - albedo x E + post x scatter(light), with (light, post) = (E, albedo) for
 ``albedo_mode`` "post" and (sqrt(albedo) E, sqrt(albedo)) for "pre-post".
 
-Masking, so that light neither leaves nor enters the mask (``core.ssss`` / ``core.burley``),
+Masking, so that light neither leaves nor enters the mask (``core.techniques.ssss.technique`` /
+``core.techniques.burley.technique``),
 with M the mask and conv a Convolve node:
 
-- SSSS, per 1-D pass (weight of taps off the mask goes to the centre pixel, as ``core.ssss``):
+- SSSS, per 1-D pass (weight of taps off the mask goes to the centre pixel, as ``core.techniques.ssss.technique``):
   pass(L) = conv(L M) + (1 - conv(M)) L;
-- Burley (taps off the mask are dropped and the rest renormalized, as ``core.burley``):
+- Burley (taps off the mask are dropped and the rest renormalized, as ``core.techniques.burley.technique``):
   conv(L M) / conv(M).
 
 Outside the image the Convolve node reads zeros, which the same formulas treat as pixels off
@@ -19,7 +20,7 @@ the mask.
 
 from __future__ import annotations
 
-from ..core.apply import ALBEDO_MODES
+from ..core.pipeline.apply import ALBEDO_MODES
 from . import _graph
 from ._graph import Interface, Socket
 

@@ -1,22 +1,23 @@
 """Burley as a compositor node group: one Convolve with a 2-D per-channel profile image.
 
 The kernel image is the Christensen-Burley profile of ``d_su`` integrated over each pixel at a
-fixed ``pixels_per_unit`` (``core.kernel_images.burley_kernel_image``): what ``core.burley.burley``
+fixed ``pixels_per_unit`` (``core.optics.kernel_images.burley_kernel_image``): what
+``core.techniques.burley.technique.burley``
 converges to with many samples on a constant-depth surface, without its sampling noise or
 banding. Off-mask pixels are dropped and the rest renormalized, conv(L M) / conv(M), as the
 NumPy estimator renormalizes rejected samples; masking and compositing: ``nodes/_scatter.py``.
 
-Differences from ``core.burley`` (measured in docs/compositor.md): one kernel size for the
+Differences from ``core.techniques.burley.technique`` (measured in docs/compositor.md): one kernel size for the
 whole image instead of one per pixel depth; no 3-D distance across depth jumps and no object-id
 rejection (only the mask separates surfaces); what lies off the mask is dropped whether it is in
-front of a pixel or behind it (``core.burley`` counts the pixel's own light for a sample hidden
+front of a pixel or behind it (``core.techniques.burley.technique`` counts the pixel's own light for a sample hidden
 by something in front); the exact profile instead of ``n_samples`` spiral samples
 (``n_samples``, ``random_rotation`` and ``seed`` do not apply).
 """
 
 from __future__ import annotations
 
-from ..core.kernel_images import burley_kernel_image
+from ..core.optics.kernel_images import burley_kernel_image
 from . import _graph, _scatter
 
 GROUP_NAME = "SSS Lab Burley"

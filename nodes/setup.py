@@ -18,11 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..blender import compat
-from ..core import mapping
-from ..core.passes import THICKNESS
-from ..core.scene import SceneDescription
-from ..core.sta import TECHNIQUE as STA
-from ..core.techniques import TECHNIQUES, check_technique
+from ..core.pipeline import mapping
+from ..core.scene.passes import THICKNESS
+from ..core.scene.scene import SceneDescription
+from ..core.techniques.registry import TECHNIQUES, check_technique
+from ..core.techniques.sta.technique import TECHNIQUE as STA
 from .burley import ensure_burley_group
 from .ssss import ensure_ssss_group
 from .sta import PARAM_SOCKETS as STA_PARAM_SOCKETS
@@ -46,7 +46,7 @@ INDEX_PASS = "Material Index"
 class ChainBuilder:
     """How one technique's node groups go into a compositor tree."""
 
-    #: Passes its groups read, by their Blender 5.x names (``core/passes.py``); ``THICKNESS``:
+    #: Passes its groups read, by their Blender 5.x names (``core/scene/passes.py``); ``THICKNESS``:
     #: the scene's thickness AOV. The mask needs the Material Index.
     passes: tuple[str, ...]
     #: True when it adds one group per material, each with its kernel at the material's fixed

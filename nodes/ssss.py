@@ -1,26 +1,26 @@
 """SSSS as a compositor node group: two 1-D Convolve passes with per-channel kernel images.
 
-The kernel is ``core.kernels.make_kernel`` (the same parameters, names and defaults as
-``core.ssss.ssss``: ``kernel_type``, ``n_taps``, ``d_su`` and the artist kernel's ``unit_su``,
+The kernel is ``core.optics.kernels.make_kernel`` (the same parameters, names and defaults as
+``core.techniques.ssss.technique.ssss``: ``kernel_type``, ``n_taps``, ``d_su`` and the artist kernel's ``unit_su``,
 ``falloff``, ``strength``), laid out at a fixed ``pixels_per_unit`` by
-``core.kernel_images.separable_kernel_image``: a 1-pixel-high image for the horizontal pass and
+``core.optics.kernel_images.separable_kernel_image``: a 1-pixel-high image for the horizontal pass and
 a 1-pixel-wide one for the vertical pass, each channel's weights in its colour channel (the
 Convolve node's Color kernel convolves R with R, G with G, B with B). The masking and compositing
 are in ``nodes/_scatter.py``.
 
-Differences from ``core.ssss`` (measured in docs/compositor.md): the kernel has one size for
+Differences from ``core.techniques.ssss.technique`` (measured in docs/compositor.md): the kernel has one size for
 the whole image (``pixels_per_unit`` at one depth) instead of scaling with each pixel's depth;
 no follow-surface (taps across a depth jump on the mask still count); at the image border taps
-off the image give their weight to the centre pixel (``core.ssss`` reads the edge pixel).
+off the image give their weight to the centre pixel (``core.techniques.ssss.technique`` reads the edge pixel).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..core.kernel_images import separable_kernel_image
-from ..core.kernels import check_taps, make_kernel
-from ..core.ssss import TECHNIQUE
+from ..core.optics.kernel_images import separable_kernel_image
+from ..core.optics.kernels import check_taps, make_kernel
+from ..core.techniques.ssss.technique import TECHNIQUE
 from . import _graph, _scatter
 
 GROUP_NAME = "SSS Lab SSSS"
@@ -63,7 +63,7 @@ def ensure_ssss_group(
     """The SSSS node group ``name`` for these kernel parameters, built or rebuilt in place
     (idempotent: the group, its nodes and its two kernel images are reused); returns it.
 
-    ``pixels_per_unit``: the kernel's fixed screen scale (``core.scene.Camera.pixels_per_unit``
+    ``pixels_per_unit``: the kernel's fixed screen scale (``core.scene.scene.Camera.pixels_per_unit``
     at the depth of the surface). The parameters are stored on the group (``group["sss_lab"]``).
     """
     h_img, v_img = ssss_kernel_images(

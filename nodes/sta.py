@@ -1,6 +1,6 @@
-"""STA as a compositor node group: ``core.sta`` for one light, out of Math and Vector Math nodes.
+"""STA as a compositor node group: ``core.techniques.sta.technique`` for one light, out of Math and Vector Math nodes.
 
-Per pixel, exactly the arithmetic of ``core.sta.sta`` (its docstring has the formulas): the light
+Per pixel, exactly the arithmetic of ``core.techniques.sta.technique.sta`` (its docstring has the formulas): the light
 direction and irradiance of one light (sun, point, spot or area, as ``core.optics.lights.light_at``),
 L_T = normalize(L + distortion N), T_dir = scale max(0, V . -L_T)^power, and
 albedo x light colour x (E / pi) x t x (T_dir + ambient) on the mask. Several lights: chain one
@@ -8,11 +8,11 @@ group per light (its Image output into the next one's Image input); ``setup.buil
 does that for the scene's lights.
 
 Inputs are the passes (Diffuse Color, Normal, Position, the thickness AOV), the mask, STA's
-parameters under the names, defaults and descriptions of its spec (``core.sta.TECHNIQUE``),
-the light (the fields of ``core.scene.Light``, prefixed ``light_``) and the camera (for the view
+parameters under the names, defaults and descriptions of its spec (``core.techniques.sta.technique.TECHNIQUE``),
+the light (the fields of ``core.scene.scene.Light``, prefixed ``light_``) and the camera (for the view
 vector). Outputs: ``Image`` = Image + SSS, and ``SSS``, the added translucency.
 
-Not as in NumPy: a pixel with a NaN or infinite input gives NaN here (``core.sta`` gives 0).
+Not as in NumPy: a pixel with a NaN or infinite input gives NaN here (``core.techniques.sta.technique`` gives 0).
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from __future__ import annotations
 import math
 
 from ..core.optics.lights import THICKNESS_CONVENTIONS
-from ..core.scene import CAMERA_TYPES, LIGHT_TYPES
-from ..core.sta import TECHNIQUE
+from ..core.scene.scene import CAMERA_TYPES, LIGHT_TYPES
+from ..core.techniques.sta.technique import TECHNIQUE
 from . import _graph
 from ._graph import Interface, Socket
 
@@ -29,7 +29,7 @@ GROUP_NAME = "SSS Lab STA"
 #: Version of the graph below; a group built by another version is rebuilt by ``ensure_sta_group``.
 VERSION = 1
 
-_LEN_EPS = 1e-6  # core.sta._EPS: below this |L + d N| has no direction and the light adds nothing
+_LEN_EPS = 1e-6  # core.techniques.sta.technique._EPS: below this |L + d N| has no direction and the light adds nothing
 
 #: STA's number parameters as group inputs, made from its parameter specs (the other, the
 #: falloff, is not modelled by the group: the compositor set-up warns).

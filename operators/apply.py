@@ -1,6 +1,6 @@
 """``bpy.ops.sss_lab.apply``: apply a technique to a passes EXR and look at the result.
 
-``blender.apply.apply_passes`` does the work: ``core.sequence.apply_file`` (NumPy, the same
+``blender.apply.apply_passes`` does the work: ``core.pipeline.sequence.apply_file`` (NumPy, the same
 code as ``python -m sss_lab apply``) writes ``<stem>.sss.exr`` beside the passes (the input
 layers plus ``SSSLab.<technique>.Image`` and ``.SSS``), and the result is loaded as a Blender
 image. The operator ``bpy.ops.sss_lab.apply`` takes the technique, its parameters and
@@ -14,8 +14,8 @@ from __future__ import annotations
 import bpy
 
 from ..blender.apply import apply_passes
-from ..core.apply import layer_names
-from ..core.techniques import check_technique
+from ..core.pipeline.apply import layer_names
+from ..core.techniques.registry import check_technique
 from .compositing import TECHNIQUE_ITEMS
 
 

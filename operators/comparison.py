@@ -8,7 +8,7 @@ import os
 import bpy
 
 from ..blender.compare import CompareSettings, compare_job
-from ..core.report_schema import Report
+from ..core.study.report_schema import Report
 from .modal import DialogModalJob
 
 

@@ -12,7 +12,7 @@ import bpy
 
 from ..blender import compat
 from ..blender.compositor import prepare_scene
-from ..core.techniques import DEFAULT_TECHNIQUE, TECHNIQUES
+from ..core.techniques.registry import DEFAULT_TECHNIQUE, TECHNIQUES
 from ..nodes import setup as chain
 
 #: A technique dropdown whose first entry defers to the panel's choice (Set Up Compositor, Apply).

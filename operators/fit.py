@@ -12,7 +12,7 @@ import bpy
 
 from ..blender.calibrate import calibrate_job
 from ..blender.stored import PREFIX, clear_fit
-from ..core.fit import BUDGET, MAX_SAMPLES, REFERENCE_SAMPLES
+from ..core.study.fit import BUDGET, MAX_SAMPLES, REFERENCE_SAMPLES
 from .modal import DialogModalJob
 
 

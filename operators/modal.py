@@ -18,7 +18,7 @@ from typing import Any
 import bpy
 
 from ..blender.jobs import Job, Progress, run
-from ..core.errors import SSSLabError
+from ..core.base.errors import SSSLabError
 
 
 class ModalJob:

@@ -1,11 +1,11 @@
-"""Apply a material preset (``core/presets.py``) to the active material's Principled BSDF."""
+"""Apply a material preset (``core/study/presets.py``) to the active material's Principled BSDF."""
 
 from __future__ import annotations
 
 import bpy
 
 from ..blender.presets import apply_preset
-from ..core.presets import PRESETS
+from ..core.study.presets import PRESETS
 
 _ITEMS = [(p.name, p.label, ("Measured: " if p.measured else "Artistic: ") + p.source) for p in PRESETS.values()]
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import bpy
 
 from ..blender.render_passes import NoSubsurfaceError, render_passes_job, resolve_folder
-from ..core.techniques import TECHNIQUES
+from ..core.techniques.registry import TECHNIQUES
 from .modal import ModalJob
 
 _TECHNIQUE_FLAGS = [(name, t.label, t.description) for name, t in TECHNIQUES.items()]

@@ -45,7 +45,7 @@ import sys
 #: Rays per vertex for the thickness bake of the sample scenes: enough for a smooth map on
 #: these meshes (the bake's own noise is a binomial of this many rays, sigma <= 0.5/sqrt(64)).
 THICKNESS_SAMPLES = 64
-#: The thickness AOV the techniques read (core/plan.py THICKNESS).
+#: The thickness AOV the techniques read (core/pipeline/plan.py THICKNESS).
 THICKNESS_AOV = "Thickness"
 
 
@@ -105,7 +105,7 @@ def _material(
 
     ``method`` (a scene-description name) defaults to this Blender's newest random walk. On
     Blender 4.5 that is the legacy random walk, whose mean free path is radius x scale / (4 pi)
-    (``core/mapping.py``): the scale is multiplied by 4 pi there, so that the material keeps its
+    (``core/pipeline/mapping.py``): the scale is multiplied by 4 pi there, so that the material keeps its
     mean free path on both versions."""
     import bpy
 
@@ -544,7 +544,7 @@ def _scatters(mat) -> bool:
 def _finish(scene) -> None:
     """Pass indices, the thickness AOV and the baked thickness of the SSS meshes."""
     from sss_lab.blender.bake import bake_thickness
-    from sss_lab.core.thickness import BakeSettings
+    from sss_lab.core.scene.thickness import BakeSettings
 
     materials = {slot.material.name: slot.material for o in scene.objects for slot in o.material_slots if slot.material}
     index = 0

@@ -76,7 +76,7 @@ def write_half(path: str, layers: dict[str, np.ndarray]) -> None:
     """Write RGB ``layers`` (name -> (H, W, 3) float) as half floats, ZIP compressed, atomically."""
     import OpenEXR
 
-    from sss_lab.core._files import atomic_write
+    from sss_lab.core.base.files import atomic_write
 
     channels = {}
     for name, image in layers.items():
@@ -172,7 +172,7 @@ def render(name: str, *, samples: int = SAMPLES, scenes=None, store: str = STORE
     manifest["scenes"][name] = entry
     manifest["scenes"] = dict(sorted(manifest["scenes"].items()))
     manifest["command"] = _regenerate(store).format(name="[SCENE ...]")
-    from sss_lab.core._files import write_text
+    from sss_lab.core.base.files import write_text
 
     write_text(manifest_path, json.dumps(manifest, indent=1) + "\n")
     log(f"Saved: {exr_path(name, store)} ({seconds} s)")

@@ -23,7 +23,7 @@ key and Cycles' passes are too (docs/references.md §13 says what varied before)
 
 Definitions (every figure of the outputs uses them):
 
-- **relative RMSE** (``core/metrics.py``, what ``compare`` reports): the root mean square of the
+- **relative RMSE** (``core/study/metrics.py``, what ``compare`` reports): the root mean square of the
   difference from the reference over the pixels of the subsurface materials (Material Index of a
   scattering material) and the three linear RGB channels, after 2 x 2 box downsampling of both
   images (a block counts when all four pixels are subsurface), divided by the reference's mean
@@ -44,7 +44,7 @@ Definitions (every figure of the outputs uses them):
   measurable, and "worse than no SSS" means worse by more than it.
 - **energy**: per subsurface material and channel, the sum of the image over the material's
   pixels divided by the reference's sum (1 = the same light; for the technique and no SSS).
-- **time**: seconds of the technique's ``core.apply`` on the default passes (one run, NumPy, a
+- **time**: seconds of the technique's ``core.pipeline.apply`` on the default passes (one run, NumPy, a
   loaded 2-core machine: indicative only; ``make bench`` measures speed).
 """
 
@@ -78,7 +78,7 @@ HIGH_SAMPLES = 256
 PASS_SEED = 7
 BOX = 2
 
-#: Each technique's qualities: its default first (``core/mapping.py``), then higher ones. A
+#: Each technique's qualities: its default first (``core/pipeline/mapping.py``), then higher ones. A
 #: registered technique not listed here runs at its default only.
 QUALITIES: dict[str, tuple[dict, ...]] = {
     "sta": ({}, {"falloff": "map"}),
@@ -88,7 +88,7 @@ QUALITIES: dict[str, tuple[dict, ...]] = {
 
 
 def quality_label(technique: str, quality: dict) -> str:
-    from sss_lab.core.techniques import TECHNIQUES
+    from sss_lab.core.techniques.registry import TECHNIQUES
 
     label = TECHNIQUES[technique].label
     if not quality:
@@ -133,8 +133,9 @@ def _passes(scene, key: str, samples: int, cache: str | None, log, *, seed: int 
     same ``key`` (scene, bake and seed) and samples. Returns (Passes, SceneDescription, seconds to
     render, from cache)."""
     from sss_lab.blender.render_passes import render_passes
-    from sss_lab.core import exr, sequence
-    from sss_lab.core.techniques import TECHNIQUES
+    from sss_lab.core.pipeline import sequence
+    from sss_lab.core.scene import exr
+    from sss_lab.core.techniques.registry import TECHNIQUES
 
     folder = os.path.join(cache or tempfile.mkdtemp(prefix="sss_lab_fidelity_"), f"{key}_{samples}")
     exr_path = os.path.join(folder, "passes_0001.exr")
@@ -186,7 +187,7 @@ class SceneData:
         self.reference_noise = 0.5 * self.noise_floor
 
     def score(self, image, *, against=None) -> dict:
-        from sss_lab.core import metrics
+        from sss_lab.core.study import metrics
 
         return metrics.compare_images(image, self.reference if against is None else against, self.mask, box=BOX)
 
@@ -239,7 +240,7 @@ _WARM: set[tuple] = set()
 
 
 def _apply(passes, desc, technique, quality):
-    from sss_lab.core import apply as core_apply
+    from sss_lab.core.pipeline import apply as core_apply
 
     # Untimed first call of each technique and quality: it compiles (or loads) the Numba kernels of
     # that quality's code path and builds its one-off tables (STA's medium falloff: the walk's).
@@ -257,7 +258,7 @@ def _apply(passes, desc, technique, quality):
 
 def split_error(error: float, error_high: float) -> tuple[float, float]:
     """(bias, pass noise) from the errors with the default and the high-sample passes."""
-    from sss_lab.core.metrics import split_error as split
+    from sss_lab.core.study.metrics import split_error as split
 
     return split(error, error_high, PASS_SAMPLES, HIGH_SAMPLES)
 
@@ -265,7 +266,7 @@ def split_error(error: float, error_high: float) -> tuple[float, float]:
 def score_scene(data: SceneData, *, qualities=None, log=print) -> dict:
     """Every technique at every quality on ``data``: the figures of the module docstring."""
     if qualities is None:
-        from sss_lab.core.techniques import TECHNIQUES
+        from sss_lab.core.techniques.registry import TECHNIQUES
 
         qualities = {t: QUALITIES.get(t, ({},)) for t in TECHNIQUES}
     none = data.score(data.passes["Combined"])["rel_rmse"]
@@ -328,9 +329,9 @@ def score_scene(data: SceneData, *, qualities=None, log=print) -> dict:
 
 
 def mapping_rows(data: SceneData, *, techniques=("ssss", "burley"), log=print) -> list[dict]:
-    """Each mapping from the Principled BSDF to d (``core.mapping.MAPPINGS``) for each subsurface
+    """Each mapping from the Principled BSDF to d (``core.pipeline.mapping.MAPPINGS``) for each subsurface
     method of the scene, with the scattering techniques at their default quality."""
-    from sss_lab.core.mapping import MAPPINGS
+    from sss_lab.core.pipeline.mapping import MAPPINGS
 
     rows = []
     for method in sorted({m.method for m in data.materials}):
@@ -349,7 +350,7 @@ def mapping_rows(data: SceneData, *, techniques=("ssss", "burley"), log=print) -
 def summarize_mappings(results: list[dict]) -> list[dict]:
     """Per subsurface method, technique and mapping: over the scenes with that method, the median
     error and the median of the error relative to the default mapping's (the first listed)."""
-    from sss_lab.core.mapping import MAPPINGS
+    from sss_lab.core.pipeline.mapping import MAPPINGS
 
     out = []
     for method, names in MAPPINGS.items():
@@ -422,7 +423,7 @@ def summarize(results: list[dict]) -> dict:
 
 
 def _grid(results: list[dict], path: str) -> None:
-    from sss_lab.core import png
+    from sss_lab.core.study import png
 
     columns = ["no SSS", *_techniques(results), "reference"]
     tiles = []
@@ -549,7 +550,8 @@ def markdown(data: dict) -> str:
         "",
         "## The mapping from the Principled BSDF to d, per subsurface method",
         "",
-        "Each mapping of `core/mapping.py` applied to the scenes that use the method (SSSS and Burley at their "
+        "Each mapping of `core/pipeline/mapping.py` applied to the scenes that use the method (SSSS and Burley"
+        " at their "
         "default quality, default passes): median relative RMSE, median ratio to the default mapping's error "
         "(below 1 = better than the default), and on how many of those scenes it was the best.",
         "",
@@ -613,7 +615,7 @@ def main(argv=None) -> int:
         choices=("ao", "ray"),
         default=None,
         help="the thickness bake's source (default: the bake's default for its attribute target, ray;"
-        " core/thickness.py)",
+        " core/scene/thickness.py)",
     )
     parser.add_argument("--out", default=RESULTS, help=f"JSON results (default {RESULTS})")
     parser.add_argument("--table", default=TABLE, help=f"Markdown table (default {TABLE})")
@@ -621,7 +623,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     import bpy
 
-    from sss_lab.core._files import write_text
+    from sss_lab.core.base.files import write_text
 
     module = _load_scenes_module(args.scenes_module)
     start = time.perf_counter()

@@ -76,7 +76,7 @@ class SuiteScene:
 
 
 # --- Materials: Base Color, Subsurface Radius (longest channel 1) and Scale (metres) ----------
-# Skin and marble from Jensen et al. 2001 (core/presets.py); wax and jade the presets' artistic
+# Skin and marble from Jensen et al. 2001 (core/study/presets.py); wax and jade the presets' artistic
 # values; milk an artistic choice too (a warm white whose red scatters furthest). Scales differ
 # per scene where a scene needs a longer path (the table above gives the result).
 
@@ -617,7 +617,7 @@ def bake(scene, source: str | None = None) -> list:
     ``THICKNESS_SAMPLES`` rays; ``source`` the bake's, its default by default); returns the bake results.
     Done after the fingerprint: the map changes what STA reads, not what Cycles renders."""
     from sss_lab.blender.bake import bake_thickness
-    from sss_lab.core.thickness import BakeSettings
+    from sss_lab.core.scene.thickness import BakeSettings
 
     settings = BakeSettings(target="attribute", samples=THICKNESS_SAMPLES, attribute_name=THICKNESS_AOV, source=source)
     return bake_thickness(scene, subsurface_objects(scene), settings, log=None)

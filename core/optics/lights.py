@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ..scene import Light
+from ..scene.scene import Light
 
 #: How a thickness map is read: 1 = thin ("translucency", the convention STA uses) or 1 = thick.
 THICKNESS_CONVENTIONS = ("translucency", "thickness")

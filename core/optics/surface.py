@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import _arrays
-from ..energy import view_cosine
-from ..scene import Camera
+from ..base import arrays
+from ..scene.scene import Camera
+from .energy import view_cosine
 
 #: ``surface_area`` is at most 1 / MIN_VIEW_COSINE: a pixel covers at most 5 times the surface of
 #: one facing the camera (a silhouette's pixel would otherwise weigh without bound).
@@ -17,7 +17,7 @@ MIN_VIEW_COSINE = 0.2
 def surface_area(depth, ok, camera: Camera) -> np.ndarray:
     """The surface each pixel of ``ok`` covers over that of a pixel at its place in the image on a
     plane at its depth facing the camera's axis: cos a / cos, with cos the view cosine from the
-    Depth pass (``core.energy.view_cosine``, on the pixels' bounding box) and a the angle of the
+    Depth pass (``core.optics.energy.view_cosine``, on the pixels' bounding box) and a the angle of the
     pixel's ray to the axis (0 for an orthographic camera), at most 1 / ``MIN_VIEW_COSINE``;
     float32 (H, W), C-contiguous; 1 elsewhere and where the view cosine is unknown (no neighbour
     on ``ok``: view_cosine's 1). A spiral sample stands for the screen area around it, which the
@@ -46,11 +46,11 @@ def surface_area(depth, ok, camera: Camera) -> np.ndarray:
 
 def surface_area_args(camera: Camera, shape, min_cos: float) -> tuple:
     """The compiled kernels' parameters of ``surface_area`` after the depth and ``ok``
-    (``core.compiled._area_at``): the background depth, whether the camera is orthographic, its
+    (``core.compute.compiled._area_at``): the background depth, whether the camera is orthographic, its
     pixels per unit (orthographic) or focal length in pixels, its principal point, as
     ``surface_area`` unprojects pixels, and the smallest view cosine ``min_cos``."""
     h, w = shape
     ortho = camera.type == "ORTHO"
     f = float(camera.ortho_px_per_unit if ortho else camera.focal_px)
     cx, cy = camera.principal_point(w, h)
-    return np.float32(_arrays.BACKGROUND_DEPTH), ortho, f, cx, cy, min_cos
+    return np.float32(arrays.BACKGROUND_DEPTH), ortho, f, cx, cy, min_cos

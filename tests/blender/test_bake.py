@@ -1,6 +1,6 @@
 """Thickness baking (blender/bake.py, operators/thickness.py) with Cycles on tiny meshes and images.
 
-Expected values come from the closed form of core/thickness.py (derived there from how
+Expected values come from the closed form of core/scene/thickness.py (derived there from how
 Cycles' AO node samples directions: cosine-weighted, returning the unoccluded fraction):
 on a face of a slab of thickness t, away from its rim by more than D, inside AO = (t/D)^2
 for t < D and 1 beyond, and the translucency convention stores 1 - AO.
@@ -32,7 +32,7 @@ from sss_lab.blender import compat
 from sss_lab.blender.bake import BakeError, bake_thickness
 from sss_lab.blender.bake_nodes import NODE_AOV, NODE_NAME
 from sss_lab.blender.stored import META_KEY, thickness_metadata
-from sss_lab.core.thickness import BakeSettings, binomial_sigma, slab_unoccluded_fraction
+from sss_lab.core.scene.thickness import BakeSettings, binomial_sigma, slab_unoccluded_fraction
 from sss_lab.operators.thickness import SSS_LAB_OT_bake_thickness
 
 D = 0.5  # AO distance of the analytic tests, scene units

@@ -11,7 +11,7 @@ from sss_lab.blender import calibrate as cal
 from sss_lab.blender import stored
 from sss_lab.blender.describe import sss_materials
 from sss_lab.blender.samples import load_sample_scenes
-from sss_lab.core.errors import InputError
+from sss_lab.core.base.errors import InputError
 
 
 @pytest.fixture(scope="module")
@@ -138,11 +138,11 @@ def _refusing(real, refuse: tuple[str, str]):
 
 def test_a_refused_fit_is_made_again_on_more_samples_within_the_budget(backlit, monkeypatch):
     """A fit the held-out check refuses gets a one-sample pilot render, and, when
-    ``core.fit.more_samples`` finds the cost within the budget, ``max_samples`` - ``samples`` more
+    ``core.study.fit.more_samples`` finds the cost within the budget, ``max_samples`` - ``samples`` more
     samples (another seed) and a second fit of that material and technique alone on the renders'
     mean: its stored fit says it was made on ``max_samples`` samples and the refusal's line is
     gone. With no budget, no second render: the line stays and another says why."""
-    from sss_lab.core import fit as core_fit
+    from sss_lab.core.study import fit as core_fit
 
     bpy.ops.wm.open_mainfile(filepath=backlit)
     scene = bpy.context.scene
@@ -182,7 +182,7 @@ def test_fit_to_cycles_shows_the_extra_steps_of_more_samples(backlit, modal, mon
     """The panel's operator when a fit is refused and more samples are within the budget (both
     simulated: the refusal, and ``more_samples``' answer): five steps, the progress bar begun
     again for five when the job finds the two more, and the fit made again on Up to's samples."""
-    from sss_lab.core import fit as core_fit
+    from sss_lab.core.study import fit as core_fit
     from sss_lab.operators.fit import SSS_LAB_OT_fit_to_cycles
 
     bpy.ops.wm.open_mainfile(filepath=backlit)

@@ -25,7 +25,7 @@ from sss_lab.blender import compat, reference_cache
 from sss_lab.blender.compare import CompareSettings, compare
 from sss_lab.blender.reference_cache import cached_reference
 from sss_lab.blender.samples import load_sample_scenes
-from sss_lab.core import mapping
+from sss_lab.core.pipeline import mapping
 
 pytestmark = pytest.mark.slow
 

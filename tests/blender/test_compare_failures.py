@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from sss_lab.blender import compare as compare_mod
-from sss_lab.core.exr import Passes
-from sss_lab.core.report_schema import Report
-from sss_lab.core.spec import Technique
-from sss_lab.core.synthetic import sphere_scene
-from sss_lab.core.techniques import Registry
+from sss_lab.core.scene.exr import Passes
+from sss_lab.core.study.report_schema import Report
+from sss_lab.core.study.synthetic import sphere_scene
+from sss_lab.core.techniques.registry import Registry
+from sss_lab.core.techniques.spec import Technique
 
 PASSES = ("Combined", "Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Depth", "Material Index")
 

@@ -11,7 +11,7 @@ import pytest
 
 from sss_lab.blender import compat
 from sss_lab.blender.describe import material_sss
-from sss_lab.core.scene import SUBSURFACE_METHODS
+from sss_lab.core.scene.scene import SUBSURFACE_METHODS
 
 IS_45 = bpy.app.version < (5, 0, 0)
 

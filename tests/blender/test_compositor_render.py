@@ -17,7 +17,7 @@ from sss_lab.addon import compositor_render
 from sss_lab.blender import compat
 from sss_lab.blender.reference_cache import cached_reference
 from sss_lab.blender.stored import KEPT_WEIGHT
-from sss_lab.core import exr
+from sss_lab.core.scene import exr
 from sss_lab.nodes import _graph
 from sss_lab.nodes.setup import NODE_TAG, group_name
 

@@ -9,8 +9,8 @@ from types import SimpleNamespace
 import bpy
 import pytest
 
-from sss_lab.core.passes import PASSES, THICKNESS
-from sss_lab.core.techniques import TECHNIQUES
+from sss_lab.core.scene.passes import PASSES, THICKNESS
+from sss_lab.core.techniques.registry import TECHNIQUES
 from sss_lab.nodes import setup as chain
 
 IDS = list(TECHNIQUES)

@@ -1,4 +1,4 @@
-"""core/exr.py against what bpy 5.2 really writes: a 64x48 Cycles render, 2 samples, multilayer
+"""core/scene/exr.py against what bpy 5.2 really writes: a 64x48 Cycles render, 2 samples, multilayer
 EXR with the passes the techniques use and a value AOV named Thickness; and Blender reading
 back the layers SSS Lab adds."""
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sss_lab.blender import compat
-from sss_lab.core.exr import read_layers, read_passes, write_layers
+from sss_lab.core.scene.exr import read_layers, read_passes, write_layers
 
 W, H = 64, 48
 

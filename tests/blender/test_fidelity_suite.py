@@ -78,7 +78,7 @@ def test_runner_scores_a_back_lit_scene(monkeypatch, tmp_path):
     assert result["noise_floor"] < 0.05 < rows[("none", True)]["rel_rmse"]
     # Back light: STA adds the light that went through the fins. Burley with the passes' energy
     # has none to scatter (the camera sees the unlit side) and removes nothing; with its default
-    # energy (core/energy.py) the thin fins pass the light of their unseen, lit side. `make
+    # energy (core/optics/energy.py) the thin fins pass the light of their unseen, lit side. `make
     # fidelity` measured 36 % (STA) and 78 % (Burley) with 64-sample passes; 0.2 and 0.5 leave
     # room for the noisier 16-sample passes.
     assert rows[("sta", True)]["removed"] > 0.2

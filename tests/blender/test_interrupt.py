@@ -14,7 +14,7 @@ import bpy
 import pytest
 
 from sss_lab.blender import compat
-from sss_lab.core.exr import read_passes
+from sss_lab.core.scene.exr import read_passes
 
 #: Seconds from SIGINT to the end of the process: the grace period (2 s) plus the exit itself,
 #: with room for a loaded 2-core machine.

@@ -1,30 +1,30 @@
 """The compositor node groups (nodes/) run by Blender's compositor headless, against the NumPy passes.
 
-Each case writes fixed passes (64 x 64) to a multilayer EXR with core.exr, reads it with an
+Each case writes fixed passes (64 x 64) to a multilayer EXR with core.scene.exr, reads it with an
 Image node (no Render Layers node, so Blender only composites), wires the technique's groups
 with ``nodes.setup.build_chain`` (the wiring the Set Up Compositor operator uses), renders one
-frame to a float32 EXR and reads it back. The NumPy result is ``core.apply.apply`` on the same
+frame to a float32 EXR and reads it back. The NumPy result is ``core.pipeline.apply.apply`` on the same
 passes with the same scene description and parameters.
 
 Where the tolerances come from:
 
-- STA, 1e-4 relative (the issue's bound): the group does core.sta's float32 arithmetic node by
+- STA, 1e-4 relative (the issue's bound): the group does core.techniques.sta.technique's float32 arithmetic node by
   node, so the two differ by float32 rounding (measured: below 1e-6 relative).
-- SSSS at constant depth: the kernel images hold exactly core.ssss's interpolation weights
-  (``core.kernel_images``) and the masking formula reproduces its "off-mask weight goes to the
+- SSSS at constant depth: the kernel images hold exactly core.techniques.ssss.technique's interpolation weights
+  (``core.optics.kernel_images``) and the masking formula reproduces its "off-mask weight goes to the
   centre" rule, so the two compute the same sums; what is left is float32 rounding and the
   Convolve node's FFT (round-off of order eps * log2(N) per convolution, eps = 6e-8, N about
   2^13 pixels of the padded 64 x 64 image, four convolutions in a chain: about 3e-6 of the
   image's largest value). Asserted: 1e-5 of the largest value, away from the image border (where
-  core.ssss reads the edge pixel and the Convolve node reads zeros; that difference is measured
+  core.techniques.ssss.technique reads the edge pixel and the Convolve node reads zeros; that difference is measured
   and printed).
-- Burley at constant depth: the group convolves with the exact profile, core.burley sums
+- Burley at constant depth: the group convolves with the exact profile, core.techniques.burley.technique sums
   ``n_samples`` spiral samples. Both are linear and shift-invariant there, so on a quadratic
   image their difference is fixed by their kernels' first and second moments:
   numpy - group = A (grad E . (m1_np - m1_K) + 1/2 tr(H (M2_np - M2_K))), with the NumPy
-  kernel measured as core.burley's response to an impulse. The tolerance is that prediction
+  kernel measured as core.techniques.burley.technique's response to an impulse. The tolerance is that prediction
   plus 1e-5 of the largest value (the FFT bound above). A textured image checks the group
-  against a NumPy model of the same convolutions (``core.kernel_images.correlate_zero``).
+  against a NumPy model of the same convolutions (``core.optics.kernel_images.correlate_zero``).
 - Depth-varying surfaces are measured and printed, not asserted (docs/compositor.md has the figures).
 """
 
@@ -37,13 +37,15 @@ import numpy as np
 import pytest
 
 from sss_lab.blender import compat
-from sss_lab.core import burley as np_burley
-from sss_lab.core import mapping, ssss, sta
-from sss_lab.core.apply import apply
-from sss_lab.core.exr import read_layers, read_passes, write_layers
-from sss_lab.core.kernel_images import burley_kernel_image, correlate_zero, separable_kernel_image
-from sss_lab.core.kernels import make_kernel
-from sss_lab.core.scene import Camera, Light, MaterialSSS, SceneDescription
+from sss_lab.core.optics.kernel_images import burley_kernel_image, correlate_zero, separable_kernel_image
+from sss_lab.core.optics.kernels import make_kernel
+from sss_lab.core.pipeline import mapping
+from sss_lab.core.pipeline.apply import apply
+from sss_lab.core.scene.exr import read_layers, read_passes, write_layers
+from sss_lab.core.scene.scene import Camera, Light, MaterialSSS, SceneDescription
+from sss_lab.core.techniques.burley import technique as np_burley
+from sss_lab.core.techniques.ssss import technique as ssss
+from sss_lab.core.techniques.sta import technique as sta
 from sss_lab.nodes import _graph
 from sss_lab.nodes.burley import ensure_burley_group
 from sss_lab.nodes.setup import NODE_TAG, build_chain, group_name, remove_chain
@@ -297,13 +299,13 @@ def test_ssss_flat_matches_numpy(tmp_path, options):
 # -- Burley -------------------------------------------------------------------------------------
 
 
-#: core.burley with the same spiral at every pixel: its gather is then one kernel, whose moments
+#: core.techniques.burley.technique with the same spiral at every pixel: its gather is then one kernel, whose moments
 #: this model uses (the default turns the spiral per pixel, a different kernel at each pixel).
 FIXED_SPIRAL = {"random_rotation": False, "smooth_px": 0}
 
 
 def _numpy_kernel_moments(d_su, n_samples=32):
-    """First and second moments of core.burley's gather kernel at constant depth (the fixed
+    """First and second moments of core.techniques.burley.technique's gather kernel at constant depth (the fixed
     spiral), measured as its response to an impulse (W[o] = out(q - o)); offsets (dx right, dy
     down) in pixels."""
     q = (H // 2, W // 2)

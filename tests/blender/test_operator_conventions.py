@@ -3,7 +3,7 @@ technique as a dropdown."""
 
 import bpy
 
-from sss_lab.core.techniques import TECHNIQUES
+from sss_lab.core.techniques.registry import TECHNIQUES
 
 #: Operators that change no Blender data (they read the scene, or write files only): no undo step.
 NO_DATA_CHANGE = {"scan_scene", "compare"}

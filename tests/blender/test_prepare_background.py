@@ -8,7 +8,7 @@ import pytest
 
 import sss_lab
 from sss_lab.blender import prepare
-from sss_lab.core import backend
+from sss_lab.core.compute import backend
 
 ROOT = os.path.dirname(os.path.abspath(sss_lab.__file__))
 
@@ -39,7 +39,7 @@ def test_the_background_process_fills_the_cache_under_the_packages_own_name():
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "combined: compiling or loading its kernels" in proc.stdout
     assert "kernels ready in" in proc.stdout
-    from sss_lab.core.prepare import marker_path, prepare_kernels
+    from sss_lab.core.study.prepare import marker_path, prepare_kernels
 
     assert os.path.isfile(marker_path())
     prepare_kernels()  # what it cached loads in this process

@@ -1,5 +1,5 @@
 """The reference rendered in parts by seed (``blender/reference.py``) and merged
-(``core/reference.py``) matches one render of all its samples within the noise floor.
+(``core/study/reference.py``) matches one render of all its samples within the noise floor.
 
 Small: ``head_frontlit`` (the demo scene) at 48 × 48, 4 parts of 32
 samples against one render of 128 samples, metric as in the comparison (relative RMSE over the
@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from sss_lab.blender.samples import load_sample_scenes
-from sss_lab.core import exr, metrics
-from sss_lab.core import reference as ref
-from sss_lab.core import sequence as core_sequence
+from sss_lab.core.pipeline import sequence as core_sequence
+from sss_lab.core.scene import exr
+from sss_lab.core.study import metrics
+from sss_lab.core.study import reference as ref
 
 SIZE = (48, 48)
 TASKS, SAMPLES = 4, 32
@@ -73,7 +74,7 @@ def test_merged_parts_match_one_render_of_all_the_samples_within_the_noise_floor
     floor = ref.noise_floor(merged, mask, box=2)["rel_rmse"]
     diff = metrics.compare_images(merged.image, single, mask, box=2)["rel_rmse"]
     # Both are unbiased estimates of the same image with about the same variance, so the
-    # expected ratio is 1 (core/reference.py); 1.5 leaves room for the sampling fluctuation of
+    # expected ratio is 1 (core/study/reference.py); 1.5 leaves room for the sampling fluctuation of
     # two RMSEs over a few hundred downsampled pixels and Cycles' heavier-than-Gaussian tails.
     print(f"merged vs single {diff:.4f}, noise floor from the halves {floor:.4f}")
     assert diff < 1.5 * floor, (diff, floor)
@@ -90,7 +91,7 @@ def test_skip_existing_keeps_finished_parts_and_refuses_different_ones(rendered)
     import bpy
 
     from sss_lab.blender.reference import render_reference_parts
-    from sss_lab.core.errors import InputError
+    from sss_lab.core.base.errors import InputError
 
     bpy.ops.wm.open_mainfile(filepath=str(rendered["work"] / "head.blend"), load_ui=False)
     scene = bpy.context.scene
@@ -117,7 +118,7 @@ def test_compare_uses_the_merged_reference_and_its_halves(rendered, capsys):
 
     from sss_lab.addon import cli
     from sss_lab.blender.compare import CompareSettings, compare
-    from sss_lab.core.errors import InputError
+    from sss_lab.core.base.errors import InputError
 
     merged_path = rendered["work"] / "merged" / "reference.exr"
     assert cli.main(["merge-reference", str(rendered["work"] / "parts"), "--out", str(merged_path)]) == 0

@@ -21,11 +21,11 @@ import pytest
 from sss_lab.blender import compat
 from sss_lab.blender import render_passes as rp
 from sss_lab.blender.render_passes import NoSubsurfaceError, needed_passes, render_passes
-from sss_lab.core.exr import read_layers, read_passes
-from sss_lab.core.plan import required_passes
-from sss_lab.core.presets import PRESETS, get_preset
-from sss_lab.core.scene import parse_resolution
-from sss_lab.core.sequence import load_scene, sidecar_path
+from sss_lab.core.pipeline.plan import required_passes
+from sss_lab.core.pipeline.sequence import load_scene, sidecar_path
+from sss_lab.core.scene.exr import read_layers, read_passes
+from sss_lab.core.scene.scene import parse_resolution
+from sss_lab.core.study.presets import PRESETS, get_preset
 
 SIZE = 64
 SAMPLES = 4
@@ -319,7 +319,7 @@ def test_sta_without_a_thickness_map_asks_to_bake_first(tmp_path):
 
 def test_sta_reads_a_baked_thickness_map_and_its_convention(tmp_path):
     from sss_lab.blender.bake import bake_thickness
-    from sss_lab.core.thickness import BakeSettings
+    from sss_lab.core.scene.thickness import BakeSettings
 
     scene = build_scene(thickness=False)
     settings = BakeSettings(target="attribute", convention="thickness", samples=4)
@@ -431,7 +431,10 @@ def test_apply_operator_without_passes_reports(addon):
         bpy.ops.sss_lab.apply(filepath="/nonexistent/passes.exr")
 
 
-@pytest.mark.skipif(not TECHNIQUES_PRESENT, reason="core/sta.py, core/ssss.py or core/burley.py is not written yet")
+@pytest.mark.skipif(
+    not TECHNIQUES_PRESENT,
+    reason="a technique module (core/techniques/<name>/technique.py) is not written yet",
+)
 @pytest.mark.parametrize("technique", ALL)
 def test_render_then_apply_round_trip(addon, tmp_path, technique):
     scene = build_scene()
@@ -533,7 +536,7 @@ def test_panel_options_are_taken_by_the_technique(addon, technique):
         pytest.skip(f"core/{technique}.py is not written yet")
     import inspect
 
-    from sss_lab.core.techniques import get_technique
+    from sss_lab.core.techniques.registry import get_technique
 
     params = inspect.signature(get_technique(technique)).parameters
     options = bpy.context.scene.sss_lab.technique_options(technique)

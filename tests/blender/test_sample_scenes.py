@@ -17,8 +17,8 @@ import pytest
 from sss_lab.blender import compat
 from sss_lab.blender.describe import material_sss, principled_node, sss_materials
 from sss_lab.blender.samples import load_sample_scenes
-from sss_lab.core import mapping
-from sss_lab.core.exr import read_passes
+from sss_lab.core.pipeline import mapping
+from sss_lab.core.scene.exr import read_passes
 
 scenes = load_sample_scenes()
 NAMES = list(scenes.SCENES)

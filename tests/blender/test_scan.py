@@ -67,7 +67,7 @@ def test_scan_recommend_renders_small_passes_and_leaves_the_scene_as_it_was(tmp_
     assert out.count("=> ") == len(sss_materials(scene))
     assert "light from behind B" in out and "diffusion D" in out
     # Each choice is no SSS or a run auto knows: a technique at one rung of its quality ladder.
-    from sss_lab.core import auto
+    from sss_lab.core.pipeline import auto
 
     for line in out.splitlines():
         if line.strip().startswith("=> "):

@@ -1,6 +1,6 @@
 """The comparison report as a web page, opened in real headless Chromium (Debian's package).
 
-The report is written by ``core.report.write_report`` from data shaped like a comparison's (a
+The report is written by ``core.study.report.write_report`` from data shaped like a comparison's (a
 baseline, techniques at several qualities, Cycles peers, the reference, the fidelity and
 calibration tables, an incomplete-report note), then loaded at a phone's and a desktop's width.
 Checked: every picture the page names loads, the inline Pareto plot renders with one dot per
@@ -15,7 +15,7 @@ import struct
 
 import numpy as np
 
-from sss_lab.core.report import write_report
+from sss_lab.core.study.report import write_report
 
 
 def _comparison_like(folder):

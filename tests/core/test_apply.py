@@ -1,5 +1,6 @@
-"""core/plan.py and core/apply.py: planning, compositing and the guards, on the analytic plane-and-spheres scene
-of core/synthetic.py (a plain material, index 1, and two scattering ones, indices 2 and 3).
+"""core/pipeline/plan.py and core/pipeline/apply.py: planning, compositing and the guards, on the analytic
+plane-and-spheres scene
+of core/study/synthetic.py (a plain material, index 1, and two scattering ones, indices 2 and 3).
 
 Compositing is checked with stand-in techniques whose output is known in closed form, so
 the expected images follow from the compositing formulas alone; the real techniques are run
@@ -13,14 +14,14 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core import plan as plan_mod
-from sss_lab.core.apply import apply
-from sss_lab.core.exr import MissingPassError, Passes
-from sss_lab.core.params import ENERGY_PARAM
-from sss_lab.core.plan import plan, required_passes
-from sss_lab.core.scene import MaterialSSS
-from sss_lab.core.synthetic import DEFAULT_MATERIALS, sphere_scene
-from sss_lab.core.techniques import TECHNIQUES
+from sss_lab.core.pipeline import plan as plan_mod
+from sss_lab.core.pipeline.apply import apply
+from sss_lab.core.pipeline.plan import plan, required_passes
+from sss_lab.core.scene.exr import MissingPassError, Passes
+from sss_lab.core.scene.scene import MaterialSSS
+from sss_lab.core.study.synthetic import DEFAULT_MATERIALS, sphere_scene
+from sss_lab.core.techniques.params import ENERGY_PARAM
+from sss_lab.core.techniques.registry import TECHNIQUES
 
 
 @pytest.fixture
@@ -54,7 +55,7 @@ class Recorder:
 
 
 class StubMapping:
-    """Parameters as core.mapping would give them; Burley's d is the Christensen-Burley method's
+    """Parameters as core.pipeline.mapping would give them; Burley's d is the Christensen-Burley method's
     radius / (4 pi) (docs/references.md §2)."""
 
     @staticmethod
@@ -77,7 +78,7 @@ def stub(monkeypatch):
     def stand_in(spec):
         # The technique's own signature, so that apply's signature checks see what it takes and a
         # call without a required keyword, or with one it does not take, fails as it would; without
-        # the energy stage (core/energy.py), which the stand-in does not model.
+        # the energy stage (core/optics/energy.py), which the stand-in does not model.
         signature = inspect.signature(spec.function)
         signature = signature.replace(parameters=[p for n, p in signature.parameters.items() if n != ENERGY_PARAM.name])
 

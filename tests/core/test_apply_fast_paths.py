@@ -1,4 +1,4 @@
-"""The short cuts core/apply.py and core/plan.py take on the usual, all-finite passes give the same
+"""The short cuts core/pipeline/apply.py and core/pipeline/plan.py take on the usual, all-finite passes give the same
 bits as the plain formulation: a finiteness test by a float sum, no cleaning copy of a finite pass,
 the diffuse light Combined holds taken on the material's box, one comparison per listed Material
 Index instead of sorting the map. The reference below is written out the long way, with boolean
@@ -10,13 +10,13 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core import _arrays
-from sss_lab.core.apply import apply
-from sss_lab.core.exr import Passes
-from sss_lab.core.extent import mask_extent_px
-from sss_lab.core.plan import plan
-from sss_lab.core.synthetic import sphere_scene
-from sss_lab.core.techniques import TECHNIQUES
+from sss_lab.core.base import arrays as _arrays
+from sss_lab.core.pipeline.apply import apply
+from sss_lab.core.pipeline.plan import plan
+from sss_lab.core.scene.exr import Passes
+from sss_lab.core.scene.extent import mask_extent_px
+from sss_lab.core.study.synthetic import sphere_scene
+from sss_lab.core.techniques.registry import TECHNIQUES
 
 F32_MAX = np.finfo(np.float32).max
 

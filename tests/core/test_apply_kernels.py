@@ -1,4 +1,4 @@
-"""``core.apply``'s compiled compositing and ``core.extent.group_extents``' split by comparisons
+"""``core.pipeline.apply``'s compiled compositing and ``core.scene.extent.group_extents``' split by comparisons
 give the same bits as their NumPy code, also on the values that take the other branches: results
 that are NaN, infinite or overflow with the gain, a fitted gain, channels left unchanged, -0 in
 Combined; labels too many or too spread for comparisons."""
@@ -6,9 +6,9 @@ Combined; labels too many or too spread for comparisons."""
 import numpy as np
 import pytest
 
-from sss_lab.core import apply as core_apply
-from sss_lab.core import backend
-from sss_lab.core.extent import group_extents
+from sss_lab.core.compute import backend
+from sss_lab.core.pipeline import apply as core_apply
+from sss_lab.core.scene.extent import group_extents
 
 needs_numba = pytest.mark.skipif(backend.compiled() is None, reason="Numba cannot load")
 
@@ -91,9 +91,9 @@ def test_plan_finds_each_index_as_the_int64_map_does(listed):
     with NaN, +-inf and values beyond int64 in the pass."""
     from dataclasses import replace
 
-    from sss_lab.core.exr import Passes
-    from sss_lab.core.plan import index_map, plan
-    from sss_lab.core.synthetic import sphere_scene
+    from sss_lab.core.pipeline.plan import index_map, plan
+    from sss_lab.core.scene.exr import Passes
+    from sss_lab.core.study.synthetic import sphere_scene
 
     arrays, scene = sphere_scene(48, 32)
     mi = arrays["Material Index"].copy()
@@ -118,7 +118,7 @@ def test_plan_finds_each_index_as_the_int64_map_does(listed):
 @pytest.mark.parametrize("n", [1, 2, 3, 4, 10, 11, 1000, 1001, 65536])
 def test_median_equals_numpy_median(n):
     """``_arrays.median`` (one selection) gives ``np.median``'s float, ties and spreads alike."""
-    from sss_lab.core import _arrays
+    from sss_lab.core.base import arrays as _arrays
 
     rng = np.random.default_rng(n)
     for scale in (1.0, 1e-30, 3e38):

@@ -1,7 +1,7 @@
-"""core/auto.py: the features, the choice, the composite and the learning of ``apply --method auto``.
+"""core/pipeline/auto.py: the features, the choice, the composite and the learning of ``apply --method auto``.
 
 Expected values come from independent computations: a naive loop for the masked box average, the
-combined technique's own transmission for the light from behind, ``core.apply.apply`` per
+combined technique's own transmission for the light from behind, ``core.pipeline.apply.apply`` per
 technique for the composite, and coefficients drawn at random for the learning."""
 
 import dataclasses
@@ -10,14 +10,14 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core import apply as core_apply
-from sss_lab.core import auto
-from sss_lab.core.errors import InputError
-from sss_lab.core.exr import Passes
-from sss_lab.core.mapping import burley_d
-from sss_lab.core.metrics import box_downsample
-from sss_lab.core.scene import Camera, MaterialSSS, SceneDescription
-from sss_lab.core.synthetic import sphere_scene
+from sss_lab.core.base.errors import InputError
+from sss_lab.core.pipeline import apply as core_apply
+from sss_lab.core.pipeline import auto
+from sss_lab.core.pipeline.mapping import burley_d
+from sss_lab.core.scene.exr import Passes
+from sss_lab.core.scene.scene import Camera, MaterialSSS, SceneDescription
+from sss_lab.core.study.metrics import box_downsample
+from sss_lab.core.study.synthetic import sphere_scene
 
 #: The Burley profile's mean distance in units of d: the first moment of (e^{-r/d} + e^{-r/3d}) / (4 d),
 #: (d^2 + 9 d^2) / (4 d) = 2.5 d.
@@ -138,9 +138,9 @@ def test_light_from_behind_is_the_combined_techniques_transmission():
     passes = Passes(arrays)
     wax = scene.materials[2]
     f = auto.features(passes, scene, wax)
-    from sss_lab.core.combined import transmission
-    from sss_lab.core.mapping import mean_free_path
     from sss_lab.core.optics.medium import medium_of
+    from sss_lab.core.pipeline.mapping import mean_free_path
+    from sss_lab.core.techniques.combined.technique import transmission
 
     mask = np.rint(arrays["Material Index"]) == wax.index
     # On the 2 x 2 block means wholly inside the material (the whole image's blocks).
@@ -323,8 +323,8 @@ def _cli(*args):
 
 
 def test_command_line_apply_auto_writes_the_auto_layers(tmp_path, capsys):
-    from sss_lab.core.exr import read_layers
-    from sss_lab.core.synthetic import write_scene
+    from sss_lab.core.scene.exr import read_layers
+    from sss_lab.core.study.synthetic import write_scene
 
     arrays, scene = _scene()
     path = write_scene(str(tmp_path / "passes.exr"), arrays, scene)
@@ -349,7 +349,7 @@ def test_command_line_apply_auto_writes_the_auto_layers(tmp_path, capsys):
     ],
 )
 def test_command_line_auto_bad_arguments_are_one_line(tmp_path, capsys, args, message):
-    from sss_lab.core.synthetic import write_scene
+    from sss_lab.core.study.synthetic import write_scene
 
     arrays, scene = _scene()
     path = write_scene(str(tmp_path / "passes.exr"), arrays, scene)
@@ -371,8 +371,8 @@ def test_keep_holds_an_earlier_choice_where_it_can_still_run():
 
 
 def test_command_line_auto_keeps_the_first_frames_choice_on_a_sequence(tmp_path, capsys):
-    from sss_lab.core.exr import read_layers
-    from sss_lab.core.synthetic import write_scene
+    from sss_lab.core.scene.exr import read_layers
+    from sss_lab.core.study.synthetic import write_scene
 
     arrays, scene = _scene()
     write_scene(str(tmp_path / "passes_0001.exr"), arrays, scene)
@@ -400,8 +400,8 @@ def test_costs_are_work_times_each_techniques_measured_rate():
 
 
 def test_view_energy_is_what_the_techniques_energy_convention_changes():
-    from sss_lab.core.combined import view_cosine
-    from sss_lab.core.energy import entry_gain
+    from sss_lab.core.optics.energy import entry_gain
+    from sss_lab.core.techniques.combined.technique import view_cosine
 
     arrays, scene = _scene()
     passes = Passes(arrays)
@@ -517,7 +517,7 @@ def test_costs_within_the_tolerance_count_as_equal_and_the_lower_error_decides()
 
 def test_the_features_block_means_are_the_error_measures_blocks():
     """With blocks of ``auto.BOX`` (the fidelity suite's size), ``auto._block_means`` takes the blocks
-    ``core.metrics.box_downsample`` takes, cropped alike, every pixel read, and their means to
+    ``core.study.metrics.box_downsample`` takes, cropped alike, every pixel read, and their means to
     float32's rounding: its float64 sum of four float32 values is exact, NumPy's float32 mean is
     within some 2^-24 times the block's size of it, and both are rounded to float32."""
     size = auto.BOX
@@ -535,7 +535,7 @@ def test_the_features_block_means_are_the_error_measures_blocks():
 def test_larger_blocks_are_read_at_the_centres_of_their_quarters(size):
     """A block larger than ``auto.BOX`` (a window wider than ``GRID`` blocks) is represented by the
     pixel at the centre of each of its ``BOX`` x ``BOX`` parts: the features read BOX^2 values per
-    block at any resolution. NaN and +-Inf read as 0, as ``core.apply.clean`` reads them; pixels
+    block at any resolution. NaN and +-Inf read as 0, as ``core.pipeline.apply.clean`` reads them; pixels
     between the samples are not read at all. Tolerance: float32 rounding of a float64 mean of four
     float32 values (exact sum), i.e. half a unit in the last place."""
     rng = np.random.default_rng(5)

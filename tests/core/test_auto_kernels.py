@@ -1,7 +1,7 @@
-"""core/auto.py's feature loops on the compiled backend (``core.compiled``: ``block_means``,
+"""core/pipeline/auto.py's feature loops on the compiled backend (``core.compute.compiled``: ``block_means``,
 ``blurred_change``, ``index_box``, ``index_window``).
 
-The core tests run in ``core.backend``'s check mode: every call below runs the kernel and the NumPy
+The core tests run in ``core.compute.backend``'s check mode: every call below runs the kernel and the NumPy
 reference and raises ``BackendMismatch`` unless they are equal to the bit. The expected values here
 come from independent computations (naive loops, NumPy's own ``rint`` and ``isfinite``), on inputs
 chosen for the cases the kernels treat apart: NaN and infinities, indices half-way between two
@@ -10,9 +10,10 @@ integers, windows at the frame's edges."""
 import numpy as np
 import pytest
 
-from sss_lab.core import auto, backend
-from sss_lab.core.exr import Passes
-from sss_lab.core.scene import Camera, SceneDescription
+from sss_lab.core.compute import backend
+from sss_lab.core.pipeline import auto
+from sss_lab.core.scene.exr import Passes
+from sss_lab.core.scene.scene import Camera, SceneDescription
 
 pytestmark = pytest.mark.skipif(backend.compiled() is None, reason="Numba is not available")
 

@@ -1,7 +1,7 @@
-"""core/auto.py as a chooser of qualities: each rung of a technique's quality ladder (and each
+"""core/pipeline/auto.py as a chooser of qualities: each rung of a technique's quality ladder (and each
 diffusion without its energy stage) is a candidate with its own coefficients and cost rate.
 
-Expected values come from the specs' own ladders, ``core.apply.apply`` run with the rung's
+Expected values come from the specs' own ladders, ``core.pipeline.apply.apply`` run with the rung's
 options for the composite, and models made up by hand so that the choice is known in advance."""
 
 import dataclasses
@@ -10,12 +10,12 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core import apply as core_apply
-from sss_lab.core import auto
-from sss_lab.core.errors import InputError
-from sss_lab.core.exr import Passes
-from sss_lab.core.synthetic import sphere_scene
-from sss_lab.core.techniques import TECHNIQUES, get_spec
+from sss_lab.core.base.errors import InputError
+from sss_lab.core.pipeline import apply as core_apply
+from sss_lab.core.pipeline import auto
+from sss_lab.core.scene.exr import Passes
+from sss_lab.core.study.synthetic import sphere_scene
+from sss_lab.core.techniques.registry import TECHNIQUES, get_spec
 
 
 def _scene(distance=0.5):
@@ -214,7 +214,7 @@ def test_a_technique_its_spec_keeps_out_of_auto_is_not_a_candidate(monkeypatch):
 
 def test_command_line_explain_lists_the_rungs_and_the_chosen_one(tmp_path, capsys):
     from sss_lab.addon.cli import main
-    from sss_lab.core.synthetic import write_scene
+    from sss_lab.core.study.synthetic import write_scene
 
     arrays, scene = sphere_scene(64, 48)
     path = write_scene(str(tmp_path / "passes.exr"), arrays, scene)

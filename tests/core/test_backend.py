@@ -1,4 +1,4 @@
-"""The compiled kernels (core/compiled.py) and their switch (core/backend.py): the check mode
+"""The compiled kernels (core/compute/compiled.py) and their switch (core/compute/backend.py): the check mode
 really compares, Numba's absence falls back to NumPy with one line, the cache is outside the
 package, and the kernels keep the reference's results on the benchmark's scene."""
 
@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 
 import sss_lab
-from sss_lab.core import backend, kernels
-from sss_lab.core.burley import burley
-from sss_lab.core.ssss import ssss
-from sss_lab.core.sta import sta
-from sss_lab.core.synthetic import sphere_scene
+from sss_lab.core.compute import backend
+from sss_lab.core.optics import kernels
+from sss_lab.core.study.synthetic import sphere_scene
+from sss_lab.core.techniques.burley.technique import burley
+from sss_lab.core.techniques.ssss.technique import ssss
+from sss_lab.core.techniques.sta.technique import sta
 
 ROOT = os.path.dirname(os.path.abspath(sss_lab.__file__))
 
@@ -85,9 +86,9 @@ def test_without_numba_numpy_runs_and_one_line_says_so():
         "            raise ImportError('blocked ' + name)\n"
         "sys.meta_path.insert(0, Block())\n"
         "import numpy as np\n"
-        "from sss_lab.core import backend\n"
-        "from sss_lab.core.scene import Camera\n"
-        "from sss_lab.core.burley import burley\n"
+        "from sss_lab.core.compute import backend\n"
+        "from sss_lab.core.scene.scene import Camera\n"
+        "from sss_lab.core.techniques.burley.technique import burley\n"
         "e = np.ones((8, 8, 3), np.float32)\n"
         "out = burley(diffuse=e, albedo=e, depth=np.full((8, 8), 2.0, np.float32), mask=np.ones((8, 8), bool),\n"
         "             camera=Camera(type='ORTHO', width_px=8, height_px=8, ortho_scale=8.0), d_su=(1.0, 1.0, 1.0))\n"
@@ -105,10 +106,10 @@ def test_without_numba_numpy_runs_and_one_line_says_so():
 def test_the_cache_is_written_outside_the_package(tmp_path):
     code = (
         "import numpy as np\n"
-        "from sss_lab.core import backend\n"
+        "from sss_lab.core.compute import backend\n"
         f"backend.set_cache_dir({str(tmp_path)!r})\n"
-        "from sss_lab.core.scene import Camera\n"
-        "from sss_lab.core.ssss import ssss\n"
+        "from sss_lab.core.scene.scene import Camera\n"
+        "from sss_lab.core.techniques.ssss.technique import ssss\n"
         "e = np.ones((8, 8, 3), np.float32)\n"
         "with backend.use('numba'):\n"
         "    ssss(diffuse=e, albedo=e, depth=np.full((8, 8), 2.0, np.float32), mask=np.ones((8, 8), bool),\n"
@@ -144,7 +145,7 @@ def test_one_cache_folder_serves_the_package_under_two_names(tmp_path):
         "sys.meta_path.insert(0, Block())\n"
         "sys.path.insert(0, sys.argv[1])\n"
         "import importlib\n"
-        "backend = importlib.import_module(sys.argv[2] + '.core.backend')\n"
+        "backend = importlib.import_module(sys.argv[2] + '.core.compute.backend')\n"
         f"backend.set_cache_dir({str(cache)!r})\n"
         "module = backend.compiled()\n"
         "assert module is not None, backend.unavailable_reason()\n"
@@ -158,7 +159,7 @@ def test_one_cache_folder_serves_the_package_under_two_names(tmp_path):
         assert proc.returncode == 0, proc.stderr[-3000:]
         module, value, folder = proc.stdout.split()
         # _exp is within 1 unit in the last place of float32 (its docstring): 2^-23 relative.
-        assert module == name + ".core.compiled" and float(value) == pytest.approx(math.exp(-0.5), rel=2.0**-23)
+        assert module == name + ".core.compute.compiled" and float(value) == pytest.approx(math.exp(-0.5), rel=2.0**-23)
         folders.append(folder)
     assert folders[0] != folders[1] and all(os.path.dirname(f) == str(cache) for f in folders)
 
@@ -179,7 +180,7 @@ def test_unknown_backend_names_the_value(monkeypatch):
 
 def test_object_extent_is_group_extents_for_one_group():
     # The lean extent (no index arrays, for the memory of 4K frames) equals the indexed one.
-    from sss_lab.core.extent import group_extents, object_extent
+    from sss_lab.core.scene.extent import group_extents, object_extent
 
     rng = np.random.default_rng(5)
     for _ in range(5):
@@ -193,7 +194,7 @@ def test_object_extent_is_group_extents_for_one_group():
 def test_sta_every_kind_of_light_and_power_matches_the_reference(power):
     # The kernel runs one loop per kind of light and per power (no pow for 0, 1 and 2): each
     # against the reference, with grey and coloured lights mixed, and every falloff.
-    from sss_lab.core.scene import Light
+    from sss_lab.core.scene.scene import Light
 
     passes, scene, albedo, normal = _scene(40, 30)
     above = (1, 0, 0, 0.2, 0, 1, 0, -0.1, 0, 0, 1, 3.0, 0, 0, 0, 1)
@@ -234,7 +235,7 @@ def test_burley_tiles_and_bands_match_the_reference(monkeypatch):
     # wider than a tile, cut into bands of 16 rows here, against the reference, with object ids
     # (whole packed rows) and the clean-up's margins across tiles and bands; then without ids
     # on a mask away from the frame's edges (packed columns around the mask only).
-    from sss_lab.core import burley as burley_module
+    from sss_lab.core.techniques.burley import technique as burley_module
 
     monkeypatch.setattr(burley_module, "_BAND_ROWS", 16)
     passes, scene, albedo, _ = _scene(300, 40)
@@ -259,7 +260,7 @@ def test_burley_bands_reuse_the_rows_they_share(monkeypatch):
     # pixels (margins shorter than a band, so that bands share some rows and not all), the result
     # is the one-band result to the bit (the same packed values), and the reference's (the
     # autouse fixture compares each call with the NumPy code).
-    from sss_lab.core import burley as burley_module
+    from sss_lab.core.techniques.burley import technique as burley_module
 
     passes, scene, albedo, _ = _scene(96, 64)
     args = dict(
@@ -287,7 +288,7 @@ def test_burley_bands_reuse_the_rows_they_share(monkeypatch):
 
 
 def test_sta_mask_spans_read_32_bytes_at_a_time_give_each_rows_first_and_last():
-    # The STA kernel finds each row's masked span 32 mask bytes at a time (core.compiled._bytes_span):
+    # The STA kernel finds each row's masked span 32 mask bytes at a time (core.compute.compiled._bytes_span):
     # the same (first, last + 1) as one byte at a time, on rows shorter and longer than 32, empty
     # (an empty span, first >= last + 1), full, and with the span's ends on and off the 32-byte steps.
     mod = backend.compiled()
@@ -309,7 +310,7 @@ def test_sta_mask_spans_read_32_bytes_at_a_time_give_each_rows_first_and_last():
 
 
 def test_sta_masks_of_every_shape_match_the_reference():
-    # Work items of core.compiled.STA_ROWS rows: rows with no masked pixel (whole rows of zeros),
+    # Work items of core.compute.compiled.STA_ROWS rows: rows with no masked pixel (whole rows of zeros),
     # items with none at all, and spans of different widths, against the reference.
     passes, scene, albedo, normal = _scene(70, 53)
     rng = np.random.default_rng(9)
@@ -326,7 +327,7 @@ def test_sta_masks_of_every_shape_match_the_reference():
 
 
 def test_sta_rows_wider_than_a_segment_match_the_reference_to_the_bit():
-    # core.compiled.sta_kernel takes a row's masked span STA_SEGMENT pixels at a time: spans
+    # core.compute.compiled.sta_kernel takes a row's masked span STA_SEGMENT pixels at a time: spans
     # that fill a row, cross the segments' border, start or end beside it, or lie beyond it,
     # against the reference (the same float32 operations in the same order: equal to the bit).
     seg = backend.compiled().STA_SEGMENT
@@ -362,9 +363,10 @@ def test_sta_rows_wider_than_a_segment_match_the_reference_to_the_bit():
 
 
 def test_spread_of_the_light_from_behind_matches_the_reference_to_the_bit():
-    # core.compiled.spread_light against core.combined's NumPy spread (check mode, bound 0): widths
+    # core.compute.compiled.spread_light against core.techniques.combined.technique's NumPy spread (check mode, bound
+    # 0): widths
     # from 0 to beyond the last level, a NaN width, a mask with holes, a frame not square.
-    from sss_lab.core.combined import spread_back_light
+    from sss_lab.core.techniques.combined.technique import spread_back_light
 
     rng = np.random.default_rng(4)
     e = rng.random((37, 150, 3)).astype(np.float32)
@@ -378,12 +380,12 @@ def test_spread_of_the_light_from_behind_matches_the_reference_to_the_bit():
 
 @pytest.mark.parametrize("kind", ("PERSP", "ORTHO"))
 def test_view_cosine_matches_the_reference_to_the_bit(kind):
-    # core.compiled.view_cosine against core.energy's NumPy code (check mode, bound 0): a sphere
+    # core.compute.compiled.view_cosine against core.optics.energy's NumPy code (check mode, bound 0): a sphere
     # scene's depth with holes in the mask, NaN, infinite, negative and background depths, a
     # lens shift, on the frame and on a window of it (origin and frame size).
     import dataclasses
 
-    from sss_lab.core import energy
+    from sss_lab.core.optics import energy
 
     passes, scene, _, _ = _scene(61, 43)
     camera = dataclasses.replace(scene.camera, type=kind, shift_x=0.07, shift_y=-0.03, ortho_scale=4.0)
@@ -406,13 +408,13 @@ def test_view_cosine_matches_the_reference_to_the_bit(kind):
 
 @pytest.mark.parametrize("kind", ("PERSP", "ORTHO"))
 def test_normal_view_cosine_matches_the_reference_to_the_bit(kind):
-    # core.compiled.normal_cosine against core.energy's NumPy code (check mode, bound 0, and the
+    # core.compute.compiled.normal_cosine against core.optics.energy's NumPy code (check mode, bound 0, and the
     # same pixels known): random normals of any length on a turned camera with a lens shift,
     # with NaN, infinite, zero, tiny and huge normals, holes in the mask, on the frame and on a
     # window of it.
     import dataclasses
 
-    from sss_lab.core import energy
+    from sss_lab.core.optics import energy
 
     passes, scene, _, _ = _scene(61, 43)
     a, b = math.radians(30.0), math.radians(-50.0)
@@ -441,9 +443,9 @@ def test_normal_view_cosine_matches_the_reference_to_the_bit(kind):
 
 
 def test_energy_table_reads_and_curvature_match_the_reference_to_the_bit():
-    # core.compiled.table_lerp, curvature_pixels and smooth_curvature against core.energy's NumPy
+    # core.compute.compiled.table_lerp, curvature_pixels and smooth_curvature against core.optics.energy's NumPy
     # code (check mode, bound 0), with values beyond the tables, NaN and infinite inputs.
-    from sss_lab.core import energy
+    from sss_lab.core.optics import energy
 
     rng = np.random.default_rng(6)
     a = rng.random((500, 3)) * 1.2 - 0.1
@@ -465,9 +467,9 @@ def test_energy_table_reads_and_curvature_match_the_reference_to_the_bit():
 
 
 def test_vector_length_is_numpys_norm_to_the_bit():
-    # _arrays.vector_length stands in for np.linalg.norm(v, axis=-1, keepdims=True) in the view
+    # arrays.vector_length stands in for np.linalg.norm(v, axis=-1, keepdims=True) in the view
     # vectors and the view cosine: the same bits, NaN, infinities, zeros and overflow included.
-    from sss_lab.core import _arrays
+    from sss_lab.core.base import arrays
 
     rng = np.random.default_rng(3)
     for shape in ((50, 37, 3), (7, 1, 3), (64, 3)):
@@ -478,7 +480,7 @@ def test_vector_length_is_numpys_norm_to_the_bit():
         v.reshape(-1, 3)[2] = 0.0
         with np.errstate(over="ignore", invalid="ignore"):
             expected = np.linalg.norm(v, axis=-1, keepdims=True)
-            got = _arrays.vector_length(v)
+            got = arrays.vector_length(v)
         assert got.dtype == expected.dtype == np.float32
         assert got.shape == expected.shape
         assert got.tobytes() == expected.tobytes()

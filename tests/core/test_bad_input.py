@@ -11,11 +11,11 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from sss_lab.core import sequence
-from sss_lab.core.errors import DamagedFileError, InputError, SSSLabError
-from sss_lab.core.exr import MissingPassError, read_layers, read_passes, write_layers
-from sss_lab.core.scene import SceneDescription
-from sss_lab.core.synthetic import sphere_scene, write_scene
+from sss_lab.core.base.errors import DamagedFileError, InputError, SSSLabError
+from sss_lab.core.pipeline import sequence
+from sss_lab.core.scene.exr import MissingPassError, read_layers, read_passes, write_layers
+from sss_lab.core.scene.scene import SceneDescription
+from sss_lab.core.study.synthetic import sphere_scene, write_scene
 
 
 @pytest.fixture
@@ -297,8 +297,8 @@ def test_a_huge_frame_range_is_refused_at_once():
 
 @pytest.mark.parametrize("depth", [0.0, -1.0, np.nan])
 def test_a_material_without_a_valid_depth_is_not_reported_computed(depth):
-    from sss_lab.core.exr import Passes
-    from sss_lab.core.plan import plan
+    from sss_lab.core.pipeline.plan import plan
+    from sss_lab.core.scene.exr import Passes
 
     arrays, scene = sphere_scene(width=16, height=12)
     arrays["Depth"] = np.full_like(arrays["Depth"], depth)

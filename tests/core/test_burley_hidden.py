@@ -6,9 +6,9 @@ renormalized. Every call runs on both backends (the autouse fixture of this fold
 import numpy as np
 import pytest
 
-from sss_lab.core.burley import burley
-from sss_lab.core.profiles import TRUNCATION
-from sss_lab.core.scene import Camera
+from sss_lab.core.optics.profiles import TRUNCATION
+from sss_lab.core.scene.scene import Camera
+from sss_lab.core.techniques.burley.technique import burley
 
 N = 96
 #: The columns left of EDGE hold the strip (off the mask unless a test says otherwise).

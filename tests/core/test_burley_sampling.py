@@ -5,9 +5,9 @@ shadow edges ("streaks", "stepping") at large footprints. Here: no banding from 
 import numpy as np
 import pytest
 
-from sss_lab.core.burley import burley
-from sss_lab.core.profiles import TRUNCATION
-from sss_lab.core.scene import Camera
+from sss_lab.core.optics.profiles import TRUNCATION
+from sss_lab.core.scene.scene import Camera
+from sss_lab.core.techniques.burley.technique import burley
 
 N = 128
 

@@ -1,5 +1,5 @@
 """``python -m sss_lab apply`` as a render farm runs it: a subprocess in which importing bpy
-fails, on passes written by core.exr from the analytic scene of core/synthetic.py."""
+fails, on passes written by core.scene.exr from the analytic scene of core/study/synthetic.py."""
 
 import dataclasses
 import hashlib
@@ -12,10 +12,10 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from sss_lab.core.exr import read_layers, read_passes
-from sss_lab.core.scene import SceneDescription
-from sss_lab.core.synthetic import sphere_scene, write_scene
-from sss_lab.core.techniques import TECHNIQUES
+from sss_lab.core.scene.exr import read_layers, read_passes
+from sss_lab.core.scene.scene import SceneDescription
+from sss_lab.core.study.synthetic import sphere_scene, write_scene
+from sss_lab.core.techniques.registry import TECHNIQUES
 
 _RUN_WITHOUT_BPY = """
 import runpy, sys
@@ -216,9 +216,9 @@ def test_skip_existing_resumes_a_chunk_and_says_what_it_kept(tmp_path):
 
 def test_param_sets_a_technique_parameter(passes_file, tmp_path):
     """--param reaches the technique: Burley at 4 samples differs from its default 32, and the
-    output equals core.apply at 4 samples."""
-    from sss_lab.core.apply import apply
-    from sss_lab.core.exr import Passes
+    output equals core.pipeline.apply at 4 samples."""
+    from sss_lab.core.pipeline.apply import apply
+    from sss_lab.core.scene.exr import Passes
 
     path, arrays, scene = passes_file
     out4, out32 = tmp_path / "n4.exr", tmp_path / "n32.exr"

@@ -10,8 +10,8 @@ import OpenEXR
 import pytest
 
 from sss_lab.addon import cli
-from sss_lab.core import sequence
-from sss_lab.core.synthetic import sphere_scene, write_scene
+from sss_lab.core.pipeline import sequence
+from sss_lab.core.study.synthetic import sphere_scene, write_scene
 
 
 @pytest.fixture
@@ -115,7 +115,7 @@ def test_after_ctrl_c_nothing_is_published_and_the_job_is_not_a_success(tmp_path
     import signal
 
     from sss_lab.addon.interrupt import interrupt_guard
-    from sss_lab.core import _files
+    from sss_lab.core.base import files
 
     target = tmp_path / "late.exr"
     with pytest.raises(KeyboardInterrupt):
@@ -125,12 +125,12 @@ def test_after_ctrl_c_nothing_is_published_and_the_job_is_not_a_success(tmp_path
             except KeyboardInterrupt:
                 pass  # swallowed, as Blender's callback does
             deadline = 0
-            while not _files.INTERRUPTED.is_set() and deadline < 500:  # the watcher thread sets it
+            while not files.INTERRUPTED.is_set() and deadline < 500:  # the watcher thread sets it
                 import time
 
                 time.sleep(0.01)
                 deadline += 1
             with pytest.raises(KeyboardInterrupt):
-                _files.write_text(str(target), "finished after the interrupt")
+                files.write_text(str(target), "finished after the interrupt")
     assert not target.exists() and os.listdir(tmp_path) == []
-    _files.INTERRUPTED.clear()
+    files.INTERRUPTED.clear()

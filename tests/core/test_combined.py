@@ -1,18 +1,18 @@
-"""core/combined.py: diffusion of the visible light plus Burley transmission of the light from
+"""core/techniques/combined/technique.py: diffusion of the visible light plus Burley transmission of the light from
 behind (docs/references.md §4, §9). Expected values come from the closed forms of the module
-docstring, evaluated independently in float64 (``core.profiles.burley_transmittance``)."""
+docstring, evaluated independently in float64 (``core.optics.profiles.burley_transmittance``)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from sss_lab.core.burley import burley
-from sss_lab.core.combined import back_irradiance, combined, transmission
 from sss_lab.core.optics.medium import Medium, slab_thickness
-from sss_lab.core.profiles import burley_transmittance
-from sss_lab.core.scene import Camera, Light
-from sss_lab.core.transmittance import trapezoid
+from sss_lab.core.optics.profiles import burley_transmittance
+from sss_lab.core.optics.transmittance import trapezoid
+from sss_lab.core.scene.scene import Camera, Light
+from sss_lab.core.techniques.burley.technique import burley
+from sss_lab.core.techniques.combined.technique import back_irradiance, combined, transmission
 
 
 @pytest.fixture(autouse=True)
@@ -21,7 +21,7 @@ def _stream_every_region(monkeypatch):
     as it does from ``STREAM_FROM_PIXELS`` on (4K frames), so that these small frames test that
     path against the reference; below that size it holds the light whole, the path every other
     module's combined calls take (``test_the_last_add_to_streams_from_a_region_size_on``)."""
-    from sss_lab.core import _back_light
+    from sss_lab.core.techniques.combined import back_light as _back_light
 
     monkeypatch.setattr(_back_light, "STREAM_FROM_PIXELS", 0)
 
@@ -165,11 +165,11 @@ def test_fitted_gain_scales_the_diffusion_only():
 
 
 def test_random_walk_material_uses_the_walk_transmittance_and_exit_weight():
-    """With the material's medium (what ``core.mapping`` passes): T from ``core.transmittance`` at
+    """With the material's medium (what ``core.pipeline.mapping`` passes): T from ``core.optics.transmittance`` at
     the material's mean free path, times Diffuse Color / Base Color (the walk divides the closure's
     weight by Base Color), not times the albedo's colour; Christensen-Burley keeps Burley's law
     times Diffuse Color."""
-    from sss_lab.core.transmittance import disk_transmittance_rgb, transmittance_rgb
+    from sss_lab.core.optics.transmittance import disk_transmittance_rgb, transmittance_rgb
 
     kw = _slab(translucency=0.75)
     base = (0.8, 0.6, 0.5)
@@ -195,8 +195,8 @@ def test_light_from_behind_spreads_by_the_walks_lateral_distance():
     lateral distance the walk covers through the slab: a uniform light stays uniform (the blur
     is renormalized over the material), a half-lit back spreads across the edge, and the blur's
     variance is the sigma asked for (three box filters: exact up to the box width's rounding)."""
-    from sss_lab.core.combined import spread_back_light, spread_sigma
-    from sss_lab.core.pyramid import blur as _blur
+    from sss_lab.core.techniques.combined.pyramid import blur as _blur
+    from sss_lab.core.techniques.combined.technique import spread_back_light, spread_sigma
 
     e = np.ones((N, N, 3), np.float32)
     m = np.ones((N, N), bool)
@@ -225,7 +225,7 @@ def test_light_from_behind_spreads_by_the_walks_lateral_distance():
         lights=(_sun((0.0, 0.0, 1.0), energy=2.0),),
         object_id=ids,
         subsurface_method="RANDOM_WALK",
-        energy="lambert",  # the light from behind alone (core/energy.py reshapes the diffusion)
+        energy="lambert",  # the light from behind alone (core/optics/energy.py reshapes the diffusion)
         mfp_su=(0.05, 0.05, 0.05),
         base_color=(0.8, 0.8, 0.8),
     )
@@ -263,7 +263,7 @@ def test_far_side_of_a_round_walk_faces_away_from_the_camera_and_a_slab_keeps_it
     # A sun straight behind a sphere (shining towards the camera). Its visible normal, reversed,
     # faces the sun fully at the centre and not at all at the rim; the back the light enters
     # through faces it everywhere (docs/references.md §14, the far side of a round object).
-    from sss_lab.core.combined import far_side
+    from sss_lab.core.techniques.combined.technique import far_side
 
     cam, normal, position, mask = _sphere()
     radius, distance = 0.4, 1.0
@@ -302,9 +302,9 @@ def test_far_side_of_a_round_walk_faces_away_from_the_camera_and_a_slab_keeps_it
 
 def test_a_map_with_no_far_side_within_its_distance_reads_the_spheres_chord():
     # Translucency 0 says "at least D thick": the chord of the curvature's sphere, at most
-    # core.energy.CHORD_CAP D, as the energy model reads the map.
-    from sss_lab.core.combined import far_side
-    from sss_lab.core.energy import CHORD_CAP
+    # core.optics.energy.CHORD_CAP D, as the energy model reads the map.
+    from sss_lab.core.optics.energy import CHORD_CAP
+    from sss_lab.core.techniques.combined.technique import far_side
 
     cam, normal, position, mask = _sphere(radius=0.4)
     x, _ = far_side(
@@ -340,7 +340,8 @@ def _lamps_behind(z_behind):
 )  # fmt: skip
 @pytest.mark.parametrize("camera_type", ("PERSP", "ORTHO"))
 def test_compiled_light_from_behind_equals_the_reference_to_the_bit(method, camera_type):
-    # core._back_light's kernels against core.combined's NumPy code (equal to the bit; in check
+    # core.techniques.combined.back_light's kernels against core.techniques.combined.technique's NumPy code (equal to
+    # the bit; in check
     # mode each call also compares them with bound 0): three objects and the plane with a mask with
     # holes, an object index that is NaN on some pixels, a thickness map with NaN, zeros (the
     # curvature's chord) and the "thickness" convention, lamps of every kind behind, a
@@ -348,10 +349,10 @@ def test_compiled_light_from_behind_equals_the_reference_to_the_bit(method, came
     # calls it) with a channel of length 0, a scale per channel, and ``add_to``.
     import dataclasses
 
-    from sss_lab.core import backend
-    from sss_lab.core._back_light import CompiledBackLight
-    from sss_lab.core.combined import back_light
-    from sss_lab.core.synthetic import sphere_scene
+    from sss_lab.core.compute import backend
+    from sss_lab.core.study.synthetic import sphere_scene
+    from sss_lab.core.techniques.combined.back_light import CompiledBackLight
+    from sss_lab.core.techniques.combined.technique import back_light
 
     passes, scene = sphere_scene(96, 64)
     cam = scene.camera
@@ -402,7 +403,7 @@ def _wide_spread_inputs(by_object: bool) -> dict:
     """``back_light``'s arguments for a spread past SPREAD_COARSE_FROM_PX at long lengths: a frame
     whose sides (121 x 87) are not multiples of the pyramid's blocks, a mask with holes, lamps
     behind, a Random Walk medium, and the Object Index (``by_object``) or one part."""
-    from sss_lab.core.synthetic import sphere_scene
+    from sss_lab.core.study.synthetic import sphere_scene
 
     passes, scene = sphere_scene(121, 87)
     mask = passes["Depth"] < 1e9
@@ -420,9 +421,9 @@ def _wide_spread_inputs(by_object: bool) -> dict:
 def _compiled_equals_reference(kw: dict, lengths) -> None:
     """The compiled ``back_light(**kw)``'s light at each of ``lengths`` equals the NumPy
     reference's to the bit (and some of it is lit)."""
-    from sss_lab.core import backend
-    from sss_lab.core._back_light import CompiledBackLight
-    from sss_lab.core.combined import back_light
+    from sss_lab.core.compute import backend
+    from sss_lab.core.techniques.combined.back_light import CompiledBackLight
+    from sss_lab.core.techniques.combined.technique import back_light
 
     with backend.use("numpy"):
         reference = back_light(**kw)
@@ -443,8 +444,9 @@ def test_the_last_add_to_streams_from_a_region_size_on(monkeypatch):
     """Below ``STREAM_FROM_PIXELS`` the last ``add_to`` holds the irradiance on the region (faster:
     the light computed once); from it on it streams (the light computed where it is read, nothing
     of the region's size held). Both add the reference's light to the bit."""
-    from sss_lab.core import _back_light, backend
-    from sss_lab.core.combined import back_light
+    from sss_lab.core.compute import backend
+    from sss_lab.core.techniques.combined import back_light as _back_light
+    from sss_lab.core.techniques.combined.technique import back_light
 
     kw = _wide_spread_inputs(True)
     d_su = (0.02, 0.008, 0.004)
@@ -469,13 +471,13 @@ def test_the_last_add_to_streams_from_a_region_size_on(monkeypatch):
 
 
 def test_compiled_pyramid_levels_equal_the_reference_to_the_bit(monkeypatch):
-    # The spread's widest levels are blurred on reduced grids (core.combined._spread_reference's
+    # The spread's widest levels are blurred on reduced grids (core.techniques.combined.technique._spread_reference's
     # pyramid): the compiled kernels (spread_pyramid, blur_reduced,
     # spread_reduced_part) against the NumPy reference, equal to the bit, with widths past
     # SPREAD_COARSE_FROM_PX (blocks of 2 and 4), a frame whose sides (121 x 87) and the parts'
     # boxes are not multiples of the blocks, a mask with holes, parts whose boxes the frame's
     # edges clip, and two objects.
-    from sss_lab.core import combined
+    from sss_lab.core.techniques.combined import technique as combined
 
     factors = []
     reduced_levels = combined._reduced_levels
@@ -492,12 +494,12 @@ def test_compiled_pyramid_levels_equal_the_reference_to_the_bit(monkeypatch):
 
 @pytest.mark.parametrize("band_rows", (1, 5))
 def test_compiled_spread_in_bands_of_rows_equals_the_reference_to_the_bit(monkeypatch, band_rows):
-    # core.compiled.spread_band goes down a part in bands of rows, carrying its vertical running
+    # core.compute.compiled.spread_band goes down a part in bands of rows, carrying its vertical running
     # sums from band to band: bands of 1 and 5 rows (far fewer than the 3 r rows a level's three
     # box sums reach ahead, r up to 8) give the reference's bits, with one part and with two
     # objects, at lengths whose widths reach only the full-resolution levels and past them (the
     # pyramid's blocks of 2 and 4); the last ``add_to`` computes the light band by band as well.
-    from sss_lab.core import _back_light
+    from sss_lab.core.techniques.combined import back_light as _back_light
 
     monkeypatch.setattr(_back_light, "SPREAD_BAND", band_rows)
     # The far side's curvature a few rows at a time too (its column sums carried from rows to rows).
@@ -530,7 +532,8 @@ def test_pyramid_spread_stays_within_the_full_resolution_levels_own_error(monkey
     frame at a width of 12 px: max 5.4 %, RMS 1.3 %; at 20 px: 3.6 %, 1.2 %): three boxes whose
     width is rounded and a linear mix between octaves. At one width the pyramid is as close to the
     Gaussian as those levels are (it is closer: 3.8 % / 0.8 % at 12 px, 3.1 % / 1.1 % at 20 px)."""
-    from sss_lab.core import backend, combined
+    from sss_lab.core.compute import backend
+    from sss_lab.core.techniques.combined import technique as combined
 
     n = 256
     rng = np.random.default_rng(2)
@@ -562,7 +565,7 @@ def test_pyramid_spread_keeps_a_uniform_light_and_moves_light_across_an_edge():
     # The reduced levels' numerator and mask are read back by the same weights: a uniform light
     # stays uniform (to float32's rounding) however wide, on a mask with holes whose side (203 px)
     # is no multiple of the blocks; and a half-lit mask spreads over its edge by about the width.
-    from sss_lab.core import combined
+    from sss_lab.core.techniques.combined import technique as combined
 
     n = 203
     rng = np.random.default_rng(9)

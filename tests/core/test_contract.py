@@ -1,6 +1,6 @@
 """The contract between a technique's spec and the layers that read it (no Blender).
 
-Every registered technique (``core.techniques.TECHNIQUES``): its parameters are keyword-only
+Every registered technique (``core.techniques.registry.TECHNIQUES``): its parameters are keyword-only
 arguments of its function with their defaults from the signature, every run of its quality
 ladder is accepted by plan and apply, every pass it reads is in the pass table, and the
 material mapping gives it only keywords it takes. The Blender layers (properties, panel rows,
@@ -14,15 +14,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from sss_lab.core import fidelity, mapping
-from sss_lab.core.apply import apply, layer_names
-from sss_lab.core.call import call_technique
-from sss_lab.core.exr import Passes
-from sss_lab.core.passes import PASSES, THICKNESS
-from sss_lab.core.plan import plan
-from sss_lab.core.spec import CALIBRATE_MAPPING, Param, Technique
-from sss_lab.core.synthetic import DEFAULT_MATERIALS, sphere_scene
-from sss_lab.core.techniques import TECHNIQUES, Registry, parse_params
+from sss_lab.core.pipeline import mapping
+from sss_lab.core.pipeline.apply import apply, layer_names
+from sss_lab.core.pipeline.call import call_technique
+from sss_lab.core.pipeline.plan import plan
+from sss_lab.core.scene.exr import Passes
+from sss_lab.core.scene.passes import PASSES, THICKNESS
+from sss_lab.core.study import fidelity
+from sss_lab.core.study.synthetic import DEFAULT_MATERIALS, sphere_scene
+from sss_lab.core.techniques.registry import TECHNIQUES, Registry, parse_params
+from sss_lab.core.techniques.spec import CALIBRATE_MAPPING, Param, Technique
 
 SPECS = list(TECHNIQUES.values())
 IDS = list(TECHNIQUES)

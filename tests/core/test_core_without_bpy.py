@@ -31,7 +31,7 @@ def core_modules():
 
 def test_every_core_module_imports_with_bpy_blocked():
     modules = core_modules()
-    assert "sss_lab.core.scene" in modules  # the listing itself works
+    assert "sss_lab.core.scene.scene" in modules  # the listing itself works
     proc = subprocess.run([sys.executable, "-c", _BLOCK_AND_IMPORT, *modules], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == f"imported {len(modules)}"

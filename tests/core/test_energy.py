@@ -1,4 +1,4 @@
-"""The entry energy of Cycles' subsurface methods (core/energy.py): the table's lookup, the view
+"""The entry energy of Cycles' subsurface methods (core/optics/energy.py): the table's lookup, the view
 angle from the Depth pass, and the techniques that apply it."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core import energy
-from sss_lab.core.burley import burley
-from sss_lab.core.scene import Camera
-from sss_lab.core.ssss import ssss
+from sss_lab.core.optics import energy
+from sss_lab.core.scene.scene import Camera
+from sss_lab.core.techniques.burley.technique import burley
+from sss_lab.core.techniques.ssss.technique import ssss
 
 
 def _mu(view_deg):
@@ -269,7 +269,7 @@ def test_slab_factors_at_the_nodes_and_beyond():
 
 
 def _sun(direction, strength=3.0):
-    from sss_lab.core.scene import Light
+    from sss_lab.core.scene.scene import Light
 
     d = np.asarray(direction, np.float64)
     d = d / np.linalg.norm(d)
@@ -526,10 +526,10 @@ def test_view_cosine_of_a_window_is_the_frames(kind):
 def test_a_material_below_a_pixel_still_gets_cycles_level():
     import dataclasses
 
-    from sss_lab.core.apply import apply
-    from sss_lab.core.exr import Passes
-    from sss_lab.core.plan import plan
-    from sss_lab.core.synthetic import sphere_scene
+    from sss_lab.core.pipeline.apply import apply
+    from sss_lab.core.pipeline.plan import plan
+    from sss_lab.core.scene.exr import Passes
+    from sss_lab.core.study.synthetic import sphere_scene
 
     arrays, scene = sphere_scene(96, 64)
     tiny = tuple(
@@ -557,7 +557,7 @@ def test_a_material_below_a_pixel_still_gets_cycles_level():
 @pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
 @pytest.mark.parametrize("tilt", [0.0, 60.0, 85.0])
 def test_burley_weighs_its_samples_by_the_surface_a_pixel_covers(kind, tilt):
-    from sss_lab.core import backend
+    from sss_lab.core.compute import backend
     from sss_lab.core.optics.surface import MIN_VIEW_COSINE, surface_area
 
     h, w = 32, 48
@@ -588,14 +588,14 @@ def test_burley_weighs_its_samples_by_the_surface_a_pixel_covers(kind, tilt):
         args = (True, float(camera.ortho_px_per_unit), w / 2, h / 2)
     else:
         args = (False, float(camera.focal_px), w / 2, h / 2)
-    far = np.float32(1e9)  # the background depth (core._arrays.BACKGROUND_DEPTH)
+    far = np.float32(1e9)  # the background depth (core.base.arrays.BACKGROUND_DEPTH)
     backend.run_kernel("surface_area", z, ok, far, *args, MIN_VIEW_COSINE, 0, h, 0, w, got)
     np.testing.assert_allclose(got, area, rtol=1e-6)
 
 
 def _lamps():
     """A sun, a point, a spot with a soft edge, an area light and a light with no power, coloured."""
-    from sss_lab.core.scene import Light
+    from sss_lab.core.scene.scene import Light
 
     def at(position, direction):
         m = np.asarray(_sun(direction).matrix_world, np.float64).reshape(4, 4).copy()
@@ -614,8 +614,8 @@ def _lamps():
 @pytest.mark.parametrize("ortho", [False, True])
 @pytest.mark.parametrize(("pre_post", "lamps"), [(False, True), (True, True), (False, False)])
 def test_the_compiled_unseen_light_is_the_references_within_its_sums(ortho, pre_post, lamps):
-    from sss_lab.core import backend
-    from sss_lab.core.synthetic import sphere_scene
+    from sss_lab.core.compute import backend
+    from sss_lab.core.study.synthetic import sphere_scene
 
     passes, scene = sphere_scene(40, 30)
     camera = scene.camera
@@ -669,8 +669,8 @@ def test_the_compiled_unseen_light_is_the_references_within_its_sums(ortho, pre_
 
 
 def test_the_unseen_light_needs_a_pixel_with_a_normal_and_a_position():
-    from sss_lab.core import backend
-    from sss_lab.core.synthetic import sphere_scene
+    from sss_lab.core.compute import backend
+    from sss_lab.core.study.synthetic import sphere_scene
 
     passes, scene = sphere_scene(16, 12)
     mask = passes["Material Index"] > 1.5
@@ -700,12 +700,12 @@ def test_the_unseen_light_needs_a_pixel_with_a_normal_and_a_position():
     ],
 )
 def test_the_compiled_object_light_is_the_references_to_the_bit(method, pre_post, convention, lights):
-    """``apply_energy``'s "object" light on the compiled backend (``core.compiled.energy_object``)
+    """``apply_energy``'s "object" light on the compiled backend (``core.compute.compiled.energy_object``)
     against the NumPy reference, every value equal: maps with NaN, +-inf, no far side and values
     beyond 0..1, a mask with a hole, albedos beyond the tables, each subsurface method (Christensen-
     Burley has no table: its light stays), both thickness conventions and albedo modes, with and
     without lamps; and without a thickness map (no slab)."""
-    from sss_lab.core import backend
+    from sss_lab.core.compute import backend
 
     args, light = _object_inputs("sphere", thickness_distance_su=0.3)
     m = args["mask"].copy()
@@ -739,7 +739,7 @@ def test_the_compiled_object_light_is_the_references_to_the_bit(method, pre_post
 def test_check_mode_finds_a_compiled_object_light_that_differs():
     """Check mode compares the compiled "object" light with the reference's with bound 0: one
     pixel's last bit changed is found."""
-    from sss_lab.core import backend
+    from sss_lab.core.compute import backend
 
     args, light = _object_inputs("sphere", thickness_distance_su=0.3, thickness=None)
     with backend.use("check"):

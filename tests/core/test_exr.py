@@ -1,4 +1,4 @@
-"""core/exr.py: Blender 5.2 and 4.5 multilayer layouts, float32 everywhere, safe writing.
+"""core/scene/exr.py: Blender 5.2 and 4.5 multilayer layouts, float32 everywhere, safe writing.
 
 The synthetic files are written with the raw OpenEXR API (not with ``write_layers``), using the
 part and channel names a bpy 5.2.3 render wrote (tests/blender/test_exr_render.py reads a
@@ -11,9 +11,9 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from sss_lab.core import exr
-from sss_lab.core.errors import OutputError
-from sss_lab.core.exr import MissingPassError, Passes, read_layers, read_passes, write_layers
+from sss_lab.core.base.errors import OutputError
+from sss_lab.core.scene import exr
+from sss_lab.core.scene.exr import MissingPassError, Passes, read_layers, read_passes, write_layers
 
 H, W = 5, 7
 

@@ -1,4 +1,5 @@
-"""Extremes of the scattering distance d (core/extent.py, core/burley.py, core/ssss.py).
+"""Extremes of the scattering distance d (core/scene/extent.py, core/techniques/burley/technique.py,
+core/techniques/ssss/technique.py).
 
 A Subsurface Scale 1000 times too large (a units slip) used to return the input unchanged while
 a slightly smaller one blurred strongly. Now: as d grows past the object, the result tends to
@@ -13,12 +14,12 @@ import warnings
 import numpy as np
 import pytest
 
-from sss_lab.core import apply as core_apply
-from sss_lab.core.burley import burley
-from sss_lab.core.exr import Passes
-from sss_lab.core.scene import Camera
-from sss_lab.core.ssss import ssss
-from sss_lab.core.synthetic import sphere_scene
+from sss_lab.core.pipeline import apply as core_apply
+from sss_lab.core.scene.exr import Passes
+from sss_lab.core.scene.scene import Camera
+from sss_lab.core.study.synthetic import sphere_scene
+from sss_lab.core.techniques.burley.technique import burley
+from sss_lab.core.techniques.ssss.technique import ssss
 
 H = W = 32
 

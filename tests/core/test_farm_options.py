@@ -4,7 +4,7 @@ shared ``--overwrite``/``--skip-existing``/``--threads``/``--device`` options.""
 import pytest
 
 from sss_lab.addon import cli
-from sss_lab.core.sequence import parse_frames
+from sss_lab.core.pipeline.sequence import parse_frames
 
 
 def test_frames_accept_the_ranges_farm_managers_write():

@@ -1,11 +1,12 @@
-"""core/fidelity.py: the slide deck's fidelity table, measured; checked against the profile's
+"""core/study/fidelity.py: the slide deck's fidelity table, measured; checked against the profile's
 own closed-form line spread (``analytic_row``)."""
 
 import numpy as np
 import pytest
 
-from sss_lab.core import fidelity, kernels
-from sss_lab.core.scene import MaterialSSS
+from sss_lab.core.optics import kernels
+from sss_lab.core.scene.scene import MaterialSSS
+from sss_lab.core.study import fidelity
 
 
 @pytest.mark.parametrize("radius", ((1.0, 0.2, 0.1), (1.0, 0.7, 0.5)))

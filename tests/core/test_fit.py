@@ -1,7 +1,7 @@
-"""core/fit.py: recovering known parameters from a synthetic "Cycles" image made with them,
+"""core/study/fit.py: recovering known parameters from a synthetic "Cycles" image made with them,
 with and without Monte Carlo-like noise; the held-out check; the bad inputs.
 
-The synthetic scene is core/synthetic.py's plane and spheres (the Skin sphere, pass index 2,
+The synthetic scene is core/study/synthetic.py's plane and spheres (the Skin sphere, pass index 2,
 covers about 1900 pixels at 96 x 64). The reference is SSS Lab's own apply with the true fit,
 so the model can represent it exactly: a noise-free fit must find the true values on the grid.
 """
@@ -12,13 +12,13 @@ import re
 import numpy as np
 import pytest
 
-from sss_lab.core import apply as core_apply
-from sss_lab.core import fit as fit_mod
-from sss_lab.core.exr import Passes
-from sss_lab.core.fit import FitError, block_folds, fit_material, fit_scene, with_fits
-from sss_lab.core.scene import SceneDescription
-from sss_lab.core.synthetic import sphere_scene
-from sss_lab.core.techniques import get_spec
+from sss_lab.core.pipeline import apply as core_apply
+from sss_lab.core.scene.exr import Passes
+from sss_lab.core.scene.scene import SceneDescription
+from sss_lab.core.study import fit as fit_mod
+from sss_lab.core.study.fit import FitError, block_folds, fit_material, fit_scene, with_fits
+from sss_lab.core.study.synthetic import sphere_scene
+from sss_lab.core.techniques.registry import get_spec
 
 TRUTH = {
     "burley": {"gain": (1.2, 0.9, 0.8), "d_scale": 2**-0.5},
@@ -90,7 +90,7 @@ def test_the_fitted_transmission_scale_stays_within_its_bound(synthetic):
 @pytest.mark.parametrize("technique", ["burley", "ssss"])
 def test_a_fit_without_normal_and_position_passes_finds_the_true_values(synthetic, technique):
     """Without the Normal and Position passes the energy stage of a random-walk material
-    renormalizes each channel's total over the material (core/energy.py, "view"): not affine in
+    renormalizes each channel's total over the material (core/optics/energy.py, "view"): not affine in
     the light, so the fit runs it on every k's light instead of its affine form; the result must
     still be what apply gives."""
     passes, scene = synthetic
@@ -339,9 +339,9 @@ def test_the_second_fits_inputs_and_lines():
 
 
 def test_a_fit_a_technique_does_not_make_is_refused_where_it_is_read():
-    # The scene description checks a fit's values against the bounds (core.fit_values); which
+    # The scene description checks a fit's values against the bounds (core.scene.fit_values); which
     # technique fits which parameters is the registry's, checked where a technique's fit is read.
-    from sss_lab.core.fit_params import fitted
+    from sss_lab.core.pipeline.fit_params import fitted
 
     assert fitted({"burley": {"gain": (1.0, 2.0, 1.5), "info": {"samples": 4}}}, "burley") == {"gain": (1.0, 2.0, 1.5)}
     with pytest.raises(ValueError, match="unknown parameter 'scale'"):

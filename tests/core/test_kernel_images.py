@@ -1,19 +1,19 @@
-"""core/kernel_images.py: the kernel images of the compositor node groups (no Blender)."""
+"""core/optics/kernel_images.py: the kernel images of the compositor node groups (no Blender)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from sss_lab.core.kernel_images import (
+from sss_lab.core.optics.kernel_images import (
     MAX_RADIUS_PX,
     burley_kernel_image,
     correlate_zero,
     separable_kernel_image,
 )
-from sss_lab.core.kernels import make_kernel
-from sss_lab.core.profiles import TRUNCATION, burley_radial_pdf
-from sss_lab.core.ssss import filter_1d
+from sss_lab.core.optics.kernels import make_kernel
+from sss_lab.core.optics.profiles import TRUNCATION, burley_radial_pdf
+from sss_lab.core.techniques.ssss.technique import filter_1d
 
 
 @pytest.mark.parametrize("kernel_type,n_taps", [("preintegrated", 17), ("artist", 25), ("preintegrated", 11)])

@@ -6,8 +6,8 @@ import zlib
 import numpy as np
 import pytest
 
-from sss_lab.core.metrics import box_downsample, compare_images, error_map, ssim_map, tonemap
-from sss_lab.core.png import encode_png, grid, heat, to_display
+from sss_lab.core.study.metrics import box_downsample, compare_images, error_map, ssim_map, tonemap
+from sss_lab.core.study.png import encode_png, grid, heat, to_display
 
 
 def test_rmse_of_a_constant_offset_is_the_offset():
@@ -133,7 +133,7 @@ def test_heat_and_grid():
 def test_split_error_recovers_bias_and_pass_noise():
     import math
 
-    from sss_lab.core.metrics import split_error
+    from sss_lab.core.study.metrics import split_error
 
     # Errors built from a known bias and a pass noise whose variance falls as 1 / samples.
     bias, noise = 0.08, 0.05

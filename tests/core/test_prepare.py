@@ -1,19 +1,19 @@
-"""``core.prepare``: the kernels compiled ahead of the first frame (``python -m sss_lab prepare``)."""
+"""``core.study.prepare``: the kernels compiled ahead of the first frame (``python -m sss_lab prepare``)."""
 
 import os
 import types
 
 import pytest
 
-from sss_lab.core import backend
-from sss_lab.core.prepare import PrepareError, is_prepared, marker_path, prepare_kernels
+from sss_lab.core.compute import backend
+from sss_lab.core.study.prepare import PrepareError, is_prepared, marker_path, prepare_kernels
 
 #: Kernels of every path a frame takes: each technique's, the energy stage's two ("object"
 #: without a bake distance, the slab's with one), the light from behind's at full resolution and
-#: on the spread's reduced levels (reached only by ``core.prepare.FAR``'s long lengths), band by
+#: on the spread's reduced levels (reached only by ``core.study.prepare.FAR``'s long lengths), band by
 #: band in the combined technique's call (``finish_band``) and whole in the fit's
-#: (``finish_light``), ``core.apply``'s compositing, and ``apply --method auto``'s features
-#: (``core.auto``).
+#: (``finish_light``), ``core.pipeline.apply``'s compositing, and ``apply --method auto``'s features
+#: (``core.pipeline.auto``).
 EXPECTED = {
     "composite",
     "sta_kernel",
@@ -81,11 +81,11 @@ def test_the_command_line_prepares_and_names_a_bad_method(capsys):
 def test_the_marker_follows_what_numbas_cache_is_keyed_by(monkeypatch, tmp_path):
     # A reinstall unpacks compiled.py anew (a new time stamp): Numba compiles again, and the
     # marker must no longer say the kernels are prepared.
-    from sss_lab.core import prepare
+    from sss_lab.core.study import prepare
 
     monkeypatch.setitem(backend._state, "cache_dir", str(tmp_path))
     before = marker_path()
-    source = os.path.join(os.path.dirname(prepare.__file__), "compiled.py")
+    source = os.path.join(os.path.dirname(os.path.dirname(prepare.__file__)), "compute", "compiled.py")
     st = os.stat(source)
     real_stat = os.stat
 

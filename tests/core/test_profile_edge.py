@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from benchmarks.profile_edge import burley_edge
-from sss_lab.core.profiles import burley_radial_pdf
+from sss_lab.core.optics.profiles import burley_radial_pdf
 
 
 def _polar(x: float, d: float) -> float:
     # Light at distance |x| into the shadow of a half-plane lit beyond the edge: the share of the
     # profile's radii r > |x| whose direction reaches across, arccos(|x| / r) / pi, over the radial
-    # pdf (polar coordinates, core.profiles; the benchmark integrates the 1-D marginal instead).
+    # pdf (polar coordinates, core.optics.profiles; the benchmark integrates the 1-D marginal instead).
     a = abs(x)
     s = np.linspace(0.0, 12.0, 400001)  # r = a cosh(s): smooth where arccos(a / r) has its root
     r = a * np.cosh(s)

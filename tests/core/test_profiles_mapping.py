@@ -1,12 +1,13 @@
-"""core/profiles.py, core/mapping.py and core/kernels.py against their closed forms."""
+"""core/optics/profiles.py, core/pipeline/mapping.py and core/optics/kernels.py against their closed forms."""
 
 import math
 
 import numpy as np
 import pytest
 
-from sss_lab.core import kernels, mapping, profiles
-from sss_lab.core.scene import MaterialSSS
+from sss_lab.core.optics import kernels, profiles
+from sss_lab.core.pipeline import mapping
+from sss_lab.core.scene.scene import MaterialSSS
 
 
 def _integrate(f, a, b, n=200001):

@@ -1,10 +1,10 @@
-"""Farm progress lines (``core/progress.py``): elapsed time, ETA, and the one ``Saved:`` form."""
+"""Farm progress lines (``core/base/progress.py``): elapsed time, ETA, and the one ``Saved:`` form."""
 
 import os
 
 import pytest
 
-from sss_lab.core.progress import Progress, format_seconds, saved_line
+from sss_lab.core.base.progress import Progress, format_seconds, saved_line
 
 
 class Clock:

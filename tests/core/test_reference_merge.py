@@ -1,4 +1,4 @@
-"""Merging a reference rendered as N seeds × S samples (``core/reference.py``), without Blender.
+"""Merging a reference rendered as N seeds × S samples (``core/study/reference.py``), without Blender.
 
 The statistical checks use synthetic Monte Carlo images: a fixed "true" image plus independent
 Gaussian noise of variance s²/n for a render of n samples, the model the merge assumes. With
@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core import metrics
-from sss_lab.core import reference as ref
-from sss_lab.core.errors import InputError
+from sss_lab.core.base.errors import InputError
+from sss_lab.core.study import metrics
+from sss_lab.core.study import reference as ref
 
 SIZE = 128
 SIGMA = 0.5  # per-sample standard deviation of the synthetic renders
@@ -143,7 +143,7 @@ def test_merged_file_round_trip(tmp_path):
 
 
 def test_parts_from_files_must_agree(tmp_path):
-    from sss_lab.core import exr
+    from sss_lab.core.scene import exr
 
     paths = []
     for seed, frame in ((0, 1), (1, 2)):

@@ -6,13 +6,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from sss_lab.core import sweep
-from sss_lab.core.apply import apply, layer_names
-from sss_lab.core.exr import Passes
-from sss_lab.core.plan import plan
-from sss_lab.core.spec import Param, Technique
-from sss_lab.core.synthetic import DEFAULT_MATERIALS, sphere_scene
-from sss_lab.core.techniques import TECHNIQUES, Registry
+from sss_lab.core.pipeline.apply import apply, layer_names
+from sss_lab.core.pipeline.plan import plan
+from sss_lab.core.scene.exr import Passes
+from sss_lab.core.study import sweep
+from sss_lab.core.study.synthetic import DEFAULT_MATERIALS, sphere_scene
+from sss_lab.core.techniques.registry import TECHNIQUES, Registry
+from sss_lab.core.techniques.spec import Param, Technique
 
 
 def dim(*, diffuse, albedo, mask, strength: float = 0.5) -> np.ndarray:
@@ -98,7 +98,7 @@ def test_a_grid_calibration_sweeps_its_parameters(scene):
 
 
 def test_what_calibrate_fits_is_the_specs_fit(monkeypatch):
-    from sss_lab.core import fit_params
+    from sss_lab.core.pipeline import fit_params
 
     assert fit_params.FIT_PARAMETERS == {t.name: t.fit for t in TECHNIQUES.values() if t.fit}
     # A technique without a fit is not offered to calibrate; one with a fit is, without an edit elsewhere.

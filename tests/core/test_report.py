@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from sss_lab.core.report import pareto_front, write_report
+from sss_lab.core.study.report import pareto_front, write_report
 
 
 def _entry(name, t, err, kind="technique"):
@@ -75,7 +75,7 @@ def test_pareto_labels_do_not_overprint_when_points_cluster():
     # label gets its own box, none covers a point, all stay inside the picture.
     import re
 
-    from sss_lab.core.report import _label_box, _overlaps, pareto_svg
+    from sss_lab.core.study.report import _label_box, _overlaps, pareto_svg
 
     names = ["SSSS taps=11", "SSSS taps=17", "SSSS taps=25", "Burley samples=16", "Burley samples=32", "STA"]
     entries = [

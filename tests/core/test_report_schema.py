@@ -1,12 +1,12 @@
-"""The report's typed schema (core/report_schema.py) on the metrics.json core.report writes."""
+"""The report's typed schema (core/study/report_schema.py) on the metrics.json core.study.report writes."""
 
 import json
 
 import numpy as np
 import pytest
 
-from sss_lab.core.report import write_report
-from sss_lab.core.report_schema import Entry, Report
+from sss_lab.core.study.report import write_report
+from sss_lab.core.study.report_schema import Entry, Report
 
 
 def _written(tmp_path):

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core.scene import Camera, Light, MaterialSSS, SceneDescription
+from sss_lab.core.scene.scene import Camera, Light, MaterialSSS, SceneDescription
 
 
 def test_json_round_trip_keeps_everything():

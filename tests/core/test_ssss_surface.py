@@ -1,4 +1,4 @@
-"""SSSS weighted by the surface its taps cover (core/ssss.py, ``weighting="surface"``): equal
+"""SSSS weighted by the surface its taps cover (core/techniques/ssss/technique.py, ``weighting="surface"``): equal
 surfaces give the paper's filter to the bit, and each pass is the filter of surface x light over
 the filter of the surface (the change of variables from pixels to surface)."""
 
@@ -7,10 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core import backend, kernels
+from sss_lab.core.compute import backend
+from sss_lab.core.optics import kernels
 from sss_lab.core.optics.surface import surface_area
-from sss_lab.core.scene import Camera
-from sss_lab.core.ssss import MAX_SURFACE, ssss
+from sss_lab.core.scene.scene import Camera
+from sss_lab.core.techniques.ssss.technique import MAX_SURFACE, ssss
 
 D_SU = (0.01, 0.005, 0.0025)
 
@@ -97,7 +98,7 @@ def test_each_pass_filters_surface_times_light_over_the_surface():
         args = {"diffuse": light, "albedo": albedo, "depth": z, "mask": mask, "camera": camera}
         return ssss(**args, kernel=kernel, follow_surface=False, energy="lambert")
 
-    # The float32 bound of core.backend.tolerance for two float32 results of these sums (one of
+    # The float32 bound of core.compute.backend.tolerance for two float32 results of these sums (one of
     # them here is float64: within it).
     bound = backend.tolerance(2 * (2 * len(kernel) + 1), np.abs(e_row).max())
     for out in _both(run):

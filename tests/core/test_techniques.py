@@ -1,4 +1,5 @@
-"""The three techniques (core/sta.py, core/ssss.py, core/burley.py): the slide deck's worked
+"""The three techniques (core/techniques/sta/technique.py, core/techniques/ssss/technique.py,
+core/techniques/burley/technique.py): the slide deck's worked
 example, separability, per-channel spread, energy, and the extremes, each with its expected result."""
 
 import math
@@ -6,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core import kernels
-from sss_lab.core.burley import burley
-from sss_lab.core.scene import Camera, Light
-from sss_lab.core.ssss import filter_1d, ssss
-from sss_lab.core.sta import sta
+from sss_lab.core.optics import kernels
+from sss_lab.core.scene.scene import Camera, Light
+from sss_lab.core.techniques.burley.technique import burley
+from sss_lab.core.techniques.ssss.technique import filter_1d, ssss
+from sss_lab.core.techniques.sta.technique import sta
 
 
 # Orthographic camera with exactly 1 pixel per scene unit, so kernels in scene units are in pixels.
@@ -113,7 +114,7 @@ def test_sta_medium_falloff_filters_light_through_the_materials_medium():
     out = sta(**kw)
     # Lobe 1 and E / pi = 1: what is left is the exit weight times the walk's slab transmittance,
     # which colours the light (the walk's medium), not the albedo, which would colour it twice;
-    # tabulated (core.sta.medium_table): within 0.01 of the thin part's light.
+    # tabulated (core.techniques.sta.technique.medium_table): within 0.01 of the thin part's light.
     x = 0.02 * np.sqrt(1.0 - tau[0].astype(np.float64))
     want = 0.9 * slab_transmittance_rgb(x, mfp, Medium("RANDOM_WALK", base), view_cos=np.ones(3))
     assert np.allclose(out[0], want, rtol=0, atol=0.9 * 0.01)
@@ -141,11 +142,11 @@ def test_sta_medium_falloff_filters_light_through_the_materials_medium():
 @pytest.mark.parametrize("method", ("RANDOM_WALK", "RANDOM_WALK_SKIN", "RANDOM_WALK_LEGACY", "BURLEY", None))
 @pytest.mark.parametrize("distance_mfp", (1.0, 5.0, 20.0, 60.0))
 def test_sta_medium_table_follows_the_transmittance_it_tabulates(method, distance_mfp):
-    # The "medium" falloff reads a table over thickness and view cosine (core.sta.medium_table):
+    # The "medium" falloff reads a table over thickness and view cosine (core.techniques.sta.technique.medium_table):
     # within 0.01 of the light through no thickness (1) of the model itself, for pale, skin-like
     # and saturated materials at bake distances of 1 to 60 of the longest mean free path.
-    from sss_lab.core import sta as sta_module
     from sss_lab.core.optics.medium import Medium, slab_transmittance_rgb
+    from sss_lab.core.techniques.sta import technique as sta_module
 
     rng = np.random.default_rng(3)
     mfp = (0.004, 0.002, 0.001)

@@ -1,4 +1,4 @@
-"""core/thickness.py: settings validation, sample split, conventions, and the slab expectation
+"""core/scene/thickness.py: settings validation, sample split, conventions, and the slab expectation
 checked against an independent Monte Carlo simulation of the rays."""
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core.thickness import (
+from sss_lab.core.scene.thickness import (
     BakeSettings,
     auto_distance_su,
     binomial_sigma,

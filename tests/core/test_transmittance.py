@@ -1,4 +1,4 @@
-"""core/transmittance.py: the light Cycles' random walk carries through a slab (docs/references.md §14).
+"""core/optics/transmittance.py: the light Cycles' random walk carries through a slab (docs/references.md §14).
 
 Expected values are closed forms evaluated here independently: the unscattered light e^{-tau/mu0}
 (the table's n = 0 column), van de Hulst's semi-infinite albedo (which Cycles' inversion undoes)
@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from sss_lab.core import transmittance as tr
-from sss_lab.core.transmittance import trapezoid
+from sss_lab.core.optics import transmittance as tr
+from sss_lab.core.optics.transmittance import trapezoid
 
 
 def test_unscattered_light_is_the_exponential_law():
@@ -126,9 +126,9 @@ def test_disk_probes_far_side():
 
 
 def test_passage_columns_kept_per_medium_are_the_columns_read_again():
-    # core._back_light keeps each medium's passage columns (an LRU); what it hands out must be
+    # core.techniques.combined.back_light keeps each medium's passage columns (an LRU); what it hands out must be
     # the columns passage_column gives, and a caller's copy must not change what is kept.
-    from sss_lab.core._back_light import _passage_columns
+    from sss_lab.core.techniques.combined.back_light import _passage_columns
 
     alphas = (0.9, 0.99, 0.5)
     entries = (tr.COSINE_ENTRY, 0.7, 1.0)

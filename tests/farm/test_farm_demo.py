@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from sss_lab.core import exr
+from sss_lab.core.scene import exr
 
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = (

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from sss_lab.core.sequence import parse_frames
+from sss_lab.core.pipeline.sequence import parse_frames
 
 ROOT = Path(__file__).resolve().parents[2]
 TEMPLATE = ROOT / "farm" / "openjd" / "template.yaml"

@@ -1,0 +1,1 @@
+"""How kernels run: the backend switch (compiled, NumPy, check) and the Numba kernels."""

@@ -1,0 +1,144 @@
+"""Compile the kernels before they are needed (``python -m sss_lab prepare``; the extension starts
+it in the background once per installed version).
+
+Numba compiles each kernel of ``core/compute/compiled.py`` on its first call, for the types of the
+arrays it is given, and keeps the machine code in the on-disk cache (``core/compute/backend.py``). With
+an empty cache, the first ``apply`` of a technique waits for that: 10 to 20 s for STA, SSSS or
+Burley and about as much again for the combined technique's light from behind on this project's
+2-core machine (``first_call_s`` in ``benchmarks/results/speed.json``). ``prepare_kernels`` makes
+those first calls on a small synthetic frame (``core.study.synthetic.sphere_scene``: a Christensen-Burley
+skin sphere and a Random Walk wax one, every pass a real render gives) through ``core.pipeline.apply``,
+the path each frame takes, and measures ``apply --method auto``'s features of each material on it,
+so that the cache holds what a frame needs; a later process loads each kernel from it in a
+fraction of a second. The frame is applied twice per technique: as built
+(no thickness bake distance: the energy stage's "object" path) and with a bake distance and long
+lengths (``FAR``), whose light from behind is spread far enough to use the spread's reduced
+levels; the latter once more with the light from behind streamed as frames of 2^20 pixels and
+more have it (``core.techniques.combined.back_light.STREAM_FROM_PIXELS``). A frame whose inputs have other types
+(another integer type of Object Index, say) still compiles what it needs on first use.
+
+The cache is keyed by the kernels' source (Numba checks the file's time stamp and size), so a
+new version of the extension, or the same one installed again, prepares again: ``marker_path``
+names the file that records that these kernels were prepared.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import sys
+import time
+
+from ..base import files
+from ..base.errors import SSSLabError
+from ..compute import backend
+
+#: The synthetic frame's size: enough pixels for every kernel's paths (the spheres' edges, the
+#: plane behind them), small enough to cost nothing but the compiling.
+SIZE = (64, 48)
+#: The second variant's materials: a thickness bake distance (scene units) and a Subsurface Scale
+#: whose light from behind spreads over 16 pixels and more at ``SIZE`` (the spread's reduced
+#: levels, ``core.techniques.combined.technique.SPREAD_COARSE_FROM_PX``; scale 1 stays below them, 3 reaches the first).
+FAR = {"thickness_distance": 0.5, "subsurface_scale": 10.0}
+
+
+class PrepareError(SSSLabError):
+    """The compiled kernels cannot be prepared (Numba cannot load): the techniques run on NumPy."""
+
+
+def _digest() -> str:
+    """What the cache's contents depend on: the kernels' source and its file's time stamp, Python's
+    and Numba's versions (Numba's from its package metadata: this does not import it, which takes
+    a good part of a second)."""
+    from importlib import metadata
+
+    try:
+        numba_version = metadata.version("numba")
+    except metadata.PackageNotFoundError:
+        numba_version = "none"
+    source = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "compute", "compiled.py")
+    h = hashlib.sha256()
+    with open(source, "rb") as fh:
+        h.update(fh.read())
+    # Numba's cache index holds the file's time stamp and size: a reinstall of the same version
+    # (files unpacked anew) misses its cache, and so must the marker.
+    st = os.stat(source)
+    h.update(f"{st.st_mtime}:{st.st_size}:{sys.version_info[:2]}:{numba_version}".encode())
+    return h.hexdigest()[:16]
+
+
+def marker_path() -> str:
+    """The file in the cache folder that says this version's kernels were prepared there."""
+    return os.path.join(backend.kernel_cache_dir(), f"prepared-{_digest()}.json")
+
+
+def is_prepared() -> bool:
+    """Whether ``prepare_kernels`` ran to the end for this version and cache folder (False where
+    Numba cannot load)."""
+    if backend.compiled() is None:
+        return False
+    return os.path.isfile(marker_path())
+
+
+def synthetic_frame():
+    """The small frame kernels are prepared on: (its passes, its scene description, the same scene
+    with ``FAR``'s materials), ``core.study.synthetic.sphere_scene`` at ``SIZE``."""
+    from ..scene.exr import Passes
+    from .synthetic import sphere_scene
+
+    arrays, scene = sphere_scene(*SIZE)
+    far = dataclasses.replace(
+        scene, materials=tuple(dataclasses.replace(m, **FAR) if m.scatters else m for m in scene.materials)
+    )
+    return Passes(arrays), scene, far
+
+
+def prepare_kernels(techniques=None, *, log=None) -> dict:
+    """Compile (or load from the cache) every kernel ``core.pipeline.apply.apply`` runs for each technique of
+    ``techniques`` (default: all registered) on ``SIZE``'s synthetic frame, on the compiled
+    backend whatever ``SSS_LAB_BACKEND`` says; then write ``marker_path()`` (all techniques only).
+
+    Returns {"cache_dir", "seconds" (the whole), "kernels": {name: seconds of its first call in
+    this process: compiling, or loading from the cache}}. ``log(line)`` is told each technique
+    before it runs. Raises ``PrepareError`` where Numba cannot load."""
+    from ..pipeline.apply import apply
+    from ..techniques.combined.back_light import streaming_every_region
+    from ..techniques.registry import TECHNIQUES, check_technique
+
+    if backend.compiled() is None:
+        raise PrepareError(
+            f"Numba cannot load ({backend.unavailable_reason()}): the techniques run on their NumPy "
+            "implementations, and there is nothing to compile"
+        )
+    names = list(TECHNIQUES) if techniques is None else [check_technique(t) for t in techniques]
+    passes, scene, far = synthetic_frame()
+    start = time.perf_counter()
+    before = set(backend.first_call_seconds())
+    with backend.use("numba"):
+        for name in names:
+            if log is not None:
+                log(f"{name}: compiling or loading its kernels")
+            for variant in (scene, far):
+                apply(passes, variant, name)
+            # Frames from ``core.techniques.combined.back_light.STREAM_FROM_PIXELS`` on stream the light from behind.
+            with streaming_every_region():
+                apply(passes, far, name)
+        if techniques is None:
+            # ``apply --method auto`` measures each material before any technique runs.
+            from ..pipeline.auto import features
+
+            if log is not None:
+                log("auto: compiling or loading its features' kernels")
+            for material in far.materials:
+                if material.scatters:
+                    features(passes, far, material)
+    seconds = time.perf_counter() - start
+    kernels = {k: v for k, v in backend.first_call_seconds().items() if k not in before and k != "import"}
+    result = {"cache_dir": backend.cache_dir(), "seconds": seconds, "kernels": kernels}
+    if techniques is None:
+        marker = marker_path()  # hashes core/compute/compiled.py: once
+        os.makedirs(os.path.dirname(marker), exist_ok=True)
+        files.write_text(marker, json.dumps({"seconds": round(seconds, 3), "kernels": sorted(kernels)}))
+    return result

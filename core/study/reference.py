@@ -1,0 +1,273 @@
+"""A Cycles reference spread over farm tasks by seed, merged into one (NumPy only, no Blender).
+
+A reference of N × S samples is rendered as N tasks of S samples with N different seeds (each an
+independent Monte Carlo estimate of the same image) and merged here:
+
+- the merged image is the sample-count-weighted mean of the linear images,
+  ``sum(n_i I_i) / sum(n_i)``: an estimate with ``sum(n_i)`` samples (Cycles' pixel value is the
+  mean of its samples, so a part of n samples carries weight n);
+- the parts are split into two halves A and B of (nearly) equal sample counts; the noise floor
+  comes from the two halves, so that no extra render is needed.
+
+Noise floor. The comparison's noise floor is the metric between the reference and a second,
+independent reference of the same sample count (``docs/references.md §8``). For unbiased
+estimates with per-sample variance s² per pixel, the difference of two independent n-sample
+references has variance 2 s²/n, and the difference of the halves (n_A + n_B = n samples) has
+variance s²/n_A + s²/n_B. The root-mean-square metrics of the halves are therefore scaled by
+``sqrt(2 n_A n_B) / n`` (1/√2 for equal halves) to read on the same scale as the two-seed noise
+floor. SSIM has no such scaling and is left out of the halves' noise floor.
+
+Seeds must differ between parts: two renders with the same seed are the same noise, not more
+samples.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..base.errors import InputError
+from ..scene import exr
+from . import metrics
+
+#: Layer names of a merged reference file: the merged image as a normal render's Combined pass
+#: (so ``exr.read_passes`` reads it like any reference), and the two halves.
+MERGED_LAYER = "ViewLayer.Combined"
+HALF_LAYERS = ("SSSLab.HalfA.Combined", "SSSLab.HalfB.Combined")
+
+#: File name of one part: the seed decides it, so that a re-queued task writes the same file.
+PART_PATTERN = "reference_seed_{seed:05d}.exr"
+
+
+@dataclass(frozen=True)
+class ReferencePart:
+    """One task's render: a linear (H, W, C) float image of ``samples`` samples with ``seed``."""
+
+    image: np.ndarray
+    samples: int
+    seed: int
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class MergedReference:
+    """The merged image (float32, (H, W, C)), its total samples, the seeds, and the halves."""
+
+    image: np.ndarray
+    samples: int
+    seeds: tuple[int, ...]
+    halves: tuple[np.ndarray, np.ndarray] | None
+    half_samples: tuple[int, int] | None
+    half_seeds: tuple[tuple[int, ...], tuple[int, ...]] | None
+
+
+def part_path(folder: str, seed: int) -> str:
+    """The file one part with ``seed`` is written to in ``folder``."""
+    return os.path.join(folder, PART_PATTERN.format(seed=seed))
+
+
+def _check_parts(parts: Sequence[ReferencePart]) -> None:
+    if not parts:
+        raise InputError("reference parts: expected at least one part, got none")
+    shape = None
+    seen: dict[int, str] = {}
+    for p in parts:
+        name = p.source or f"seed {p.seed}"
+        if not isinstance(p.samples, int) or isinstance(p.samples, bool) or p.samples < 1:
+            raise InputError(f"{name}: samples: expected an integer >= 1, got {p.samples!r}")
+        if not isinstance(p.seed, int) or isinstance(p.seed, bool) or p.seed < 0:
+            raise InputError(f"{name}: seed: expected an integer >= 0, got {p.seed!r}")
+        image = np.asarray(p.image)
+        if image.ndim != 3 or image.shape[2] < 3:
+            raise InputError(f"{name}: expected an (H, W, 3 or 4) image, got shape {image.shape}")
+        if shape is None:
+            shape = image.shape
+        elif image.shape != shape:
+            raise InputError(f"{name}: image shape {image.shape} differs from the other parts' {shape}")
+        if p.seed in seen:
+            raise InputError(
+                f"{name} and {seen[p.seed]} have the same seed {p.seed}: the same noise twice is not more samples; "
+                "render every part with its own seed"
+            )
+        seen[p.seed] = name
+
+
+def split_halves(parts: Sequence[ReferencePart]) -> tuple[list[ReferencePart], list[ReferencePart]]:
+    """Two groups of parts whose sample counts are as equal as a greedy split makes them.
+
+    Parts are taken largest first (ties by seed) and each goes to the group with fewer samples
+    so far, so that equal parts alternate: N parts of S samples give ⌈N/2⌉ and ⌊N/2⌋ parts.
+    """
+    a: list[ReferencePart] = []
+    b: list[ReferencePart] = []
+    for p in sorted(parts, key=lambda p: (-p.samples, p.seed)):
+        (a if sum(q.samples for q in a) <= sum(q.samples for q in b) else b).append(p)
+    return a, b
+
+
+def _weighted_mean(parts: Sequence[ReferencePart]) -> np.ndarray:
+    total = sum(p.samples for p in parts)
+    acc = np.zeros(np.shape(parts[0].image), dtype=np.float64)
+    for p in parts:
+        acc += np.asarray(p.image, dtype=np.float64) * p.samples
+    return (acc / total).astype(np.float32)
+
+
+def merge_parts(parts: Iterable[ReferencePart]) -> MergedReference:
+    """Merge parts rendered with different seeds into one reference (module docstring).
+
+    Non-finite pixels stay non-finite in the merge (a NaN in one part is a NaN in the result,
+    where the metrics leave it out and count it), never silently averaged away.
+    """
+    parts = list(parts)
+    _check_parts(parts)
+    image = _weighted_mean(parts)
+    halves = half_samples = half_seeds = None
+    if len(parts) >= 2:
+        a, b = split_halves(parts)
+        halves = (_weighted_mean(a), _weighted_mean(b))
+        half_samples = (sum(p.samples for p in a), sum(p.samples for p in b))
+        half_seeds = (tuple(sorted(p.seed for p in a)), tuple(sorted(p.seed for p in b)))
+    return MergedReference(
+        image=image,
+        samples=sum(p.samples for p in parts),
+        seeds=tuple(sorted(p.seed for p in parts)),
+        halves=halves,
+        half_samples=half_samples,
+        half_seeds=half_seeds,
+    )
+
+
+def halves_scale(half_samples: tuple[int, int]) -> float:
+    """The factor ``sqrt(2 n_A n_B) / n`` that puts the halves' RMSE on the two-seed noise floor's
+    scale (module docstring)."""
+    na, nb = half_samples
+    return math.sqrt(2.0 * na * nb) / (na + nb)
+
+
+def noise_floor(merged: MergedReference, mask: np.ndarray | None = None, *, box: int = 1) -> dict | None:
+    """The noise floor of ``merged`` from its halves, as ``metrics.compare_images`` reports it for
+    a second seed (rmse and rel_rmse scaled by ``halves_scale``; ssim None); None for one part."""
+    if merged.halves is None or merged.half_samples is None:
+        return None
+    a, b = merged.halves
+    m = metrics.compare_images(a, b, mask, box=box)
+    k = halves_scale(merged.half_samples)
+    out = dict(m)
+    out["rmse"] = None if m["rmse"] is None else m["rmse"] * k
+    out["rel_rmse"] = None if m["rel_rmse"] is None else m["rel_rmse"] * k
+    out["ssim"] = None
+    out["halves"] = {"samples": list(merged.half_samples), "seeds": [list(s) for s in merged.half_seeds or ()]}
+    out["halves_rel_rmse"] = m["rel_rmse"]
+    out["scale"] = k
+    out["definition"] = (
+        "metric between the two halves of the merged reference, rmse scaled by sqrt(2 nA nB)/n to the scale of "
+        "two independent references of n samples"
+    )
+    return out
+
+
+# --- Files ----------------------------------------------------------------------------------------
+
+
+def sidecar(path: str) -> str:
+    """The JSON written beside a part or a merged reference."""
+    return os.path.splitext(path)[0] + ".json"
+
+
+def read_part(path: str) -> tuple[ReferencePart, dict]:
+    """A part written by ``sss_lab reference`` and its description: the EXR's Combined pass,
+    samples, seed (and what was rendered) from the JSON beside it."""
+    meta_path = sidecar(path)
+    if not os.path.isfile(meta_path):
+        raise InputError(f"{path}: no {os.path.basename(meta_path)} beside it (samples and seed of the part)")
+    try:
+        with open(meta_path, encoding="utf-8") as fh:
+            meta = json.load(fh)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{meta_path}: not readable JSON ({exc})") from None
+    if not isinstance(meta, dict) or "samples" not in meta or "seed" not in meta:
+        raise InputError(f"{meta_path}: expected a JSON object with 'samples' and 'seed'")
+    image = exr.read_passes(path)["Combined"]
+    return ReferencePart(image=image, samples=meta["samples"], seed=meta["seed"], source=path), meta
+
+
+def read_parts(paths: Sequence[str]) -> tuple[list[ReferencePart], list[dict]]:
+    """Read parts and check that they render the same thing (scene, frame, size, method)."""
+    parts, metas = [], []
+    for path in paths:
+        part, meta = read_part(path)
+        parts.append(part)
+        metas.append(meta)
+    keys = ("fingerprint", "frame", "resolution", "scene")
+    for key in keys:
+        values = {json.dumps(m.get(key)) for m in metas}
+        if len(values) > 1:
+            detail = ", ".join(f"{os.path.basename(p)}: {m.get(key)!r}" for p, m in zip(paths, metas, strict=True))
+            raise InputError(f"the parts differ in {key} ({detail}); merge parts of one scene, frame and size only")
+    return parts, metas
+
+
+def write_merged(path: str, merged: MergedReference, meta: dict | None = None, *, overwrite: bool = False) -> list[str]:
+    """Write the merged reference (and its halves) as a multilayer EXR plus a JSON beside it;
+    returns the paths written."""
+    layers = {MERGED_LAYER: merged.image}
+    if merged.halves is not None:
+        layers.update(zip(HALF_LAYERS, merged.halves, strict=True))
+    header = {"sss_lab_samples": merged.samples, "sss_lab_seeds": ",".join(map(str, merged.seeds))}
+    json_path = sidecar(path)
+    if not overwrite and os.path.exists(json_path):
+        raise FileExistsError(f"{json_path} already exists; refusing to overwrite it (choose another output name)")
+    exr.write_layers(path, layers, header, overwrite=overwrite)
+    data = dict(meta or {})
+    data.update(
+        {
+            "samples": merged.samples,
+            "seeds": list(merged.seeds),
+            "half_samples": list(merged.half_samples) if merged.half_samples else None,
+            "half_seeds": [list(s) for s in merged.half_seeds] if merged.half_seeds else None,
+            "noise_floor_whole_image": noise_floor(merged),
+        }
+    )
+    from ..base.files import write_text
+
+    write_text(json_path, json.dumps(data, indent=2) + "\n")
+    return [path, json_path]
+
+
+def read_merged(path: str) -> MergedReference:
+    """A merged reference written by ``write_merged`` (the halves, samples and seeds included)."""
+    contents = exr.read_layers(path)
+    if MERGED_LAYER not in contents.layers:
+        raise InputError(f"{path}: no layer {MERGED_LAYER!r}; expected a reference merged by sss_lab merge-reference")
+    meta_path = sidecar(path)
+    meta = {}
+    if os.path.isfile(meta_path):
+        with open(meta_path, encoding="utf-8") as fh:
+            meta = json.load(fh)
+    halves = None
+    if all(name in contents.layers for name in HALF_LAYERS):
+        first, second = (contents.layers[name] for name in HALF_LAYERS)
+        halves = (first, second)
+    half_samples = tuple(meta["half_samples"]) if halves is not None and meta.get("half_samples") else None
+    if halves is not None and half_samples is None:
+        raise InputError(f"{path}: the halves' sample counts are missing ({meta_path}); merge the parts again")
+    samples = int(meta.get("samples") or contents.header.get("sss_lab_samples") or 0)
+    seeds = tuple(meta.get("seeds") or ())
+    half_seeds = None
+    if meta.get("half_seeds"):
+        seeds_a, seeds_b = (tuple(int(v) for v in s) for s in meta["half_seeds"])
+        half_seeds = (seeds_a, seeds_b)
+    return MergedReference(
+        image=contents.layers[MERGED_LAYER],
+        samples=samples,
+        seeds=seeds,
+        halves=halves if half_samples else None,
+        half_samples=half_samples,
+        half_seeds=half_seeds,
+    )

@@ -1,0 +1,469 @@
+"""The comparison report: metrics as JSON, a Markdown and an HTML page, pictures.
+
+``write_report`` takes the measured data (plain dicts) and the linear images, and writes into
+one folder:
+
+- ``metrics.json``: everything measured; the pages are rendered from this same dict, so their
+  numbers are the JSON's numbers;
+- ``report.md`` and ``report.html`` (the HTML embeds the error-versus-time plot as SVG);
+- ``images/*.png``: each image tone mapped, and its error map against the reference;
+- ``grid.png``: no SSS / each technique / reference on the top rows, error heat maps below;
+- ``pareto.svg``: relative RMSE against time, the Pareto front joined.
+
+Nothing here renders or computes a technique: the caller (``blender/compare.py``) does.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+import os
+import re
+
+import numpy as np
+
+from ..base.files import write_text
+from . import metrics as _metrics
+from . import png
+
+REPORT_VERSION = 1
+
+METRIC_DEFINITIONS = {
+    "rmse": "root mean square difference to the reference over the SSS pixels and RGB, linear radiance"
+    " (after box x box mean downsampling of both images when box > 1)",
+    "rel_rmse": "rmse divided by the mean reference value over the same pixels",
+    "ssim": "mean SSIM (Wang et al. 2004, 7x7 Gaussian window) of tone-mapped luminance over the SSS pixels;"
+    " 1 = identical",
+    "time_s": "wall-clock seconds on this machine, end to end: for a technique, the passes render plus the"
+    " apply; for Cycles, its render",
+    "sss_effect_s": "what the SSS effect alone costs: a technique's apply; for Cycles at the passes' samples, its"
+    " random-walk render minus the passes' render (Cycles without SSS at the same samples)",
+    "bias": "the part of rel_rmse that stays with noise-free passes (the technique's own approximation plus the"
+    " reference's noise), from the error with passes at two sample counts (pass noise variance falling as"
+    " 1 / samples)",
+    "pass_noise": "the part of rel_rmse that the passes' Monte Carlo noise adds: rel_rmse² = bias² + pass_noise²",
+}
+
+
+def pareto_front(entries: list[dict], *, error_key: str = "rel_rmse") -> list[str]:
+    """Names of the entries that no other entry beats on both time and error."""
+    pts = [
+        (e["time_s"]["total"], e["metrics"][error_key], e["name"])
+        for e in entries
+        if e.get("metrics", {}).get(error_key) is not None and e.get("time_s", {}).get("total") is not None
+    ]
+    pts.sort()
+    front, best = [], math.inf
+    for _, err, name in pts:
+        if err < best:
+            front.append(name)
+            best = err
+    return front
+
+
+def _fmt(value, digits: int = 4) -> str:
+    if value is None:
+        return "—"
+    if isinstance(value, float):
+        return f"{value:.{digits}g}"
+    return str(value)
+
+
+#: Label metrics for 12 px sans-serif text: average advance per character and line height (px).
+_CHAR_W, _LINE_H = 7.0, 14.0
+
+
+def _label_box(tx: float, ty: float, anchor: str, text: str) -> tuple[float, float, float, float]:
+    w = _CHAR_W * len(text)
+    x0 = tx - w if anchor == "end" else tx
+    return (x0, ty - _LINE_H + 3, x0 + w, ty + 3)
+
+
+def _overlaps(a, b) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def place_labels(points, texts, bounds) -> list[tuple[float, float, str, bool]]:
+    """Positions for the labels of ``points`` so that no two labels overlap and none covers a
+    point: (x, y, text-anchor, whether a leader line joins it to its point).
+
+    Greedy, points in order: beside the point (right, or left in the plot's right third) just
+    above or below it, then moved further up or down in steps of one line (with a leader line)
+    until the label's box is free and inside ``bounds`` (x0, y0, x1, y1). A label that finds
+    no free place keeps the nearest position inside the plot.
+    """
+    x_min, y_min, x_max, y_max = bounds
+    placed: list[tuple[float, float, float, float]] = []
+    dots = [(x - 4, y - 4, x + 4, y + 4) for x, y in points]
+    out = []
+    for (x, y), text in zip(points, texts, strict=True):
+        right_third = x > x_min + (x_max - x_min) * 2 / 3
+        sides = [("end", x - 6), ("start", x + 6)] if right_third else [("start", x + 6), ("end", x - 6)]
+        choice = None
+        for step in range(0, 40):
+            for dy in (-6.0, 16.0) if step == 0 else (-6.0 - step * _LINE_H, 16.0 + step * _LINE_H):
+                for anchor, tx in sides:
+                    box = _label_box(tx, y + dy, anchor, text)
+                    if box[0] < x_min or box[2] > x_max + 20 or box[1] < 0 or box[3] > y_max + 4:
+                        continue
+                    if any(_overlaps(box, b) for b in placed) or any(_overlaps(box, d) for d in dots):
+                        continue
+                    choice = (tx, y + dy, anchor, step > 0, box)
+                    break
+                if choice:
+                    break
+            if choice:
+                break
+        if choice is None:
+            anchor, tx = sides[0]
+            choice = (tx, min(max(y - 6.0, y_min + _LINE_H), y_max), anchor, False, _label_box(tx, y - 6, anchor, text))
+        placed.append(choice[4])
+        out.append(choice[:4])
+    return out
+
+
+def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, height: int = 400) -> str:
+    """Relative RMSE (y) against total time (x, log scale) as an SVG document."""
+    pts = [e for e in entries if e["metrics"].get("rel_rmse") is not None and e["time_s"].get("total")]
+    left, right, top, bottom = 70, 20, 20, 50
+    if not pts:
+        return f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}"></svg>'
+    times = [max(e["time_s"]["total"], 1e-6) for e in pts]
+    errs = [e["metrics"]["rel_rmse"] for e in pts]
+    lx0, lx1 = math.log10(min(times)) - 0.1, math.log10(max(times)) + 0.1
+    y1 = max(errs) * 1.1 or 1.0
+
+    def sx(t):
+        return left + (math.log10(max(t, 1e-6)) - lx0) / (lx1 - lx0) * (width - left - right)
+
+    def sy(v):
+        return height - bottom - v / y1 * (height - top - bottom)
+
+    colours = {"technique": "#1f77b4", "cycles": "#d62728", "baseline": "#7f7f7f"}
+    out = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {width} {height}"'
+        ' font-family="sans-serif" font-size="12" role="img">',
+        "<title>Relative RMSE against time; the Pareto front is joined</title>",
+        f'<rect x="0" y="0" width="{width}" height="{height}" fill="white"/>',
+        f'<line x1="{left}" y1="{height - bottom}" x2="{width - right}" y2="{height - bottom}" stroke="black"/>',
+        f'<line x1="{left}" y1="{top}" x2="{left}" y2="{height - bottom}" stroke="black"/>',
+        f'<text x="{(left + width - right) / 2}" y="{height - 12}" text-anchor="middle">time, seconds (log)</text>',
+        f'<text x="14" y="{(top + height - bottom) / 2}" text-anchor="middle" '
+        f'transform="rotate(-90 14 {(top + height - bottom) / 2})">relative RMSE</text>',
+    ]
+    for k in range(math.floor(lx0), math.ceil(lx1) + 1):
+        for m in (1, 2, 5):
+            t = m * 10.0**k
+            if lx0 <= math.log10(t) <= lx1:
+                x = sx(t)
+                out.append(
+                    f'<line x1="{x:.1f}" y1="{height - bottom}" x2="{x:.1f}" y2="{height - bottom + 4}" '
+                    'stroke="black"/>'
+                )
+                out.append(f'<text x="{x:.1f}" y="{height - bottom + 16}" text-anchor="middle">{t:g}</text>')
+    for i in range(5):
+        v = y1 * i / 4
+        out.append(f'<text x="{left - 6}" y="{sy(v) + 4:.1f}" text-anchor="end">{v:.3g}</text>')
+        out.append(f'<line x1="{left}" y1="{sy(v):.1f}" x2="{width - right}" y2="{sy(v):.1f}" stroke="#eee"/>')
+    by_name = {e["name"]: e for e in pts}
+    chain = [by_name[n] for n in front if n in by_name]
+    if len(chain) > 1:
+        path = " ".join(f"{sx(e['time_s']['total']):.1f},{sy(e['metrics']['rel_rmse']):.1f}" for e in chain)
+        out.append(f'<polyline points="{path}" fill="none" stroke="#2ca02c" stroke-width="1.5"/>')
+    xy = [(sx(e["time_s"]["total"]), sy(e["metrics"]["rel_rmse"])) for e in pts]
+    labels = place_labels(xy, [e["name"] for e in pts], (left, top, width - right, height - bottom))
+    for e, (x, y), (tx, ty, anchor, leader) in zip(pts, xy, labels, strict=True):
+        colour = colours.get(str(e.get("kind")), "black")
+        out.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{colour}"/>')
+        if leader:
+            out.append(
+                f'<line x1="{x:.1f}" y1="{y:.1f}" x2="{tx:.1f}" y2="{ty - 4:.1f}" stroke="#999" stroke-width="0.8"/>'
+            )
+        out.append(f'<text x="{tx:.1f}" y="{ty:.1f}" text-anchor="{anchor}">{html.escape(e["name"])}</text>')
+    out.append("</svg>")
+    return "\n".join(out)
+
+
+def _markdown(data: dict) -> str:
+    s = data.get("settings", {})
+    lines = [
+        f"# SSS Lab comparison: {data.get('scene', {}).get('name', '')}",
+        "",
+        "Each technique's image against Cycles' random-walk reference, over the pixels of the subsurface materials.",
+        "",
+    ]
+    if not data.get("complete", False):
+        lines += ["**This report is incomplete:** " + "; ".join(data.get("notes", [])), ""]
+    lines += [
+        f"- Reference: Cycles {s.get('reference_method', 'RANDOM_WALK')}, {s.get('reference_samples')} samples,"
+        + (
+            f" merged from {len(s['reference_seeds'])} seeds"
+            if len(s.get("reference_seeds") or []) > 1
+            else f" seed {s.get('seed')}"
+        )
+        + f", adaptive sampling off; resolution {s.get('resolution')}.",
+        f"- Passes for the techniques: {s.get('pass_samples')} samples, subsurface weight 0"
+        + (
+            f"; again at {s['bias_pass_samples']} samples to split the error into bias and pass noise."
+            if s.get("bias_pass_samples")
+            else "."
+        ),
+        f"- Metric box downsampling: {s.get('box')} x {s.get('box')}.",
+    ]
+    nf = data.get("noise_floor")
+    if nf and nf.get("halves"):
+        halves = nf["halves"]["samples"]
+        lines.append(
+            f"- Reference seeds: {', '.join(map(str, s.get('reference_seeds') or []))}."
+            f" Noise floor from the reference's two halves ({halves[0]} + {halves[1]} samples, RMSE scaled by"
+            f" {_fmt(nf.get('scale'))} to a second seed's): rel. RMSE {_fmt(nf.get('rel_rmse'))}."
+            " Differences below it are not meaningful."
+        )
+    elif nf:
+        lines.append(
+            f"- Noise floor (reference against a second seed): rel. RMSE {_fmt(nf.get('rel_rmse'))},"
+            f" SSIM {_fmt(nf.get('ssim'))}. Differences below it are not meaningful."
+        )
+    lines += [
+        "",
+        "## Error and time",
+        "",
+        "Error: relative RMSE, split into bias (stays with noise-free passes) and pass noise (what the passes'"
+        " noise adds). Time: end to end, and the SSS effect alone (see the costs below).",
+        "",
+        "| image | kind | rel. RMSE | bias | pass noise | RMSE | SSIM | end to end s | SSS effect s | Pareto |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    front = set(data.get("pareto", []))
+    for e in data.get("entries", []):
+        m, t = e["metrics"], e["time_s"]
+        lines.append(
+            f"| {e['name']} | {e['kind']} | {_fmt(m.get('rel_rmse'))} | {_fmt(m.get('bias'))} |"
+            f" {_fmt(m.get('pass_noise'))} | {_fmt(m.get('rmse'))} | {_fmt(m.get('ssim'))}"
+            f" | {_fmt(t.get('total'), 3)} | {_fmt(t.get('sss_effect'), 3)} | {'yes' if e['name'] in front else ''} |"
+        )
+    costs = data.get("costs")
+    if costs:
+        lines += [
+            "",
+            "## Two costs",
+            "",
+            costs["definition"],
+            "",
+            f"- Cycles random walk, {costs['samples']} samples: {_fmt(costs['cycles_random_walk_s'], 3)} s; without"
+            f" SSS (the passes): {_fmt(costs['cycles_without_sss_s'], 3)} s; the SSS effect alone:"
+            f" {_fmt(costs['cycles_sss_effect_s'], 3)} s.",
+            "",
+            "| technique | SSS effect alone s | end to end s |",
+            "|---|---|---|",
+        ]
+        for row in costs["techniques"]:
+            lines.append(f"| {row['name']} | {_fmt(row['sss_effect_s'], 3)} | {_fmt(row['end_to_end_s'], 3)} |")
+    lines += ["", "![error against time](pareto.svg)", "", "![images](grid.png)", ""]
+    grid = data.get("grid")
+    if grid:
+        white = _fmt(grid["error_scale_white"], 3)
+        lines += [
+            "Columns, left to right: " + ", ".join(grid["columns"]) + ". Top row: tone-mapped image; bottom row:"
+            f" relative luminance error against the reference (black 0, white at {white}).",
+            "",
+        ]
+    pictures = [e for e in data.get("entries", []) if e.get("image")]
+    if pictures:
+        lines += ["## Images", "", "| image | picture | error map |", "|---|---|---|"]
+        for e in pictures:
+            err = f"![error of {e['name']}]({e['error_image']})" if e.get("error_image") else ""
+            lines.append(f"| {e['name']} | ![{e['name']}]({e['image']}) | {err} |")
+        ref_image = data.get("reference_image")
+        if ref_image:
+            lines.append(f"| reference | ![reference]({ref_image}) | |")
+        lines.append("")
+    fid = data.get("fidelity")
+    if fid:
+        lines += [
+            "## Visual fidelity, measured",
+            "",
+            fid.get("definition", ""),
+            "",
+            "| technique | non-local diffusion: 90 % radius (R / G / B), scene units | colour bleeding:"
+            " R/B spread ratio | energy out / in (R / G / B) |",
+            "|---|---|---|---|",
+        ]
+        for name, row in fid.get("rows", {}).items():
+            r90 = " / ".join(_fmt(v, 3) for v in row["r90_su"])
+            energy = " / ".join(_fmt(v, 4) for v in row["energy_ratio"])
+            lines.append(f"| {name} | {r90} | {_fmt(row['bleeding_ratio'], 3)} | {energy} |")
+        lines.append("")
+    cal = data.get("calibration")
+    if cal:
+        lines += [
+            "## Material mapping calibration",
+            "",
+            cal.get("definition", ""),
+            "",
+            "| method | technique | mapping | rel. RMSE | chosen |",
+            "|---|---|---|---|---|",
+        ]
+        for row in cal.get("rows", []):
+            lines.append(
+                f"| {row['method']} | {row['technique']} | {row['mapping']} | {_fmt(row.get('rel_rmse'))} |"
+                f" {'yes' if row.get('chosen') else ''} |"
+            )
+        lines.append("")
+    lines += ["## Definitions", ""] + [f"- **{k}**: {v}" for k, v in METRIC_DEFINITIONS.items()] + [""]
+    return "\n".join(lines)
+
+
+_MD_IMAGE = re.compile(r"!\[([^\]]*)\]\(([^)]+)\)")
+_MD_BOLD = re.compile(r"\*\*(.+?)\*\*")
+
+
+def _html_text(text: str) -> str:
+    """Escaped text, with Markdown's **bold** as <strong>."""
+    return _MD_BOLD.sub(r"<strong>\1</strong>", html.escape(text))
+
+
+def _html_cell(text: str, tag: str = "td") -> str:
+    """A table cell: Markdown images become <img>, everything else is escaped text."""
+    m = _MD_IMAGE.fullmatch(text)
+    if m:
+        alt, src = (html.escape(g, quote=True) for g in m.groups())
+        return f'<{tag}><img src="{src}" alt="{alt}" width="128"></{tag}>'
+    return f"<{tag}>{html.escape(text)}</{tag}>"
+
+
+#: The page's style. Wide content (tables, the plot, the grid) scrolls inside its own box, so
+#: the page itself never scrolls sideways on a phone and the text keeps its size.
+_STYLE = (
+    "body{font-family:sans-serif;font-size:16px;line-height:1.4;max-width:1100px;margin:0 auto;padding:0 12px 2em}"
+    "h1{font-size:1.5em}h2{font-size:1.25em;margin-top:1.5em}p,li{overflow-wrap:anywhere}"
+    ".wide{overflow-x:auto;margin:1em 0}table{border-collapse:collapse}"
+    "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right;vertical-align:top}"
+    "th{background:#f4f4f4}td:first-child,th:first-child{text-align:left}"
+    "img{image-rendering:pixelated}.wide>svg{display:block}"
+)
+
+
+def _html(data: dict, svg: str) -> str:
+    # The Markdown is the single source of the text; the HTML shows it as tables plus the pictures.
+    lines = _markdown(data).splitlines()
+    body: list[str] = []
+    block = ""  # the open element that groups lines: "table", "ul" or ""
+
+    def open_block(kind: str) -> None:
+        nonlocal block
+        if block == kind:
+            return
+        if block:
+            body.append("</table></div>" if block == "table" else "</ul>")
+        if kind:
+            body.append('<div class="wide"><table>' if kind == "table" else "<ul>")
+        block = kind
+
+    for k, line in enumerate(lines):
+        if line.startswith("|---"):
+            continue
+        if line.startswith("| "):
+            open_block("table")
+            header = k + 1 < len(lines) and lines[k + 1].startswith("|---")
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            body.append("<tr>" + "".join(_html_cell(c, "th" if header else "td") for c in cells) + "</tr>")
+            continue
+        if line.startswith("- "):
+            open_block("ul")
+            body.append(f"<li>{_html_text(line[2:])}</li>")
+            continue
+        open_block("")
+        if line.startswith("# "):
+            body.append(f"<h1>{html.escape(line[2:])}</h1>")
+        elif line.startswith("## "):
+            body.append(f"<h2>{html.escape(line[3:])}</h2>")
+        elif line.startswith("![error"):
+            body.append(f'<div class="wide">{svg}</div>')
+        elif line.startswith("![images]"):
+            body.append('<div class="wide"><img src="grid.png" alt="images"></div>')
+        elif line.strip():
+            body.append(f"<p>{_html_text(line)}</p>")
+    open_block("")
+    title = html.escape(f"SSS Lab report: {data.get('scene', {}).get('name', '')}")
+    return (
+        "<!doctype html><html lang='en'><head><meta charset='utf-8'>"
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>"
+        f"<title>{title}</title><style>{_STYLE}</style></head><body>{''.join(body)}</body></html>\n"
+    )
+
+
+def write_report(
+    out_dir: str,
+    data: dict,
+    images: dict[str, np.ndarray],
+    *,
+    reference: str,
+    mask: np.ndarray | None = None,
+    order: list[str] | None = None,
+    summary: list[str] | None = None,
+    exposure: float = 1.0,
+) -> dict:
+    """Write the report folder; returns ``data`` completed with ``pareto`` and image paths.
+
+    ``images`` maps entry names (and the reference's name ``reference``) to linear RGB(A)
+    arrays of one size. Error maps are relative luminance error against the reference, the
+    heat ramp's white at ``2 x`` the largest median error.
+    """
+    if reference not in images:
+        raise ValueError(f"reference image {reference!r} is not among the images: {sorted(images)}")
+    data = dict(data)
+    data["version"] = REPORT_VERSION
+    data["metric_definitions"] = METRIC_DEFINITIONS
+    data["pareto"] = pareto_front(data.get("entries", []))
+    img_dir = os.path.join(out_dir, "images")
+    ref = images[reference]
+    names = order or list(images)
+    err_maps = {n: _metrics.error_map(images[n], ref) for n in names if n != reference}
+    vmax = 2.0 * max(
+        [
+            float(np.median(e[mask])) if mask is not None and mask.any() else float(np.median(e))
+            for e in err_maps.values()
+        ]
+        + [1e-3]
+    )
+    tops, bottoms = [], []
+    for n in names:
+        slug = "".join(c if c.isalnum() else "_" for c in n).strip("_")
+        disp = png.to_display(images[n], exposure=exposure)
+        png.write_png(os.path.join(img_dir, f"{slug}.png"), disp)
+        tops.append(disp)
+        if n in err_maps:
+            heat = png.heat(err_maps[n], vmax=vmax)
+            png.write_png(os.path.join(img_dir, f"{slug}_error.png"), heat)
+            bottoms.append(heat)
+        else:
+            bottoms.append(np.zeros_like(disp))
+        if n == reference:
+            data["reference_image"] = f"images/{slug}.png"
+        for e in data.get("entries", []):
+            if e["name"] == n:
+                e["image"] = f"images/{slug}.png"
+                if n in err_maps:
+                    e["error_image"] = f"images/{slug}_error.png"
+    png.write_png(os.path.join(out_dir, "grid.png"), png.grid(tops + bottoms, columns=len(names)))
+    picked = [n for n in (summary or []) if n in images]
+    if picked:
+        # A short grid for a first look: the same tiles, fewer columns (README figures use it).
+        index = {n: i for i, n in enumerate(names)}
+        tiles = [tops[index[n]] for n in picked] + [bottoms[index[n]] for n in picked]
+        png.write_png(os.path.join(out_dir, "summary.png"), png.grid(tiles, columns=len(picked)))
+        data["summary"] = {"file": "summary.png", "columns": picked}
+    data["grid"] = {
+        "file": "grid.png",
+        "columns": names,
+        "error_scale_white": vmax,
+        "rows": ["tone-mapped image", "relative luminance error (black 0, white at error_scale_white)"],
+    }
+    svg = pareto_svg(data.get("entries", []), data["pareto"])
+    write_text(os.path.join(out_dir, "pareto.svg"), svg)
+    write_text(os.path.join(out_dir, "metrics.json"), json.dumps(data, indent=2, sort_keys=True))
+    write_text(os.path.join(out_dir, "report.md"), _markdown(data))
+    write_text(os.path.join(out_dir, "report.html"), _html(data, svg))
+    return data

@@ -1,0 +1,477 @@
+"""Simple translucency approximation (STA), in NumPy.
+
+Barre-Brisebois & Bouchard, "Approximating Translucency for a Fast, Cheap and Convincing
+Subsurface Scattering Look", GDC 2011 / GPU Pro 2 (docs/references.md §4). Per light:
+
+    L_T   = normalize(L + d_T N)                 (the seed deck and three.js normalize it)
+    T_dir = s_T max(0, V . -L_T)^p_T
+    T     = A_L t (T_dir + a_T)
+    added = albedo x light colour x (E_L / pi) x T
+
+L points from the surface to the light, V from the surface to the viewer, N is the shading
+normal, t the local thickness map in the translucency convention (1 = thin; a map in the
+thickness convention is read as 1 - t). A_L is the light's attenuation and E_L its irradiance
+at the point in Blender's units: a sun gives its Strength (W/m^2); a point or spot light of
+power P at distance r gives P / (4 pi r^2), a spot times Cycles' smoothstep cone falloff
+(spot_size, spot_blend); an area light of power P gives P cos(theta_L) / (pi r^2). The 1 / pi
+is a Lambertian surface's, so that s_T = 1 makes the translucency as bright as a diffuse surface
+facing the light; the original leaves the scale to the artist.
+
+Extremes, each tested: when L + d_T N vanishes the direction is undefined and that light adds
+nothing there; p_T = 0 gives s_T wherever V . -L_T > 0 (and nothing where it is <= 0); large p_T
+(e.g. 128) narrows the lobe without overflow; thickness 0 adds nothing, 1 the full term.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from ...base import arrays
+from ...compute import backend
+from ...optics.lights import THICKNESS_CONVENTIONS, light_at, norm
+from ...optics.medium import Medium, slab_transmittance_rgb
+from ...scene.passes import THICKNESS
+from ...scene.scene import Camera, Light
+from ..spec import Param, Technique
+
+_EPS = np.float32(1e-6)
+
+FALLOFFS = ("medium", "map", "burley")
+
+
+def _transmittance(translucency: np.ndarray, distance: float, d_c: np.ndarray) -> np.ndarray:
+    """Per-channel Burley transmittance (B, 3) through the slab thickness the map stands for."""
+    f32 = np.float32
+    x = f32(distance) * np.sqrt(np.maximum(f32(1.0) - translucency, f32(0.0)))
+    out = np.empty((x.size, 3), f32)
+    for c in range(3):
+        if d_c[c] > 0:
+            e3 = np.exp(-x / f32(3.0 * d_c[c]))
+            out[:, c] = f32(0.25) * (e3 * e3 * e3 + f32(3.0) * e3)
+        else:  # no scattering distance: only a part of zero thickness lets light through
+            out[:, c] = (x == 0).astype(f32)
+    return out
+
+
+#: Pixels per block: the planar rows of a block stay in the cache.
+_BLOCK = 1 << 16
+
+
+def _check_bound(args: dict, reference: np.ndarray) -> np.ndarray:
+    """Check mode's bound (``backend.checked``): per pixel, a sum over the lights of non-negative
+    terms (the result itself is their size)."""
+    return backend.tolerance(len(args["lights"]), reference)
+
+
+@backend.checked(bound=_check_bound)
+def sta(
+    *,
+    albedo,
+    normal,
+    position,
+    thickness,
+    mask,
+    camera: Camera,
+    lights,
+    distortion: float = 0.1,
+    power: float = 2.0,
+    scale: float = 1.0,
+    ambient: float = 0.0,
+    thickness_convention: str = "translucency",
+    falloff: str = "medium",
+    d_su=None,
+    thickness_distance_su: float = 0.0,
+    mfp_su=None,
+    subsurface_method: str | None = None,
+    base_color=(0.8, 0.8, 0.8),
+    subsurface_ior: float = 1.4,
+    subsurface_anisotropy: float = 0.0,
+) -> np.ndarray:
+    """The translucency term STA adds, float32 (H, W, 3); zero outside ``mask``.
+
+    ``falloff`` "medium" (the default): the map is read back as a slab thickness x (below) and the
+    term is filtered through the material's medium as Cycles' subsurface method carries light
+    through a slab (``core.optics.medium.slab_transmittance_rgb``, docs/references.md §14: the random
+    walk's per-channel transmittance for the walks, the disk probes' for Christensen-Burley,
+    Burley's law with ``d_su`` without ``subsurface_method``), and the albedo is replaced by the
+    exit weight Cycles puts on that light (``core.optics.medium.exit_weight``: Diffuse Color / Base
+    Color for a walk, whose medium does the colouring; Diffuse Color for Christensen-Burley).
+    ``mfp_su`` (the method's mean free path per channel, ``core.pipeline.mapping.mean_free_path``; ``d_su``
+    without it), ``subsurface_method``, ``base_color``, ``subsurface_ior`` and
+    ``subsurface_anisotropy`` describe the medium. STA's view lobe, scale and ambient stay as in
+    the paper. "map" (the paper's): the term is scaled by the translucency map t itself, the
+    same for R, G and B, and coloured by the albedo. "burley": the map is read back as a slab thickness,
+    x = D sqrt(1 - t) (the bake's AO of a slab is (x / D)^2, ``core/scene/thickness.py``, with D =
+    ``thickness_distance_su``), and each channel is scaled by the Burley transmittance
+    T_c(x) = (e^{-x/d_c} + 3 e^{-x/3d_c}) / 4 for the profile shape ``d_su`` (HDRP's
+    ComputeTransmittanceDisney, docs/references.md §4; the albedo is applied as before): thin
+    parts pass every channel, thicker ones mostly the channel that scatters furthest.
+
+    ``albedo`` (H, W, 3) Diffuse Color; ``normal`` (H, W, 3) world-space normals; ``position``
+    (H, W, 3) world positions; ``thickness`` (H, W) in [0, 1]; ``lights``: core.scene.scene.Light list.
+    ``distortion`` d_T, ``power`` p_T, ``scale`` s_T, ``ambient`` a_T as in the paper.
+    STA adds light (it models light arriving from behind, not redistributed light): its sum is
+    not conserved, by design. Pixels with non-finite inputs get 0.
+    """
+    if not isinstance(camera, Camera):
+        raise ValueError(f"camera: expected a core.scene.scene.Camera, got {type(camera).__name__}")
+    if thickness_convention not in THICKNESS_CONVENTIONS:
+        raise ValueError(
+            f"thickness_convention: {thickness_convention!r} is not one of {', '.join(THICKNESS_CONVENTIONS)}"
+        )
+    for light in lights:
+        if not isinstance(light, Light):
+            raise ValueError(f"lights: expected core.scene.scene.Light entries, got {type(light).__name__}")
+    try:
+        distortion = float(distortion)
+    except (TypeError, ValueError):
+        raise ValueError(f"distortion: expected a number, got {distortion!r}") from None
+    if not math.isfinite(distortion):
+        raise ValueError(f"distortion: expected a finite number, got {distortion!r}")
+    if falloff not in FALLOFFS:
+        raise ValueError(f"falloff: {falloff!r} is not one of {', '.join(FALLOFFS)}")
+    # Per-channel Burley transmittance through the slab the map stands for, or the paper's map.
+    transmits = falloff == "burley"
+    if transmits:
+        d_c = arrays.rgb_lengths(d_su, "d_su")
+        distance = arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
+    # Through the medium: the transmittance tabulated over thickness and view cosine, and the
+    # exit weight's per-channel factor (1 / Base Color, clipped to 1, for a walk).
+    through = None
+    if falloff == "medium":
+        through = _medium_inputs(
+            d_su if mfp_su is None else mfp_su,
+            thickness_distance_su,
+            (subsurface_method, base_color, subsurface_ior, subsurface_anisotropy),
+        )
+    power = arrays.positive_finite(power, "power")
+    scale = arrays.positive_finite(scale, "scale")
+    ambient = arrays.positive_finite(ambient, "ambient")
+    a = arrays.image(albedo, "albedo")
+    shape = a.shape[:2]
+    n = arrays.image(normal, "normal")
+    p = arrays.image(position, "position")
+    t = arrays.image(thickness, "thickness", None)
+    arrays.same_size(shape, normal=n, position=p, thickness=t)
+    m = arrays.mask_array(mask, shape)
+    lights = [light for light in lights if light.energy > 0]
+    if not m.any() or not lights:
+        return np.zeros(a.shape, np.float32)
+    if backend.active() == "numba":
+        out = np.empty(a.shape, np.float32)  # the kernel writes every pixel (zeros off the mask)
+        _compiled(
+            a,
+            n,
+            p,
+            t,
+            m,
+            camera,
+            lights,
+            distortion,
+            power,
+            scale,
+            ambient,
+            thickness_convention,
+            out,
+            d_c if transmits else None,
+            distance if transmits else 0.0,
+            through,
+        )
+        return out
+    out = np.zeros(a.shape, np.float32)
+    rows = {name: arrays.pixel_rows(arr) for name, arr in (("a", a), ("n", n), ("p", p))}
+    flat_t = np.ascontiguousarray(t).ravel()
+    out_rows = arrays.pixel_rows(out)
+    idx = np.flatnonzero(m)
+    colors = [np.asarray(light.color, np.float32) for light in lights]
+    f32 = np.float32
+    if camera.type == "ORTHO":
+        view_dir, cam_pos = (-camera.forward).astype(f32), None
+    else:
+        view_dir, cam_pos = None, camera.position.astype(f32)
+    d_t = f32(distortion)
+    one_over_pi = f32(1.0 / math.pi)
+
+    def run(start, stop):
+        # A block of consecutive pixels (the full-screen case) is read and written as slices.
+        sel = arrays.block_selection(idx, start, stop)
+        # (B, 3) rows and strided (3, B) views of them: read-only (a slice is the caller's array).
+        albedo_rows = arrays.as_rows(rows["a"][sel])
+        nx, ny, nz = arrays.as_rows(rows["n"][sel]).T
+        px, py, pz = arrays.as_rows(rows["p"][sel]).T
+        tt = flat_t[sel]
+        ok = albedo_rows[:, 0] + albedo_rows[:, 1]
+        for v in (albedo_rows[:, 2], nx, ny, nz, px, py, pz, tt):
+            ok += v
+        ok = np.isfinite(ok)
+        all_ok = bool(ok.all())
+        if not all_ok:
+            tt = np.where(ok, tt, f32(0.0))
+        tt = np.clip(tt, f32(0.0), f32(1.0))
+        if thickness_convention == "thickness":
+            tt = f32(1.0) - tt
+            if not all_ok:
+                tt[~ok] = 0.0
+        nx, ny, nz, _ = norm(nx, ny, nz)
+        if cam_pos is None:
+            vx, vy, vz = (view_dir[k] for k in range(3))
+        else:
+            vx, vy, vz, _ = norm(cam_pos[0] - px, cam_pos[1] - py, cam_pos[2] - pz)
+        # Lights of equal R, G, B (white ones, say) share one accumulator; coloured ones one per channel.
+        grey = coloured = None
+        for light, color in zip(lights, colors, strict=True):
+            lx, ly, lz, irradiance = light_at(light, px, py, pz)
+            ux = d_t * nx
+            ux += lx
+            uy = d_t * ny
+            uy += ly
+            uz = d_t * nz
+            uz += lz
+            # V . normalize(L + d_T N), negated; |L + d_T N| kept to drop lights whose direction vanished.
+            length = ux * ux
+            length += uy * uy
+            length += uz * uz
+            np.sqrt(length, out=length)
+            vdot = vx * ux
+            vdot += vy * uy
+            vdot += vz * uz
+            inv = np.maximum(length, f32(1e-30))
+            np.divide(f32(-1.0), inv, out=inv)
+            vdot *= inv
+            # max(0, x)^p, with p = 0 giving 1 only where x > 0; a vanished L + d_T N gives nothing.
+            if power == 0:
+                lobe = (vdot > 0).astype(f32)
+            else:
+                lobe = np.maximum(vdot, f32(0.0), out=vdot)
+                lobe **= f32(power)
+            vanished = length <= _EPS
+            if vanished.any():
+                lobe[vanished] = 0.0
+            # E_L / pi (s_T lobe + a_T); the thickness is applied once after the sum over lights.
+            e_pi = irradiance * one_over_pi
+            if np.ndim(e_pi) == 0:
+                lobe *= f32(scale) * e_pi
+                if ambient:
+                    lobe += f32(ambient) * e_pi
+            else:
+                lobe *= f32(scale)
+                lobe += f32(ambient)
+                lobe *= e_pi
+            if color[0] == color[1] == color[2]:
+                if color[0] != 1:
+                    lobe *= color[0]
+                if grey is None:
+                    grey = lobe
+                else:
+                    grey += lobe
+            else:
+                if coloured is None:
+                    coloured = np.zeros((3, tt.size), f32)
+                for c in range(3):
+                    coloured[c] += color[c] * lobe
+        if through is not None:
+            table, inv_base, clip = through
+            mu = nx * vx
+            mu += ny * vy
+            mu += nz * vz
+            trans = _lookup(table, tt, np.abs(mu))
+            light = grey[:, None] if coloured is None else (coloured + (0.0 if grey is None else grey)).T
+            weight = albedo_rows * inv_base
+            if clip:
+                weight = np.clip(weight, f32(0.0), f32(1.0))
+            res = weight * light * trans
+        elif transmits:
+            trans = _transmittance(tt, distance, d_c)  # (B, 3)
+            light = grey[:, None] if coloured is None else (coloured + (0.0 if grey is None else grey)).T
+            res = albedo_rows * light * trans
+        elif coloured is None:
+            grey *= tt
+            res = albedo_rows * grey[:, None]
+        else:
+            if grey is not None:
+                coloured += grey
+            coloured *= tt
+            res = albedo_rows * coloured.T
+        if not all_ok:
+            res[~ok] = 0.0
+        out_rows[sel] = res.view(arrays.RGB_ITEM).ravel()
+
+    arrays.for_blocks(idx.size, _BLOCK, run)
+    return out
+
+
+#: The "medium" falloff's table: slab thicknesses x = D u^2 for u uniform over [0, 1] (D the bake
+#: distance; finer where thin parts pass most light), and view cosines uniform over [0, 1]. The
+#: transmittance is interpolated bilinearly: within 0.01 of the light through no thickness of the
+#: model it tabulates, for walks and disks
+#: at bake distances of 1 to 60 mean free paths (``tests/core/test_techniques.py``; measured
+#: 0.006, at Christensen-Burley's cut at 16 d and the Skin method's view interpolation).
+MEDIUM_X = 129
+MEDIUM_MU = 17
+
+
+@functools.lru_cache(maxsize=64)
+def medium_table(length_su: tuple, distance_su: float, medium) -> np.ndarray:
+    """T_c(x, mu), float32 (MEDIUM_X, MEDIUM_MU, 3): ``core.optics.medium.slab_transmittance_rgb``
+    through x = ``distance_su`` (i / (MEDIUM_X - 1))^2 for the view cosine mu = j / (MEDIUM_MU - 1)
+    (``medium`` a ``core.optics.medium.Medium`` or None for Burley's law with d = ``length_su``)."""
+    x = distance_su * np.linspace(0.0, 1.0, MEDIUM_X) ** 2
+    mu = np.linspace(0.0, 1.0, MEDIUM_MU)
+    xx, mm = np.meshgrid(x, mu, indexing="ij")
+    walks = medium is not None and medium.walks
+    tr = slab_transmittance_rgb(xx.ravel(), length_su, medium, view_cos=mm.ravel() if walks else None)
+    table = np.asarray(tr, np.float32).reshape(MEDIUM_X, MEDIUM_MU, 3)
+    table.flags.writeable = False
+    return table
+
+
+def _medium_inputs(length_su, distance_su, medium_args):
+    """(table, per-channel factor of the exit weight, clip it to 1) for the "medium" falloff."""
+    if length_su is None or not distance_su:
+        raise ValueError(
+            "falloff 'medium' reads the map as a thickness through the material: it needs mfp_su (or d_su), the"
+            f" material's lengths per channel, and thickness_distance_su > 0, the bake's distance (got"
+            f" {length_su!r} and {distance_su!r}); falloff 'map' needs neither"
+        )
+    length = tuple(float(v) for v in arrays.rgb_lengths(length_su, "mfp_su"))
+    distance = arrays.positive_finite(distance_su, "thickness_distance_su", allow_zero=False)
+    method, base_color, ior, anisotropy = medium_args
+    medium = (
+        None if method is None else Medium(method, tuple(float(v) for v in base_color), float(ior), float(anisotropy))
+    )
+    table = medium_table(length, float(distance), medium)
+    if medium is not None and medium.walks:
+        # A walk divides the closure weight by Base Color (core.optics.medium.exit_weight).
+        base = np.asarray(medium.base_color, np.float64)
+        inv = np.where(base > 0, 1.0 / np.maximum(base, 1e-6), 0.0).astype(np.float32)
+        return table, inv, True
+    return table, np.ones(3, np.float32), False
+
+
+def _lookup(table: np.ndarray, translucency: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """T_c per pixel (B, 3) from ``medium_table``: bilinear in u = sqrt(x / D) (from the translucency
+    t in [0, 1]: x / D = sqrt(1 - t)) and the view cosine ``mu``; the float32
+    operations of ``core.compute.compiled.sta_kernel``, in its order."""
+    f32 = np.float32
+    sx = np.sqrt(np.sqrt(np.maximum(f32(1.0) - translucency, f32(0.0)))) * f32(MEDIUM_X - 1)
+    i = np.minimum(np.floor(sx), f32(MEDIUM_X - 2)).astype(np.int64)
+    fx = (sx - i.astype(f32))[:, None]
+    sm = np.where(mu < f32(1.0), mu, f32(1.0)) * f32(MEDIUM_MU - 1)  # NaN reads as 1, as the kernel's
+    j = np.minimum(np.floor(sm), f32(MEDIUM_MU - 2)).astype(np.int64)
+    fm = (sm - j.astype(f32))[:, None]
+    lo = table[i, j] + fx * (table[i + 1, j] - table[i, j])
+    hi = table[i, j + 1] + fx * (table[i + 1, j + 1] - table[i, j + 1])
+    return lo + fm * (hi - lo)
+
+
+def _compiled(
+    a, n, p, t, m, camera, lights, distortion, power, scale, ambient, convention, out, d_c, distance, through
+):
+    """The per-pixel loop above as one compiled kernel (``core.compute.compiled.sta_kernel``)."""
+    f32 = np.float32
+    c = np.ascontiguousarray
+    if camera.type == "ORTHO":
+        view = (-camera.forward).astype(f32)
+    else:
+        view = camera.position.astype(f32)
+    three_d = np.zeros(3, f32) if d_c is None else np.array([f32(3.0 * v) if v > 0 else 0.0 for v in d_c], f32)
+    backend.run_kernel(
+        "sta_kernel",
+        c(a),
+        c(n),
+        c(p),
+        c(t),
+        c(m),
+        backend.compiled().light_table(lights),
+        camera.type == "ORTHO",
+        view,
+        f32(distortion),
+        f32(power),
+        f32(scale),
+        f32(ambient),
+        convention == "thickness",
+        d_c is not None,
+        f32(distance),
+        three_d,
+        through is not None,
+        _NO_TABLE if through is None else through[0],
+        np.ones(3, f32) if through is None else through[1],
+        through is not None and through[2],
+        out,
+    )
+
+
+#: The compiled kernel's table argument when there is none (a typed placeholder).
+_NO_TABLE = np.zeros((2, 2, 3), np.float32)
+
+
+def _prepare(params: dict) -> list[str]:
+    """Without the bake's distance the map cannot be read as a thickness: the paper's falloff."""
+    if params.get("falloff") != "medium" or params.get("thickness_distance_su"):
+        return []
+    params["falloff"] = "map"
+    return [
+        "the thickness map has no bake distance (bake it with SSS Lab's Bake Thickness): STA scales by the"
+        " map itself (falloff map), not through the material's medium"
+    ]
+
+
+#: STA's spec (``core/techniques/spec.py``): the defaults are the signature's (three.js's distortion, power and
+#: ambient, docs/references.md §4); scale 1 makes the translucency as bright as a Lambertian surface
+#: facing the light; the "medium" falloff filters it as the material's Cycles method does
+#: (docs/references.md §14). The comparison can still calibrate the scale with each falloff.
+TECHNIQUE = Technique(
+    name="sta",
+    label="STA",
+    description="Simple translucency: back-lighting times a baked thickness map",
+    citation="docs/references.md §4; Barré-Brisebois & Bouchard 2011, Approximating Translucency for a Fast, "
+    "Cheap and Convincing Subsurface Scattering Look (GDC)",
+    function=sta,
+    scatters=False,
+    adds_light=True,
+    passes=("Combined", "Diffuse Color", "Normal", "Position", "Material Index", THICKNESS),
+    params=(
+        Param(
+            "distortion",
+            "Distortion",
+            "How far the surface normal bends the light direction (L + distortion N)",
+            min=0.0,
+            soft_max=1.0,
+        ),
+        Param(
+            "power", "Power", "Exponent of the view-dependent back-light term (higher: tighter)", min=0.0, soft_max=16.0
+        ),
+        Param("scale", "Scale", "Brightness of the translucency", min=0.0, soft_max=20.0),
+        Param("ambient", "Ambient", "Translucency that does not depend on the view direction", min=0.0, soft_max=1.0),
+        Param(
+            "falloff",
+            "Falloff",
+            "How the thickness map scales the translucency",
+            type=str,
+            choices=(
+                (
+                    "medium",
+                    "Through the Medium",
+                    "The light filtered through the slab thickness the baked map stands for, as the material's"
+                    " Cycles subsurface method carries it (uses the bake distance)",
+                ),
+                ("map", "Map", "The paper's: the translucency map itself, the same for R, G and B"),
+                (
+                    "burley",
+                    "Burley Transmission",
+                    "Per-channel Burley transmittance through the slab thickness the baked map stands for"
+                    " (uses the bake distance; red passes thick parts best)",
+                ),
+            ),
+        ),
+    ),
+    # The paper's map first (the cheapest), then the default.
+    qualities=({"falloff": "map"}, {}),
+    default_quality=1,
+    calibration={"falloff": FALLOFFS, "scale": (0.25, 0.5, 1.0, 2.0, 4.0)},
+    prepare=_prepare,
+    fit=("scale",),
+)
