@@ -2535,6 +2535,80 @@ def _take(ring, i, r, n, out, bw):
         out[t] = f32(ring[a, t] - ring[b, t])
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _band_columns(light, on, part, state, base, rows, q, xs, bw, b0, t_from, t_to, lo, n, r, planes, l0, o0):
+    """``spread_band``'s vertical pass of plane ``q`` (R, G, B or the mask) over one strip of
+    ``bw`` columns from region column ``xs``: its three rings of ``rows`` running sums at
+    ``state[base:]`` (set to zero in the part's first band), fed the rows ``t_from``..``t_to`` - 1
+    (the values from row ``lo``, ``n`` of them), the three box sums of half-width ``r`` chained,
+    and the third sum's rows of the band from ``b0`` into ``planes``."""
+    ring1 = state[base : base + rows * PART_STRIP].reshape((rows, PART_STRIP))
+    ring2 = state[base + rows * PART_STRIP : base + 2 * rows * PART_STRIP].reshape((rows, PART_STRIP))
+    ring3 = state[base + 2 * rows * PART_STRIP : base + 3 * rows * PART_STRIP].reshape((rows, PART_STRIP))
+    if b0 == part[0]:
+        for t in range(bw):
+            ring1[0, t] = 0.0
+            ring2[0, t] = 0.0
+            ring3[0, t] = 0.0
+    x = np.zeros(PART_STRIP, np.float32)
+    y1 = np.empty(PART_STRIP, np.float32)
+    y2 = np.empty(PART_STRIP, np.float32)
+    y3 = np.empty(PART_STRIP, np.float32)
+    for t_row in range(t_from, t_to):
+        if part[0] <= t_row < part[1]:
+            row = on[t_row - o0]
+            for t in range(bw):
+                mk = _ONE if row[xs + t - part[2]] != 0 else _ZERO
+                x[t] = light[t_row - l0, xs + t, q] * mk if q < 3 else mk
+        else:
+            for t in range(bw):
+                x[t] = _ZERO
+        m1 = t_row - lo
+        _push(ring1, m1, x, bw)
+        for i1 in range(_ready(m1, r, n), _ready(m1 + 1, r, n)):
+            _take(ring1, i1, r, n, y1, bw)
+            _push(ring2, i1, y1, bw)
+            for i2 in range(_ready(i1, r, n), _ready(i1 + 1, r, n)):
+                _take(ring2, i2, r, n, y2, bw)
+                _push(ring3, i2, y2, bw)
+                for i3 in range(_ready(i2, r, n), _ready(i2 + 1, r, n)):
+                    i = lo + i3
+                    if i < part[0] or i >= part[1]:
+                        continue
+                    _take(ring3, i3, r, n, y3, bw)
+                    for t in range(bw):
+                        planes[q, i - b0, xs + t - part[2]] = y3[t]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _band_blend(line, left, sig, on, part, needed, k, n_levels, g_lo, g_k, g_hi, top, i0, n_rows, b0, o0, out):
+    """Level ``k``'s share of the part's pixels in rows ``i0``..``i0`` + ``n_rows`` - 1 (region
+    rows; ``line``: their blurred planes side by side from column ``left``, four lanes a row)
+    into ``out``: a pixel's channel whose width (``sig``, clipped to [0, ``top``]) lies in
+    (``g_lo``, ``g_k``] adds ``k``'s weight times the level (normalized by the blurred mask) to
+    the lower share already there; one in (``g_k``, ``g_hi``] takes its lower share from it."""
+    for g in range(n_rows):
+        i = i0 + g
+        for j in range(part[2], part[3]):
+            if on[i - o0, j - part[2]] == 0:
+                continue
+            den = line[j - left, 4 * g + 3]
+            den = den if den > f32(1e-6) or den != den else f32(1e-6)
+            for c in range(3):
+                if not needed[k, c]:
+                    continue
+                s = min(max(np.float64(sig[i - b0, j, c]), 0.0), top)
+                # Its levels (the reference's searchsorted): the first of grid >= s, at least 1.
+                if s <= g_k and (k == 1 or s > g_lo):
+                    cur = line[j - left, 4 * g + c] / den
+                    wt = f32((s - g_lo) / (g_k - g_lo))
+                    out[i - b0, j, c] = out[i - b0, j, c] + wt * cur
+                elif k + 1 < n_levels and s > g_k and s <= g_hi:
+                    cur = line[j - left, 4 * g + c] / den
+                    wt = f32((s - g_k) / (g_hi - g_k))
+                    out[i - b0, j, c] = (_ONE - wt) * cur
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def spread_band(
     light, sig, on, part, box, grid, n_full, radii, needed, row_levels, b0, b1, state, at, planes, out, l0, o0
@@ -2558,17 +2632,17 @@ def spread_band(
     The bands go down the part in order, the first from ``part[0]``, and each carries the
     vertical running sums on to the next in ``state`` (float64; level k's from ``at[k]``: per
     plane and strip of ``PART_STRIP`` columns, three rings of 2 r + 2 running sums, one per
-    box sum): along the columns the three box sums of half-width r are chained, each value
-    passed on as soon as its sum is complete, from the first row the reference's box sums read
-    (the part's rows and 2 r beyond, within the box; every value summed, as in the reference's
-    running sums) down to 3 r rows past the band (the last band: to the end), and the third
-    sum's rows of the band go into ``planes`` (4, band rows, part columns: R, G, B and the
-    mask). A band other than the last must end more than 3 r rows before that end for every
-    level. Along the rows the same as whole rows, ``SPREAD_ROWS`` rows at a time, for the rows
-    with a pixel whose width lies next to the level (the part's row i: levels
-    ``row_levels[i, 0]``..``row_levels[i, 1]``). A pixel's result is (1 - w) times the level
-    below its width plus w times the level above, written when the upper level is done (the
-    lower one's share kept in ``out`` meanwhile); level 0 is ``light``.
+    box sum): along the columns (``_band_columns``) the three box sums of half-width r are
+    chained, each value passed on as soon as its sum is complete, from the first row the
+    reference's box sums read (the part's rows and 2 r beyond, within the box; every value
+    summed, as in the reference's running sums) down to 3 r rows past the band (the last band:
+    to the end), and the third sum's rows of the band go into ``planes`` (4, band rows, part
+    columns: R, G, B and the mask). A band other than the last must end more than 3 r rows
+    before that end for every level. Along the rows the same as whole rows, ``SPREAD_ROWS`` rows
+    at a time, for the rows with a pixel whose width lies next to the level (the part's row i:
+    levels ``row_levels[i, 0]``..``row_levels[i, 1]``). A pixel's result is (1 - w) times the
+    level below its width plus w times the level above (``_band_blend``), written when the upper
+    level is done (the lower one's share kept in ``out`` meanwhile); level 0 is ``light``.
 
     ``light`` and ``on`` may be windows of rows: their first rows are region rows ``l0`` and
     ``o0`` (``light``: 0 and ``on``: ``part[0]`` for the whole region and part; a window holds at
@@ -2612,42 +2686,7 @@ def spread_band(
             xs = part[2] + (item % n_col) * PART_STRIP
             bw = min(xs + PART_STRIP, part[3]) - xs
             base = at[k] + item * size
-            ring1 = state[base : base + rows * PART_STRIP].reshape((rows, PART_STRIP))
-            ring2 = state[base + rows * PART_STRIP : base + 2 * rows * PART_STRIP].reshape((rows, PART_STRIP))
-            ring3 = state[base + 2 * rows * PART_STRIP : base + size].reshape((rows, PART_STRIP))
-            if b0 == part[0]:
-                for t in range(bw):
-                    ring1[0, t] = 0.0
-                    ring2[0, t] = 0.0
-                    ring3[0, t] = 0.0
-            x = np.zeros(PART_STRIP, np.float32)
-            y1 = np.empty(PART_STRIP, np.float32)
-            y2 = np.empty(PART_STRIP, np.float32)
-            y3 = np.empty(PART_STRIP, np.float32)
-            for t_row in range(t_from, t_to):
-                if part[0] <= t_row < part[1]:
-                    row = on[t_row - o0]
-                    for t in range(bw):
-                        mk = _ONE if row[xs + t - part[2]] != 0 else _ZERO
-                        x[t] = light[t_row - l0, xs + t, q] * mk if q < 3 else mk
-                else:
-                    for t in range(bw):
-                        x[t] = _ZERO
-                m1 = t_row - lo
-                _push(ring1, m1, x, bw)
-                for i1 in range(_ready(m1, r, n), _ready(m1 + 1, r, n)):
-                    _take(ring1, i1, r, n, y1, bw)
-                    _push(ring2, i1, y1, bw)
-                    for i2 in range(_ready(i1, r, n), _ready(i1 + 1, r, n)):
-                        _take(ring2, i2, r, n, y2, bw)
-                        _push(ring3, i2, y2, bw)
-                        for i3 in range(_ready(i2, r, n), _ready(i2 + 1, r, n)):
-                            i = lo + i3
-                            if i < part[0] or i >= part[1]:
-                                continue
-                            _take(ring3, i3, r, n, y3, bw)
-                            for t in range(bw):
-                                planes[q, i - b0, xs + t - part[2]] = y3[t]
+            _band_columns(light, on, part, state, base, rows, q, xs, bw, b0, t_from, t_to, lo, n, r, planes, l0, o0)
         left = max(part[2] - 2 * r, box[2])
         right = min(part[3] + 2 * r, box[3])
         g_lo = grid[k - 1]
@@ -2671,26 +2710,7 @@ def spread_band(
             _running_box(line, cum, left, right, left, right, r, lanes)
             _running_box(line, cum, left, right, left, right, r, lanes)
             _running_box(line, cum, left, right, part[2], part[3], r, lanes)
-            for g in range(n_rows):
-                i = i0 + g
-                for j in range(part[2], part[3]):
-                    if on[i - o0, j - part[2]] == 0:
-                        continue
-                    den = line[j - left, 4 * g + 3]
-                    den = den if den > f32(1e-6) or den != den else f32(1e-6)
-                    for c in range(3):
-                        if not needed[k, c]:
-                            continue
-                        s = min(max(np.float64(sig[i - b0, j, c]), 0.0), top)
-                        # Its levels (the reference's searchsorted): the first of grid >= s, at least 1.
-                        if s <= g_k and (k == 1 or s > g_lo):
-                            cur = line[j - left, 4 * g + c] / den
-                            wt = f32((s - g_lo) / (g_k - g_lo))
-                            out[i - b0, j, c] = out[i - b0, j, c] + wt * cur
-                        elif k + 1 < n_levels and s > g_k and s <= g_hi:
-                            cur = line[j - left, 4 * g + c] / den
-                            wt = f32((s - g_k) / (g_hi - g_k))
-                            out[i - b0, j, c] = (_ONE - wt) * cur
+            _band_blend(line, left, sig, on, part, needed, k, n_levels, g_lo, g_k, g_hi, top, i0, n_rows, b0, o0, out)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
