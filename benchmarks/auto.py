@@ -46,7 +46,7 @@ count among the choices). Its time saved is against the same unfitted most expen
 ``benchmarks/fit.py``) is not in it.
 
 Nothing here knows a scene by name: every scene is scored the same way. ``--write-model`` stores
-the model learnt on all scenes as ``core/auto_model.json`` (what ``apply --method auto`` ships).
+the model learnt on all scenes as ``core/pipeline/auto_model.json`` (what ``apply --method auto`` ships).
 Writes ``benchmarks/results/auto.json`` and prints a table. Timing on a loaded shared 2-core
 machine: indicative, fastest of the repeats.
 """
@@ -103,10 +103,10 @@ def _fit(data, fit_samples: int, fit_pass_samples: int, methods, log) -> object:
     cache = os.path.join(fit_bench.ROOT, "out", "fidelity_cache", "fit")
     os.makedirs(cache, exist_ok=True)
     scene = bpy.context.scene  # the suite's scene as load_scene built, prepared and baked it
-    noisy, render_cpu = fit_bench._render(
+    noisy, render_cpu = fit_bench.render_reference(
         scene, cache, samples=fit_samples, seed=fit_bench.FIT_SEED, fingerprint=data.fingerprint, log=log
     )
-    passes, desc, passes_cpu = fit_bench._fit_passes(scene, data.fingerprint, fit_pass_samples, cache, log)
+    passes, desc, passes_cpu = fit_bench.render_fit_passes(scene, data.fingerprint, fit_pass_samples, cache, log)
     made = fit_bench.fit_like_calibrate(
         scene,
         data.fingerprint,
@@ -130,7 +130,7 @@ def _fit(data, fit_samples: int, fit_pass_samples: int, methods, log) -> object:
     fits: dict = {}
     for r in made["results"]:
         fits.setdefault(r.material, {})[r.technique] = r.params
-    return fit_bench._carried(data.desc, fits)
+    return fit_bench.carried(data.desc, fits)
 
 
 def _fidelity_scenes(names, log, fit=None):

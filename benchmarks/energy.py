@@ -76,10 +76,10 @@ def build(
     import bpy
     from mathutils import Vector
 
-    from benchmarks.fidelity.scenes import _h as h
+    from benchmarks import scene_kit as kit
     from sss_lab.core.pipeline.mapping import skin_radius_factor
 
-    scene = h._reset(world_color=(0.0, 0.0, 0.0))
+    scene = kit.reset_scene(world_color=(0.0, 0.0, 0.0))
     scale = mfp * (4.0 * math.pi if method in ("BURLEY", "RANDOM_WALK_LEGACY") else 1.0)
     width = 4 * BOX[0] + 3 * GAP
     for i, color in enumerate(colors or _box_colors()):
@@ -88,13 +88,18 @@ def build(
             # The Skin method multiplies the radius by sqrt(3 (1 - alpha')) per channel: divided
             # out, so that every channel's mean free path is ``mfp``.
             radius = tuple(float(1.0 / v) for v in skin_radius_factor(color, ior))
-        mat = h._material(
+        mat = kit.new_material(
             f"M{i}", color, radius=radius, scale=scale, method=method, ior=ior, roughness=roughness, weight=weight
         )
         x = -width / 2 + BOX[0] / 2 + i * (BOX[0] + GAP)
         size = (BOX[0], BOX[1], depths[i])
-        h._object(
-            scene, f"Box{i}", h._box(f"Box{i}", size), location=(x, 0.0, -depths[i] / 2), material=mat, smooth=False
+        kit.add_object(
+            scene,
+            f"Box{i}",
+            kit.box_mesh(f"Box{i}", size),
+            location=(x, 0.0, -depths[i] / 2),
+            material=mat,
+            smooth=False,
         )
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)
@@ -107,7 +112,7 @@ def build(
     scene.camera = cam
     s = math.radians(sun_deg)
     sun = (math.sin(s), 0.0, math.cos(s)) if light == "above" else (0.0, 0.0, -1.0)
-    h._light(scene, "Sun", "SUN", sun, (0.0, 0.0, 0.0), 3.0, angle=0.0)
+    kit.add_light(scene, "Sun", "SUN", sun, (0.0, 0.0, 0.0), 3.0, angle=0.0)
     # At least 12 rows over the middle half of the top face, however steep the view.
     px = 192 * max(1, math.ceil(12.0 / (192 * BOX[1] / 2 * math.cos(a) / (width * 1.02))))
     scene.render.resolution_x = px
@@ -118,7 +123,7 @@ def build(
     return scene
 
 
-def _render(scene, samples: int, seed: int) -> dict[str, np.ndarray]:
+def render_arrays(scene, samples: int, seed: int) -> dict[str, np.ndarray]:
     import bpy
 
     from sss_lab.blender import compat
@@ -153,8 +158,8 @@ def measure(method, *, view_deg=0.0, ior=IOR, roughness=ROUGHNESS, sun_deg=0.0, 
     """Per albedo of ``ALBEDOS``: the method's light over Lambert's (same scene, SSS weight 0)."""
     start = time.perf_counter()
     kw = {"view_deg": view_deg, "ior": ior, "roughness": roughness, "sun_deg": sun_deg, "mfp": mfp}
-    sss = _box_means(_render(build(method, weight=1.0, **kw), samples, seed))
-    lam = _box_means(_render(build(method, weight=0.0, **kw), samples, seed))
+    sss = _box_means(render_arrays(build(method, weight=1.0, **kw), samples, seed))
+    lam = _box_means(render_arrays(build(method, weight=0.0, **kw), samples, seed))
     ratio = sss / lam
     by_albedo = {}
     for i in range(4):
@@ -191,8 +196,8 @@ def measure_slabs(method="RANDOM_WALK", *, light="above", samples=64, seed=0, mf
         rows = []
         for k in range(0, len(SLAB_MFPS), 4):
             geo = {"depths": tuple(t * mfp for t in SLAB_MFPS[k : k + 4]), "colors": [colors] * 4}
-            sss = _box_means(_render(build(method, weight=1.0, light=light, **kw, **geo), samples, seed))
-            lam = _box_means(_render(build(method, weight=0.0, light="above", **kw, **geo), samples, seed))
+            sss = _box_means(render_arrays(build(method, weight=1.0, light=light, **kw, **geo), samples, seed))
+            lam = _box_means(render_arrays(build(method, weight=0.0, light="above", **kw, **geo), samples, seed))
             rows += list(sss / lam)
         for c, a in enumerate(colors):
             ratio[a] = [round(float(r[c]), 4) for r in rows]
@@ -225,21 +230,21 @@ def build_spheres(method: str, radius_mfp: float, *, weight: float, mfp: float =
     import bpy
     from mathutils import Vector
 
-    from benchmarks.fidelity.scenes import _h as h
+    from benchmarks import scene_kit as kit
     from sss_lab.core.pipeline.mapping import skin_radius_factor
 
-    scene = h._reset(world_color=(1.0, 1.0, 1.0))
+    scene = kit.reset_scene(world_color=(1.0, 1.0, 1.0))
     r = radius_mfp * mfp
     scale = mfp * (4.0 * math.pi if method in ("BURLEY", "RANDOM_WALK_LEGACY") else 1.0)
     for i, color in enumerate(_box_colors()):
         radius = (1.0, 1.0, 1.0)
         if method == "RANDOM_WALK_SKIN":
             radius = tuple(float(1.0 / v) for v in skin_radius_factor(color, IOR))
-        mat = h._material(
+        mat = kit.new_material(
             f"M{i}", color, radius=radius, scale=scale, method=method, ior=IOR, roughness=ROUGHNESS, weight=weight
         )
-        sphere = h._uv_sphere(f"S{i}", r, segments=96, rings=48)
-        h._object(scene, f"S{i}", sphere, location=((i - 1.5) * 3 * r, 0.0, 0.0), material=mat)
+        sphere = kit.uv_sphere_mesh(f"S{i}", r, segments=96, rings=48)
+        kit.add_object(scene, f"S{i}", sphere, location=((i - 1.5) * 3 * r, 0.0, 0.0), material=mat)
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)
     cam.data.type = "ORTHO"
@@ -264,7 +269,7 @@ def measure_spheres(method="RANDOM_WALK", *, samples=128, seed=0, mfp=SPHERE_MFP
     for k in SPHERE_RADII:
         light = []
         for weight in (1.0, 0.0):
-            p = _render(build_spheres(method, k, weight=weight, mfp=mfp), samples, seed)
+            p = render_arrays(build_spheres(method, k, weight=weight, mfp=mfp), samples, seed)
             light.append(p["Diffuse Color"][..., :3] * (p["Diffuse Direct"][..., :3] + p["Diffuse Indirect"][..., :3]))
             pos = p["Position"][..., :3]
         r = k * mfp
@@ -313,7 +318,7 @@ def cases(quick: bool = False) -> list[dict]:
 
 
 TABLE_METHODS = ("RANDOM_WALK", "RANDOM_WALK_SKIN", "RANDOM_WALK_LEGACY")
-ENERGY_MODULE = os.path.join(ROOT, "core", "optics", "energy.py")
+ENERGY_MODULE = os.path.join(ROOT, "core", "energy.py")
 
 
 def table_block(data: dict) -> str:

@@ -18,59 +18,62 @@ from __future__ import annotations
 
 import math
 
+from benchmarks import scene_kit as kit
 from benchmarks.fidelity import scenes as suite
-from benchmarks.fidelity.scenes import SuiteScene, _floor, _h, _jade, _shadow_bar, _skin, _torus, _wax
+from benchmarks.fidelity.scenes import SuiteScene
 
 
 def skin_ball_area():
     """A 10 cm skin sphere on a floor, lit by a small area light from the front-right; Random
     Walk, 8 mm red mean free path."""
-    scene = _h._reset()
-    _h._object(
+    scene = kit.reset_scene()
+    kit.add_object(
         scene,
         "Ball",
-        _h._uv_sphere("Ball", 0.05, segments=48, rings=24),
+        kit.uv_sphere_mesh("Ball", 0.05, segments=48, rings=24),
         location=(0, 0, 0.05),
-        material=_skin(scale=0.008),
+        material=kit.skin(scale=0.008),
     )
-    _floor(scene)
-    _h._camera(scene, (0.05, -0.35, 0.12), (0.0, 0.0, 0.05), lens=50.0)
-    _h._light(scene, "Key", "AREA", (0.35, -0.3, 0.3), (0.0, 0.0, 0.05), 15.0, size=0.03)
+    kit.floor(scene)
+    kit.add_camera(scene, (0.05, -0.35, 0.12), (0.0, 0.0, 0.05), lens=50.0)
+    kit.add_light(scene, "Key", "AREA", (0.35, -0.3, 0.3), (0.0, 0.0, 0.05), 15.0, size=0.03)
     return scene
 
 
 def wax_cylinder_spot():
     """A standing wax cylinder (10 cm across, 12 cm tall) under a spot from above-left, a bar
     casting a hard shadow across it; Random Walk (Legacy), 5 mm red."""
-    scene = _h._reset()
-    cyl = _h._object(
+    scene = kit.reset_scene()
+    cyl = kit.add_object(
         scene,
         "Candle",
-        _h._cylinder("Candle", 0.05, 0.12, rings=8),
-        material=_wax(method="RANDOM_WALK_LEGACY", scale=0.06),
+        kit.cylinder_mesh("Candle", 0.05, 0.12, rings=8),
+        material=kit.wax(method="RANDOM_WALK_LEGACY", scale=0.06),
     )
-    _h._subsurf(cyl, 1)
-    _floor(scene)
-    _shadow_bar(scene, (-0.1, -0.15, 0.275), size=(0.006, 0.5, 0.006), rotation=(0.0, 0.0, math.radians(-20)))
-    _h._camera(scene, (0.0, -0.4, 0.2), (0.0, 0.0, 0.06), lens=50.0)
-    _h._light(scene, "Key", "SPOT", (-0.2, -0.25, 0.45), (0.0, 0.0, 0.06), 12.0, shadow_soft_size=0.002, spot_size=1.0)
+    kit.add_subsurf(cyl, 1)
+    kit.floor(scene)
+    kit.shadow_bar(scene, (-0.1, -0.15, 0.275), size=(0.006, 0.5, 0.006), rotation=(0.0, 0.0, math.radians(-20)))
+    kit.add_camera(scene, (0.0, -0.4, 0.2), (0.0, 0.0, 0.06), lens=50.0)
+    kit.add_light(
+        scene, "Key", "SPOT", (-0.2, -0.25, 0.45), (0.0, 0.0, 0.06), 12.0, shadow_soft_size=0.002, spot_size=1.0
+    )
     return scene
 
 
 def jade_torus_world():
     """A jade torus (14 cm across, 2.5 cm tube) on a floor under a grey world and a weak sun from
     above; Random Walk (Skin), 6 mm green."""
-    scene = _h._reset(world_color=(0.45, 0.45, 0.5))
-    jade = _jade(scale=0.006)
+    scene = kit.reset_scene(world_color=(0.45, 0.45, 0.5))
+    jade = kit.jade(scale=0.006)
     for node in jade.node_tree.nodes:
         if node.type == "BSDF_PRINCIPLED":
             from sss_lab.blender import compat
 
             node.subsurface_method = compat.subsurface_method_item("RANDOM_WALK_SKIN")
-    _h._object(scene, "Torus", _torus("Torus", 0.045, 0.025), location=(0.0, 0.0, 0.025), material=jade)
-    _floor(scene)
-    _h._camera(scene, (0.0, -0.3, 0.22), (0.0, 0.0, 0.02), lens=50.0)
-    _h._light(scene, "Sun", "SUN", (0.2, -0.1, 1.0), (0.0, 0.0, 0.0), 1.0, angle=math.radians(2.0))
+    kit.add_object(scene, "Torus", kit.torus("Torus", 0.045, 0.025), location=(0.0, 0.0, 0.025), material=jade)
+    kit.floor(scene)
+    kit.add_camera(scene, (0.0, -0.3, 0.22), (0.0, 0.0, 0.02), lens=50.0)
+    kit.add_light(scene, "Sun", "SUN", (0.2, -0.1, 1.0), (0.0, 0.0, 0.0), 1.0, angle=math.radians(2.0))
     return scene
 
 

@@ -76,7 +76,7 @@ def _median(values):
     return statistics.median(v) if v else None
 
 
-def _render(scene, cache: str, *, samples: int, seed: int, fingerprint: str, log):
+def render_reference(scene, cache: str, *, samples: int, seed: int, fingerprint: str, log):
     """Cycles random walk of the scene's view (``calibrate``'s render function, through the
     reference cache): (RGBA image, CPU seconds of the render as measured when it was made)."""
     from benchmarks.fidelity import scenes as suite
@@ -109,14 +109,14 @@ def _cpu_seconds(meta: str, measured: float, cached: bool) -> float:
     return measured
 
 
-def _fit_passes(scene, fingerprint: str, samples: int, cache: str, log):
+def render_fit_passes(scene, fingerprint: str, samples: int, cache: str, log):
     """The fit's own passes (seed ``FIT_SEED``), cached with the CPU seconds they took."""
     from benchmarks.fidelity import run as fidelity
 
-    key = hashlib.sha256(f"fit:{fingerprint}:{fidelity._thickness_digest(scene)}:{FIT_SEED}".encode()).hexdigest()[:20]
+    key = hashlib.sha256(f"fit:{fingerprint}:{fidelity.thickness_digest(scene)}:{FIT_SEED}".encode()).hexdigest()[:20]
     meta = os.path.join(cache, f"{key}_{samples}", "cpu.json")
     start = time.process_time()
-    passes, desc, _wall, cached = fidelity._passes(scene, key, samples, cache, log, seed=FIT_SEED)
+    passes, desc, _wall, cached = fidelity.cached_passes(scene, key, samples, cache, log, seed=FIT_SEED)
     return passes, desc, _cpu_seconds(meta, time.process_time() - start, cached)
 
 
@@ -124,7 +124,7 @@ def _unfitted(desc):
     return dataclasses.replace(desc, materials=tuple(dataclasses.replace(m, fit={}) for m in desc.materials))
 
 
-def _carried(desc, fits: dict):
+def carried(desc, fits: dict):
     """``desc`` with each material's fit taken from ``fits`` (material name -> fit)."""
     return dataclasses.replace(
         desc, materials=tuple(dataclasses.replace(m, fit=fits.get(m.name, {})) for m in desc.materials)
@@ -165,13 +165,13 @@ def run_scene(name: str, args, log) -> dict:
     if args.oracle:  # fitted on what it is scored against: the suite's passes and converged reference
         noisy, fit_passes, fit_desc = a.reference, a.passes, a.desc
     else:
-        noisy, fit_render_cpu = _render(
+        noisy, fit_render_cpu = render_reference(
             scene, cache, samples=args.fit_samples, seed=FIT_SEED, fingerprint=a.fingerprint, log=log
         )
-        _, timing_cpu = _render(
+        _, timing_cpu = render_reference(
             scene, cache, samples=args.timing_samples, seed=TIMING_SEED, fingerprint=a.fingerprint, log=log
         )
-        fit_passes, fit_desc, passes_cpu = _fit_passes(scene, a.fingerprint, args.fit_pass_samples, cache, log)
+        fit_passes, fit_desc, passes_cpu = render_fit_passes(scene, a.fingerprint, args.fit_pass_samples, cache, log)
     for t in methods:  # untimed: a technique's first run compiles (or loads) its Numba kernels, once per install
         core_apply.apply(fit_passes, _unfitted(fit_desc), t)
     # calibrate's options unless asked otherwise (to measure another setting of the fit).
@@ -218,13 +218,13 @@ def run_scene(name: str, args, log) -> dict:
         "problems": problems,
     }
     unfitted = _unfitted(a.desc)
-    row["A"] = {"unfitted": _score(a, unfitted, methods), "fitted": _score(a, _carried(a.desc, fits), methods)}
+    row["A"] = {"unfitted": _score(a, unfitted, methods), "fitted": _score(a, carried(a.desc, fits), methods)}
     if not args.no_frame_b:
         b = fidelity.load_scene(name, scenes=frame_b, cache=args.cache, store=references.STORE_B, log=log)
         row["noise_floor"]["B"] = b.noise_floor
         row["B"] = {
             "unfitted": _score(b, _unfitted(b.desc), methods),
-            "fitted": _score(b, _carried(b.desc, fits), methods),
+            "fitted": _score(b, carried(b.desc, fits), methods),
         }
     for frame in ("A", "B"):
         if frame not in row:
@@ -311,7 +311,7 @@ def fit_like_calibrate(
     if not refused or max_samples is None or max_samples <= samples or render_cpu is None or passes_cpu is None:
         return out
     default_cpu = sum(by.get(t, 0.0) for t in DEFAULT_TECHNIQUES)
-    _, pilot_cpu = _render(scene, cache, samples=1, seed=PILOT_SEED, fingerprint=fingerprint, log=log)
+    _, pilot_cpu = render_reference(scene, cache, samples=1, seed=PILOT_SEED, fingerprint=fingerprint, log=log)
     extra, why = more_samples(
         samples=samples,
         max_samples=max_samples,
@@ -327,7 +327,9 @@ def fit_like_calibrate(
     if not extra:
         problems.append(f"not rendered again for the refused fits: {why}")
         return out
-    image, more["render_cpu_s"] = _render(scene, cache, samples=extra, seed=more_seed, fingerprint=fingerprint, log=log)
+    image, more["render_cpu_s"] = render_reference(
+        scene, cache, samples=extra, seed=more_seed, fingerprint=fingerprint, log=log
+    )
     total = samples + extra
     mean = mean_render(noisy, samples, image, extra)
     again = refused_pairs(refused)

@@ -103,7 +103,7 @@ def main(argv=None) -> int:
 
     backend.run_kernel = spy
     try:
-        cases, masks = speed._cases(width, height)
+        cases, masks = speed.cases(width, height)
         cases[args.technique][0](masks[args.mask])
     finally:
         backend.run_kernel = run_kernel

@@ -60,18 +60,22 @@ def build(method: str, colors, *, weight: float):
     import bpy
     from mathutils import Vector
 
-    from benchmarks.fidelity.scenes import _h as h
+    from benchmarks import scene_kit as kit
     from sss_lab.core.pipeline.mapping import skin_radius_factor
 
-    scene = h._reset(world_color=(0.0, 0.0, 0.0))
+    scene = kit.reset_scene(world_color=(0.0, 0.0, 0.0))
     radius = (1.0, 1.0, 1.0)
     if method == "RANDOM_WALK_SKIN":
         # The Skin method multiplies the radius by sqrt(3 (1 - alpha')) per channel: divided out,
         # so that every channel's mean free path is MFP.
         radius = tuple(float(1.0 / v) for v in skin_radius_factor(colors, IOR))
-    mat = h._material("M", colors, radius=radius, scale=MFP, method=method, ior=IOR, roughness=ROUGHNESS, weight=weight)
-    h._object(scene, "Box", h._box("Box", BOX), location=(0.0, 0.0, -BOX[2] / 2), material=mat, smooth=False)
-    plate = h._object(scene, "Plate", h._box("Plate", (BOX[0], BOX[1] * 1.5, 0.002)), location=(-BOX[0] / 2, 0.0, 0.04))
+    mat = kit.new_material(
+        "M", colors, radius=radius, scale=MFP, method=method, ior=IOR, roughness=ROUGHNESS, weight=weight
+    )
+    kit.add_object(scene, "Box", kit.box_mesh("Box", BOX), location=(0.0, 0.0, -BOX[2] / 2), material=mat, smooth=False)
+    plate = kit.add_object(
+        scene, "Plate", kit.box_mesh("Plate", (BOX[0], BOX[1] * 1.5, 0.002)), location=(-BOX[0] / 2, 0.0, 0.04)
+    )
     # It only casts the shadow: no ray but the shadow rays sees it (lit from above and facing the
     # lit face below, it would bounce light into its own shadow).
     for ray in ("camera", "diffuse", "glossy", "transmission", "volume_scatter"):
@@ -84,7 +88,7 @@ def build(method: str, colors, *, weight: float):
     cam.location = (0.0, 0.0, 1.0)
     cam.rotation_euler = (Vector((0, 0, 0)) - Vector(cam.location)).to_track_quat("-Z", "Y").to_euler()
     scene.camera = cam
-    h._light(scene, "Sun", "SUN", (0.0, 0.0, 1.0), (0.0, 0.0, 0.0), 3.0, angle=0.0)
+    kit.add_light(scene, "Sun", "SUN", (0.0, 0.0, 1.0), (0.0, 0.0, 0.0), 3.0, angle=0.0)
     scene.render.resolution_x, scene.render.resolution_y = RESOLUTION
     layer = scene.view_layers[0]
     for flag in ("use_pass_diffuse_direct", "use_pass_diffuse_indirect", "use_pass_diffuse_color", "use_pass_position"):
@@ -173,13 +177,13 @@ def _shadow_mm(x: np.ndarray, y: np.ndarray) -> float:
 
 
 def measure(method: str, colors, *, samples: int, seed: int) -> list[dict]:
-    from benchmarks.energy import _render
+    from benchmarks.energy import render_arrays
     from sss_lab.core.optics.profiles import d_from_mean_free_path
     from sss_lab.core.pipeline.mapping import MAPPINGS
 
     start = time.perf_counter()
-    x, m = edge_profile(_render(build(method, colors, weight=1.0), samples, seed))
-    _, lam = edge_profile(_render(build(method, colors, weight=0.0), samples, seed))
+    x, m = edge_profile(render_arrays(build(method, colors, weight=1.0), samples, seed))
+    _, lam = edge_profile(render_arrays(build(method, colors, weight=0.0), samples, seed))
     mapping = MAPPINGS[method][0]
     rows = []
     for c, a in enumerate(colors):

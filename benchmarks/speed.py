@@ -111,7 +111,7 @@ RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "s
 BACKENDS = ("numba", "numpy")
 
 
-def _inputs(width: int, height: int):
+def inputs(width: int, height: int):
     passes, scene = sphere_scene(width, height)
     depth = passes["Depth"].copy()
     depth[depth >= 1e9] = -PLANE_Z
@@ -123,23 +123,23 @@ def _inputs(width: int, height: int):
     return passes, scene, depth, normal, {"full screen": full, "25 % mask": quarter}
 
 
-def _light(passes):
-    """(diffuse light, albedo) as the techniques read them from ``_inputs``' passes, the albedo
+def light_and_albedo(passes):
+    """(diffuse light, albedo) as the techniques read them from ``inputs``' passes, the albedo
     0.5 where the pass has none (in place)."""
     albedo = passes["Diffuse Color"]
     albedo[albedo.sum(axis=2) == 0] = 0.5
     return passes["Diffuse Direct"] + passes["Diffuse Indirect"], albedo
 
 
-def _cases(width: int, height: int):
+def cases(width: int, height: int):
     """{technique: (fn(mask), samples per pixel, the inputs' bytes)} and the masks."""
-    passes, scene, depth, normal, masks = _inputs(width, height)
-    diffuse, albedo = _light(passes)
+    passes, scene, depth, normal, masks = inputs(width, height)
+    diffuse, albedo = light_and_albedo(passes)
     cam = scene.camera
     kernel = kernels.preintegrated_kernel(17, d_su=D_SU)
     position, thickness = passes["Position"], passes["Thickness"]
     mask_bytes = masks["full screen"].nbytes
-    cases = {
+    out = {
         "sta": (
             lambda m: sta(
                 albedo=albedo,
@@ -184,15 +184,15 @@ def _cases(width: int, height: int):
             sum(a.nbytes for a in (diffuse, albedo, depth, normal, position, thickness)) + mask_bytes,
         ),
     }
-    return cases, masks
+    return out, masks
 
 
 def energy_stage(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
     """Wall and CPU time of the energy stage alone (``core.optics.energy.apply_energy``, "object") on
     Burley's result, with the passes and medium of the combined case, fastest of ``repeat``, on
     each backend of ``names``."""
-    passes, scene, depth, normal, masks = _inputs(width, height)
-    diffuse, albedo = _light(passes)
+    passes, scene, depth, normal, masks = inputs(width, height)
+    diffuse, albedo = light_and_albedo(passes)
     medium = {k: v for k, v in COMBINED_MEDIUM.items() if k != "base_color"}
     out: dict = {"energy": "object", "backends": {b: {} for b in names}}
     for label, mask in masks.items():
@@ -237,9 +237,9 @@ def whole_frame(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
             fn = lambda name=name: apply(passes, scene, name)  # noqa: E731
             fn()  # warm-up
             seconds, cpu = _best(fn, repeat, FLOOR_S)
-            _threads(1)
+            set_threads(1)
             one, one_cpu = _best(fn, repeat, FLOOR_S)
-            _threads(2)
+            set_threads(2)
             out["techniques"][name] = {
                 "ms": round(seconds * 1e3, 1),
                 "cpu_ms": round(cpu * 1e3, 1),
@@ -250,7 +250,7 @@ def whole_frame(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
     return out
 
 
-def _threads(n: int) -> None:
+def set_threads(n: int) -> None:
     """Both backends on ``n`` threads: Numba's pool and the NumPy code's block pool."""
     import numba
 
@@ -328,10 +328,10 @@ import json, sys
 import numpy as np
 from sss_lab.core import backend
 backend.set_cache_dir(sys.argv[1])
-from benchmarks.speed import _cases
-cases, masks = _cases(64, 48)
+from benchmarks.speed import cases
+calls, masks = cases(64, 48)
 with backend.use("numba"):
-    for fn, _, _ in cases.values():
+    for fn, _, _ in calls.values():
         fn(masks["full screen"])
 print(json.dumps(backend.first_call_seconds()))
 """
@@ -360,137 +360,107 @@ def _entry(seconds: float, cpu: float, pixels: int, per_pixel: int) -> dict:
     }
 
 
-def run(
-    width: int = 1920,
-    height: int = 1080,
-    repeat: int = 5,
-    big: tuple[int, int] | None = (3840, 2160),
-    log=print,
-    techniques: tuple[str, ...] | None = None,
-    backends: tuple[str, ...] = BACKENDS,
-):
-    """The whole benchmark (``techniques`` None, both backends), or some of its cases only
-    (then without the energy stage and the first calls)."""
-    load_before = os.getloadavg()
-    partial = techniques is not None or tuple(backends) != BACKENDS
-    names = [b for b in backends if b == "numpy" or backend.compiled() is not None]
-    cases, masks = _cases(width, height)
-    if techniques is not None:
-        cases = {k: v for k, v in cases.items() if k in techniques}
-    results = {name: {"goal_ms": GOALS_MS[name], "backends": {}} for name in cases}
-    for name, (fn, per_pixel, _) in cases.items():
-        for b in names:
-            entry = {}
-            with backend.use(b):
-                for threads in (2, 1):
-                    _threads(threads)
-                    for label, mask in masks.items():
-                        if threads == 1 and label != "full screen":
-                            continue
-                        slow = (name, b) in SLOW
-                        if not slow:
-                            fn(mask)  # warm-up: compile or load, thread pool, page faults
-                        runs = 1 if slow else repeat if threads == 2 else max(2, repeat // 2)
-                        floor = 0.0 if slow else FLOOR_S
-                        seconds, cpu = _best(lambda fn=fn, mask=mask: fn(mask), runs, floor)
-                        key = label if threads == 2 else "full screen, 1 thread"
-                        entry[key] = _entry(seconds, cpu, int(mask.sum()), per_pixel)
-            _threads(2)
-            if b == "numba":
-                with backend.use(b):
-                    entry["profile, full screen"] = _profile(lambda fn=fn: fn(masks["full screen"]), repeat)
-            full = entry["full screen"]["ms"]
-            entry["mask_ratio"] = round(entry["25 % mask"]["ms"] / full, 3)
-            # The same ratio in CPU time: the work, which other processes on the machine do not inflate.
-            entry["mask_ratio_cpu"] = round(entry["25 % mask"]["cpu_ms"] / entry["full screen"]["cpu_ms"], 3)
-            entry["thread_scaling"] = round(entry["full screen, 1 thread"]["ms"] / full, 2)
-            # The work two threads do against one (CPU time): near 1 when the second thread adds
-            # no work, so that two idle cores would divide the time by about 2; on a shared
-            # machine the wall-clock ratio above depends on what else runs.
-            entry["thread_work_ratio_cpu"] = round(
-                entry["full screen"]["cpu_ms"] / entry["full screen, 1 thread"]["cpu_ms"], 2
-            )
-            results[name]["backends"][b] = entry
-            log(
-                f"{name:7s} {b:6s} full {full:8.1f} ms (CPU {entry['full screen']['cpu_ms']:8.1f} ms,"
-                f" {entry['full screen']['samples_per_s'] / 1e6:5.0f} M samples/s)"
-                f"  25 % mask {entry['mask_ratio']:.0%}  1 thread {entry['full screen, 1 thread']['ms']:8.1f} ms"
-                f" ({entry['thread_scaling']:.2f}x)"
-            )
-    if big is not None:
-        small, small_mask = cases, masks["full screen"]
-        cases, masks = _cases(*big)
-        cases = {k: v for k, v in cases.items() if k in results}
-        for name, (fn, _, input_bytes) in cases.items():
-            frame = big[0] * big[1] * 3 * 4
-            for b in names:
-                entry = results[name]["backends"][b]
-                interleaved = None
-                with backend.use(b):
-                    mask = masks["full screen"]
-                    slow = (name, b) in SLOW
-                    if not slow and (name, b) not in SLOW_4K:
-                        fn(mask)
-                    if b == "numba" and not slow and (name, b) not in SLOW_4K:
-                        interleaved = _interleaved(small[name][0], small_mask, fn, mask, repeat)
-                    # The compiled kernels as many times as at 1080p: each 4K call faults in a fresh
-                    # 100 MB output frame (glibc maps frames this large anew every time, where the
-                    # 1080p ones are reused), which varies from call to call; NumPy's calls are long.
-                    if slow:  # one call, timed and traced at once (tracemalloc adds little to big arrays)
-                        timed: dict = {}
-                        peak = _peak_bytes(
-                            lambda fn=fn, mask=mask, timed=timed: timed.update(t=_best(lambda: fn(mask), 1))
-                        )
-                        seconds, cpu = timed["t"]
-                    else:
-                        runs = repeat if b == "numba" else max(1, repeat // 2)
-                        runs = min(runs, SLOW_4K.get((name, b), runs))
-                        seconds, cpu = _best(lambda fn=fn, mask=mask: fn(mask), runs)
-                        peak = _peak_bytes(lambda fn=fn, mask=mask: fn(mask))
-                ratio = seconds * 1e3 / entry["full screen"]["ms"]
-                entry["4k"] = {
-                    "ms": round(seconds * 1e3, 1),
-                    "cpu_ms": round(cpu * 1e3, 1),
-                    "ratio_to_1080p": round(ratio, 2),
-                    "ratio_to_1080p_cpu": round(cpu * 1e3 / entry["full screen"]["cpu_ms"], 2),
-                    "peak_allocated_mb": round(peak / 1e6, 1),
-                    "inputs_mb": round(input_bytes / 1e6, 1),
-                    "output_frame_mb": round(frame / 1e6, 1),
-                    # Inputs are allocated before the call: the call may add two output frames.
-                    "meets_memory_goal": peak <= 2 * frame,
-                    "meets_scale_goal": ratio <= SCALE_4K_GOAL,
-                }
-                if interleaved is not None:
-                    # The ratio from calls alternating between the two sizes (``_interleaved``): the
-                    # one the goal is judged by where it exists. The ratio above compares calls made
-                    # minutes apart, between which this shared machine's speed drifts.
-                    ratio = interleaved["4k_ms"] / interleaved["1080p_ms"]
-                    entry["4k"]["interleaved"] = interleaved
-                    entry["4k"]["ratio_to_1080p_separate"] = entry["4k"]["ratio_to_1080p"]
-                    entry["4k"]["ratio_to_1080p"] = round(ratio, 2)
-                    entry["4k"]["meets_scale_goal"] = ratio <= SCALE_4K_GOAL
-                log(
-                    f"{name:7s} {b:6s} 4K {seconds * 1e3:8.1f} ms ({entry['4k']['ratio_to_1080p']:.2f}x 1080p"
-                    + (
-                        f", alternating; {entry['4k']['ratio_to_1080p_separate']:.2f}x the first 1080p runs"
-                        if interleaved is not None
-                        else ""
-                    )
-                    + "),"
-                    f" peak {peak / 1e6:.0f} MB allocated"
-                    f" (inputs {input_bytes / 1e6:.0f} MB, frame {frame / 1e6:.0f} MB)"
-                )
-    _threads(2)
-    stage = {"backends": {}} if partial else energy_stage(width, height, max(1, min(repeat, 2)), names)
-    for b, e in stage["backends"].items():
-        log(f"energy  {b:6s} full {e['full screen']['ms']:8.1f} ms  25 % mask {e['25 % mask']['ms']:8.1f} ms")
-    frame = {} if partial else whole_frame(width, height, repeat, names)
-    for name, e in frame.get("techniques", {}).items():
-        log(
-            f"apply   {name:8s} {e['ms']:8.1f} ms per frame (CPU {e['cpu_ms']:8.1f} ms),"
-            f" 1 thread {e['ms_1_thread']:8.1f} ms"
+def _time_case(name: str, b: str, fn, per_pixel: int, masks: dict, repeat: int, log) -> dict:
+    """Technique ``name`` on backend ``b`` at the first size: each mask on two threads, full
+    screen on one, the compiled backend's profile, and the ratios between them."""
+    entry = {}
+    with backend.use(b):
+        for threads in (2, 1):
+            set_threads(threads)
+            for label, mask in masks.items():
+                if threads == 1 and label != "full screen":
+                    continue
+                slow = (name, b) in SLOW
+                if not slow:
+                    fn(mask)  # warm-up: compile or load, thread pool, page faults
+                runs = 1 if slow else repeat if threads == 2 else max(2, repeat // 2)
+                floor = 0.0 if slow else FLOOR_S
+                seconds, cpu = _best(lambda fn=fn, mask=mask: fn(mask), runs, floor)
+                key = label if threads == 2 else "full screen, 1 thread"
+                entry[key] = _entry(seconds, cpu, int(mask.sum()), per_pixel)
+    set_threads(2)
+    if b == "numba":
+        with backend.use(b):
+            entry["profile, full screen"] = _profile(lambda fn=fn: fn(masks["full screen"]), repeat)
+    full = entry["full screen"]["ms"]
+    entry["mask_ratio"] = round(entry["25 % mask"]["ms"] / full, 3)
+    # The same ratio in CPU time: the work, which other processes on the machine do not inflate.
+    entry["mask_ratio_cpu"] = round(entry["25 % mask"]["cpu_ms"] / entry["full screen"]["cpu_ms"], 3)
+    entry["thread_scaling"] = round(entry["full screen, 1 thread"]["ms"] / full, 2)
+    # The work two threads do against one (CPU time): near 1 when the second thread adds
+    # no work, so that two idle cores would divide the time by about 2; on a shared
+    # machine the wall-clock ratio above depends on what else runs.
+    entry["thread_work_ratio_cpu"] = round(entry["full screen"]["cpu_ms"] / entry["full screen, 1 thread"]["cpu_ms"], 2)
+    log(
+        f"{name:7s} {b:6s} full {full:8.1f} ms (CPU {entry['full screen']['cpu_ms']:8.1f} ms,"
+        f" {entry['full screen']['samples_per_s'] / 1e6:5.0f} M samples/s)"
+        f"  25 % mask {entry['mask_ratio']:.0%}  1 thread {entry['full screen, 1 thread']['ms']:8.1f} ms"
+        f" ({entry['thread_scaling']:.2f}x)"
+    )
+    return entry
+
+
+def _time_big(name: str, b: str, fn, input_bytes: int, mask, small, small_mask, big, entry: dict, repeat: int, log):
+    """Technique ``name`` on backend ``b`` full screen at the scale case's size ``big`` into
+    ``entry["4k"]`` (``entry``: the first size's, whose full-screen time it is compared with;
+    ``small``: the first size's call, alternated with this one on the compiled backend)."""
+    frame = big[0] * big[1] * 3 * 4
+    interleaved = None
+    with backend.use(b):
+        slow = (name, b) in SLOW
+        if not slow and (name, b) not in SLOW_4K:
+            fn(mask)
+        if b == "numba" and not slow and (name, b) not in SLOW_4K:
+            interleaved = _interleaved(small, small_mask, fn, mask, repeat)
+        # The compiled kernels as many times as at 1080p: each 4K call faults in a fresh
+        # 100 MB output frame (glibc maps frames this large anew every time, where the
+        # 1080p ones are reused), which varies from call to call; NumPy's calls are long.
+        if slow:  # one call, timed and traced at once (tracemalloc adds little to big arrays)
+            timed: dict = {}
+            peak = _peak_bytes(lambda fn=fn, mask=mask, timed=timed: timed.update(t=_best(lambda: fn(mask), 1)))
+            seconds, cpu = timed["t"]
+        else:
+            runs = repeat if b == "numba" else max(1, repeat // 2)
+            runs = min(runs, SLOW_4K.get((name, b), runs))
+            seconds, cpu = _best(lambda fn=fn, mask=mask: fn(mask), runs)
+            peak = _peak_bytes(lambda fn=fn, mask=mask: fn(mask))
+    ratio = seconds * 1e3 / entry["full screen"]["ms"]
+    entry["4k"] = {
+        "ms": round(seconds * 1e3, 1),
+        "cpu_ms": round(cpu * 1e3, 1),
+        "ratio_to_1080p": round(ratio, 2),
+        "ratio_to_1080p_cpu": round(cpu * 1e3 / entry["full screen"]["cpu_ms"], 2),
+        "peak_allocated_mb": round(peak / 1e6, 1),
+        "inputs_mb": round(input_bytes / 1e6, 1),
+        "output_frame_mb": round(frame / 1e6, 1),
+        # Inputs are allocated before the call: the call may add two output frames.
+        "meets_memory_goal": peak <= 2 * frame,
+        "meets_scale_goal": ratio <= SCALE_4K_GOAL,
+    }
+    if interleaved is not None:
+        # The ratio from calls alternating between the two sizes (``_interleaved``): the
+        # one the goal is judged by where it exists. The ratio above compares calls made
+        # minutes apart, between which this shared machine's speed drifts.
+        ratio = interleaved["4k_ms"] / interleaved["1080p_ms"]
+        entry["4k"]["interleaved"] = interleaved
+        entry["4k"]["ratio_to_1080p_separate"] = entry["4k"]["ratio_to_1080p"]
+        entry["4k"]["ratio_to_1080p"] = round(ratio, 2)
+        entry["4k"]["meets_scale_goal"] = ratio <= SCALE_4K_GOAL
+    log(
+        f"{name:7s} {b:6s} 4K {seconds * 1e3:8.1f} ms ({entry['4k']['ratio_to_1080p']:.2f}x 1080p"
+        + (
+            f", alternating; {entry['4k']['ratio_to_1080p_separate']:.2f}x the first 1080p runs"
+            if interleaved is not None
+            else ""
         )
-    default = names[0]
+        + "),"
+        f" peak {peak / 1e6:.0f} MB allocated"
+        f" (inputs {input_bytes / 1e6:.0f} MB, frame {frame / 1e6:.0f} MB)"
+    )
+
+
+def _summarize(results: dict, default: str, width: int, height: int, log) -> None:
+    """Each technique's default backend's figures and goals met, into ``results`` and the log."""
     for name, res in results.items():
         entry = res["backends"][default]
         res.update({k: entry[k] for k in ("full screen", "25 % mask", "mask_ratio")})
@@ -515,6 +485,49 @@ def run(
             f" 2 threads {entry['thread_scaling']:.2f}x ({'met' if res['meets_thread_goal'] else 'missed'})"
             + (f", {res['speedup_over_numpy']}x NumPy" if "speedup_over_numpy" in res else "")
         )
+
+
+def run(
+    width: int = 1920,
+    height: int = 1080,
+    repeat: int = 5,
+    big: tuple[int, int] | None = (3840, 2160),
+    log=print,
+    techniques: tuple[str, ...] | None = None,
+    backends: tuple[str, ...] = BACKENDS,
+):
+    """The whole benchmark (``techniques`` None, both backends), or some of its cases only
+    (then without the energy stage and the first calls)."""
+    load_before = os.getloadavg()
+    partial = techniques is not None or tuple(backends) != BACKENDS
+    names = [b for b in backends if b == "numpy" or backend.compiled() is not None]
+    small, masks = cases(width, height)
+    if techniques is not None:
+        small = {k: v for k, v in small.items() if k in techniques}
+    results = {name: {"goal_ms": GOALS_MS[name], "backends": {}} for name in small}
+    for name, (fn, per_pixel, _) in small.items():
+        for b in names:
+            results[name]["backends"][b] = _time_case(name, b, fn, per_pixel, masks, repeat, log)
+    if big is not None:
+        big_cases, big_masks = cases(*big)
+        for name in results:
+            fn, _, input_bytes = big_cases[name]
+            for b in names:
+                entry = results[name]["backends"][b]
+                args = (input_bytes, big_masks["full screen"], small[name][0], masks["full screen"], big, entry)
+                _time_big(name, b, fn, *args, repeat, log)
+    set_threads(2)
+    stage = {"backends": {}} if partial else energy_stage(width, height, max(1, min(repeat, 2)), names)
+    for b, e in stage["backends"].items():
+        log(f"energy  {b:6s} full {e['full screen']['ms']:8.1f} ms  25 % mask {e['25 % mask']['ms']:8.1f} ms")
+    frame = {} if partial else whole_frame(width, height, repeat, names)
+    for name, e in frame.get("techniques", {}).items():
+        log(
+            f"apply   {name:8s} {e['ms']:8.1f} ms per frame (CPU {e['cpu_ms']:8.1f} ms),"
+            f" 1 thread {e['ms_1_thread']:8.1f} ms"
+        )
+    default = names[0]
+    _summarize(results, default, width, height, log)
     machine = {
         "cpus": os.cpu_count(),
         "python": platform.python_version(),

@@ -26,10 +26,10 @@ WEIGHTINGS = ("screen", "surface")
 
 
 def run(width: int, height: int, repeat: int) -> dict:
-    passes, scene, depth, _, masks = speed._inputs(width, height)
-    diffuse, albedo = speed._light(passes)
+    passes, scene, depth, _, masks = speed.inputs(width, height)
+    diffuse, albedo = speed.light_and_albedo(passes)
     kernel = kernels.preintegrated_kernel(17, d_su=speed.D_SU)
-    speed._threads(2)
+    speed.set_threads(2)
     load_before = os.getloadavg()
 
     def call(mask, weighting):

@@ -114,7 +114,7 @@ def oracle_scores(log=print) -> list[dict]:
     suite.bake = _oracle_bake
     try:
         for module, store in ((None, run.references.STORE), EXTRA):
-            scenes = run._load_scenes_module(module)
+            scenes = run.load_scenes_module(module)
             names = [n for n, s in scenes.SCENES.items() if s.kind == "backlit"]
             out = run.run(
                 names, scenes=scenes, store=store, qualities={"combined": ({},), "sta": ({},)}, log=lambda _l: None

@@ -35,29 +35,29 @@ SIZE = 16
 
 
 def _materials():
-    from .fidelity import scenes as s
+    from . import scene_kit as kit
 
     return {
-        "jade (Random Walk)": lambda: s._jade(),
-        "wax (Random Walk)": lambda: s._wax(),
-        "skin (Random Walk Skin)": lambda: s._skin(method="RANDOM_WALK_SKIN", scale=0.012),
-        "milk (Random Walk Legacy)": lambda: s._milk(method="RANDOM_WALK_LEGACY", scale=0.06),
-        "marble (Christensen-Burley)": lambda: s._h._material(
+        "jade (Random Walk)": lambda: kit.jade(),
+        "wax (Random Walk)": lambda: kit.wax(),
+        "skin (Random Walk Skin)": lambda: kit.skin(method="RANDOM_WALK_SKIN", scale=0.012),
+        "milk (Random Walk Legacy)": lambda: kit.milk(method="RANDOM_WALK_LEGACY", scale=0.06),
+        "marble (Christensen-Burley)": lambda: kit.new_material(
             "Marble", (0.83, 0.791, 0.753), radius=(1.0, 0.655, 0.464), scale=0.1, method="BURLEY", ior=1.5
         ),
     }
 
 
 def _scene(material, thickness, view_deg: float = 0.0):
-    from .fidelity.scenes import _h
+    from . import scene_kit as kit
 
-    scene = _h._reset(world_color=(0.0, 0.0, 0.0))
-    _h._object(scene, "Slab", _h._box("Slab", (0.4, thickness, 0.4)), material=material(), smooth=False)
+    scene = kit.reset_scene(world_color=(0.0, 0.0, 0.0))
+    kit.add_object(scene, "Slab", kit.box_mesh("Slab", (0.4, thickness, 0.4)), material=material(), smooth=False)
     a = math.radians(view_deg)
-    cam = _h._camera(scene, (0.0, -0.3 * math.cos(a), 0.3 * math.sin(a)), (0.0, 0.0, 0.0))
+    cam = kit.add_camera(scene, (0.0, -0.3 * math.cos(a), 0.3 * math.sin(a)), (0.0, 0.0, 0.0))
     cam.data.type = "ORTHO"
     cam.data.ortho_scale = 0.02
-    _h._light(scene, "Back", "SUN", (0.0, 1.0, 0.0), (0.0, 0.0, 0.0), 1.0, angle=0.0)
+    kit.add_light(scene, "Back", "SUN", (0.0, 1.0, 0.0), (0.0, 0.0, 0.0), 1.0, angle=0.0)
     scene.render.resolution_x = scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
     return scene

@@ -43,9 +43,9 @@ if len(parts) == 1:
 root = importlib.import_module(package)
 if os.path.dirname(os.path.abspath(root.__file__)) != os.path.abspath(folder):
     sys.exit(f"{package} was imported from {root.__file__}, not from {folder}")
-backend = importlib.import_module(package + ".core.backend")
+backend = importlib.import_module(package + ".core.compute.backend")
 backend.set_cache_dir(cache)
-prepare = importlib.import_module(package + ".core.prepare")
+prepare = importlib.import_module(package + ".core.study.prepare")
 result = prepare.prepare_kernels(log=print)
 print(f"{len(result['kernels'])} kernels ready in {result['seconds']:.1f} s")
 """

@@ -5,7 +5,9 @@ This script is the source of the sample scenes: the .blend files are generated f
 this file with ``blender.samples.load_sample_scenes`` and call ``build(name, path)``). Every scene uses Principled BSDF
 materials with Blender 5.2's Random Walk subsurface method and realistic scales (metres); on
 Blender 4.5 the legacy Random Walk, its only one, with the Subsurface Scale that gives the same
-mean free path (see ``_material``).
+mean free path (see ``new_material``). Its helpers (``reset_scene``, ``new_material``,
+``add_object``, the ``*_mesh`` builders, ``add_camera``, ``add_light`` ...) are public: the
+benchmarks' scene toolkit (``benchmarks/scene_kit.py``) builds their scenes with them.
 
 The scenes (``SCENES``), each meant for some of the techniques:
 
@@ -55,7 +57,7 @@ def _nodes(idblock):
     compat.ensure_node_tree(idblock)
 
 
-def _reset(world_color=(0.02, 0.02, 0.025)):
+def reset_scene(world_color=(0.02, 0.02, 0.025)):
     import bpy
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -88,7 +90,7 @@ def _socket(node, identifier):
     return next(s for s in node.inputs if s.identifier == identifier)
 
 
-def _material(
+def new_material(
     name,
     base_color,
     *,
@@ -132,12 +134,12 @@ def _material(
     return mat
 
 
-def _plain(name, base_color, roughness=0.5):
+def plain_material(name, base_color, roughness=0.5):
     """A material without subsurface scattering (Subsurface Weight 0)."""
-    return _material(name, base_color, weight=0.0, roughness=roughness, ior=1.5)
+    return new_material(name, base_color, weight=0.0, roughness=roughness, ior=1.5)
 
 
-def _object(scene, name, mesh, location=(0.0, 0.0, 0.0), rotation=(0.0, 0.0, 0.0), material=None, smooth=True):
+def add_object(scene, name, mesh, location=(0.0, 0.0, 0.0), rotation=(0.0, 0.0, 0.0), material=None, smooth=True):
     import bpy
 
     obj = bpy.data.objects.new(name, mesh)
@@ -151,7 +153,7 @@ def _object(scene, name, mesh, location=(0.0, 0.0, 0.0), rotation=(0.0, 0.0, 0.0
     return obj
 
 
-def _mesh(name, build):
+def new_mesh(name, build):
     """A mesh from a bmesh builder ``build(bm)``, its edges and faces in a canonical order
     (``_canonical``): the same mesh on every run."""
     import bmesh
@@ -209,17 +211,17 @@ def _canonical(bm):
     return out
 
 
-def _uv_sphere(name, radius, scale=(1.0, 1.0, 1.0), segments=32, rings=16):
+def uv_sphere_mesh(name, radius, scale=(1.0, 1.0, 1.0), segments=32, rings=16):
     import bmesh
 
     def build(bm):
         bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
         bmesh.ops.scale(bm, vec=scale, verts=bm.verts)
 
-    return _mesh(name, build)
+    return new_mesh(name, build)
 
 
-def _box(name, size, cuts=0):
+def box_mesh(name, size, cuts=0):
     """A box centred on the origin; ``cuts`` cuts per edge give a baked attribute room to vary."""
     import bmesh
 
@@ -229,20 +231,20 @@ def _box(name, size, cuts=0):
         if cuts:
             bmesh.ops.subdivide_edges(bm, edges=bm.edges[:], cuts=cuts, use_grid_fill=True)
 
-    return _mesh(name, build)
+    return new_mesh(name, build)
 
 
-def _plane(name, size_x, size_y):
+def plane_mesh(name, size_x, size_y):
     import bmesh
 
     def build(bm):
         bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=0.5)
         bmesh.ops.scale(bm, vec=(size_x, size_y, 1.0), verts=bm.verts)
 
-    return _mesh(name, build)
+    return new_mesh(name, build)
 
 
-def _cylinder(name, radius, depth, segments=32, rings=8):
+def cylinder_mesh(name, radius, depth, segments=32, rings=8):
     """A capped cylinder standing on z = 0, cut into ``rings`` bands."""
     import bmesh
 
@@ -254,16 +256,16 @@ def _cylinder(name, radius, depth, segments=32, rings=8):
         side = [e for e in bm.edges if abs(e.verts[0].co.z - e.verts[1].co.z) > depth / 2]
         bmesh.ops.subdivide_edges(bm, edges=side, cuts=rings - 1, use_grid_fill=True)
 
-    return _mesh(name, build)
+    return new_mesh(name, build)
 
 
-def _subsurf(obj, levels=2):
+def add_subsurf(obj, levels=2):
     mod = obj.modifiers.new("Subdivision", "SUBSURF")
     mod.levels = mod.render_levels = levels
     return mod
 
 
-def _camera(scene, location, target, lens=50.0):
+def add_camera(scene, location, target, lens=50.0):
     import bpy
     from mathutils import Vector
 
@@ -280,7 +282,7 @@ def _camera(scene, location, target, lens=50.0):
     return cam
 
 
-def _light(scene, name, kind, location, target, energy, color=(1.0, 1.0, 1.0), **kw):
+def add_light(scene, name, kind, location, target, energy, color=(1.0, 1.0, 1.0), **kw):
     import bpy
     from mathutils import Vector
 
@@ -297,7 +299,7 @@ def _light(scene, name, kind, location, target, energy, color=(1.0, 1.0, 1.0), *
     return obj
 
 
-def _head_mesh(name, size=(0.16, 0.19, 0.22)):
+def head_mesh(name, size=(0.16, 0.19, 0.22)):
     """A closed, manifold head-like shape facing -Y: an ellipsoid (``size`` = width, depth,
     height in metres) with a nose, brow ridge, eye sockets, cheeks and a chin, displaced along
     the radius by smooth bumps. One closed surface, so that random walks and the thickness bake
@@ -328,34 +330,34 @@ def _head_mesh(name, size=(0.16, 0.19, 0.22)):
             v.co = Vector(d * r)
         bmesh.ops.scale(bm, vec=(size[0] / 2, size[1] / 2, size[2] / 2), verts=bm.verts)
 
-    return _mesh(name, build)
+    return new_mesh(name, build)
 
 
 def build_head_frontlit():
     """A head-sized shape (~16 x 19 x 22 cm, skin, red mean free path 1.2 cm) lit from the
     front-left by a small sun (1 degree), so that the terminator and the nose's shadow draw sharp
     shadow edges across the face: the case for diffusion (SSSS, Burley)."""
-    scene = _reset()
-    skin = _material("Skin", (0.8, 0.52, 0.42), radius=(1.0, 0.35, 0.2), scale=0.012, roughness=0.45)
-    head = _object(scene, "Head", _head_mesh("Head"), material=skin)
-    _subsurf(head, 1)
-    wall = _object(
+    scene = reset_scene()
+    skin = new_material("Skin", (0.8, 0.52, 0.42), radius=(1.0, 0.35, 0.2), scale=0.012, roughness=0.45)
+    head = add_object(scene, "Head", head_mesh("Head"), material=skin)
+    add_subsurf(head, 1)
+    wall = add_object(
         scene,
         "Backdrop",
-        _plane("Backdrop", 2.0, 2.0),
+        plane_mesh("Backdrop", 2.0, 2.0),
         location=(0.0, 0.3, 0.0),
         rotation=(math.radians(90), 0.0, 0.0),
-        material=_plain("Backdrop", (0.2, 0.2, 0.2)),
+        material=plain_material("Backdrop", (0.2, 0.2, 0.2)),
         smooth=False,
     )
     wall.visible_shadow = True
-    _camera(scene, (0.0, -0.62, 0.03), (0.0, 0.0, 0.0), lens=60.0)
-    _light(scene, "Key", "SUN", (-1.0, -0.45, 0.3), (0.0, 0.0, 0.0), 3.0, angle=math.radians(1.0))
-    _light(scene, "Fill", "AREA", (0.6, -0.6, 0.1), (0.0, 0.0, 0.0), 0.3, size=0.4)
+    add_camera(scene, (0.0, -0.62, 0.03), (0.0, 0.0, 0.0), lens=60.0)
+    add_light(scene, "Key", "SUN", (-1.0, -0.45, 0.3), (0.0, 0.0, 0.0), 3.0, angle=math.radians(1.0))
+    add_light(scene, "Fill", "AREA", (0.6, -0.6, 0.1), (0.0, 0.0, 0.0), 0.3, size=0.4)
     return scene
 
 
-def _ear_mesh(name, size=(0.07, 0.018, 0.12), cup=0.012):
+def ear_mesh(name, size=(0.07, 0.018, 0.12), cup=0.012):
     """An ear-like lobe facing -Y: a flattened ellipsoid (``size`` = width, thickness, height),
     thick in the middle and thin towards the rim, bent into a shallow cup (``cup`` metres deep
     at the rim)."""
@@ -368,7 +370,7 @@ def _ear_mesh(name, size=(0.07, 0.018, 0.12), cup=0.012):
             u, w = v.co.x / (size[0] / 2), v.co.z / (size[2] / 2)
             v.co.y += cup * (u * u + 0.5 * w * w)
 
-    return _mesh(name, build)
+    return new_mesh(name, build)
 
 
 def _leaf_sheet(name, length=0.13, width=0.065, curl=0.012, arch=0.01):
@@ -385,7 +387,7 @@ def _leaf_sheet(name, length=0.13, width=0.065, curl=0.012, arch=0.01):
             y = curl * (2.0 * u) ** 2 + arch * (1.0 - (2.0 * t) ** 2)
             v.co = (x, y, z)
 
-    return _mesh(name, build)
+    return new_mesh(name, build)
 
 
 def build_backlit_thin():
@@ -393,19 +395,19 @@ def build_backlit_thin():
     at the rim, red mean free path 1.2 cm) and a leaf (6.5 x 13 cm, 2.5 mm thick, green mean
     free path 4 mm) in front of a strong sun from behind; the camera sees their unlit side, so
     what it sees is the light that went through: the case for translucency (STA)."""
-    scene = _reset(world_color=(0.015, 0.015, 0.02))
-    skin = _material("Ear Skin", (0.8, 0.5, 0.4), radius=(1.0, 0.35, 0.2), scale=0.012, roughness=0.45)
-    ear = _object(
+    scene = reset_scene(world_color=(0.015, 0.015, 0.02))
+    skin = new_material("Ear Skin", (0.8, 0.5, 0.4), radius=(1.0, 0.35, 0.2), scale=0.012, roughness=0.45)
+    ear = add_object(
         scene,
         "Ear",
-        _ear_mesh("Ear"),
+        ear_mesh("Ear"),
         location=(-0.055, 0.0, 0.0),
         rotation=(0.0, 0.0, math.radians(12)),
         material=skin,
     )
-    _subsurf(ear, 1)
-    green = _material("Leaf", (0.3, 0.55, 0.1), radius=(0.5, 1.0, 0.3), scale=0.004, roughness=0.4)
-    leaf = _object(
+    add_subsurf(ear, 1)
+    green = new_material("Leaf", (0.3, 0.55, 0.1), radius=(0.5, 1.0, 0.3), scale=0.004, roughness=0.4)
+    leaf = add_object(
         scene,
         "Leaf",
         _leaf_sheet("Leaf"),
@@ -417,10 +419,10 @@ def build_backlit_thin():
     solid.thickness = 0.0025
     solid.offset = 0.0
     solid.use_even_offset = True
-    _subsurf(leaf, 1)
-    _camera(scene, (0.0, -0.36, 0.01), (0.0, 0.0, 0.0), lens=50.0)
-    _light(scene, "Back", "SUN", (0.3, 1.0, 0.35), (0.0, 0.0, 0.0), 4.0, angle=math.radians(1.0))
-    _light(scene, "Fill", "AREA", (-0.4, -0.5, 0.2), (0.0, 0.0, 0.0), 0.15, size=0.3)
+    add_subsurf(leaf, 1)
+    add_camera(scene, (0.0, -0.36, 0.01), (0.0, 0.0, 0.0), lens=50.0)
+    add_light(scene, "Back", "SUN", (0.3, 1.0, 0.35), (0.0, 0.0, 0.0), 4.0, angle=math.radians(1.0))
+    add_light(scene, "Fill", "AREA", (-0.4, -0.5, 0.2), (0.0, 0.0, 0.0), 0.15, size=0.3)
     return scene
 
 
@@ -430,28 +432,30 @@ def build_wax_marble():
     the front-left; a thin horizontal bar between the light and them (not seen by the camera)
     draws a sharp shadow line across both: long mean free path and strong colour bleeding
     (reddened light far into the shadow and the unlit side)."""
-    scene = _reset()
-    wax = _material("Wax", (0.92, 0.62, 0.32), radius=(1.0, 0.45, 0.2), scale=0.015, ior=1.45, roughness=0.35)
-    candle = _object(scene, "Candle", _cylinder("Candle", 0.04, 0.14, rings=10), location=(-0.045, 0.0, 0.0))
+    scene = reset_scene()
+    wax = new_material("Wax", (0.92, 0.62, 0.32), radius=(1.0, 0.45, 0.2), scale=0.015, ior=1.45, roughness=0.35)
+    candle = add_object(scene, "Candle", cylinder_mesh("Candle", 0.04, 0.14, rings=10), location=(-0.045, 0.0, 0.0))
     candle.data.materials.append(wax)
-    _subsurf(candle, 1)
-    marble = _material(
+    add_subsurf(candle, 1)
+    marble = new_material(
         "Marble", (0.88, 0.86, 0.82), radius=(0.85, 0.56, 0.4), scale=0.01, ior=1.5, anisotropy=0.0, roughness=0.25
     )
-    _object(scene, "Ball", _uv_sphere("Ball", 0.04), location=(0.075, 0.03, 0.04), material=marble)
-    _object(scene, "Floor", _plane("Floor", 1.5, 1.5), material=_plain("Floor", (0.3, 0.3, 0.3)), smooth=False)
-    bar = _object(
+    add_object(scene, "Ball", uv_sphere_mesh("Ball", 0.04), location=(0.075, 0.03, 0.04), material=marble)
+    add_object(
+        scene, "Floor", plane_mesh("Floor", 1.5, 1.5), material=plain_material("Floor", (0.3, 0.3, 0.3)), smooth=False
+    )
+    bar = add_object(
         scene,
         "Shadow Bar",
-        _box("Shadow Bar", (0.5, 0.006, 0.006)),
+        box_mesh("Shadow Bar", (0.5, 0.006, 0.006)),
         location=(0.0, -0.16, 0.16),
-        material=_plain("Shadow Bar", (0.05, 0.05, 0.05)),
+        material=plain_material("Shadow Bar", (0.05, 0.05, 0.05)),
         smooth=False,
     )
     bar.visible_camera = False  # it is there for its shadow only
-    _camera(scene, (0.0, -0.5, 0.16), (0.015, 0.0, 0.055), lens=60.0)
-    _light(scene, "Key", "SPOT", (-0.3, -0.35, 0.3), (0.0, 0.0, 0.06), 8.0, shadow_soft_size=0.002, spot_size=1.2)
-    _light(scene, "Fill", "AREA", (0.5, -0.3, 0.3), (0.0, 0.0, 0.05), 0.5, size=0.5)
+    add_camera(scene, (0.0, -0.5, 0.16), (0.015, 0.0, 0.055), lens=60.0)
+    add_light(scene, "Key", "SPOT", (-0.3, -0.35, 0.3), (0.0, 0.0, 0.06), 8.0, shadow_soft_size=0.002, spot_size=1.2)
+    add_light(scene, "Fill", "AREA", (0.5, -0.3, 0.3), (0.0, 0.0, 0.05), 0.5, size=0.5)
     return scene
 
 
@@ -462,54 +466,56 @@ def build_depth_leak():
     a small key light that casts sharp shadows from the front objects onto the ones behind. The
     reference keeps each object's light to itself; screen-space techniques blur it across the
     depth edges (light leaking between objects)."""
-    scene = _reset()
-    jade = _material("Jade", (0.35, 0.7, 0.45), radius=(0.4, 1.0, 0.6), scale=0.01, ior=1.6, roughness=0.2)
-    _object(scene, "Jade Ball", _uv_sphere("Jade Ball", 0.04), location=(-0.045, -0.1, -0.02), material=jade)
-    wax = _material("Soap", (0.9, 0.75, 0.55), radius=(1.0, 0.6, 0.35), scale=0.008, ior=1.45, roughness=0.35)
-    block = _object(
+    scene = reset_scene()
+    jade = new_material("Jade", (0.35, 0.7, 0.45), radius=(0.4, 1.0, 0.6), scale=0.01, ior=1.6, roughness=0.2)
+    add_object(scene, "Jade Ball", uv_sphere_mesh("Jade Ball", 0.04), location=(-0.045, -0.1, -0.02), material=jade)
+    wax = new_material("Soap", (0.9, 0.75, 0.55), radius=(1.0, 0.6, 0.35), scale=0.008, ior=1.45, roughness=0.35)
+    block = add_object(
         scene,
         "Soap Block",
-        _box("Soap Block", (0.05, 0.035, 0.05), cuts=4),
+        box_mesh("Soap Block", (0.05, 0.035, 0.05), cuts=4),
         location=(0.065, -0.17, -0.035),
         rotation=(0.0, 0.0, math.radians(-25)),
         material=wax,
     )
     bevel = block.modifiers.new("Bevel", "BEVEL")
     bevel.width, bevel.segments = 0.006, 3
-    box = _object(
+    box = add_object(
         scene,
         "Plastic Box",
-        _box("Plastic Box", (0.09, 0.09, 0.09)),
+        box_mesh("Plastic Box", (0.09, 0.09, 0.09)),
         location=(0.035, 0.0, -0.015),
         rotation=(0.0, 0.0, math.radians(30)),
-        material=_plain("Plastic", (0.12, 0.2, 0.55), roughness=0.3),
+        material=plain_material("Plastic", (0.12, 0.2, 0.55), roughness=0.3),
         smooth=False,
     )
     box_bevel = box.modifiers.new("Bevel", "BEVEL")
     box_bevel.width, box_bevel.segments = 0.003, 2
-    skin = _material("Skin", (0.8, 0.52, 0.42), radius=(1.0, 0.35, 0.2), scale=0.012, roughness=0.45)
-    head = _object(scene, "Head", _head_mesh("Head", (0.12, 0.14, 0.17)), location=(-0.005, 0.15, 0.025), material=skin)
-    _subsurf(head, 1)
-    _object(
+    skin = new_material("Skin", (0.8, 0.52, 0.42), radius=(1.0, 0.35, 0.2), scale=0.012, roughness=0.45)
+    head = add_object(
+        scene, "Head", head_mesh("Head", (0.12, 0.14, 0.17)), location=(-0.005, 0.15, 0.025), material=skin
+    )
+    add_subsurf(head, 1)
+    add_object(
         scene,
         "Floor",
-        _plane("Floor", 1.5, 1.5),
+        plane_mesh("Floor", 1.5, 1.5),
         location=(0.0, 0.0, -0.06),
-        material=_plain("Floor", (0.3, 0.3, 0.3)),
+        material=plain_material("Floor", (0.3, 0.3, 0.3)),
         smooth=False,
     )
-    _object(
+    add_object(
         scene,
         "Wall",
-        _plane("Wall", 1.5, 1.0),
+        plane_mesh("Wall", 1.5, 1.0),
         location=(0.0, 0.4, 0.4),
         rotation=(math.radians(90), 0.0, 0.0),
-        material=_plain("Wall", (0.25, 0.25, 0.25)),
+        material=plain_material("Wall", (0.25, 0.25, 0.25)),
         smooth=False,
     )
-    _camera(scene, (0.0, -0.6, 0.07), (0.0, 0.0, 0.0), lens=70.0)
-    _light(scene, "Key", "AREA", (-0.35, -0.4, 0.35), (0.0, 0.0, 0.0), 5.0, size=0.03)
-    _light(scene, "Rim", "SUN", (0.5, 0.6, 0.5), (0.0, 0.0, 0.0), 1.0, angle=math.radians(2.0))
+    add_camera(scene, (0.0, -0.6, 0.07), (0.0, 0.0, 0.0), lens=70.0)
+    add_light(scene, "Key", "AREA", (-0.35, -0.4, 0.35), (0.0, 0.0, 0.0), 5.0, size=0.03)
+    add_light(scene, "Rim", "SUN", (0.5, 0.6, 0.5), (0.0, 0.0, 0.0), 1.0, angle=math.radians(2.0))
     return scene
 
 
@@ -529,12 +535,12 @@ def sss_objects(scene) -> list:
     > 0), in name order."""
     result = []
     for obj in sorted(scene.objects, key=lambda o: o.name):
-        if obj.type == "MESH" and any(_scatters(slot.material) for slot in obj.material_slots):
+        if obj.type == "MESH" and any(scatters(slot.material) for slot in obj.material_slots):
             result.append(obj)
     return result
 
 
-def _scatters(mat) -> bool:
+def scatters(mat) -> bool:
     if mat is None or mat.node_tree is None:
         return False
     bsdf = next((n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"), None)
@@ -550,7 +556,7 @@ def _finish(scene) -> None:
     index = 0
     for name in sorted(materials):
         mat = materials[name]
-        if _scatters(mat):
+        if scatters(mat):
             index += 1
             mat.pass_index = index
         else:

@@ -45,16 +45,6 @@ LAYER_EDGES_ALLOWED = {
 #: Private names read from another module today: (importer, "module.name").
 PRIVATE_ALLOWED = {
     ("benchmarks/speed.py", "core.base.arrays._WORKERS"),
-    ("benchmarks/fidelity/backlit_extra.py", "benchmarks.fidelity.scenes._h"),
-    ("benchmarks/fidelity/backlit_extra.py", "benchmarks.fidelity.scenes._milk"),
-    ("benchmarks/fidelity/backlit_extra.py", "benchmarks.fidelity.scenes._skin"),
-    ("benchmarks/fidelity/backlit_extra.py", "benchmarks.fidelity.scenes._torus"),
-    ("benchmarks/thickness_oracle.py", "benchmarks.fidelity.run._load_scenes_module"),
-    ("benchmarks/transmission_slab.py", "benchmarks.fidelity.scenes._h"),
-    ("benchmarks/transmission_slab.py", "benchmarks.fidelity.scenes._jade"),
-    ("benchmarks/transmission_slab.py", "benchmarks.fidelity.scenes._milk"),
-    ("benchmarks/transmission_slab.py", "benchmarks.fidelity.scenes._skin"),
-    ("benchmarks/transmission_slab.py", "benchmarks.fidelity.scenes._wax"),
 }
 
 

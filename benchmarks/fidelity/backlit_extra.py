@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import math
 
-from .scenes import SuiteScene, _h, _milk, _skin, _torus
+from benchmarks import scene_kit as kit
+
+from .scenes import SuiteScene
 
 
 def _wedge(name, width=0.08, height=0.06, thin=0.001, thick=0.02, nx=24, nz=12):
@@ -51,17 +53,17 @@ def _wedge(name, width=0.08, height=0.06, thin=0.001, thick=0.02, nx=24, nz=12):
             bm.faces.new((front[-1][k], back[-1][k], back[-1][k + 1], front[-1][k + 1]))
         bmesh.ops.recalc_face_normals(bm, faces=bm.faces[:])
 
-    return _h._mesh(name, build)
+    return kit.new_mesh(name, build)
 
 
 def wedge_backlit_milk():
     """A milk wedge, 1 mm thick at one end and 20 mm at the other, lit from behind by a point
     light; the camera sees its flat front face: the light through it as a function of thickness
     (Random Walk, 4.8 mm red mean free path)."""
-    scene = _h._reset(world_color=(0.01, 0.01, 0.012))
-    _h._object(scene, "Wedge", _wedge("Wedge"), material=_milk(scale=0.0048), smooth=False)
-    _h._camera(scene, (0.0, -0.3, 0.0), (0.0, 0.0, 0.0), lens=50.0)
-    _h._light(scene, "Back", "POINT", (0.02, 0.25, 0.04), (0.0, 0.0, 0.0), 20.0, shadow_soft_size=0.01)
+    scene = kit.reset_scene(world_color=(0.01, 0.01, 0.012))
+    kit.add_object(scene, "Wedge", _wedge("Wedge"), material=kit.milk(scale=0.0048), smooth=False)
+    kit.add_camera(scene, (0.0, -0.3, 0.0), (0.0, 0.0, 0.0), lens=50.0)
+    kit.add_light(scene, "Back", "POINT", (0.02, 0.25, 0.04), (0.0, 0.0, 0.0), 20.0, shadow_soft_size=0.01)
     return scene
 
 
@@ -69,30 +71,32 @@ def torus_backlit_marble():
     """A marble ring (14 cm across, 3 cm tube) tilted towards the camera, lit from behind and
     above by an area light, a dim fill in front; Christensen-Burley with a 10 cm scale (8 mm red
     as the profile's d)."""
-    scene = _h._reset(world_color=(0.01, 0.01, 0.012))
-    marble = _h._material(
+    scene = kit.reset_scene(world_color=(0.01, 0.01, 0.012))
+    marble = kit.new_material(
         "Marble", (0.83, 0.791, 0.753), radius=(1.0, 0.655, 0.464), scale=0.1, method="BURLEY", ior=1.5, roughness=0.3
     )
-    _h._object(scene, "Ring", _torus("Ring", 0.055, 0.015), rotation=(math.radians(70), 0.0, 0.0), material=marble)
-    _h._camera(scene, (0.0, -0.4, 0.05), (0.0, 0.0, 0.0), lens=50.0)
-    _h._light(scene, "Back", "AREA", (0.05, 0.35, 0.2), (0.0, 0.0, 0.0), 30.0, size=0.1)
-    _h._light(scene, "Fill", "AREA", (-0.4, -0.5, 0.2), (0.0, 0.0, 0.0), 0.1, size=0.3)
+    kit.add_object(
+        scene, "Ring", kit.torus("Ring", 0.055, 0.015), rotation=(math.radians(70), 0.0, 0.0), material=marble
+    )
+    kit.add_camera(scene, (0.0, -0.4, 0.05), (0.0, 0.0, 0.0), lens=50.0)
+    kit.add_light(scene, "Back", "AREA", (0.05, 0.35, 0.2), (0.0, 0.0, 0.0), 30.0, size=0.1)
+    kit.add_light(scene, "Fill", "AREA", (-0.4, -0.5, 0.2), (0.0, 0.0, 0.0), 0.1, size=0.3)
     return scene
 
 
 def fingers_backlit_skin():
     """Three finger-like capped cylinders (1.4, 1.8 and 2.2 cm across, 8 cm long) side by side, lit
     from behind by a sun, a little fill in front; skin with a 1.2 cm red radius (Random Walk Skin)."""
-    scene = _h._reset(world_color=(0.015, 0.015, 0.02))
-    skin = _skin(method="RANDOM_WALK_SKIN", scale=0.012)
+    scene = kit.reset_scene(world_color=(0.015, 0.015, 0.02))
+    skin = kit.skin(method="RANDOM_WALK_SKIN", scale=0.012)
     for i, (x, r) in enumerate(((-0.035, 0.007), (0.0, 0.009), (0.037, 0.011))):
-        finger = _h._object(scene, f"Finger {i + 1}", _h._cylinder(f"Finger {i + 1}", r, 0.08, rings=10))
+        finger = kit.add_object(scene, f"Finger {i + 1}", kit.cylinder_mesh(f"Finger {i + 1}", r, 0.08, rings=10))
         finger.location = (x, 0.0, -0.04)
         finger.data.materials.append(skin)
-        _h._subsurf(finger, 1)
-    _h._camera(scene, (0.0, -0.3, 0.0), (0.0, 0.0, 0.0), lens=50.0)
-    _h._light(scene, "Back", "SUN", (0.2, 1.0, 0.25), (0.0, 0.0, 0.0), 4.0, angle=math.radians(1.0))
-    _h._light(scene, "Fill", "AREA", (-0.4, -0.5, 0.2), (0.0, 0.0, 0.0), 0.1, size=0.3)
+        kit.add_subsurf(finger, 1)
+    kit.add_camera(scene, (0.0, -0.3, 0.0), (0.0, 0.0, 0.0), lens=50.0)
+    kit.add_light(scene, "Back", "SUN", (0.2, 1.0, 0.25), (0.0, 0.0, 0.0), 4.0, angle=math.radians(1.0))
+    kit.add_light(scene, "Fill", "AREA", (-0.4, -0.5, 0.2), (0.0, 0.0, 0.0), 0.1, size=0.3)
     return scene
 
 

@@ -61,7 +61,7 @@ class StaleReferenceError(RuntimeError):
     """A stored reference does not match the scene (or there is none)."""
 
 
-def _manifest(path: str = MANIFEST) -> dict:
+def read_manifest(path: str = MANIFEST) -> dict:
     if not os.path.isfile(path):
         return {"scenes": {}}
     with open(path, encoding="utf-8") as fh:
@@ -104,7 +104,7 @@ def read_half(path: str) -> dict[str, np.ndarray]:
 def load(name: str, fingerprint: str, *, store: str = STORE) -> tuple[np.ndarray, np.ndarray, dict]:
     """(seed 0 image, seed 1 image, manifest entry) of scene ``name``; StaleReferenceError when
     there is no stored reference or when its fingerprint is not ``fingerprint``."""
-    entry = _manifest(os.path.join(store, "manifest.json"))["scenes"].get(name)
+    entry = read_manifest(os.path.join(store, "manifest.json"))["scenes"].get(name)
     path = exr_path(name, store)
     if entry is None or not os.path.isfile(path):
         raise StaleReferenceError(
@@ -168,7 +168,7 @@ def render(name: str, *, samples: int = SAMPLES, scenes=None, store: str = STORE
         "rendered_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
     manifest_path = os.path.join(store, "manifest.json")
-    manifest = _manifest(manifest_path)  # read again: other processes may have added scenes
+    manifest = read_manifest(manifest_path)  # read again: other processes may have added scenes
     manifest["scenes"][name] = entry
     manifest["scenes"] = dict(sorted(manifest["scenes"].items()))
     manifest["command"] = _regenerate(store).format(name="[SCENE ...]")

@@ -96,7 +96,7 @@ def quality_label(technique: str, quality: dict) -> str:
     return label + " " + ", ".join(f"{k.replace('n_', '')}={v}" for k, v in quality.items())
 
 
-def _load_scenes_module(name: str | None):
+def load_scenes_module(name: str | None):
     if name is None:
         from . import scenes
 
@@ -104,7 +104,7 @@ def _load_scenes_module(name: str | None):
     return importlib.import_module(name)
 
 
-def _thickness_digest(scene) -> str:
+def thickness_digest(scene) -> str:
     """A hash of what the passes depend on beside the scene's fingerprint, for their cache key:
     the baked thickness of every mesh (STA's AOV) and how each mesh is numbered (its edges' and
     its faces' vertices, in order). The fingerprint reads the faces in a canonical order, while
@@ -128,7 +128,7 @@ def _thickness_digest(scene) -> str:
     return h.hexdigest()[:16]
 
 
-def _passes(scene, key: str, samples: int, cache: str | None, log, *, seed: int = PASS_SEED):
+def cached_passes(scene, key: str, samples: int, cache: str | None, log, *, seed: int = PASS_SEED):
     """The passes at ``samples`` (Cycles seed ``seed``), from ``cache`` when rendered before for the
     same ``key`` (scene, bake and seed) and samples. Returns (Passes, SceneDescription, seconds to
     render, from cache)."""
@@ -225,10 +225,10 @@ def load_scene(
     fp = references.fingerprint(scene)
     seed0, seed1, _entry = references.load(name, fp, store=store)
     suite.bake(scene, source=thickness_source)
-    key = hashlib.sha256(f"{fp}:{_thickness_digest(scene)}:{PASS_SEED}".encode()).hexdigest()[:20]
+    key = hashlib.sha256(f"{fp}:{thickness_digest(scene)}:{PASS_SEED}".encode()).hexdigest()[:20]
     timings = {"build_and_bake_s": time.perf_counter() - start}
-    passes, desc, timings["passes_s"], _ = _passes(scene, key, PASS_SAMPLES, cache, log)
-    passes_high, desc_high, timings["passes_high_s"], _ = _passes(scene, key, HIGH_SAMPLES, cache, log)
+    passes, desc, timings["passes_s"], _ = cached_passes(scene, key, PASS_SAMPLES, cache, log)
+    passes_high, desc_high, timings["passes_high_s"], _ = cached_passes(scene, key, HIGH_SAMPLES, cache, log)
     reference = 0.5 * (seed0[..., :3] + seed1[..., :3])
     return SceneData(
         name, table[name].kind, reference, (seed0, seed1), passes, desc, passes_high, desc_high, timings, fp
@@ -625,7 +625,7 @@ def main(argv=None) -> int:
 
     from sss_lab.core.base.files import write_text
 
-    module = _load_scenes_module(args.scenes_module)
+    module = load_scenes_module(args.scenes_module)
     start = time.perf_counter()
     out = run(
         args.names,

@@ -7,7 +7,8 @@ Blender session (from factory settings) and a ``kind`` that says what the scene 
 (``benchmarks/fidelity/run.py``) treats every scene the same way, so a scene built elsewhere
 with the same conventions (a module with its own ``SCENES``) is scored identically.
 
-Conventions (those of ``sample_blends/build_scenes.py``, whose helpers build the objects):
+Conventions (those of ``sample_blends/build_scenes.py``; the objects, materials and lights come
+from the benchmarks' scene toolkit, ``benchmarks/scene_kit.py``):
 metres; Principled BSDF materials with every subsurface input set; Cycles CPU, 128 x 128,
 adaptive sampling and denoising off; lights invisible to the camera. The builder stops before
 pass indices and the thickness bake: ``prepare`` adds them after the scene's fingerprint is
@@ -38,13 +39,11 @@ that divided by the albedo scaling):
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 
-_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks import scene_kit as kit
 
 #: The suite's image size (the stored references are rendered at it).
 RESOLUTION = (128, 128)
@@ -55,18 +54,6 @@ THICKNESS_SAMPLES = 64
 KINDS = ("diffusion", "backlit")
 
 
-def _helpers():
-    """The sample scenes' builder module: its object, material, camera and light helpers."""
-    path = os.path.join(_ROOT, "sample_blends", "build_scenes.py")
-    spec = importlib.util.spec_from_file_location("sss_lab_sample_scenes", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-_h = _helpers()
-
-
 @dataclass(frozen=True)
 class SuiteScene:
     name: str
@@ -75,185 +62,44 @@ class SuiteScene:
     description: str
 
 
-# --- Materials: Base Color, Subsurface Radius (longest channel 1) and Scale (metres) ----------
-# Skin and marble from Jensen et al. 2001 (core/study/presets.py); wax and jade the presets' artistic
-# values; milk an artistic choice too (a warm white whose red scatters furthest). Scales differ
-# per scene where a scene needs a longer path (the table above gives the result).
-
-
-def _skin(name="Skin", method="RANDOM_WALK", scale=0.0037):
-    return _h._material(
-        name, (0.436, 0.227, 0.131), radius=(1.0, 0.373, 0.185), scale=scale, method=method, ior=1.4, roughness=0.45
-    )
-
-
-def _marble(name="Marble", scale=0.0085):
-    return _h._material(name, (0.83, 0.791, 0.753), radius=(1.0, 0.655, 0.464), scale=scale, ior=1.5, roughness=0.3)
-
-
-def _wax(name="Wax", method="RANDOM_WALK", scale=0.008):
-    return _h._material(
-        name, (0.9, 0.8, 0.6), radius=(1.0, 0.75, 0.5), scale=scale, method=method, ior=1.45, roughness=0.35
-    )
-
-
-def _jade(name="Jade", scale=0.004):
-    return _h._material(name, (0.35, 0.62, 0.42), radius=(0.5, 1.0, 0.625), scale=scale, ior=1.6, roughness=0.25)
-
-
-def _milk(name="Milk", method="RANDOM_WALK", scale=0.0048):
-    return _h._material(
-        name, (0.91, 0.88, 0.76), radius=(1.0, 0.54, 0.33), scale=scale, method=method, ior=1.35, roughness=0.3
-    )
-
-
-def _plain(name, color, roughness=0.5):
-    return _h._plain(name, color, roughness)
-
-
-# --- Geometry --------------------------------------------------------------------------------
-
-
-def _torus(name, major, minor, segments=48, rings=24):
-    import bmesh
-    from mathutils import Vector
-
-    def build(bm):
-        verts = []
-        for i in range(segments):
-            a = 2 * math.pi * i / segments
-            row = []
-            for j in range(rings):
-                b = 2 * math.pi * j / rings
-                r = major + minor * math.cos(b)
-                row.append(bm.verts.new(Vector((r * math.cos(a), r * math.sin(a), minor * math.sin(b)))))
-            verts.append(row)
-        for i in range(segments):
-            for j in range(rings):
-                i2, j2 = (i + 1) % segments, (j + 1) % rings
-                bm.faces.new((verts[i][j], verts[i2][j], verts[i2][j2], verts[i][j2]))
-        bmesh.ops.recalc_face_normals(bm, faces=bm.faces[:])
-
-    return _h._mesh(name, build)
-
-
-def _icosphere(name, radius, subdivisions=1):
-    import bmesh
-
-    def build(bm):
-        bmesh.ops.create_icosphere(bm, subdivisions=subdivisions, radius=radius)
-
-    return _h._mesh(name, build)
-
-
-def _bowl(name, radius, wall, segments=40, steps=10):
-    """A hemispherical bowl, open at the top (rim at z = 0, bottom at z = -radius), walls ``wall``
-    thick: one closed surface (outer and inner hemispheres joined by the rim), built vertex by
-    vertex so that the mesh is the same on every run."""
-    import bmesh
-    from mathutils import Vector
-
-    inner = radius - wall
-
-    def build(bm):
-        rings = {"outer": [], "inner": []}
-        for j in range(segments):
-            phi = 2 * math.pi * j / segments
-            c, s = math.cos(phi), math.sin(phi)
-            for key, r in (("outer", radius), ("inner", inner)):
-                ring = []
-                for i in range(steps):
-                    t = 0.5 * math.pi * i / steps
-                    ring.append(bm.verts.new(Vector((r * math.cos(t) * c, r * math.cos(t) * s, -r * math.sin(t)))))
-                rings[key].append(ring)
-        poles = {"outer": bm.verts.new(Vector((0, 0, -radius))), "inner": bm.verts.new(Vector((0, 0, -inner)))}
-        for j in range(segments):
-            k = (j + 1) % segments
-            o, o2, n, n2 = rings["outer"][j], rings["outer"][k], rings["inner"][j], rings["inner"][k]
-            bm.faces.new((n[0], n2[0], o2[0], o[0]))  # the rim, facing up
-            for i in range(steps - 1):
-                bm.faces.new((o[i], o2[i], o2[i + 1], o[i + 1]))  # outside, facing out and down
-                bm.faces.new((n[i + 1], n2[i + 1], n2[i], n[i]))  # inside, facing the centre
-            bm.faces.new((o[-1], o2[-1], poles["outer"]))
-            bm.faces.new((poles["inner"], n2[-1], n[-1]))
-        if bm.calc_volume(signed=True) < 0:  # normals pointing in: turn every face
-            bmesh.ops.reverse_faces(bm, faces=bm.faces[:])
-
-    return _h._mesh(name, build)
-
-
-def _shadow_bar(scene, location, size=(0.5, 0.006, 0.006), rotation=(0.0, 0.0, 0.0)):
-    bar = _h._object(
-        scene,
-        "Shadow Bar",
-        _h._box("Shadow Bar", size),
-        location=location,
-        rotation=rotation,
-        material=_plain("Shadow Bar", (0.05, 0.05, 0.05)),
-        smooth=False,
-    )
-    bar.visible_camera = False  # there for its shadow only
-    return bar
-
-
-def _floor(scene, z=0.0, color=(0.3, 0.3, 0.3), size=1.5):
-    return _h._object(
-        scene,
-        "Floor",
-        _h._plane("Floor", size, size),
-        location=(0, 0, z),
-        material=_plain("Floor", color),
-        smooth=False,
-    )
-
-
-def _wall(scene, y, color=(0.25, 0.25, 0.25), z=0.3):
-    return _h._object(
-        scene,
-        "Wall",
-        _h._plane("Wall", 1.5, 1.2),
-        location=(0.0, y, z),
-        rotation=(math.radians(90), 0.0, 0.0),
-        material=_plain("Wall", color),
-        smooth=False,
-    )
-
-
 # --- Scenes ----------------------------------------------------------------------------------
 
 
 def sphere_front_skin():
     """A 12 cm skin sphere lit from the front-left by a small sun; a bar draws a hard shadow line
     across it. Skin of Jensen et al. (3.7 mm red) with the Random Walk (Skin) method."""
-    scene = _h._reset()
-    _h._object(
-        scene, "Ball", _h._uv_sphere("Ball", 0.06, segments=48, rings=24), material=_skin(method="RANDOM_WALK_SKIN")
+    scene = kit.reset_scene()
+    kit.add_object(
+        scene,
+        "Ball",
+        kit.uv_sphere_mesh("Ball", 0.06, segments=48, rings=24),
+        material=kit.skin(method="RANDOM_WALK_SKIN"),
     )
-    _floor(scene, z=-0.06)
-    _shadow_bar(scene, (0.0, -0.2, 0.08), rotation=(0.0, math.radians(30), 0.0))
-    _h._camera(scene, (0.0, -0.4, 0.05), (0.0, 0.0, 0.0), lens=50.0)
-    _h._light(scene, "Key", "SUN", (-0.5, -1.0, 0.6), (0.0, 0.0, 0.0), 3.0, angle=math.radians(0.5))
-    _h._light(scene, "Fill", "AREA", (0.6, -0.5, 0.2), (0.0, 0.0, 0.0), 0.3, size=0.4)
+    kit.floor(scene, z=-0.06)
+    kit.shadow_bar(scene, (0.0, -0.2, 0.08), rotation=(0.0, math.radians(30), 0.0))
+    kit.add_camera(scene, (0.0, -0.4, 0.05), (0.0, 0.0, 0.0), lens=50.0)
+    kit.add_light(scene, "Key", "SUN", (-0.5, -1.0, 0.6), (0.0, 0.0, 0.0), 3.0, angle=math.radians(0.5))
+    kit.add_light(scene, "Fill", "AREA", (0.6, -0.5, 0.2), (0.0, 0.0, 0.0), 0.3, size=0.4)
     return scene
 
 
 def slab_grazing_marble():
     """A 14 x 10 x 3 cm marble slab made of one 8-vertex box (low-poly), lit at a grazing angle
     by a small sun (12 degrees above its face) and a little fill."""
-    scene = _h._reset()
-    slab = _h._object(
+    scene = kit.reset_scene()
+    slab = kit.add_object(
         scene,
         "Slab",
-        _h._box("Slab", (0.14, 0.03, 0.10)),
+        kit.box_mesh("Slab", (0.14, 0.03, 0.10)),
         rotation=(0.0, 0.0, math.radians(15)),
-        material=_marble(scale=0.017),
+        material=kit.marble(scale=0.017),
         smooth=False,
     )
     del slab
-    _floor(scene, z=-0.05)
-    _h._camera(scene, (0.05, -0.38, 0.08), (0.0, 0.0, 0.0), lens=50.0)
-    _h._light(scene, "Key", "SUN", (1.0, -0.21, 0.15), (0.0, 0.0, 0.0), 5.0, angle=math.radians(1.0))
-    _h._light(scene, "Fill", "AREA", (-0.4, -0.6, 0.3), (0.0, 0.0, 0.0), 0.4, size=0.5)
+    kit.floor(scene, z=-0.05)
+    kit.add_camera(scene, (0.05, -0.38, 0.08), (0.0, 0.0, 0.0), lens=50.0)
+    kit.add_light(scene, "Key", "SUN", (1.0, -0.21, 0.15), (0.0, 0.0, 0.0), 5.0, angle=math.radians(1.0))
+    kit.add_light(scene, "Fill", "AREA", (-0.4, -0.6, 0.3), (0.0, 0.0, 0.0), 0.4, size=0.5)
     return scene
 
 
@@ -261,49 +107,51 @@ def fins_backlit_jade():
     """Four jade fins (each one 8-vertex box, 5 x 9 cm) 2, 5, 12 and 24 mm thick, side by side,
     lit from behind by a sun; the camera sees their unlit faces. Jade with a 4 mm green mean free
     path (Random Walk)."""
-    scene = _h._reset(world_color=(0.01, 0.01, 0.012))
-    jade = _jade()
+    scene = kit.reset_scene(world_color=(0.01, 0.01, 0.012))
+    jade = kit.jade()
     for i, t in enumerate((0.002, 0.005, 0.012, 0.024)):
-        _h._object(
+        kit.add_object(
             scene,
             f"Fin {i + 1}",
-            _h._box(f"Fin {i + 1}", (0.05, t, 0.09)),
+            kit.box_mesh(f"Fin {i + 1}", (0.05, t, 0.09)),
             location=(-0.09 + 0.06 * i, 0.0, 0.0),
             material=jade,
             smooth=False,
         )
-    _h._camera(scene, (0.0, -0.42, 0.02), (0.0, 0.0, 0.0), lens=50.0)
-    _h._light(scene, "Back", "SUN", (0.15, 1.0, 0.3), (0.0, 0.0, 0.0), 4.0, angle=math.radians(1.0))
-    _h._light(scene, "Fill", "AREA", (-0.3, -0.6, 0.2), (0.0, 0.0, 0.0), 0.1, size=0.3)
+    kit.add_camera(scene, (0.0, -0.42, 0.02), (0.0, 0.0, 0.0), lens=50.0)
+    kit.add_light(scene, "Back", "SUN", (0.15, 1.0, 0.3), (0.0, 0.0, 0.0), 4.0, angle=math.radians(1.0))
+    kit.add_light(scene, "Fill", "AREA", (-0.3, -0.6, 0.2), (0.0, 0.0, 0.0), 0.1, size=0.3)
     return scene
 
 
 def torus_spot_wax():
     """A wax torus (16 cm across, 3 cm tube) lying on a floor under a small spot light, with a bar
     casting a hard shadow line across it; long mean free path (3 cm red, Random Walk)."""
-    scene = _h._reset()
-    torus = _h._object(
-        scene, "Torus", _torus("Torus", 0.065, 0.03), location=(0.0, 0.0, 0.03), material=_wax(scale=0.03)
+    scene = kit.reset_scene()
+    torus = kit.add_object(
+        scene, "Torus", kit.torus("Torus", 0.065, 0.03), location=(0.0, 0.0, 0.03), material=kit.wax(scale=0.03)
     )
     del torus
-    _floor(scene)
-    _shadow_bar(scene, (-0.07, -0.1, 0.2), size=(0.006, 0.5, 0.006), rotation=(0.0, 0.0, math.radians(20)))
-    _h._camera(scene, (0.0, -0.38, 0.28), (0.0, 0.0, 0.02), lens=50.0)
-    _h._light(scene, "Key", "SPOT", (-0.25, -0.25, 0.45), (0.0, 0.0, 0.03), 15.0, shadow_soft_size=0.002, spot_size=1.0)
-    _h._light(scene, "Fill", "AREA", (0.5, -0.3, 0.3), (0.0, 0.0, 0.0), 0.5, size=0.5)
+    kit.floor(scene)
+    kit.shadow_bar(scene, (-0.07, -0.1, 0.2), size=(0.006, 0.5, 0.006), rotation=(0.0, 0.0, math.radians(20)))
+    kit.add_camera(scene, (0.0, -0.38, 0.28), (0.0, 0.0, 0.02), lens=50.0)
+    kit.add_light(
+        scene, "Key", "SPOT", (-0.25, -0.25, 0.45), (0.0, 0.0, 0.03), 15.0, shadow_soft_size=0.002, spot_size=1.0
+    )
+    kit.add_light(scene, "Fill", "AREA", (0.5, -0.3, 0.3), (0.0, 0.0, 0.0), 0.5, size=0.5)
     return scene
 
 
 def head_area_skin():
     """The head-like shape (16 x 19 x 22 cm) lit by a small area light from the side (hard
     shadows of the nose and brow); skin with a 1.2 cm red mean free path (Random Walk)."""
-    scene = _h._reset()
-    head = _h._object(scene, "Head", _h._head_mesh("Head"), material=_skin(scale=0.012))
-    _h._subsurf(head, 1)
-    _wall(scene, 0.3, z=0.0)
-    _h._camera(scene, (0.15, -0.6, 0.05), (0.0, 0.0, 0.0), lens=60.0)
-    _h._light(scene, "Key", "AREA", (-0.5, -0.35, 0.25), (0.0, 0.0, 0.0), 20.0, size=0.02)
-    _h._light(scene, "Fill", "AREA", (0.6, -0.6, 0.1), (0.0, 0.0, 0.0), 0.4, size=0.4)
+    scene = kit.reset_scene()
+    head = kit.add_object(scene, "Head", kit.head_mesh("Head"), material=kit.skin(scale=0.012))
+    kit.add_subsurf(head, 1)
+    kit.wall(scene, 0.3, z=0.0)
+    kit.add_camera(scene, (0.15, -0.6, 0.05), (0.0, 0.0, 0.0), lens=60.0)
+    kit.add_light(scene, "Key", "AREA", (-0.5, -0.35, 0.25), (0.0, 0.0, 0.0), 20.0, size=0.02)
+    kit.add_light(scene, "Fill", "AREA", (0.6, -0.6, 0.1), (0.0, 0.0, 0.0), 0.4, size=0.4)
     return scene
 
 
@@ -311,23 +159,27 @@ def lowpoly_milk_lights():
     """A low-poly milk icosphere (42 vertices, flat shaded) and an 8-vertex milk box, lit by three
     coloured lights (warm sun, blue point, white spot). Christensen-Burley method, whose radius
     Cycles divides by 4 pi, so the scale is 12 cm (about 1 cm as a profile d)."""
-    scene = _h._reset()
-    milk = _milk(method="BURLEY", scale=0.12)
-    _h._object(scene, "Ico", _icosphere("Ico", 0.06, 1), location=(-0.05, 0.0, 0.06), material=milk, smooth=False)
-    _h._object(
+    scene = kit.reset_scene()
+    milk = kit.milk(method="BURLEY", scale=0.12)
+    kit.add_object(
+        scene, "Ico", kit.icosphere("Ico", 0.06, 1), location=(-0.05, 0.0, 0.06), material=milk, smooth=False
+    )
+    kit.add_object(
         scene,
         "Box",
-        _h._box("Box", (0.07, 0.07, 0.07)),
+        kit.box_mesh("Box", (0.07, 0.07, 0.07)),
         location=(0.07, 0.03, 0.035),
         rotation=(0.0, 0.0, math.radians(35)),
         material=milk,
         smooth=False,
     )
-    _floor(scene, color=(0.2, 0.2, 0.2))
-    _h._camera(scene, (0.0, -0.4, 0.2), (0.01, 0.0, 0.05), lens=50.0)
-    _h._light(scene, "Warm", "SUN", (-0.6, -0.5, 0.5), (0, 0, 0), 2.5, color=(1.0, 0.8, 0.6), angle=math.radians(1))
-    _h._light(scene, "Cool", "POINT", (0.3, -0.2, 0.1), (0, 0, 0), 3.0, color=(0.5, 0.6, 1.0), shadow_soft_size=0.005)
-    _h._light(scene, "Top", "SPOT", (0.05, 0.0, 0.5), (0.0, 0.0, 0.0), 10.0, shadow_soft_size=0.003, spot_size=0.6)
+    kit.floor(scene, color=(0.2, 0.2, 0.2))
+    kit.add_camera(scene, (0.0, -0.4, 0.2), (0.01, 0.0, 0.05), lens=50.0)
+    kit.add_light(scene, "Warm", "SUN", (-0.6, -0.5, 0.5), (0, 0, 0), 2.5, color=(1.0, 0.8, 0.6), angle=math.radians(1))
+    kit.add_light(
+        scene, "Cool", "POINT", (0.3, -0.2, 0.1), (0, 0, 0), 3.0, color=(0.5, 0.6, 1.0), shadow_soft_size=0.005
+    )
+    kit.add_light(scene, "Top", "SPOT", (0.05, 0.0, 0.5), (0.0, 0.0, 0.0), 10.0, shadow_soft_size=0.003, spot_size=0.6)
     return scene
 
 
@@ -335,34 +187,38 @@ def bowl_concave_wax():
     """A wax bowl (18 cm across, 1.5 cm walls) seen from above at an angle, so that its concave
     inside faces the camera; a spot from above lights the inside and the rim shadows part of
     it. Random Walk (Legacy), whose radius Cycles divides by 4 pi: 10 cm scale, about 8 mm."""
-    scene = _h._reset()
-    bowl = _h._object(
+    scene = kit.reset_scene()
+    bowl = kit.add_object(
         scene,
         "Bowl",
-        _bowl("Bowl", 0.09, 0.015),
+        kit.bowl("Bowl", 0.09, 0.015),
         location=(0.0, 0.0, 0.09),
-        material=_wax(method="RANDOM_WALK_LEGACY", scale=0.1),
+        material=kit.wax(method="RANDOM_WALK_LEGACY", scale=0.1),
     )
-    _h._subsurf(bowl, 1)
-    _floor(scene)
-    _h._camera(scene, (0.0, -0.35, 0.42), (0.0, 0.0, 0.06), lens=50.0)
-    _h._light(scene, "Key", "SPOT", (0.25, 0.1, 0.5), (0.0, 0.0, 0.06), 12.0, shadow_soft_size=0.003, spot_size=1.0)
-    _h._light(scene, "Fill", "AREA", (-0.4, -0.5, 0.4), (0.0, 0.0, 0.0), 0.4, size=0.5)
+    kit.add_subsurf(bowl, 1)
+    kit.floor(scene)
+    kit.add_camera(scene, (0.0, -0.35, 0.42), (0.0, 0.0, 0.06), lens=50.0)
+    kit.add_light(scene, "Key", "SPOT", (0.25, 0.1, 0.5), (0.0, 0.0, 0.06), 12.0, shadow_soft_size=0.003, spot_size=1.0)
+    kit.add_light(scene, "Fill", "AREA", (-0.4, -0.5, 0.4), (0.0, 0.0, 0.0), 0.4, size=0.5)
     return scene
 
 
 def world_marble():
     """A marble sphere (10 cm) and a bevelled marble cube (7 cm) under a bright uniform world and
     no lamp: soft light from everywhere, the occlusion between them the only contrast."""
-    scene = _h._reset(world_color=(0.9, 0.9, 0.95))
-    marble = _marble()
-    _h._object(
-        scene, "Ball", _h._uv_sphere("Ball", 0.05, segments=48, rings=24), location=(-0.045, 0.0, 0.05), material=marble
+    scene = kit.reset_scene(world_color=(0.9, 0.9, 0.95))
+    marble = kit.marble()
+    kit.add_object(
+        scene,
+        "Ball",
+        kit.uv_sphere_mesh("Ball", 0.05, segments=48, rings=24),
+        location=(-0.045, 0.0, 0.05),
+        material=marble,
     )
-    cube = _h._object(
+    cube = kit.add_object(
         scene,
         "Cube",
-        _h._box("Cube", (0.07, 0.07, 0.07), cuts=3),
+        kit.box_mesh("Cube", (0.07, 0.07, 0.07), cuts=3),
         location=(0.06, -0.01, 0.035),
         rotation=(0.0, 0.0, math.radians(25)),
         material=marble,
@@ -370,8 +226,8 @@ def world_marble():
     )
     bevel = cube.modifiers.new("Bevel", "BEVEL")
     bevel.width, bevel.segments = 0.005, 3
-    _floor(scene, color=(0.35, 0.35, 0.35))
-    _h._camera(scene, (0.0, -0.38, 0.12), (0.005, 0.0, 0.04), lens=50.0)
+    kit.floor(scene, color=(0.35, 0.35, 0.35))
+    kit.add_camera(scene, (0.0, -0.38, 0.12), (0.005, 0.0, 0.04), lens=50.0)
     return scene
 
 
@@ -379,26 +235,28 @@ def skin_before_marble():
     """A small skin head (12 x 14 x 17 cm) in front of a marble ball (14 cm) 20 cm behind it, both
     lit by a spot from the front-left that casts the head's shadow on the ball: subsurface objects
     overlapping at different depths (Random Walk)."""
-    scene = _h._reset()
-    head = _h._object(
+    scene = kit.reset_scene()
+    head = kit.add_object(
         scene,
         "Head",
-        _h._head_mesh("Head", (0.12, 0.14, 0.17)),
+        kit.head_mesh("Head", (0.12, 0.14, 0.17)),
         location=(-0.03, -0.1, 0.0),
-        material=_skin(scale=0.01),
+        material=kit.skin(scale=0.01),
     )
-    _h._subsurf(head, 1)
-    _h._object(
+    kit.add_subsurf(head, 1)
+    kit.add_object(
         scene,
         "Ball",
-        _h._uv_sphere("Ball", 0.07, segments=48, rings=24),
+        kit.uv_sphere_mesh("Ball", 0.07, segments=48, rings=24),
         location=(0.06, 0.12, 0.0),
-        material=_marble(scale=0.012),
+        material=kit.marble(scale=0.012),
     )
-    _wall(scene, 0.4, z=0.2)
-    _h._camera(scene, (0.0, -0.65, 0.04), (0.01, 0.0, 0.0), lens=60.0)
-    _h._light(scene, "Key", "SPOT", (-0.4, -0.45, 0.25), (0.0, 0.0, 0.0), 25.0, shadow_soft_size=0.003, spot_size=1.0)
-    _h._light(scene, "Fill", "AREA", (0.5, -0.5, 0.2), (0.0, 0.0, 0.0), 0.4, size=0.4)
+    kit.wall(scene, 0.4, z=0.2)
+    kit.add_camera(scene, (0.0, -0.65, 0.04), (0.01, 0.0, 0.0), lens=60.0)
+    kit.add_light(
+        scene, "Key", "SPOT", (-0.4, -0.45, 0.25), (0.0, 0.0, 0.0), 25.0, shadow_soft_size=0.003, spot_size=1.0
+    )
+    kit.add_light(scene, "Fill", "AREA", (0.5, -0.5, 0.2), (0.0, 0.0, 0.0), 0.4, size=0.4)
     return scene
 
 
@@ -406,46 +264,54 @@ def jade_behind_pillar():
     """A jade ball (11 cm) half hidden behind a grey pillar (no SSS) in front of it, and a jade
     block beside it on a floor: subsurface objects behind another object, lit by a small area
     light whose hard shadow of the pillar falls across the ball."""
-    scene = _h._reset()
-    jade = _jade(scale=0.008)
-    _h._object(
-        scene, "Ball", _h._uv_sphere("Ball", 0.055, segments=48, rings=24), location=(0.0, 0.05, 0.055), material=jade
+    scene = kit.reset_scene()
+    jade = kit.jade(scale=0.008)
+    kit.add_object(
+        scene,
+        "Ball",
+        kit.uv_sphere_mesh("Ball", 0.055, segments=48, rings=24),
+        location=(0.0, 0.05, 0.055),
+        material=jade,
     )
-    block = _h._object(
+    block = kit.add_object(
         scene,
         "Block",
-        _h._box("Block", (0.05, 0.05, 0.08), cuts=3),
+        kit.box_mesh("Block", (0.05, 0.05, 0.08), cuts=3),
         location=(0.1, 0.1, 0.04),
         material=jade,
         smooth=False,
     )
     del block
-    _h._object(
+    kit.add_object(
         scene,
         "Pillar",
-        _h._cylinder("Pillar", 0.015, 0.2, rings=4),
+        kit.cylinder_mesh("Pillar", 0.015, 0.2, rings=4),
         location=(-0.02, -0.07, 0.0),
-        material=_plain("Pillar", (0.4, 0.4, 0.4), roughness=0.4),
+        material=kit.plain_material("Pillar", (0.4, 0.4, 0.4), roughness=0.4),
     )
-    _floor(scene)
-    _h._camera(scene, (0.0, -0.42, 0.12), (0.02, 0.03, 0.05), lens=50.0)
-    _h._light(scene, "Key", "AREA", (-0.3, -0.45, 0.3), (0.0, 0.0, 0.05), 12.0, size=0.015)
-    _h._light(scene, "Fill", "AREA", (0.5, -0.3, 0.3), (0.0, 0.0, 0.0), 0.4, size=0.5)
+    kit.floor(scene)
+    kit.add_camera(scene, (0.0, -0.42, 0.12), (0.02, 0.03, 0.05), lens=50.0)
+    kit.add_light(scene, "Key", "AREA", (-0.3, -0.45, 0.3), (0.0, 0.0, 0.05), 12.0, size=0.015)
+    kit.add_light(scene, "Fill", "AREA", (0.5, -0.3, 0.3), (0.0, 0.0, 0.0), 0.4, size=0.5)
     return scene
 
 
 def tiny_mfp_skin():
     """Three skin spheres (8 cm) 1.4 m from the camera: the mean free path (3.7 mm red) is below
     half a pixel, so SSS barely shows; Random Walk (Skin). A technique must not make it worse."""
-    scene = _h._reset()
-    skin = _skin(method="RANDOM_WALK_SKIN")
+    scene = kit.reset_scene()
+    skin = kit.skin(method="RANDOM_WALK_SKIN")
     for i, x in enumerate((-0.12, 0.0, 0.12)):
-        _h._object(
-            scene, f"Ball {i + 1}", _h._uv_sphere(f"Ball {i + 1}", 0.04), location=(x, 0.05 * i, 0.04), material=skin
+        kit.add_object(
+            scene,
+            f"Ball {i + 1}",
+            kit.uv_sphere_mesh(f"Ball {i + 1}", 0.04),
+            location=(x, 0.05 * i, 0.04),
+            material=skin,
         )
-    _floor(scene)
-    _h._camera(scene, (0.0, -1.4, 0.3), (0.0, 0.05, 0.04), lens=50.0)
-    _h._light(scene, "Key", "SUN", (-0.6, -0.8, 0.7), (0.0, 0.0, 0.0), 3.0, angle=math.radians(1.0))
+    kit.floor(scene)
+    kit.add_camera(scene, (0.0, -1.4, 0.3), (0.0, 0.05, 0.04), lens=50.0)
+    kit.add_light(scene, "Key", "SUN", (-0.6, -0.8, 0.7), (0.0, 0.0, 0.0), 3.0, angle=math.radians(1.0))
     return scene
 
 
@@ -453,53 +319,59 @@ def huge_mfp_wax():
     """A close-up (100 mm lens) of a bevelled wax block, 8 cm wide, with an 8 cm red mean free
     path (about 90 px), half in the hard-edged light of a spot: the light spreads across the
     whole block (Random Walk)."""
-    scene = _h._reset()
-    block = _h._object(
+    scene = kit.reset_scene()
+    block = kit.add_object(
         scene,
         "Block",
-        _h._box("Block", (0.08, 0.06, 0.08), cuts=4),
+        kit.box_mesh("Block", (0.08, 0.06, 0.08), cuts=4),
         location=(0.0, 0.0, 0.04),
         rotation=(0.0, 0.0, math.radians(20)),
-        material=_wax(scale=0.08),
+        material=kit.wax(scale=0.08),
         smooth=False,
     )
     bevel = block.modifiers.new("Bevel", "BEVEL")
     bevel.width, bevel.segments = 0.006, 3
-    _floor(scene)
+    kit.floor(scene)
     # A plate whose edge crosses the middle of the spot's beam: half the block in hard shadow.
-    _shadow_bar(scene, (0.05, -0.1, 0.27), size=(0.2, 0.2, 0.004), rotation=(0.0, 0.0, math.radians(20)))
-    _h._camera(scene, (0.0, -0.34, 0.14), (0.0, 0.0, 0.04), lens=100.0)
-    _h._light(scene, "Key", "SPOT", (-0.1, -0.2, 0.5), (0.0, 0.0, 0.04), 25.0, shadow_soft_size=0.002, spot_size=0.8)
-    _h._light(scene, "Fill", "AREA", (0.5, -0.4, 0.2), (0.0, 0.0, 0.0), 0.3, size=0.5)
+    kit.shadow_bar(scene, (0.05, -0.1, 0.27), size=(0.2, 0.2, 0.004), rotation=(0.0, 0.0, math.radians(20)))
+    kit.add_camera(scene, (0.0, -0.34, 0.14), (0.0, 0.0, 0.04), lens=100.0)
+    kit.add_light(
+        scene, "Key", "SPOT", (-0.1, -0.2, 0.5), (0.0, 0.0, 0.04), 25.0, shadow_soft_size=0.002, spot_size=0.8
+    )
+    kit.add_light(scene, "Fill", "AREA", (0.5, -0.4, 0.2), (0.0, 0.0, 0.0), 0.3, size=0.5)
     return scene
 
 
 def ear_backlit_skin():
     """The sample scenes' ear-like lobe (7 x 12 cm, 1.8 cm thick in the middle, thin at the rim)
     lit from behind by a sun; skin with a 1.2 cm red mean free path (Random Walk)."""
-    scene = _h._reset(world_color=(0.015, 0.015, 0.02))
-    ear = _h._object(
-        scene, "Ear", _h._ear_mesh("Ear"), rotation=(0.0, 0.0, math.radians(12)), material=_skin(scale=0.012)
+    scene = kit.reset_scene(world_color=(0.015, 0.015, 0.02))
+    ear = kit.add_object(
+        scene, "Ear", kit.ear_mesh("Ear"), rotation=(0.0, 0.0, math.radians(12)), material=kit.skin(scale=0.012)
     )
-    _h._subsurf(ear, 1)
-    _h._camera(scene, (0.0, -0.3, 0.01), (0.0, 0.0, 0.0), lens=50.0)
-    _h._light(scene, "Back", "SUN", (0.3, 1.0, 0.35), (0.0, 0.0, 0.0), 4.0, angle=math.radians(1.0))
-    _h._light(scene, "Fill", "AREA", (-0.4, -0.5, 0.2), (0.0, 0.0, 0.0), 0.15, size=0.3)
+    kit.add_subsurf(ear, 1)
+    kit.add_camera(scene, (0.0, -0.3, 0.01), (0.0, 0.0, 0.0), lens=50.0)
+    kit.add_light(scene, "Back", "SUN", (0.3, 1.0, 0.35), (0.0, 0.0, 0.0), 4.0, angle=math.radians(1.0))
+    kit.add_light(scene, "Fill", "AREA", (-0.4, -0.5, 0.2), (0.0, 0.0, 0.0), 0.15, size=0.3)
     return scene
 
 
 def candle_backlit_wax():
     """A thin wax candle (2.4 cm across) and a wax ball (5 cm) lit from behind by a spot, a little
     fill from the front; wax with a 1.5 cm red mean free path (Random Walk)."""
-    scene = _h._reset(world_color=(0.01, 0.01, 0.012))
-    wax = _wax(scale=0.015)
-    candle = _h._object(scene, "Candle", _h._cylinder("Candle", 0.012, 0.14, rings=10), location=(-0.03, 0.0, 0.0))
+    scene = kit.reset_scene(world_color=(0.01, 0.01, 0.012))
+    wax = kit.wax(scale=0.015)
+    candle = kit.add_object(
+        scene, "Candle", kit.cylinder_mesh("Candle", 0.012, 0.14, rings=10), location=(-0.03, 0.0, 0.0)
+    )
     candle.data.materials.append(wax)
-    _h._subsurf(candle, 1)
-    _h._object(scene, "Ball", _h._uv_sphere("Ball", 0.025), location=(0.04, 0.0, 0.04), material=wax)
-    _h._camera(scene, (0.0, -0.4, 0.07), (0.0, 0.0, 0.06), lens=50.0)
-    _h._light(scene, "Back", "SPOT", (0.05, 0.4, 0.12), (0.0, 0.0, 0.06), 20.0, shadow_soft_size=0.01, spot_size=1.2)
-    _h._light(scene, "Fill", "AREA", (-0.4, -0.5, 0.2), (0.0, 0.0, 0.0), 0.1, size=0.3)
+    kit.add_subsurf(candle, 1)
+    kit.add_object(scene, "Ball", kit.uv_sphere_mesh("Ball", 0.025), location=(0.04, 0.0, 0.04), material=wax)
+    kit.add_camera(scene, (0.0, -0.4, 0.07), (0.0, 0.0, 0.06), lens=50.0)
+    kit.add_light(
+        scene, "Back", "SPOT", (0.05, 0.4, 0.12), (0.0, 0.0, 0.06), 20.0, shadow_soft_size=0.01, spot_size=1.2
+    )
+    kit.add_light(scene, "Fill", "AREA", (-0.4, -0.5, 0.2), (0.0, 0.0, 0.0), 0.1, size=0.3)
     return scene
 
 
@@ -589,7 +461,7 @@ def build(name: str, scenes: dict | None = None):
 
 def subsurface_objects(scene) -> list:
     """Mesh objects carrying a material that scatters, in name order."""
-    return _h.sss_objects(scene)
+    return kit.sss_objects(scene)
 
 
 def prepare(scene) -> None:
@@ -599,7 +471,7 @@ def prepare(scene) -> None:
     index = 0
     for name in sorted(materials):
         mat = materials[name]
-        if _h._scatters(mat):
+        if kit.scatters(mat):
             index += 1
             mat.pass_index = index
         else:

@@ -338,6 +338,195 @@ def _sta_spans(mask_flat, w, ya, yb, flat, spans):
     return widest
 
 
+@njit(cache=True, error_model="numpy")
+def _sta_kinds(lights):
+    """(has a grey light, has a coloured one, the first grey light's row or -1) of the light
+    table: flags set once before the parallel loop (Numba takes a variable assigned in several
+    places of the loop's body for a possible alias, and then marks no argument as not aliasing)."""
+    has_grey = False
+    has_col = False
+    for k in range(lights.shape[0]):
+        if lights[k, 14] != _ZERO:
+            has_grey = True
+        else:
+            has_col = True
+    first_grey_k = -1
+    for k in range(lights.shape[0] - 1, -1, -1):
+        if lights[k, 14] != _ZERO:
+            first_grey_k = k
+    return has_grey, has_col, first_grey_k
+
+
+@njit(cache=True, error_model="numpy")
+def _sta_steps(tab, step):
+    """``_sta_table``'s differences along x of the flat medium table ``tab`` (``step`` entries
+    per x): ``tab`` one x further minus ``tab``, 0 at the last x."""
+    dtab = np.zeros_like(tab)
+    for c in range(tab.size - step):
+        dtab[c] = tab[c + step] - tab[c]
+    return dtab
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _sta_pixels(af, nf, pf, tf, mf, p1, p3, m, t, flip, ortho, vx0, vy0, vz0, okr, tr, nxr, nyr, nzr, vxr, vyr, vzr):
+    """The pixel's values of a segment of ``m`` pixels (the first at flat pixel ``p1``, flat
+    value ``p3``) into row ``t`` of the buffers: 1 in ``okr`` where it is masked and all its
+    inputs are finite (else 0), its translucency (the map clipped to [0, 1], flipped with
+    ``flip``) in ``tr``, its unit normal and unit vector towards the viewer (``ortho``: the
+    view direction (``vx0``, ``vy0``, ``vz0``), else towards that camera position)."""
+    for i in range(m):
+        q = p3 + _u64(3) * _u64(i)
+        a0 = af[q]
+        s = a0 + af[q + _u64(1)]
+        s += af[q + _u64(2)]
+        nx = nf[q]
+        ny = nf[q + _u64(1)]
+        nz = nf[q + _u64(2)]
+        px = pf[q]
+        py = pf[q + _u64(1)]
+        pz = pf[q + _u64(2)]
+        th = tf[p1 + _u64(i)]
+        s += nx
+        s += ny
+        s += nz
+        s += px
+        s += py
+        s += pz
+        s += th
+        okr[t, i] = _ONE if (mf[p1 + _u64(i)] != 0) & np.isfinite(s) else _ZERO
+        th = _clip(th, _ONE)
+        tr[t, i] = _ONE - th if flip else th
+        nxr[t, i], nyr[t, i], nzr[t, i], _ = _unit(nx, ny, nz)
+        if ortho:
+            vxr[t, i] = vx0
+            vyr[t, i] = vy0
+            vzr[t, i] = vz0
+        else:
+            vxr[t, i], vyr[t, i], vzr[t, i], _ = _unit(vx0 - px, vy0 - py, vz0 - pz)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _sta_add(k, lights, m, t, scale, ambient, first_grey_k, vd, er, grey, c0, c1, c2):
+    """Light ``k``'s term over the segment (its lobe in ``vd``, ``_sta_lobe``; a light other
+    than a sun: its irradiance in ``er``) added to row ``t`` of the sums: a grey light's (times
+    its colour's first channel if that is not 1) to ``grey`` (the first grey light sets it), a
+    coloured one's times its colour to ``c0``, ``c1``, ``c2``."""
+    sun = int(lights[k, 0]) == SUN
+    is_grey = lights[k, 14] != _ZERO
+    first_grey = k == first_grey_k
+    e_sun_pi = lights[k, 7] * f32(1.0 / math.pi)
+    sun_scale = scale * e_sun_pi
+    sun_ambient = ambient * e_sun_pi
+    col0 = lights[k, 8]
+    col1 = lights[k, 9]
+    col2 = lights[k, 10]
+    tint = is_grey & (col0 != _ONE)
+    for i in range(m):
+        lobe = vd[t, i]
+        if sun:
+            lobe *= sun_scale
+            if ambient != _ZERO:
+                lobe += sun_ambient
+        else:
+            lobe *= scale
+            lobe += ambient
+            lobe *= er[t, i] * f32(1.0 / math.pi)
+        if is_grey:
+            if tint:
+                lobe *= col0
+            grey[t, i] = lobe if first_grey else grey[t, i] + lobe
+        else:
+            c0[t, i] += col0 * lobe
+            c1[t, i] += col1 * lobe
+            c2[t, i] += col2 * lobe
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _sta_cells(m, t, nxs, nmu, tr, nxr, nyr, nzr, vxr, vyr, vzr, vd, cell):
+    """The medium table's coordinates of the segment's pixels (a loop that vectorizes; the
+    table is ``nxs`` x ``nmu`` nodes over sqrt(sqrt(1 - translucency)) and |N . V|): the first of
+    each pixel's four nodes into ``cell``, its fractions along x into ``tr`` (in place of the
+    translucency) and along the cosine into ``vd``, as ``core.techniques.sta.technique._lookup`` places them."""
+    for i in range(m):
+        xs = _ONE - tr[t, i]
+        sx = math.sqrt(math.sqrt(xs if xs > _ZERO else _ZERO)) * f32(nxs - 1)
+        fl = np.floor(sx)
+        fl = fl if fl < f32(nxs - 2) else f32(nxs - 2)
+        tr[t, i] = sx - fl
+        mu = nxr[t, i] * vxr[t, i]
+        mu += nyr[t, i] * vyr[t, i]
+        mu += nzr[t, i] * vzr[t, i]
+        mu = abs(mu)
+        sm = (mu if mu < _ONE else _ONE) * f32(nmu - 1)
+        fm = np.floor(sm)
+        fm = fm if fm < f32(nmu - 2) else f32(nmu - 2)
+        vd[t, i] = sm - fm
+        cell[t, i] = np.int32(3) * (np.int32(fl) * np.int32(nmu) + np.int32(fm))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _sta_medium_out(af, flat, p3, m, t, has_col, wclip, ib0, ib1, ib2, okr, grey, c0, c1, c2, t0, t1, t2):
+    """The medium's products of the segment into ``flat``: the albedo times ``inv_base``
+    (``ib0``, ``ib1``, ``ib2``; clipped to [0, 1] with ``wclip``) times the light times the
+    table's transmittance (``t0``, ``t1``, ``t2``), 0 where ``okr`` is 0."""
+    for i in range(m):
+        q = p3 + _u64(3) * _u64(i)
+        if has_col:
+            l0 = c0[t, i]
+            l1 = c1[t, i]
+            l2 = c2[t, i]
+        else:
+            l0 = grey[t, i]
+            l1 = l0
+            l2 = l0
+        w0 = af[q] * ib0
+        w1 = af[q + _u64(1)] * ib1
+        w2 = af[q + _u64(2)] * ib2
+        if wclip:
+            w0 = _clip(w0, _ONE)
+            w1 = _clip(w1, _ONE)
+            w2 = _clip(w2, _ONE)
+        o = okr[t, i] != _ZERO
+        flat[q] = w0 * l0 * t0[t, i] if o else _ZERO
+        flat[q + _u64(1)] = w1 * l1 * t1[t, i] if o else _ZERO
+        flat[q + _u64(2)] = w2 * l2 * t2[t, i] if o else _ZERO
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _sta_out(af, flat, p3, m, t, has_col, burley, distance, three_d, okr, tr, grey, c0, c1, c2):
+    """The products of the segment into ``flat`` without a medium: the albedo times the light
+    times the translucency (``burley``: times the transmittance through ``distance`` sqrt(1 -
+    t) for the profile lengths ``three_d``), 0 where ``okr`` is 0."""
+    for i in range(m):
+        q = p3 + _u64(3) * _u64(i)
+        th = tr[t, i]
+        o = okr[t, i] != _ZERO
+        if burley:
+            xs = _ONE - th
+            xs = distance * math.sqrt(xs if xs > _ZERO else _ZERO)
+            for c in range(3):
+                if has_col:
+                    light = c0[t, i] if c == 0 else c1[t, i] if c == 1 else c2[t, i]
+                else:
+                    light = grey[t, i]
+                if three_d[c] > _ZERO:
+                    e3 = _exp(-xs / three_d[c])
+                    tm = _QUARTER * (e3 * e3 * e3 + _THREE * e3)
+                else:
+                    tm = _ONE if xs == _ZERO else _ZERO
+                v = af[q + _u64(c)] * light * tm
+                flat[q + _u64(c)] = v if o else _ZERO
+        elif not has_col:
+            g = grey[t, i] * th
+            flat[q] = af[q] * g if o else _ZERO
+            flat[q + _u64(1)] = af[q + _u64(1)] * g if o else _ZERO
+            flat[q + _u64(2)] = af[q + _u64(2)] * g if o else _ZERO
+        else:
+            flat[q] = af[q] * (c0[t, i] * th) if o else _ZERO
+            flat[q + _u64(1)] = af[q + _u64(1)] * (c1[t, i] * th) if o else _ZERO
+            flat[q + _u64(2)] = af[q + _u64(2)] * (c2[t, i] * th) if o else _ZERO
+
+
 #: Rows per work item of ``sta_kernel``.
 STA_ROWS = 16
 #: Pixels of a row that ``sta_kernel``'s loops take at a time: its row buffers (19 x 4 KB) stay
@@ -387,11 +576,14 @@ def sta_kernel(
     contiguous runs (``_sta_spans``: a memset each, where per-pixel stores took longer than the
     masked pixels' arithmetic with a quarter of the frame masked). Per row, ``STA_SEGMENT``
     pixels of its masked span at a time, loops that each do one thing for all the pixels (the
-    pixel's vectors; per light its lobe, ``_sta_light`` and ``_sta_lobe``, then its sum; the
-    medium's table coordinates; its reads, one pixel at a time, ``_sta_table``; the products),
-    with the values kept in row buffers, so that every loop but the table's reads vectorizes
-    over the pixels. Each work item has its row of each buffer (the buffers, allocated
-    before the parallel loop, are arguments of its body).
+    pixel's vectors, ``_sta_pixels``; per light its lobe, ``_sta_light`` and ``_sta_lobe``,
+    then its sum, ``_sta_add``; the medium's table coordinates, ``_sta_cells``; its reads, one
+    pixel at a time, ``_sta_table``; the products, ``_sta_medium_out`` or ``_sta_out``), with the
+    values kept in row buffers, so that every loop but the table's reads vectorizes over the
+    pixels. The loops of the helpers marked ``inline="always"`` are inlined into the parallel
+    loop's body by Numba, so that they index its arguments as the body itself would. Each work
+    item has its row of each buffer (the buffers, allocated before the parallel loop, are
+    arguments of its body).
 
     What lets LLVM vectorize these loops (docs/references.md §11): the (H, W, 3) frames are read
     and written through flat views, the pixel's three values at 3 x + c (a constant stride: a
@@ -403,19 +595,7 @@ def sta_kernel(
     28.5 -> 16.0 ms, to the bit the same output."""
     h, w = mask.shape
     n_lights = lights.shape[0]
-    has_grey = False
-    has_col = False
-    for k in range(n_lights):
-        if lights[k, 14] != _ZERO:
-            has_grey = True
-        else:
-            has_col = True
-    # No flag is set inside the parallel loop's body (Numba takes a variable assigned there in
-    # several places for a possible alias, and then marks no argument as not aliasing).
-    first_grey_k = -1
-    for k in range(n_lights - 1, -1, -1):
-        if lights[k, 14] != _ZERO:
-            first_grey_k = k
+    has_grey, has_col, first_grey_k = _sta_kinds(lights)
     sum_grey = has_col and (has_grey or medium or burley)
     flat = out.reshape(-1)
     af = albedo.reshape(-1)
@@ -424,10 +604,7 @@ def sta_kernel(
     tf = thickness.reshape(-1)
     mf = mask.reshape(-1).view(np.uint8)
     tab = table.reshape(-1)
-    step = 3 * table.shape[1]
-    dtab = np.zeros_like(tab)
-    for c in range(tab.size - step):
-        dtab[c] = tab[c + step] - tab[c]
+    dtab = _sta_steps(tab, 3 * table.shape[1])
     spans = np.empty((h, 2), np.int64)
     n_items = (h + STA_ROWS - 1) // STA_ROWS
     seg = min(w, STA_SEGMENT)
@@ -463,35 +640,9 @@ def sta_kernel(
                 # Flat indices, unsigned: no wrap-around tests, so the loops keep vector loads.
                 p1 = _u64(y * w + x0)
                 p3 = _u64(3) * p1
-                for i in range(m):
-                    q = p3 + _u64(3) * _u64(i)
-                    a0 = af[q]
-                    s = a0 + af[q + _u64(1)]
-                    s += af[q + _u64(2)]
-                    nx = nf[q]
-                    ny = nf[q + _u64(1)]
-                    nz = nf[q + _u64(2)]
-                    px = pf[q]
-                    py = pf[q + _u64(1)]
-                    pz = pf[q + _u64(2)]
-                    th = tf[p1 + _u64(i)]
-                    s += nx
-                    s += ny
-                    s += nz
-                    s += px
-                    s += py
-                    s += pz
-                    s += th
-                    okr[t, i] = _ONE if (mf[p1 + _u64(i)] != 0) & np.isfinite(s) else _ZERO
-                    th = _clip(th, _ONE)
-                    tr[t, i] = _ONE - th if flip else th
-                    nxr[t, i], nyr[t, i], nzr[t, i], _ = _unit(nx, ny, nz)
-                    if ortho:
-                        vxr[t, i] = vx0
-                        vyr[t, i] = vy0
-                        vzr[t, i] = vz0
-                    else:
-                        vxr[t, i], vyr[t, i], vzr[t, i], _ = _unit(vx0 - px, vy0 - py, vz0 - pz)
+                _sta_pixels(
+                    af, nf, pf, tf, mf, p1, p3, m, t, flip, ortho, vx0, vy0, vz0, okr, tr, nxr, nyr, nzr, vxr, vyr, vzr
+                )
                 for i in range(m):
                     grey[t, i] = _ZERO
                 if has_col:
@@ -500,36 +651,9 @@ def sta_kernel(
                         c1[t, i] = _ZERO
                         c2[t, i] = _ZERO
                 for k in range(n_lights):
-                    sun = int(lights[k, 0]) == SUN
-                    is_grey = lights[k, 14] != _ZERO
-                    first_grey = k == first_grey_k
                     _sta_light(k, lights, pf, p3, m, distortion, t, nxr, nyr, nzr, vxr, vyr, vzr, vd, lens, er)
                     _sta_lobe(power, m, t, vd, lens)
-                    e_sun_pi = lights[k, 7] * f32(1.0 / math.pi)
-                    sun_scale = scale * e_sun_pi
-                    sun_ambient = ambient * e_sun_pi
-                    col0 = lights[k, 8]
-                    col1 = lights[k, 9]
-                    col2 = lights[k, 10]
-                    tint = is_grey & (col0 != _ONE)
-                    for i in range(m):
-                        lobe = vd[t, i]
-                        if sun:
-                            lobe *= sun_scale
-                            if ambient != _ZERO:
-                                lobe += sun_ambient
-                        else:
-                            lobe *= scale
-                            lobe += ambient
-                            lobe *= er[t, i] * f32(1.0 / math.pi)
-                        if is_grey:
-                            if tint:
-                                lobe *= col0
-                            grey[t, i] = lobe if first_grey else grey[t, i] + lobe
-                        else:
-                            c0[t, i] += col0 * lobe
-                            c1[t, i] += col1 * lobe
-                            c2[t, i] += col2 * lobe
+                    _sta_add(k, lights, m, t, scale, ambient, first_grey_k, vd, er, grey, c0, c1, c2)
                 if sum_grey:  # the light per channel into c0, c1, c2
                     for i in range(m):
                         g = grey[t, i] if has_grey else _ZERO
@@ -539,72 +663,13 @@ def sta_kernel(
                 if medium:
                     # The table's coordinates (a loop that vectorizes), its reads one pixel at a time
                     # (vector gathers were slower), then the products (which vectorize).
-                    for i in range(m):
-                        xs = _ONE - tr[t, i]
-                        sx = math.sqrt(math.sqrt(xs if xs > _ZERO else _ZERO)) * f32(nxs - 1)
-                        fl = np.floor(sx)
-                        fl = fl if fl < f32(nxs - 2) else f32(nxs - 2)
-                        tr[t, i] = sx - fl  # tr now holds the fraction along x
-                        mu = nxr[t, i] * vxr[t, i]
-                        mu += nyr[t, i] * vyr[t, i]
-                        mu += nzr[t, i] * vzr[t, i]
-                        mu = abs(mu)
-                        sm = (mu if mu < _ONE else _ONE) * f32(nmu - 1)
-                        fm = np.floor(sm)
-                        fm = fm if fm < f32(nmu - 2) else f32(nmu - 2)
-                        vd[t, i] = sm - fm
-                        cell[t, i] = np.int32(3) * (np.int32(fl) * np.int32(nmu) + np.int32(fm))
+                    _sta_cells(m, t, nxs, nmu, tr, nxr, nyr, nzr, vxr, vyr, vzr, vd, cell)
                     _sta_table(tab, dtab, m, t, cell, tr, vd, t0, t1, t2)
-                    for i in range(m):
-                        q = p3 + _u64(3) * _u64(i)
-                        if has_col:
-                            l0 = c0[t, i]
-                            l1 = c1[t, i]
-                            l2 = c2[t, i]
-                        else:
-                            l0 = grey[t, i]
-                            l1 = l0
-                            l2 = l0
-                        w0 = af[q] * ib0
-                        w1 = af[q + _u64(1)] * ib1
-                        w2 = af[q + _u64(2)] * ib2
-                        if wclip:
-                            w0 = _clip(w0, _ONE)
-                            w1 = _clip(w1, _ONE)
-                            w2 = _clip(w2, _ONE)
-                        o = okr[t, i] != _ZERO
-                        flat[q] = w0 * l0 * t0[t, i] if o else _ZERO
-                        flat[q + _u64(1)] = w1 * l1 * t1[t, i] if o else _ZERO
-                        flat[q + _u64(2)] = w2 * l2 * t2[t, i] if o else _ZERO
-                    continue
-                for i in range(m):
-                    q = p3 + _u64(3) * _u64(i)
-                    th = tr[t, i]
-                    o = okr[t, i] != _ZERO
-                    if burley:
-                        xs = _ONE - th
-                        xs = distance * math.sqrt(xs if xs > _ZERO else _ZERO)
-                        for c in range(3):
-                            if has_col:
-                                light = c0[t, i] if c == 0 else c1[t, i] if c == 1 else c2[t, i]
-                            else:
-                                light = grey[t, i]
-                            if three_d[c] > _ZERO:
-                                e3 = _exp(-xs / three_d[c])
-                                tm = _QUARTER * (e3 * e3 * e3 + _THREE * e3)
-                            else:
-                                tm = _ONE if xs == _ZERO else _ZERO
-                            v = af[q + _u64(c)] * light * tm
-                            flat[q + _u64(c)] = v if o else _ZERO
-                    elif not has_col:
-                        g = grey[t, i] * th
-                        flat[q] = af[q] * g if o else _ZERO
-                        flat[q + _u64(1)] = af[q + _u64(1)] * g if o else _ZERO
-                        flat[q + _u64(2)] = af[q + _u64(2)] * g if o else _ZERO
-                    else:
-                        flat[q] = af[q] * (c0[t, i] * th) if o else _ZERO
-                        flat[q + _u64(1)] = af[q + _u64(1)] * (c1[t, i] * th) if o else _ZERO
-                        flat[q + _u64(2)] = af[q + _u64(2)] * (c2[t, i] * th) if o else _ZERO
+                    _sta_medium_out(
+                        af, flat, p3, m, t, has_col, wclip, ib0, ib1, ib2, okr, grey, c0, c1, c2, t0, t1, t2
+                    )
+                else:
+                    _sta_out(af, flat, p3, m, t, has_col, burley, distance, three_d, okr, tr, grey, c0, c1, c2)
 
 
 @njit(cache=True, error_model="numpy")
@@ -2472,6 +2537,80 @@ def _take(ring, i, r, n, out, bw):
         out[t] = f32(ring[a, t] - ring[b, t])
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _band_columns(light, on, part, state, base, rows, q, xs, bw, b0, t_from, t_to, lo, n, r, planes, l0, o0):
+    """``spread_band``'s vertical pass of plane ``q`` (R, G, B or the mask) over one strip of
+    ``bw`` columns from region column ``xs``: its three rings of ``rows`` running sums at
+    ``state[base:]`` (set to zero in the part's first band), fed the rows ``t_from``..``t_to`` - 1
+    (the values from row ``lo``, ``n`` of them), the three box sums of half-width ``r`` chained,
+    and the third sum's rows of the band from ``b0`` into ``planes``."""
+    ring1 = state[base : base + rows * PART_STRIP].reshape((rows, PART_STRIP))
+    ring2 = state[base + rows * PART_STRIP : base + 2 * rows * PART_STRIP].reshape((rows, PART_STRIP))
+    ring3 = state[base + 2 * rows * PART_STRIP : base + 3 * rows * PART_STRIP].reshape((rows, PART_STRIP))
+    if b0 == part[0]:
+        for t in range(bw):
+            ring1[0, t] = 0.0
+            ring2[0, t] = 0.0
+            ring3[0, t] = 0.0
+    x = np.zeros(PART_STRIP, np.float32)
+    y1 = np.empty(PART_STRIP, np.float32)
+    y2 = np.empty(PART_STRIP, np.float32)
+    y3 = np.empty(PART_STRIP, np.float32)
+    for t_row in range(t_from, t_to):
+        if part[0] <= t_row < part[1]:
+            row = on[t_row - o0]
+            for t in range(bw):
+                mk = _ONE if row[xs + t - part[2]] != 0 else _ZERO
+                x[t] = light[t_row - l0, xs + t, q] * mk if q < 3 else mk
+        else:
+            for t in range(bw):
+                x[t] = _ZERO
+        m1 = t_row - lo
+        _push(ring1, m1, x, bw)
+        for i1 in range(_ready(m1, r, n), _ready(m1 + 1, r, n)):
+            _take(ring1, i1, r, n, y1, bw)
+            _push(ring2, i1, y1, bw)
+            for i2 in range(_ready(i1, r, n), _ready(i1 + 1, r, n)):
+                _take(ring2, i2, r, n, y2, bw)
+                _push(ring3, i2, y2, bw)
+                for i3 in range(_ready(i2, r, n), _ready(i2 + 1, r, n)):
+                    i = lo + i3
+                    if i < part[0] or i >= part[1]:
+                        continue
+                    _take(ring3, i3, r, n, y3, bw)
+                    for t in range(bw):
+                        planes[q, i - b0, xs + t - part[2]] = y3[t]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _band_blend(line, left, sig, on, part, needed, k, n_levels, g_lo, g_k, g_hi, top, i0, n_rows, b0, o0, out):
+    """Level ``k``'s share of the part's pixels in rows ``i0``..``i0`` + ``n_rows`` - 1 (region
+    rows; ``line``: their blurred planes side by side from column ``left``, four lanes a row)
+    into ``out``: a pixel's channel whose width (``sig``, clipped to [0, ``top``]) lies in
+    (``g_lo``, ``g_k``] adds ``k``'s weight times the level (normalized by the blurred mask) to
+    the lower share already there; one in (``g_k``, ``g_hi``] takes its lower share from it."""
+    for g in range(n_rows):
+        i = i0 + g
+        for j in range(part[2], part[3]):
+            if on[i - o0, j - part[2]] == 0:
+                continue
+            den = line[j - left, 4 * g + 3]
+            den = den if den > f32(1e-6) or den != den else f32(1e-6)
+            for c in range(3):
+                if not needed[k, c]:
+                    continue
+                s = min(max(np.float64(sig[i - b0, j, c]), 0.0), top)
+                # Its levels (the reference's searchsorted): the first of grid >= s, at least 1.
+                if s <= g_k and (k == 1 or s > g_lo):
+                    cur = line[j - left, 4 * g + c] / den
+                    wt = f32((s - g_lo) / (g_k - g_lo))
+                    out[i - b0, j, c] = out[i - b0, j, c] + wt * cur
+                elif k + 1 < n_levels and s > g_k and s <= g_hi:
+                    cur = line[j - left, 4 * g + c] / den
+                    wt = f32((s - g_k) / (g_hi - g_k))
+                    out[i - b0, j, c] = (_ONE - wt) * cur
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def spread_band(
     light, sig, on, part, box, grid, n_full, radii, needed, row_levels, b0, b1, state, at, planes, out, l0, o0
@@ -2495,17 +2634,17 @@ def spread_band(
     The bands go down the part in order, the first from ``part[0]``, and each carries the
     vertical running sums on to the next in ``state`` (float64; level k's from ``at[k]``: per
     plane and strip of ``PART_STRIP`` columns, three rings of 2 r + 2 running sums, one per
-    box sum): along the columns the three box sums of half-width r are chained, each value
-    passed on as soon as its sum is complete, from the first row the reference's box sums read
-    (the part's rows and 2 r beyond, within the box; every value summed, as in the reference's
-    running sums) down to 3 r rows past the band (the last band: to the end), and the third
-    sum's rows of the band go into ``planes`` (4, band rows, part columns: R, G, B and the
-    mask). A band other than the last must end more than 3 r rows before that end for every
-    level. Along the rows the same as whole rows, ``SPREAD_ROWS`` rows at a time, for the rows
-    with a pixel whose width lies next to the level (the part's row i: levels
-    ``row_levels[i, 0]``..``row_levels[i, 1]``). A pixel's result is (1 - w) times the level
-    below its width plus w times the level above, written when the upper level is done (the
-    lower one's share kept in ``out`` meanwhile); level 0 is ``light``.
+    box sum): along the columns (``_band_columns``) the three box sums of half-width r are
+    chained, each value passed on as soon as its sum is complete, from the first row the
+    reference's box sums read (the part's rows and 2 r beyond, within the box; every value
+    summed, as in the reference's running sums) down to 3 r rows past the band (the last band:
+    to the end), and the third sum's rows of the band go into ``planes`` (4, band rows, part
+    columns: R, G, B and the mask). A band other than the last must end more than 3 r rows
+    before that end for every level. Along the rows the same as whole rows, ``SPREAD_ROWS`` rows
+    at a time, for the rows with a pixel whose width lies next to the level (the part's row i:
+    levels ``row_levels[i, 0]``..``row_levels[i, 1]``). A pixel's result is (1 - w) times the
+    level below its width plus w times the level above (``_band_blend``), written when the upper
+    level is done (the lower one's share kept in ``out`` meanwhile); level 0 is ``light``.
 
     ``light`` and ``on`` may be windows of rows: their first rows are region rows ``l0`` and
     ``o0`` (``light``: 0 and ``on``: ``part[0]`` for the whole region and part; a window holds at
@@ -2549,42 +2688,7 @@ def spread_band(
             xs = part[2] + (item % n_col) * PART_STRIP
             bw = min(xs + PART_STRIP, part[3]) - xs
             base = at[k] + item * size
-            ring1 = state[base : base + rows * PART_STRIP].reshape((rows, PART_STRIP))
-            ring2 = state[base + rows * PART_STRIP : base + 2 * rows * PART_STRIP].reshape((rows, PART_STRIP))
-            ring3 = state[base + 2 * rows * PART_STRIP : base + size].reshape((rows, PART_STRIP))
-            if b0 == part[0]:
-                for t in range(bw):
-                    ring1[0, t] = 0.0
-                    ring2[0, t] = 0.0
-                    ring3[0, t] = 0.0
-            x = np.zeros(PART_STRIP, np.float32)
-            y1 = np.empty(PART_STRIP, np.float32)
-            y2 = np.empty(PART_STRIP, np.float32)
-            y3 = np.empty(PART_STRIP, np.float32)
-            for t_row in range(t_from, t_to):
-                if part[0] <= t_row < part[1]:
-                    row = on[t_row - o0]
-                    for t in range(bw):
-                        mk = _ONE if row[xs + t - part[2]] != 0 else _ZERO
-                        x[t] = light[t_row - l0, xs + t, q] * mk if q < 3 else mk
-                else:
-                    for t in range(bw):
-                        x[t] = _ZERO
-                m1 = t_row - lo
-                _push(ring1, m1, x, bw)
-                for i1 in range(_ready(m1, r, n), _ready(m1 + 1, r, n)):
-                    _take(ring1, i1, r, n, y1, bw)
-                    _push(ring2, i1, y1, bw)
-                    for i2 in range(_ready(i1, r, n), _ready(i1 + 1, r, n)):
-                        _take(ring2, i2, r, n, y2, bw)
-                        _push(ring3, i2, y2, bw)
-                        for i3 in range(_ready(i2, r, n), _ready(i2 + 1, r, n)):
-                            i = lo + i3
-                            if i < part[0] or i >= part[1]:
-                                continue
-                            _take(ring3, i3, r, n, y3, bw)
-                            for t in range(bw):
-                                planes[q, i - b0, xs + t - part[2]] = y3[t]
+            _band_columns(light, on, part, state, base, rows, q, xs, bw, b0, t_from, t_to, lo, n, r, planes, l0, o0)
         left = max(part[2] - 2 * r, box[2])
         right = min(part[3] + 2 * r, box[3])
         g_lo = grid[k - 1]
@@ -2608,26 +2712,7 @@ def spread_band(
             _running_box(line, cum, left, right, left, right, r, lanes)
             _running_box(line, cum, left, right, left, right, r, lanes)
             _running_box(line, cum, left, right, part[2], part[3], r, lanes)
-            for g in range(n_rows):
-                i = i0 + g
-                for j in range(part[2], part[3]):
-                    if on[i - o0, j - part[2]] == 0:
-                        continue
-                    den = line[j - left, 4 * g + 3]
-                    den = den if den > f32(1e-6) or den != den else f32(1e-6)
-                    for c in range(3):
-                        if not needed[k, c]:
-                            continue
-                        s = min(max(np.float64(sig[i - b0, j, c]), 0.0), top)
-                        # Its levels (the reference's searchsorted): the first of grid >= s, at least 1.
-                        if s <= g_k and (k == 1 or s > g_lo):
-                            cur = line[j - left, 4 * g + c] / den
-                            wt = f32((s - g_lo) / (g_k - g_lo))
-                            out[i - b0, j, c] = out[i - b0, j, c] + wt * cur
-                        elif k + 1 < n_levels and s > g_k and s <= g_hi:
-                            cur = line[j - left, 4 * g + c] / den
-                            wt = f32((s - g_k) / (g_hi - g_k))
-                            out[i - b0, j, c] = (_ONE - wt) * cur
+            _band_blend(line, left, sig, on, part, needed, k, n_levels, g_lo, g_k, g_hi, top, i0, n_rows, b0, o0, out)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

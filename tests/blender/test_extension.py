@@ -89,7 +89,7 @@ def test_install_enable_run_disable_leaves_nothing_registered(built_zip):
         assert hasattr(bpy.types.Scene, "sss_lab")
         assert bpy.ops.sss_lab.scan_scene() == {"FINISHED"}
         # The compiled kernels cache in the extension's user directory, never in its own folder.
-        backend = sys.modules[MODULE + ".core.backend"]
+        backend = sys.modules[MODULE + ".core.compute.backend"]
         user_dir = bpy.utils.extension_path_user(MODULE, path="numba")
         assert backend.cache_dir() == user_dir and os.path.isdir(user_dir)
         package_dir = os.path.dirname(sys.modules[MODULE].__file__)

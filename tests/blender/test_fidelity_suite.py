@@ -11,7 +11,7 @@ from benchmarks.fidelity import references, run, scenes
 
 # The stored references are Cycles images of one Blender version; another version renders other
 # images (and the fingerprint says so): the suite is checked with the version that rendered them.
-_RENDERED_WITH = {e["blender"] for e in references._manifest()["scenes"].values()}
+_RENDERED_WITH = {e["blender"] for e in references.read_manifest()["scenes"].values()}
 pytestmark = pytest.mark.skipif(
     _RENDERED_WITH != {bpy.app.version_string},
     reason=f"the fidelity references were rendered with Blender {sorted(_RENDERED_WITH)}, this is"
@@ -134,7 +134,7 @@ def test_a_scene_is_built_and_baked_the_same_way_every_time(built_elsewhere_in_m
         co = np.empty(len(subdivided.vertices) * 3, np.float32)
         subdivided.vertices.foreach_get("co", co)
         scenes.bake(scene)
-        return edges.tobytes(), co.tobytes(), run._thickness_digest(scene)
+        return edges.tobytes(), co.tobytes(), run.thickness_digest(scene)
 
     seen = built_elsewhere_in_memory(build)
     assert all(s == seen[0] for s in seen[1:])
@@ -143,12 +143,12 @@ def test_a_scene_is_built_and_baked_the_same_way_every_time(built_elsewhere_in_m
 def test_cached_passes_are_not_read_back_for_the_same_mesh_numbered_otherwise():
     # The fingerprint reads faces in a canonical order (the same reference), but Cycles renders a
     # mesh whose faces are listed otherwise differently in the last bits: the passes' cache key
-    # (fingerprint and _thickness_digest) must change.
+    # (fingerprint and thickness_digest) must change.
     import bmesh
 
     scene = scenes.build("fins_backlit_jade")
     scenes.prepare(scene)
-    fingerprint, digest = references.fingerprint(scene), run._thickness_digest(scene)
+    fingerprint, digest = references.fingerprint(scene), run.thickness_digest(scene)
     mesh = bpy.data.objects["Fin 1"].data
     bm = bmesh.new()
     bm.from_mesh(mesh)
@@ -157,4 +157,4 @@ def test_cached_passes_are_not_read_back_for_the_same_mesh_numbered_otherwise():
     bm.to_mesh(mesh)
     bm.free()
     assert references.fingerprint(scene) == fingerprint
-    assert run._thickness_digest(scene) != digest
+    assert run.thickness_digest(scene) != digest

@@ -178,7 +178,7 @@ def test_a_mesh_is_numbered_the_same_way_whatever_else_is_in_memory(built_elsewh
     # its elements: built while other meshes are alive, the same sphere came out numbered otherwise
     # (and subdivided, rendered and baked otherwise, in the last bits).
     builds = built_elsewhere_in_memory(
-        lambda: [_numbering(scenes._uv_sphere("Ball", 0.05)), _numbering(scenes._ear_mesh("Ear"))]
+        lambda: [_numbering(scenes.uv_sphere_mesh("Ball", 0.05)), _numbering(scenes.ear_mesh("Ear"))]
     )
     assert all(b == builds[0] for b in builds[1:])
 
@@ -195,7 +195,7 @@ def test_the_canonical_mesh_keeps_the_built_vertices_and_faces():
     co = [tuple(v.co) for v in raw.verts]
     faces = sorted(tuple(v.index for v in f.verts) for f in raw.faces)
     raw.free()
-    mesh = scenes._mesh("Sphere", build)
+    mesh = scenes.new_mesh("Sphere", build)
     assert [tuple(v.co) for v in mesh.vertices] == co  # the same vertices in the same order, to the bit
     assert sorted(tuple(p.vertices) for p in mesh.polygons) == faces  # each face from the same corner
     assert len(mesh.edges) == len({tuple(sorted(e.vertices)) for e in mesh.edges}) == 12 * 7 + 12 * 8
@@ -209,4 +209,4 @@ def test_a_built_mesh_with_layers_is_refused_rather_than_losing_them():
         bmesh.ops.create_uvsphere(bm, u_segments=12, v_segments=8, radius=1.0, calc_uvs=True)
 
     with pytest.raises(ValueError, match=r"layers that would be lost: .*corner uv 'UVMap'"):
-        scenes._mesh("Sphere", build)
+        scenes.new_mesh("Sphere", build)

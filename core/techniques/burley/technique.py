@@ -27,6 +27,7 @@ Next does; so is each channel whose own footprint is (a channel far narrower tha
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -262,19 +263,89 @@ def _gather(
         return base
     pre, post = arrays.split_albedo(a, albedo_mode)
     light = e if pre is None else pre * e
-    h, w = shape
+    result, idx_all, groups = _reference(light, z, ok, ids, camera, scale, d, int(n_samples), random_rotation, seed)
+    return _smoothed(result, idx_all, groups, shape, scale, d, z, ids, int(smooth_px), post, base)
+
+
+def _reference(light, z, ok, ids, camera, scale, d, n, random_rotation, seed):
+    """The NumPy reference of the gather: (each pixel's scattered light before the albedo and
+    the clean-up (rows in the order of ``idx_all``), ``idx_all``: the flat indices of the
+    pixels that take part (``ok``), ``groups``: the (pixels, extent) of each object), the
+    pixels gathered ``_BLOCK_ELEMENTS`` samples at a time (``_gather_block``)."""
+    h, w = ok.shape
     f32 = np.float32
-    inv3d = _inv3d(d)
-    reach_c = TRUNCATION * d  # each channel's own footprint, scene units (float64: d may be huge)
+    dmax = float(d.max())
     # The spiral reaches 16 d_max, or the object's extent when that is smaller (core.scene.extent):
     # beyond it there is nothing of the object to gather, so the result is unchanged by the
     # bound and continuous as d grows; every backend gets the bounded spiral.
     # One group without index arrays when there are no object ids (core.scene.extent.object_extent).
     groups = group_extents(ok, scale, ids) if ids is not None else [(None, object_extent(ok, scale))]
-    # Each pixel as one 16-byte item (r, g, b, depth key), plus a last item (0, 0, 0, inf) that
-    # samples off the image or from another object read: one gather per sample fetches colour
-    # and depth. Pixels that take no part have colour 0 (a NaN times a zero weight would still
-    # be NaN) and key +inf, so that their weight is exactly 0 (e^-inf = 0, r / inf = 0).
+    packed, zfront = _packed(light, z, ok)
+    frame = _Frame(
+        shape=(h, w),
+        packed=packed,
+        items=packed.view(np.dtype((np.void, 16))).ravel(),
+        zfront=zfront,
+        aflat=np.append(surface_area(z, ok, camera).ravel(), f32(0.0)),
+        idflat=None if ids is None else np.rint(ids).astype(np.int64).ravel(),
+        sflat=scale.ravel(),
+        d=d,
+        inv3d=_inv3d(d),
+        reach_c=TRUNCATION * d,  # each channel's own footprint, scene units (float64: d may be huge)
+        ones=np.ones(n, f32),
+        seed=seed if random_rotation else None,
+    )
+    block = max(128, _BLOCK_ELEMENTS // n)
+    if groups[0][0] is None:
+        groups = [(np.flatnonzero(ok), groups[0][1])]
+    idx_all = np.concatenate([g for g, _ in groups])
+    result = np.empty((idx_all.size, 3), f32)
+    start = 0
+    for group, extent_su in groups:
+        r_su64, angles, inv_pdf = spiral_su(n, dmax, min(TRUNCATION * dmax, extent_su))
+        r_su = r_su64.astype(f32)
+        tables = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
+        arrays.for_blocks(
+            group.size,
+            block,
+            lambda lo, hi, o=start, t=tables: _gather_block(
+                frame, idx_all[o + lo : o + hi], *t, result[o + lo : o + hi]
+            ),
+        )
+        start += group.size
+    return result, idx_all, groups
+
+
+class _Frame(NamedTuple):
+    """What ``_gather_block`` reads of the frame (``_reference``): its (h, w); ``packed``
+    (``_packed``; ``items``: its rows as 16-byte items) and ``zfront``; the surface each pixel
+    covers (``aflat``, ``surface_area``, 0 at the sentinel); the object ids (``idflat``, or
+    None); pixels per scene unit (``sflat``); the lengths ``d``, ``_inv3d(d)`` and the
+    footprints ``reach_c``; n ones (for the sums over the samples); the rotations' seed (None:
+    no rotation)."""
+
+    shape: tuple
+    packed: np.ndarray
+    items: np.ndarray
+    zfront: np.ndarray
+    aflat: np.ndarray
+    idflat: np.ndarray | None
+    sflat: np.ndarray
+    d: np.ndarray
+    inv3d: np.ndarray
+    reach_c: np.ndarray
+    ones: np.ndarray
+    seed: int | None
+
+
+def _packed(light, z, ok):
+    """(packed, zfront): each pixel as one 16-byte item (r, g, b, depth key), plus a last item
+    (0, 0, 0, inf) that samples off the image or from another object read, so that one gather
+    per sample fetches colour and depth; and the depth of each pixel that takes no part."""
+    h, w = ok.shape
+    f32 = np.float32
+    # Pixels that take no part have colour 0 (a NaN times a zero weight would still be NaN) and
+    # key +inf, so that their weight is exactly 0 (e^-inf = 0, r / inf = 0).
     packed = np.empty((h * w + 1, 4), f32)
     rec = packed.view(np.dtype({"names": ["rgb", "key"], "formats": [arrays.RGB_ITEM, f32], "offsets": [0, 12]}))
     rec = rec.ravel()
@@ -283,105 +354,101 @@ def _gather(
     rec["key"][: h * w] = z.ravel()
     rec["key"][np.flatnonzero(~ok)] = np.inf
     packed[h * w] = (0.0, 0.0, 0.0, np.inf)
-    items = packed.view(np.dtype((np.void, 16))).ravel()
-    sentinel = h * w
-    zkey = packed[:, 3]
-    aflat = np.append(surface_area(z, ok, camera).ravel(), f32(0.0))
-    idflat = None if ids is None else np.rint(ids).astype(np.int64).ravel()
-    sflat = scale.ravel()
     # The depth of each pixel that takes no part, +inf where it does or has no positive depth (and
     # for the off-image sentinel): a sample there is on something in front of its pixel where this
-    # is nearer than the pixel (``run``).
+    # is nearer than the pixel (``_gather_block``).
     zfront = np.full(h * w + 1, np.inf, f32)
     apart = (~ok & (z > 0)).ravel()  # NaN depths compare false
     zfront[: h * w][apart] = np.asarray(z, f32).ravel()[apart]
-    n = int(n_samples)
-    block = max(128, _BLOCK_ELEMENTS // n)
-    ones = np.ones(n, f32)
-    if groups[0][0] is None:
-        groups = [(np.flatnonzero(ok), groups[0][1])]
-    idx_all = np.concatenate([g for g, _ in groups])
-    result = np.empty((idx_all.size, 3), f32)
+    return packed, zfront
 
-    def run(start, stop, r_su, r2, cos_a, sin_a, inv_pdf):
-        idx = idx_all[start:stop]
-        b = idx.size
-        x0 = (idx % w).astype(f32)
-        y0 = (idx // w).astype(f32)
-        s = sflat[idx]
-        rad_px = s[:, None] * r_su[None, :]
-        if random_rotation:
-            phi = _rotation(idx, seed)[:, None]
-            ca = np.cos(phi) * cos_a - np.sin(phi) * sin_a
-            sa = np.sin(phi) * cos_a + np.cos(phi) * sin_a
-        else:
-            ca, sa = cos_a[None, :], sin_a[None, :]
-        xs = rad_px * ca
-        xs += x0[:, None]
-        np.rint(xs, out=xs)
-        ys = np.multiply(rad_px, sa, out=rad_px)
-        ys += y0[:, None]
-        np.rint(ys, out=ys)
-        # Off the image: the sentinel item. Clipping and comparing is cheaper than four comparisons.
-        xc = np.clip(xs, f32(0.0), f32(w - 1))
-        yc = np.clip(ys, f32(0.0), f32(h - 1))
-        outside = xc != xs
-        outside |= yc != ys
-        j = yc.astype(np.intp)
-        j *= w
-        j += xc.astype(np.intp)
-        np.copyto(j, sentinel, where=outside)
-        zc = zkey[idx][:, None]
-        # Samples on something nearer the camera that takes no part (another object, a pixel off
-        # the mask): the surface there is hidden, not absent; such a sample stands for the pixel's
-        # own light, at its depth and with its surface (docs/references.md §1).
-        hidden = zfront[j] < zc
-        if idflat is not None:
-            other = idflat[np.minimum(j, sentinel - 1)] != idflat[idx][:, None]
-            hidden |= other & (zkey[j] < zc)
-            np.copyto(j, sentinel, where=other)
-        g = np.take(items, j).view(f32).reshape(b, n, 4)
-        surface = np.take(aflat, j)
-        if hidden.any():
-            g[hidden] = packed[np.broadcast_to(idx[:, None], hidden.shape)[hidden]]
-            surface[hidden] = np.broadcast_to(aflat[idx][:, None], hidden.shape)[hidden]
-        rp = np.subtract(g[..., 3], zc)
-        rp *= rp
-        rp += r2[None, :]
-        np.sqrt(rp, out=rp)
-        # R_c(r') / pdf_area(r) up to constants: (e^{-r'/d} + e^{-r'/3d}) / r' x r / f(r).
-        ratio = np.maximum(rp, f32(1e-30))
-        np.divide(inv_pdf[None, :], ratio, out=ratio)
-        ratio *= surface  # the surface the sample's pixel covers
-        e3 = np.empty_like(rp)
-        wgt = np.empty_like(rp)
-        for c in range(3):
-            centre = packed[idx, c]
-            if d[c] <= 0:
-                result[start:stop, c] = centre
-                continue
-            np.multiply(rp, -inv3d[c], out=e3)
-            np.exp(e3, out=e3)
-            np.multiply(e3, e3, out=wgt)
-            wgt *= e3
-            wgt += e3
-            wgt *= ratio
-            den = wgt @ ones
-            wgt *= g[..., c]
-            num = wgt @ ones
-            with np.errstate(over="ignore"):
-                small = reach_c[c] * s <= 1.0  # this channel's footprint <= 1 px
-            keep = small | (den <= f32(1e-30))
-            result[start:stop, c] = np.where(keep, centre, num / np.where(keep, f32(1.0), den))
 
-    start = 0
-    for group, extent_su in groups:
-        r_su64, angles, inv_pdf = spiral_su(n, dmax, min(TRUNCATION * dmax, extent_su))
-        r_su = r_su64.astype(f32)
-        tables = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
-        arrays.for_blocks(group.size, block, lambda a, b, o=start, t=tables: run(o + a, o + b, *t))
-        start += group.size
-    return _smoothed(result, idx_all, groups, shape, scale, d, z, ids, int(smooth_px), post, base)
+def _sample_pixels(idx, s, shape, r_su, cos_a, sin_a, seed):
+    """The flat pixel of each sample (B, n) of the pixels ``idx`` (``s``: their pixels per
+    scene unit), the spiral's radii ``r_su`` and angles (rotated per pixel unless ``seed`` is
+    None), rounded to the nearest pixel; h x w (the sentinel item) off the image."""
+    h, w = shape
+    f32 = np.float32
+    x0 = (idx % w).astype(f32)
+    y0 = (idx // w).astype(f32)
+    rad_px = s[:, None] * r_su[None, :]
+    if seed is not None:
+        phi = _rotation(idx, seed)[:, None]
+        ca = np.cos(phi) * cos_a - np.sin(phi) * sin_a
+        sa = np.sin(phi) * cos_a + np.cos(phi) * sin_a
+    else:
+        ca, sa = cos_a[None, :], sin_a[None, :]
+    xs = rad_px * ca
+    xs += x0[:, None]
+    np.rint(xs, out=xs)
+    ys = np.multiply(rad_px, sa, out=rad_px)
+    ys += y0[:, None]
+    np.rint(ys, out=ys)
+    # Off the image: the sentinel item. Clipping and comparing is cheaper than four comparisons.
+    xc = np.clip(xs, f32(0.0), f32(w - 1))
+    yc = np.clip(ys, f32(0.0), f32(h - 1))
+    outside = xc != xs
+    outside |= yc != ys
+    j = yc.astype(np.intp)
+    j *= w
+    j += xc.astype(np.intp)
+    np.copyto(j, h * w, where=outside)
+    return j
+
+
+def _gather_block(frame, idx, r_su, r2, cos_a, sin_a, inv_pdf, out):
+    """The scattered light (B, 3) of the pixels ``idx`` into ``out``: ``frame`` (``_reference``'s
+    per-frame arrays) gathered at their samples (``_sample_pixels``) with the spiral's tables."""
+    f32 = np.float32
+    packed, aflat, idflat = frame.packed, frame.aflat, frame.idflat
+    zkey = packed[:, 3]
+    sentinel = frame.shape[0] * frame.shape[1]
+    b, n = idx.size, r_su.size
+    s = frame.sflat[idx]
+    j = _sample_pixels(idx, s, frame.shape, r_su, cos_a, sin_a, frame.seed)
+    zc = zkey[idx][:, None]
+    # Samples on something nearer the camera that takes no part (another object, a pixel off
+    # the mask): the surface there is hidden, not absent; such a sample stands for the pixel's
+    # own light, at its depth and with its surface (docs/references.md §1).
+    hidden = frame.zfront[j] < zc
+    if idflat is not None:
+        other = idflat[np.minimum(j, sentinel - 1)] != idflat[idx][:, None]
+        hidden |= other & (zkey[j] < zc)
+        np.copyto(j, sentinel, where=other)
+    g = np.take(frame.items, j).view(f32).reshape(b, n, 4)
+    surface = np.take(aflat, j)
+    if hidden.any():
+        g[hidden] = packed[np.broadcast_to(idx[:, None], hidden.shape)[hidden]]
+        surface[hidden] = np.broadcast_to(aflat[idx][:, None], hidden.shape)[hidden]
+    rp = np.subtract(g[..., 3], zc)
+    rp *= rp
+    rp += r2[None, :]
+    np.sqrt(rp, out=rp)
+    # R_c(r') / pdf_area(r) up to constants: (e^{-r'/d} + e^{-r'/3d}) / r' x r / f(r).
+    ratio = np.maximum(rp, f32(1e-30))
+    np.divide(inv_pdf[None, :], ratio, out=ratio)
+    ratio *= surface  # the surface the sample's pixel covers
+    e3 = np.empty_like(rp)
+    wgt = np.empty_like(rp)
+    d, inv3d, reach_c, ones = frame.d, frame.inv3d, frame.reach_c, frame.ones
+    for c in range(3):
+        centre = packed[idx, c]
+        if d[c] <= 0:
+            out[:, c] = centre
+            continue
+        np.multiply(rp, -inv3d[c], out=e3)
+        np.exp(e3, out=e3)
+        np.multiply(e3, e3, out=wgt)
+        wgt *= e3
+        wgt += e3
+        wgt *= ratio
+        den = wgt @ ones
+        wgt *= g[..., c]
+        num = wgt @ ones
+        with np.errstate(over="ignore"):
+            small = reach_c[c] * s <= 1.0  # this channel's footprint <= 1 px
+        keep = small | (den <= f32(1e-30))
+        out[:, c] = np.where(keep, centre, num / np.where(keep, f32(1.0), den))
 
 
 def _smoothed(result, idx_all, groups, shape, scale, d, z, ids, smooth_px, post, out):

@@ -116,26 +116,10 @@ def sta(
     STA adds light (it models light arriving from behind, not redistributed light): its sum is
     not conserved, by design. Pixels with non-finite inputs get 0.
     """
-    if not isinstance(camera, Camera):
-        raise ValueError(f"camera: expected a core.scene.scene.Camera, got {type(camera).__name__}")
-    if thickness_convention not in THICKNESS_CONVENTIONS:
-        raise ValueError(
-            f"thickness_convention: {thickness_convention!r} is not one of {', '.join(THICKNESS_CONVENTIONS)}"
-        )
-    for light in lights:
-        if not isinstance(light, Light):
-            raise ValueError(f"lights: expected core.scene.scene.Light entries, got {type(light).__name__}")
-    try:
-        distortion = float(distortion)
-    except (TypeError, ValueError):
-        raise ValueError(f"distortion: expected a number, got {distortion!r}") from None
-    if not math.isfinite(distortion):
-        raise ValueError(f"distortion: expected a finite number, got {distortion!r}")
-    if falloff not in FALLOFFS:
-        raise ValueError(f"falloff: {falloff!r} is not one of {', '.join(FALLOFFS)}")
+    distortion = _checked(camera, thickness_convention, lights, distortion, falloff)
     # Per-channel Burley transmittance through the slab the map stands for, or the paper's map.
-    transmits = falloff == "burley"
-    if transmits:
+    d_c, distance = None, 0.0
+    if falloff == "burley":
         d_c = arrays.rgb_lengths(d_su, "d_su")
         distance = arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
     # Through the medium: the transmittance tabulated over thickness and view cosine, and the
@@ -160,27 +144,44 @@ def sta(
     lights = [light for light in lights if light.energy > 0]
     if not m.any() or not lights:
         return np.zeros(a.shape, np.float32)
+    args = (a, n, p, t, m, camera, lights, distortion, power, scale, ambient, thickness_convention)
     if backend.active() == "numba":
         out = np.empty(a.shape, np.float32)  # the kernel writes every pixel (zeros off the mask)
-        _compiled(
-            a,
-            n,
-            p,
-            t,
-            m,
-            camera,
-            lights,
-            distortion,
-            power,
-            scale,
-            ambient,
-            thickness_convention,
-            out,
-            d_c if transmits else None,
-            distance if transmits else 0.0,
-            through,
-        )
+        _compiled(*args, out, d_c, distance, through)
         return out
+    return _reference(*args, d_c, distance, through)
+
+
+def _checked(camera, thickness_convention, lights, distortion, falloff) -> float:
+    """``sta``'s checks of its camera, convention, lights and falloff; the distortion as a float."""
+    if not isinstance(camera, Camera):
+        raise ValueError(f"camera: expected a core.scene.scene.Camera, got {type(camera).__name__}")
+    if thickness_convention not in THICKNESS_CONVENTIONS:
+        raise ValueError(
+            f"thickness_convention: {thickness_convention!r} is not one of {', '.join(THICKNESS_CONVENTIONS)}"
+        )
+    for light in lights:
+        if not isinstance(light, Light):
+            raise ValueError(f"lights: expected core.scene.scene.Light entries, got {type(light).__name__}")
+    try:
+        distortion = float(distortion)
+    except (TypeError, ValueError):
+        raise ValueError(f"distortion: expected a number, got {distortion!r}") from None
+    if not math.isfinite(distortion):
+        raise ValueError(f"distortion: expected a finite number, got {distortion!r}")
+    if falloff not in FALLOFFS:
+        raise ValueError(f"falloff: {falloff!r} is not one of {', '.join(FALLOFFS)}")
+    return distortion
+
+
+def _reference(
+    a, n, p, t, m, camera, lights, distortion, power, scale, ambient, convention, d_c, distance, through
+) -> np.ndarray:
+    """``sta``'s per-pixel arithmetic in NumPy, the readable reference, over the masked pixels
+    ``_BLOCK`` at a time: the pixel's vectors (``_block_vectors``), the sum over the lights
+    (``_light_sums``), the falloff (``_falloff``). ``d_c`` and ``distance``: the "burley"
+    falloff's lengths and bake distance (None and 0 otherwise); ``through``: the "medium"
+    falloff's ``_medium_inputs`` (None otherwise)."""
     out = np.zeros(a.shape, np.float32)
     rows = {name: arrays.pixel_rows(arr) for name, arr in (("a", a), ("n", n), ("p", p))}
     flat_t = np.ascontiguousarray(t).ravel()
@@ -192,115 +193,151 @@ def sta(
         view_dir, cam_pos = (-camera.forward).astype(f32), None
     else:
         view_dir, cam_pos = None, camera.position.astype(f32)
-    d_t = f32(distortion)
-    one_over_pi = f32(1.0 / math.pi)
 
     def run(start, stop):
         # A block of consecutive pixels (the full-screen case) is read and written as slices.
         sel = arrays.block_selection(idx, start, stop)
-        # (B, 3) rows and strided (3, B) views of them: read-only (a slice is the caller's array).
-        albedo_rows = arrays.as_rows(rows["a"][sel])
-        nx, ny, nz = arrays.as_rows(rows["n"][sel]).T
-        px, py, pz = arrays.as_rows(rows["p"][sel]).T
-        tt = flat_t[sel]
-        ok = albedo_rows[:, 0] + albedo_rows[:, 1]
-        for v in (albedo_rows[:, 2], nx, ny, nz, px, py, pz, tt):
-            ok += v
-        ok = np.isfinite(ok)
-        all_ok = bool(ok.all())
-        if not all_ok:
-            tt = np.where(ok, tt, f32(0.0))
-        tt = np.clip(tt, f32(0.0), f32(1.0))
-        if thickness_convention == "thickness":
-            tt = f32(1.0) - tt
-            if not all_ok:
-                tt[~ok] = 0.0
-        nx, ny, nz, _ = norm(nx, ny, nz)
-        if cam_pos is None:
-            vx, vy, vz = (view_dir[k] for k in range(3))
-        else:
-            vx, vy, vz, _ = norm(cam_pos[0] - px, cam_pos[1] - py, cam_pos[2] - pz)
-        # Lights of equal R, G, B (white ones, say) share one accumulator; coloured ones one per channel.
-        grey = coloured = None
-        for light, color in zip(lights, colors, strict=True):
-            lx, ly, lz, irradiance = light_at(light, px, py, pz)
-            ux = d_t * nx
-            ux += lx
-            uy = d_t * ny
-            uy += ly
-            uz = d_t * nz
-            uz += lz
-            # V . normalize(L + d_T N), negated; |L + d_T N| kept to drop lights whose direction vanished.
-            length = ux * ux
-            length += uy * uy
-            length += uz * uz
-            np.sqrt(length, out=length)
-            vdot = vx * ux
-            vdot += vy * uy
-            vdot += vz * uz
-            inv = np.maximum(length, f32(1e-30))
-            np.divide(f32(-1.0), inv, out=inv)
-            vdot *= inv
-            # max(0, x)^p, with p = 0 giving 1 only where x > 0; a vanished L + d_T N gives nothing.
-            if power == 0:
-                lobe = (vdot > 0).astype(f32)
-            else:
-                lobe = np.maximum(vdot, f32(0.0), out=vdot)
-                lobe **= f32(power)
-            vanished = length <= _EPS
-            if vanished.any():
-                lobe[vanished] = 0.0
-            # E_L / pi (s_T lobe + a_T); the thickness is applied once after the sum over lights.
-            e_pi = irradiance * one_over_pi
-            if np.ndim(e_pi) == 0:
-                lobe *= f32(scale) * e_pi
-                if ambient:
-                    lobe += f32(ambient) * e_pi
-            else:
-                lobe *= f32(scale)
-                lobe += f32(ambient)
-                lobe *= e_pi
-            if color[0] == color[1] == color[2]:
-                if color[0] != 1:
-                    lobe *= color[0]
-                if grey is None:
-                    grey = lobe
-                else:
-                    grey += lobe
-            else:
-                if coloured is None:
-                    coloured = np.zeros((3, tt.size), f32)
-                for c in range(3):
-                    coloured[c] += color[c] * lobe
-        if through is not None:
-            table, inv_base, clip = through
-            mu = nx * vx
-            mu += ny * vy
-            mu += nz * vz
-            trans = _lookup(table, tt, np.abs(mu))
-            light = grey[:, None] if coloured is None else (coloured + (0.0 if grey is None else grey)).T
-            weight = albedo_rows * inv_base
-            if clip:
-                weight = np.clip(weight, f32(0.0), f32(1.0))
-            res = weight * light * trans
-        elif transmits:
-            trans = _transmittance(tt, distance, d_c)  # (B, 3)
-            light = grey[:, None] if coloured is None else (coloured + (0.0 if grey is None else grey)).T
-            res = albedo_rows * light * trans
-        elif coloured is None:
-            grey *= tt
-            res = albedo_rows * grey[:, None]
-        else:
-            if grey is not None:
-                coloured += grey
-            coloured *= tt
-            res = albedo_rows * coloured.T
+        albedo_rows, ok, all_ok, tt, normals, views, points = _block_vectors(
+            rows, flat_t, sel, convention, view_dir, cam_pos
+        )
+        grey, coloured = _light_sums(lights, colors, normals, views, points, distortion, power, scale, ambient)
+        res = _falloff(albedo_rows, tt, normals, views, grey, coloured, d_c, distance, through)
         if not all_ok:
             res[~ok] = 0.0
         out_rows[sel] = res.view(arrays.RGB_ITEM).ravel()
 
     arrays.for_blocks(idx.size, _BLOCK, run)
     return out
+
+
+def _block_vectors(rows, flat_t, sel, convention, view_dir, cam_pos):
+    """A block's inputs: (albedo rows (B, 3), which pixels have finite inputs, whether all do,
+    the translucency t in [0, 1] (0 where an input is not finite), the unit normals, the unit
+    vectors towards the viewer (``view_dir``'s three scalars for an orthographic camera, else
+    towards ``cam_pos``), the positions), each vector as three planar rows."""
+    f32 = np.float32
+    # (B, 3) rows and strided (3, B) views of them: read-only (a slice is the caller's array).
+    albedo_rows = arrays.as_rows(rows["a"][sel])
+    nx, ny, nz = arrays.as_rows(rows["n"][sel]).T
+    px, py, pz = arrays.as_rows(rows["p"][sel]).T
+    tt = flat_t[sel]
+    ok = albedo_rows[:, 0] + albedo_rows[:, 1]
+    for v in (albedo_rows[:, 2], nx, ny, nz, px, py, pz, tt):
+        ok += v
+    ok = np.isfinite(ok)
+    all_ok = bool(ok.all())
+    if not all_ok:
+        tt = np.where(ok, tt, f32(0.0))
+    tt = np.clip(tt, f32(0.0), f32(1.0))
+    if convention == "thickness":
+        tt = f32(1.0) - tt
+        if not all_ok:
+            tt[~ok] = 0.0
+    nx, ny, nz, _ = norm(nx, ny, nz)
+    if cam_pos is None:
+        vx, vy, vz = (view_dir[k] for k in range(3))
+    else:
+        vx, vy, vz, _ = norm(cam_pos[0] - px, cam_pos[1] - py, cam_pos[2] - pz)
+    return albedo_rows, ok, all_ok, tt, (nx, ny, nz), (vx, vy, vz), (px, py, pz)
+
+
+def _light_sums(lights, colors, normals, views, points, distortion, power, scale, ambient):
+    """(grey, coloured): the sum over the lights of E_L / pi (s_T lobe + a_T) per pixel, the
+    lights of equal R, G, B (white ones, say) in one accumulator ``grey`` (B,) times their
+    grey level, the coloured ones per channel in ``coloured`` (3, B); None where there is none."""
+    f32 = np.float32
+    grey = coloured = None
+    for light, color in zip(lights, colors, strict=True):
+        lobe = _lobe(light, normals, views, points, distortion, power, scale, ambient)
+        if color[0] == color[1] == color[2]:
+            if color[0] != 1:
+                lobe *= color[0]
+            if grey is None:
+                grey = lobe
+            else:
+                grey += lobe
+        else:
+            if coloured is None:
+                coloured = np.zeros((3, lobe.size), f32)
+            for c in range(3):
+                coloured[c] += color[c] * lobe
+    return grey, coloured
+
+
+def _lobe(light, normals, views, points, distortion, power, scale, ambient):
+    """One light's E_L / pi (s_T max(0, V . -normalize(L + d_T N))^p_T + a_T) per pixel (B,);
+    the thickness is applied once after the sum over lights."""
+    f32 = np.float32
+    nx, ny, nz = normals
+    vx, vy, vz = views
+    lx, ly, lz, irradiance = light_at(light, *points)
+    d_t = f32(distortion)
+    ux = d_t * nx
+    ux += lx
+    uy = d_t * ny
+    uy += ly
+    uz = d_t * nz
+    uz += lz
+    # V . normalize(L + d_T N), negated; |L + d_T N| kept to drop lights whose direction vanished.
+    length = ux * ux
+    length += uy * uy
+    length += uz * uz
+    np.sqrt(length, out=length)
+    vdot = vx * ux
+    vdot += vy * uy
+    vdot += vz * uz
+    inv = np.maximum(length, f32(1e-30))
+    np.divide(f32(-1.0), inv, out=inv)
+    vdot *= inv
+    # max(0, x)^p, with p = 0 giving 1 only where x > 0; a vanished L + d_T N gives nothing.
+    if power == 0:
+        lobe = (vdot > 0).astype(f32)
+    else:
+        lobe = np.maximum(vdot, f32(0.0), out=vdot)
+        lobe **= f32(power)
+    vanished = length <= _EPS
+    if vanished.any():
+        lobe[vanished] = 0.0
+    e_pi = irradiance * f32(1.0 / math.pi)
+    if np.ndim(e_pi) == 0:
+        lobe *= f32(scale) * e_pi
+        if ambient:
+            lobe += f32(ambient) * e_pi
+    else:
+        lobe *= f32(scale)
+        lobe += f32(ambient)
+        lobe *= e_pi
+    return lobe
+
+
+def _falloff(albedo_rows, tt, normals, views, grey, coloured, d_c, distance, through):
+    """A block's result (B, 3) from the sums over the lights: through the medium (``through``),
+    Burley's transmittance (``d_c``) or the translucency map ``tt`` itself, times the albedo."""
+    f32 = np.float32
+    if through is not None:
+        table, inv_base, clip = through
+        nx, ny, nz = normals
+        vx, vy, vz = views
+        mu = nx * vx
+        mu += ny * vy
+        mu += nz * vz
+        trans = _lookup(table, tt, np.abs(mu))
+        light = grey[:, None] if coloured is None else (coloured + (0.0 if grey is None else grey)).T
+        weight = albedo_rows * inv_base
+        if clip:
+            weight = np.clip(weight, f32(0.0), f32(1.0))
+        return weight * light * trans
+    if d_c is not None:
+        trans = _transmittance(tt, distance, d_c)  # (B, 3)
+        light = grey[:, None] if coloured is None else (coloured + (0.0 if grey is None else grey)).T
+        return albedo_rows * light * trans
+    if coloured is None:
+        grey *= tt
+        return albedo_rows * grey[:, None]
+    if grey is not None:
+        coloured += grey
+    coloured *= tt
+    return albedo_rows * coloured.T
 
 
 #: The "medium" falloff's table: slab thicknesses x = D u^2 for u uniform over [0, 1] (D the bake
@@ -370,7 +407,7 @@ def _lookup(table: np.ndarray, translucency: np.ndarray, mu: np.ndarray) -> np.n
 def _compiled(
     a, n, p, t, m, camera, lights, distortion, power, scale, ambient, convention, out, d_c, distance, through
 ):
-    """The per-pixel loop above as one compiled kernel (``core.compute.compiled.sta_kernel``)."""
+    """``_reference``'s per-pixel arithmetic as one compiled kernel (``core.compute.compiled.sta_kernel``)."""
     f32 = np.float32
     c = np.ascontiguousarray
     if camera.type == "ORTHO":
