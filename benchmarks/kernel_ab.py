@@ -9,8 +9,10 @@ compared to the bit. Prints the best and median wall and CPU times of each and t
     .venv/bin/python -m benchmarks.kernel_ab --base origin/main            # STA, 1080p
     .venv/bin/python -m benchmarks.kernel_ab --base HEAD~1 --threads 1 --mask "25 % mask"
 
-The revision's ``core/compute/compiled.py`` is compiled from a temporary folder, with its own Numba
-cache there (never beside the module). Arguments are matched by name, so that a kernel that
+The revision's core/ (its kernels, ``_kernels.py`` beside each owner, and their primitives in
+``core/compute/jit.py``) is compiled from a temporary folder, with its own Numba cache there (never
+beside the module); revisions before the kernels moved beside their owners cannot be loaded. Arguments are matched by
+name, so that a kernel that
 gained or lost one can still be compared with its earlier self.
 """
 
@@ -31,30 +33,29 @@ from benchmarks import speed
 from sss_lab.core.compute import backend
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-#: The technique's kernel in ``core.compute.compiled``.
-KERNELS = {"sta": "sta_kernel"}
+#: The technique's kernel: (its package below core, the kernel's name).
+KERNELS = {"sta": ("techniques.sta", "sta_kernel")}
 
 
-def _load_revision(rev: str, folder: str):
-    """``core/compute/compiled.py`` of ``rev`` as a module, compiled and cached inside ``folder``."""
-    source = subprocess.run(
-        ["git", "-C", ROOT, "show", f"{rev}:core/compute/compiled.py"], check=True, capture_output=True, text=True
-    ).stdout
-    path = os.path.join(folder, "compiled_base.py")
-    with open(path, "w") as f:
-        f.write(source)
+def _load_revision(rev: str, folder: str, package: str):
+    """The kernels module of ``package`` (below core) at ``rev``, as the module of a copy of that
+    revision's core/ in ``folder`` (a package of its own, ``sss_ab_base``), compiled and cached inside ``folder``."""
+    base = os.path.join(folder, "sss_ab_base")
+    os.makedirs(base)
+    archive = subprocess.run(["git", "-C", ROOT, "archive", rev, "core"], check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", base], input=archive, check=True)
+    with open(os.path.join(base, "__init__.py"), "w") as f:
+        f.write("")
     import numba
 
     before = numba.config.CACHE_DIR
     numba.config.CACHE_DIR = os.path.join(folder, "cache")
+    sys.path.insert(0, folder)
     try:
-        spec = importlib.util.spec_from_file_location("compiled_base", path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[spec.name] = module  # Numba's cache finds the module by its name
-        spec.loader.exec_module(module)
+        return importlib.import_module(f"sss_ab_base.core.{package}._kernels")
     finally:
+        sys.path.remove(folder)
         numba.config.CACHE_DIR = before
-    return module
 
 
 def _caller(kernel, named: dict, chunk: int):
@@ -91,15 +92,15 @@ def main(argv=None) -> int:
         raise SystemExit(f"kernel_ab: Numba cannot load ({backend.unavailable_reason()})")
     if args.threads:
         numba.set_num_threads(args.threads)
-    name = KERNELS[args.technique]
+    package, name = KERNELS[args.technique]
     width, height = (int(v) for v in args.resolution.lower().split("x"))
     captured: dict = {}
     run_kernel = backend.run_kernel
 
-    def spy(kernel_name, *kernel_args):
-        if kernel_name == name and not captured:
+    def spy(kernel, *kernel_args):
+        if kernel.py_func.__name__ == name and not captured:
             captured["args"] = kernel_args
-        return run_kernel(kernel_name, *kernel_args)
+        return run_kernel(kernel, *kernel_args)
 
     backend.run_kernel = spy
     try:
@@ -107,14 +108,14 @@ def main(argv=None) -> int:
         cases[args.technique][0](masks[args.mask])
     finally:
         backend.run_kernel = run_kernel
-    new = getattr(backend.compiled(), name)
+    new = getattr(backend.kernels(f"{backend.__name__.rsplit('.', 2)[0]}.{package}"), name)
     named = dict(zip(inspect.signature(new.py_func).parameters, captured["args"], strict=True))
     for item in args.arg:
         key, _, value = item.partition("=")
         named.setdefault(key, int(value))
-    chunk = backend.compiled().CHUNKS.get(name, backend.compiled().ROWS_PER_CHUNK)
+    chunk = getattr(new.py_func, "parallel_chunks", backend.compiled().ROWS_PER_CHUNK)
     with tempfile.TemporaryDirectory() as folder:
-        base = _load_revision(args.base, folder)
+        base = _load_revision(args.base, folder, package)
         calls = {"A": _caller(getattr(base, name), named, chunk), "B": _caller(new, named, chunk)}
         outs = {k: np.full_like(named["out"], np.nan) for k in calls}
         for k, call in calls.items():

@@ -283,9 +283,10 @@ def _profile(fn, repeat: int) -> dict:
     original = backend.run_kernel
     spent: dict[str, float] = {}
 
-    def timed(name, *args):
+    def timed(kernel, *args):
+        name = kernel.py_func.__name__
         start = time.perf_counter()
-        original(name, *args)
+        original(kernel, *args)
         spent[name] = spent.get(name, 0.0) + time.perf_counter() - start
 
     backend.run_kernel = timed

@@ -1,5 +1,6 @@
-"""Which implementation runs the techniques: the compiled kernels (``core/compute/compiled.py``, Numba)
-or the NumPy reference, and where the compiled code is cached (docs/references.md §11).
+"""Which implementation runs the techniques: the compiled kernels (Numba: each owner's ``_kernels.py``
+beside its NumPy reference, on the primitives of ``core/compute/jit.py``) or the NumPy reference, and where the
+compiled code is cached (docs/references.md §11).
 
 - ``numba`` (the default when Numba loads): the fused per-pixel kernels.
 - ``numpy``: the readable reference, also used wherever Numba cannot load (one line on stderr
@@ -17,12 +18,15 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import hashlib
+import importlib
 import inspect
 import os
 import sys
 import threading
 import time
 from collections.abc import Callable
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -36,7 +40,17 @@ BACKENDS = ("numba", "numpy", "check")
 U32 = 2.0**-24
 
 _lock = threading.Lock()
-_state: dict[str, Any] = {"backend": None, "cache_dir": None, "module": None, "error": None, "load_s": None}
+_state: dict[str, Any] = {
+    "backend": None,
+    "cache_dir": None,
+    "module": None,
+    "error": None,
+    "load_s": None,
+    "digest": None,
+}
+_kernels: dict[str, ModuleType] = {}
+#: The package's core folder: every ``_kernels.py`` below it and ``compute/jit.py`` are the kernels' sources.
+_CORE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 _compile_s: dict[str, float] = {}
 
 
@@ -103,15 +117,43 @@ def cache_dir() -> str:
     return _state["cache_dir"] or os.environ.get("NUMBA_CACHE_DIR") or user_cache_dir()
 
 
+def kernel_sources() -> list[str]:
+    """The kernels' source files: ``compute/jit.py`` and every ``_kernels.py`` (or ``_*_kernels.py``)
+    under core/, sorted."""
+    out = [os.path.join(_CORE, "compute", "jit.py")]
+    for folder, dirs, files in os.walk(_CORE):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        out += [os.path.join(folder, f) for f in sorted(files) if f.startswith("_") and f.endswith("kernels.py")]
+    return out
+
+
+def kernel_digest() -> str:
+    """A digest of the kernels' sources (their bytes): it names their cache folder."""
+    if _state["digest"] is None:
+        h = hashlib.sha256()
+        for path in kernel_sources():
+            h.update(os.path.relpath(path, _CORE).encode() + b"\0")
+            with open(path, "rb") as fh:
+                h.update(fh.read())
+        _state["digest"] = h.hexdigest()[:12]
+    return _state["digest"]
+
+
 def kernel_cache_dir() -> str:
     """The folder of ``cache_dir`` the compiled kernels are cached in: one per name the package is
-    imported under. Numba keys a cache entry by the source file's path, but the entry refers to
-    the kernels' module by its name: the same files imported as ``sss_lab`` (a script, a farm
-    node) and as ``bl_ext.user_default.sss_lab`` (the extension in Blender) with one cache folder
-    (a shared ``NUMBA_CACHE_DIR``) would load each other's entries, and the process in which the
-    other name cannot be imported fails with ModuleNotFoundError on its first kernel call."""
-    package = __name__.rsplit(".", 1)[0]  # e.g. sss_lab.core
-    return os.path.join(cache_dir(), "".join(c if c.isalnum() or c in "._-" else "_" for c in package))
+    imported under and per version of the kernels' sources.
+
+    Numba keys a cache entry by the source file's path, but the entry refers to the kernels'
+    module by its name: the same files imported as ``sss_lab`` (a script, a farm node) and as
+    ``bl_ext.user_default.sss_lab`` (the extension in Blender) with one cache folder (a shared
+    ``NUMBA_CACHE_DIR``) would load each other's entries, and the process in which the other name
+    cannot be imported fails with ModuleNotFoundError on its first kernel call. And Numba checks
+    an entry against its own file only: a kernel that calls a primitive of ``compute/jit.py`` or
+    of another owner's kernels would be loaded stale after that file changed. The digest of every
+    kernel source in the folder's name (``kernel_digest``) makes any change compile afresh."""
+    package = __name__.rsplit(".", 2)[0]  # e.g. sss_lab.core
+    name = "".join(c if c.isalnum() or c in "._-" else "_" for c in package)
+    return os.path.join(cache_dir(), f"{name}-{kernel_digest()}")
 
 
 def _wide_vectors(numba) -> None:
@@ -133,8 +175,23 @@ def _wide_vectors(numba) -> None:
         numba.config.CPU_FEATURES = features + ",-prefer-256-bit"
 
 
-def compiled():
-    """The ``core.compute.compiled`` module, loaded on first use; None where Numba cannot load."""
+@contextlib.contextmanager
+def _kernel_cache(numba):
+    """Numba picks a function's cache folder when it is decorated: point it at ours for the import
+    of our kernels only, leaving other users of Numba as they were."""
+    path = kernel_cache_dir()
+    os.makedirs(path, exist_ok=True)
+    before = numba.config.CACHE_DIR
+    numba.config.CACHE_DIR = path
+    try:
+        yield
+    finally:
+        numba.config.CACHE_DIR = before
+
+
+def compiled() -> ModuleType | None:
+    """The kernels' shared primitives (``core.compute.jit``), loaded with Numba on first use; None
+    where Numba cannot load (the NumPy reference runs then)."""
     if _state["module"] is not None or _state["error"] is not None:
         return _state["module"]
     with _lock:
@@ -143,17 +200,9 @@ def compiled():
             try:
                 import numba
 
-                path = kernel_cache_dir()
-                os.makedirs(path, exist_ok=True)
-                # Numba picks a function's cache folder when it is decorated: point it at ours
-                # for the import of our kernels only, leaving other users of Numba as they were.
                 _wide_vectors(numba)
-                before = numba.config.CACHE_DIR
-                numba.config.CACHE_DIR = path
-                try:
-                    from . import compiled as module
-                finally:
-                    numba.config.CACHE_DIR = before
+                with _kernel_cache(numba):
+                    from . import jit as module
             except Exception as exc:  # ImportError, or a broken LLVM: fall back, say so once
                 _state["error"] = f"{type(exc).__name__}: {exc}"
                 print(
@@ -163,6 +212,28 @@ def compiled():
             _state["load_s"] = time.perf_counter() - start
             _state["module"] = module
     return _state["module"]
+
+
+def kernels(package: str, name: str = "_kernels") -> ModuleType:
+    """The compiled kernels of ``package`` (a full dotted package name: the caller's
+    ``__package__``, or ``optics.__name__`` for the shared physics' kernels), its module ``name``,
+    imported on first use in the kernels' cache folder. Only on the compiled backend
+    (``compiled()`` is not None)."""
+    module = f"{package}.{name}"
+    found = _kernels.get(module)
+    if found is not None:
+        return found
+    if compiled() is None:
+        raise RuntimeError(f"{module}: the compiled kernels are not available ({unavailable_reason()})")
+    with _lock:
+        if module not in _kernels:
+            import numba
+
+            start = time.perf_counter()
+            with _kernel_cache(numba):
+                _kernels[module] = importlib.import_module(module)
+            _state["load_s"] = (_state["load_s"] or 0.0) + time.perf_counter() - start
+    return _kernels[module]
 
 
 def unavailable_reason() -> str | None:
@@ -179,20 +250,26 @@ def first_call_seconds() -> dict[str, float]:
     return out
 
 
-def run_kernel(name: str, *args) -> None:
-    """Call ``core.compute.compiled.<name>(*args)``, timing its first call in this process."""
+def _name(kernel) -> str:
+    return getattr(kernel, "py_func", kernel).__name__
+
+
+def run_kernel(kernel, *args) -> None:
+    """Call the compiled ``kernel`` (from ``kernels``) with ``args`` in its parallel chunks
+    (``core.compute.jit.parallel_chunks``, else ``ROWS_PER_CHUNK`` rows), timing its first call
+    in this process."""
     import numba
 
-    module = compiled()
-    with numba.parallel_chunksize(module.CHUNKS.get(name, module.ROWS_PER_CHUNK)):
-        run_serial(name, *args)
+    chunks = getattr(getattr(kernel, "py_func", kernel), "parallel_chunks", compiled().ROWS_PER_CHUNK)
+    with numba.parallel_chunksize(chunks):
+        run_serial(kernel, *args)
 
 
-def run_serial(name: str, *args):
-    """``core.compute.compiled.<name>(*args)``, returning what it returns, timing its first call in this
-    process; without ``run_kernel``'s chunk size, which costs more than a kernel without a
-    parallel loop spends on the small arrays it is for."""
-    kernel = getattr(compiled(), name)
+def run_serial(kernel, *args):
+    """``kernel(*args)``, returning what it returns, timing its first call in this process;
+    without ``run_kernel``'s chunk size, which costs more than a kernel without a parallel loop
+    spends on the small arrays it is for."""
+    name = _name(kernel)
     if name in _compile_s:
         return kernel(*args)
     start = time.perf_counter()

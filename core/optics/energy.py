@@ -56,6 +56,12 @@ from ..base import arrays
 from ..compute import backend
 from ..scene.scene import Camera
 
+
+def _kernels():
+    """This package's compiled kernels (``_kernels.py``), loaded on first use."""
+    return backend.kernels(__package__)
+
+
 #: Choices of the techniques' ``energy`` parameter (``apply_energy``).
 ENERGY_MODES = ("object", "view", "lambert")
 
@@ -389,7 +395,7 @@ def _lerp2(name, table, rows, cols, rv, cv, nan_values, reference) -> np.ndarray
     """A bilinear read of ``table`` (float64, rows x columns at the ascending ``rows`` and
     ``cols`` nodes) at ``rv`` and ``cv`` (float64, one shape; NaN read as ``nan_values``, both
     clipped to the nodes), float32: ``reference()``, the NumPy code, or on the compiled backend
-    ``core.compute.compiled.table_lerp``, the same float64 operations in the same order (equal to the
+    ``core.optics._kernels.table_lerp``, the same float64 operations in the same order (equal to the
     bit: check mode compares with bound 0). The NumPy code makes some twenty passes over
     float64 arrays of every pixel and channel, with gathers by index arrays (about 1.7 s for
     ``convex_gain`` over a 1080p frame, loaded machine); the kernel one."""
@@ -399,7 +405,16 @@ def _lerp2(name, table, rows, cols, rv, cv, nan_values, reference) -> np.ndarray
     c = np.ascontiguousarray
     out = np.empty(rv.shape, np.float32)
     rv, cv = c(rv, np.float64).reshape(-1), c(cv, np.float64).reshape(-1)
-    backend.run_kernel("table_lerp", c(table, np.float64), c(rows), c(cols), rv, cv, *nan_values, out.reshape(-1))
+    backend.run_kernel(
+        _kernels().table_lerp,
+        c(table, np.float64),
+        c(rows),
+        c(cols),
+        rv,
+        cv,
+        *nan_values,
+        out.reshape(-1),
+    )
     if mode == "check":
         backend.compare(name, reference(), out, np.zeros(out.shape))
     return out
@@ -449,7 +464,7 @@ def surface_curvature(normal, position, mask, radius_px: int = 1) -> tuple[np.nd
 
 def _curvature_per_pixel(normal, position, mask):
     """``surface_curvature`` before its average: (mean, largest, valid, on) per pixel. On the
-    compiled backend ``core.compute.compiled.curvature_pixels``, the same float32 and float64 operations
+    compiled backend ``core.optics._kernels.curvature_pixels``, the same float32 and float64 operations
     in the same order (equal to the bit: check mode compares with bound 0); the NumPy code is the
     reference."""
     mode = backend.active()
@@ -461,7 +476,7 @@ def _curvature_per_pixel(normal, position, mask):
     m = c(np.asarray(mask, dtype=bool))
     shape = m.shape
     parts = (np.empty(shape), np.empty(shape), np.empty(shape, bool), np.empty(shape, bool))
-    backend.run_kernel("curvature_pixels", n, p, m, np.empty(n.shape, np.float32), *parts)
+    backend.run_kernel(_kernels().curvature_pixels, n, p, m, np.empty(n.shape, np.float32), *parts)
     if mode == "check":
         for name, ref, got in zip(
             ("mean", "largest", "valid", "on"), _curvature_reference(n, p, m), parts, strict=True
@@ -510,14 +525,14 @@ def _curvature_reference(normal, position, mask):
 def _smoothed_curvature(parts, radius_px: int, largest: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """``surface_curvature``'s average of ``_curvature_per_pixel``'s ``parts`` over ``radius_px``
     (the largest curvature's only with ``largest``, else None); on the compiled backend
-    ``core.compute.compiled.smooth_curvature`` (equal to the bit, as above)."""
+    ``core.optics._kernels.smooth_curvature`` (equal to the bit, as above)."""
     mode = backend.active()
     if mode == "numpy":
         return _smoothed_reference(parts, radius_px, largest)
     c = np.ascontiguousarray
     mean, most, valid, m = (c(v) for v in parts)
     out = (np.empty(m.shape, np.float32), np.empty(m.shape if largest else (1, 1), np.float32))
-    backend.run_kernel("smooth_curvature", mean, most, valid, m, max(1, int(radius_px)), largest, *out)
+    backend.run_kernel(_kernels().smooth_curvature, mean, most, valid, m, max(1, int(radius_px)), largest, *out)
     result = (out[0], out[1] if largest else None)
     if mode == "check":
         for ref, got in zip(_smoothed_reference(parts, radius_px, largest), result, strict=True):
@@ -597,7 +612,7 @@ def unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, lights, l
     (their light ``diffuse``, over the albedo with ``pre_post``), float64 (3,), or None without
     such pixels.
 
-    On the compiled backend ``core.compute.compiled.unseen_sums`` sums each row's terms (every pixel's
+    On the compiled backend ``core.optics._kernels.unseen_sums`` sums each row's terms (every pixel's
     terms the reference's operations in its order) without gathering the pixels into float64
     arrays (0.8 s of the energy stage's 1.4 s at 1080p, loaded machine); the means differ from
     the reference's only in the order of their float64 sums (the bound: ``_U64``'s comment)."""
@@ -617,10 +632,8 @@ def unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, lights, l
 
     if mode == "numpy":
         return reference()[0]
-    from ..compute.compiled import light_table
-
     active = [light for light in lights if light.energy > 0]
-    table = light_table(active)
+    table = _kernels().light_table(active)
     m = np.ascontiguousarray(mask, dtype=bool)
     h = m.shape[0]
     count, light = np.zeros(h, np.int64), np.zeros((h, 3), np.float64)
@@ -637,7 +650,7 @@ def unseen_light(mask, *, diffuse, albedo, pre_post, normal, position, lights, l
         table,
         bool(lamps),
     )
-    backend.run_kernel("unseen_sums", *args, count, light, seen, behind)
+    backend.run_kernel(_kernels().unseen_sums, *args, count, light, seen, behind)
     n = int(count.sum())
     if n == 0:
         result = None
@@ -682,7 +695,7 @@ def view_cosine(depth, mask, camera: Camera, *, origin=(0, 0), frame=None) -> np
     window of the frame: ``origin`` (row, column) its first pixel, ``frame`` (H, W) the frame's
     size (default: the window's).
 
-    On the compiled backend ``core.compute.compiled.view_cosine``, the same float64 operations in the same
+    On the compiled backend ``core.optics._kernels.view_cosine``, the same float64 operations in the same
     order per pixel (equal to the bit: check mode compares with bound 0); the NumPy code makes some
     forty passes over float64 frames of three components (0.5 s at 1080p, loaded machine)."""
     mode = backend.active()
@@ -698,7 +711,17 @@ def view_cosine(depth, mask, camera: Camera, *, origin=(0, 0), frame=None) -> np
         if ok.shape != z.shape or z.ndim != 2:
             raise ValueError(f"depth {z.shape} and mask {ok.shape}: expected two images of the same size")
         backend.run_kernel(
-            "view_cosine", z, ok, far, ortho, f, float(cx), float(cy), int(origin[0]), int(origin[1]), out
+            _kernels().view_cosine,
+            z,
+            ok,
+            far,
+            ortho,
+            f,
+            float(cx),
+            float(cy),
+            int(origin[0]),
+            int(origin[1]),
+            out,
         )
         if mode == "check":
             with backend.use("numpy"):
@@ -766,7 +789,7 @@ def normal_view_cosine(normal, mask, camera: Camera, *, origin=(0, 0), frame=Non
         out, known = np.empty(m.shape, np.float32), np.empty(m.shape, np.bool_)
         c = np.ascontiguousarray
         backend.run_kernel(
-            "normal_cosine", c(raw, np.float32), c(m), c(rot, np.float32), ortho, f, float(cx), float(cy),
+            _kernels().normal_cosine, c(raw, np.float32), c(m), c(rot, np.float32), ortho, f, float(cx), float(cy),
             int(origin[0]), int(origin[1]), out, known,
         )  # fmt: skip
         if mode == "check":
@@ -1009,7 +1032,7 @@ def _object_reference(out, s: _ObjectShape, *, method, albedo, pre_post, thickne
 
 
 def _object_compiled(out, s: _ObjectShape, *, method, albedo, pre_post, thickness, distance, as_thickness) -> None:
-    """``_object_reference`` on the compiled backend: ``core.compute.compiled.energy_object`` at the
+    """``_object_reference`` on the compiled backend: ``core.optics._kernels.energy_object`` at the
     pixels of the box, without gathering them (the thickness's logarithm, whose NumPy
     implementation differs in the last bit from the kernel's, taken in NumPy on the box); the
     same float32 and float64 operations in the same order (equal to the bit)."""
@@ -1033,13 +1056,22 @@ def _object_compiled(out, s: _ObjectShape, *, method, albedo, pre_post, thicknes
         least = 2.0 / (CHORD_CAP * distance)
         largest = c(s.largest)
         backend.run_kernel(
-            "energy_thickness", mb, y0, x0, _float_frame(thickness), as_thickness, distance, least, largest, x
+            _kernels().energy_thickness,
+            mb,
+            y0,
+            x0,
+            _float_frame(thickness),
+            as_thickness,
+            distance,
+            least,
+            largest,
+            x,
         )
         lt = _log_thickness(x[..., None] / s.ell)  # slab_factors' read of the thickness
     unseen = np.zeros(3, np.float32) if s.unseen is None else s.unseen.astype(np.float32)
     mean = [c(v, np.float32) for v in s.mean]
     backend.run_kernel(
-        "energy_object", out, c(albedo, np.float32), y0, x0, mb, bool(pre_post), c(s.mu, np.float32), *mean,
+        _kernels().energy_object, out, c(albedo, np.float32), y0, x0, mb, bool(pre_post), c(s.mu, np.float32), *mean,
         c(s.ell, np.float64), c(s.largest, np.float32), albedos, entry, views, convex, curvatures, s.finite, x, lt,
         above, below, slab_albedos, logs, unseen, s.unseen is not None,
     )  # fmt: skip

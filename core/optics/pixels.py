@@ -11,10 +11,15 @@ from ..base.arrays import float32_factor
 from ..compute import backend
 
 
+def _kernels():
+    """This package's compiled kernels (``_kernels.py``), loaded on first use."""
+    return backend.kernels(__package__)
+
+
 def compiled_pixels(e, a, z, m, camera, gate: float = math.inf, threshold: float = 0.0):
     """The compiled backend's shared start of SSSS and Burley, one pass over the frame
-    (``core.compute.compiled.prepare_pixels``): (albedo x diffuse, the pixels that take part, the
-    camera as the kernels read it (``core.compute.compiled._scale_of``), their bounding box (rows
+    (``core.optics._kernels.prepare_pixels``): (albedo x diffuse, the pixels that take part, the
+    camera as the kernels read it (``core.compute.jit.scale_of``), their bounding box (rows
     r0..r1 - 1, columns c0..c1 - 1) or None when there are none, ``core.scene.extent.object_extent``
     of them and their largest scale), the same values as the NumPy code's ``a * e``, ``m &
     finite_pixels(e, a, z) & (z > 0) & (z < BACKGROUND_DEPTH)`` and ``ok &= gate *
@@ -30,7 +35,7 @@ def compiled_pixels(e, a, z, m, camera, gate: float = math.inf, threshold: float
     ortho = camera.type == "ORTHO"
     focal = f32(camera.ortho_px_per_unit if ortho else camera.focal_px)
     args = (c(e), c(a), c(z), c(m), ortho, focal, float32_factor(gate), f32(threshold))
-    backend.run_kernel("prepare_pixels", *args, out, ok, spans, extremes)
+    backend.run_kernel(_kernels().prepare_pixels, *args, out, ok, spans, extremes)
     cam = np.array([1.0 if ortho else 0.0, focal], f32)
     rows = np.flatnonzero(spans[:, 1] >= 0)
     if rows.size == 0:

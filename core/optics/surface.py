@@ -46,7 +46,7 @@ def surface_area(depth, ok, camera: Camera) -> np.ndarray:
 
 def surface_area_args(camera: Camera, shape, min_cos: float) -> tuple:
     """The compiled kernels' parameters of ``surface_area`` after the depth and ``ok``
-    (``core.compute.compiled._area_at``): the background depth, whether the camera is orthographic, its
+    (``core.optics._kernels.area_at``): the background depth, whether the camera is orthographic, its
     pixels per unit (orthographic) or focal length in pixels, its principal point, as
     ``surface_area`` unprojects pixels, and the smallest view cosine ``min_cos``."""
     h, w = shape

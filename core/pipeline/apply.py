@@ -30,6 +30,12 @@ from ..techniques.spec import Technique
 from .call import call_technique
 from .plan import Plan, index_map, plan, plan_and_masks
 
+
+def _kernels():
+    """This package's compiled kernels (``_kernels.py``), loaded on first use."""
+    return backend.kernels(__package__)
+
+
 __all__ = [
     "ALBEDO_MODES",
     "LAYER_PREFIX",
@@ -169,7 +175,7 @@ def _composite(image, sss, out, gain, original, mask, unchanged) -> int:
     ``original``'s albedo x diffuse light, for a technique that scatters; 0 in the channels
     ``unchanged``), ``image`` Combined plus that term. A pixel whose result is not finite (light
     near float32's limit overflowing in the technique's sums) is left as it was: returns how
-    many. One compiled pass (``core.compute.compiled.composite``) where apply's kernels run, compared
+    many. One compiled pass (``core.pipeline._kernels.composite``) where apply's kernels run, compared
     with the NumPy code (``_composite_numpy``) to the bit in check mode."""
     g = np.ones(3, np.float32) if gain is None else np.asarray(gain, np.float32)
     if backend.active() == "numpy" or g.shape not in ((), (3,)):
@@ -187,7 +193,7 @@ def _composite(image, sss, out, gain, original, mask, unchanged) -> int:
         zeroed[list(unchanged)] = True
     bad = np.empty(mask.shape[0], np.int64)
     gains = np.array(np.broadcast_to(g, (3,)))
-    backend.run_kernel("composite", result, gains, albedo, diffuse, held, zeroed, c(mask), image, sss, bad)
+    backend.run_kernel(_kernels().composite, result, gains, albedo, diffuse, held, zeroed, c(mask), image, sss, bad)
     count = int(bad.sum())
     if expected is not None:
         bits_equal("composite (image)", expected[0], image)

@@ -80,7 +80,7 @@ times its predicted error over the default's.
 
 The features are NumPy, the reference. On the compiled backend (``core.compute.backend``) the loops that
 read the passes (the material's window and pixels, the block means, the diffusion's box means)
-are kernels of ``core.compute.compiled`` with the same operations in the same order, equal to the bit; in
+are kernels (``core/pipeline/_kernels.py``) with the same operations in the same order, equal to the bit; in
 check mode each is compared with its NumPy code with a bound of 0.
 """
 
@@ -109,6 +109,12 @@ from . import apply as core_apply
 from .fit_params import INFO, fitted
 from .mapping import burley_d, mean_free_path, technique_params
 from .plan import EXACT_FLOAT32, Plan, index_map, plan, required_passes
+
+
+def _kernels():
+    """This package's compiled kernels (``_kernels.py``), loaded on first use."""
+    return backend.kernels(__package__)
+
 
 #: The name ``apply --method auto`` and the output layers (``SSSLab.auto.*``) use.
 AUTO = "auto"
@@ -334,14 +340,14 @@ def _blurred(e: np.ndarray, mask: np.ndarray, h: int) -> np.ndarray:
 
 def _blurred_change(e: np.ndarray, mask: np.ndarray, h: int) -> np.ndarray:
     """``_blurred(e, mask, h) - e`` as float32 (``e`` (H, W) float32): a kernel on the compiled
-    backend (``core.compute.compiled.blurred_change``)."""
+    backend (``core.pipeline._kernels.blurred_change``)."""
 
     def reference():
         return (_blurred(e, mask, h) - e).astype(np.float32)
 
     def kernel():
         out = np.empty(e.shape, np.float32)
-        backend.run_serial("blurred_change", e, mask, h, out)
+        backend.run_serial(_kernels().blurred_change, e, mask, h, out)
         return out
 
     return _kernel_or_reference("auto box means", reference, kernel, e.dtype == np.float32)
@@ -420,7 +426,7 @@ def _block_means(a: np.ndarray, size: int) -> np.ndarray:
     def kernel():
         view = a if a.ndim == 3 else a[..., None]
         out = np.empty((a.shape[0] // size, a.shape[1] // size, view.shape[2]), np.float32)
-        backend.run_serial("block_means", view, size, size // BOX, float(BOX * BOX), out)
+        backend.run_serial(_kernels().block_means, view, size, size // BOX, float(BOX * BOX), out)
         return out if a.ndim == 3 else out[..., 0]
 
     return _kernel_or_reference("auto block means", lambda: _block_means_numpy(a, size), kernel, a.dtype == np.float32)
@@ -473,7 +479,7 @@ def _crop(mask: np.ndarray) -> tuple[slice, slice]:
 def _window(sh: _Shared, index: int) -> tuple[tuple[slice, slice], np.ndarray] | None:
     """The material's window (``_crop`` of its pixels) and its pixels there whose Combined is
     finite, or None when it has no pixel: on the compiled backend read from the Material Index
-    pass by two kernels (``core.compute.compiled.index_box``, ``index_window``) instead of the whole
+    pass by two kernels (``core.pipeline._kernels.index_box``, ``index_window``) instead of the whole
     frame's int64 map, its comparison and the window's finiteness."""
 
     def reference():
@@ -486,12 +492,20 @@ def _window(sh: _Shared, index: int) -> tuple[tuple[slice, slice], np.ndarray] |
 
     def kernel():
         box = np.zeros(4, np.int64)
-        backend.run_serial("index_box", sh.raw_index, index, box)
+        backend.run_serial(_kernels().index_box, sh.raw_index, index, box)
         if box[1] == 0:
             return None
         win = slice(int(box[0]) // BOX * BOX, int(box[1])), slice(int(box[2]) // BOX * BOX, int(box[3]))
         mask = np.empty((win[0].stop - win[0].start, win[1].stop - win[1].start), bool)
-        backend.run_serial("index_window", sh.raw_index, index, sh.combined, win[0].start, win[1].start, mask)
+        backend.run_serial(
+            _kernels().index_window,
+            sh.raw_index,
+            index,
+            sh.combined,
+            win[0].start,
+            win[1].start,
+            mask,
+        )
         return win, mask
 
     # A float32 holds every index below 2^24 exactly (as ``core.pipeline.plan`` compares them).

@@ -1,7 +1,7 @@
 """Compile the kernels before they are needed (``python -m sss_lab prepare``; the extension starts
 it in the background once per installed version).
 
-Numba compiles each kernel of ``core/compute/compiled.py`` on its first call, for the types of the
+Numba compiles each compiled kernel (each owner's ``_kernels.py``) on its first call, for the types of the
 arrays it is given, and keeps the machine code in the on-disk cache (``core/compute/backend.py``). With
 an empty cache, the first ``apply`` of a technique waits for that: 10 to 20 s for STA, SSSS or
 Burley and about as much again for the combined technique's light from behind on this project's
@@ -17,7 +17,8 @@ levels; the latter once more with the light from behind streamed as frames of 2^
 more have it (``core.techniques.combined.back_light.STREAM_FROM_PIXELS``). A frame whose inputs have other types
 (another integer type of Object Index, say) still compiles what it needs on first use.
 
-The cache is keyed by the kernels' source (Numba checks the file's time stamp and size), so a
+The cache is keyed by the kernels' sources (their digest names the cache folder, and Numba checks
+each file's time stamp and size), so a
 new version of the extension, or the same one installed again, prepares again: ``marker_path``
 names the file that records that these kernels were prepared.
 """
@@ -49,7 +50,7 @@ class PrepareError(SSSLabError):
 
 
 def _digest() -> str:
-    """What the cache's contents depend on: the kernels' source and its file's time stamp, Python's
+    """What the cache's contents depend on: the kernels' sources and their files' time stamps, Python's
     and Numba's versions (Numba's from its package metadata: this does not import it, which takes
     a good part of a second)."""
     from importlib import metadata
@@ -58,14 +59,13 @@ def _digest() -> str:
         numba_version = metadata.version("numba")
     except metadata.PackageNotFoundError:
         numba_version = "none"
-    source = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "compute", "compiled.py")
-    h = hashlib.sha256()
-    with open(source, "rb") as fh:
-        h.update(fh.read())
-    # Numba's cache index holds the file's time stamp and size: a reinstall of the same version
+    h = hashlib.sha256(backend.kernel_digest().encode())
+    # Numba's cache index holds each file's time stamp and size: a reinstall of the same version
     # (files unpacked anew) misses its cache, and so must the marker.
-    st = os.stat(source)
-    h.update(f"{st.st_mtime}:{st.st_size}:{sys.version_info[:2]}:{numba_version}".encode())
+    for source in backend.kernel_sources():
+        st = os.stat(source)
+        h.update(f"{os.path.basename(source)}:{st.st_mtime}:{st.st_size}".encode())
+    h.update(f"{sys.version_info[:2]}:{numba_version}".encode())
     return h.hexdigest()[:16]
 
 
@@ -138,7 +138,7 @@ def prepare_kernels(techniques=None, *, log=None) -> dict:
     kernels = {k: v for k, v in backend.first_call_seconds().items() if k not in before and k != "import"}
     result = {"cache_dir": backend.cache_dir(), "seconds": seconds, "kernels": kernels}
     if techniques is None:
-        marker = marker_path()  # hashes core/compute/compiled.py: once
+        marker = marker_path()  # hashes the kernels' sources: once
         os.makedirs(os.path.dirname(marker), exist_ok=True)
         files.write_text(marker, json.dumps({"seconds": round(seconds, 3), "kernels": sorted(kernels)}))
     return result

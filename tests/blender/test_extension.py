@@ -73,7 +73,11 @@ def test_each_platform_zip_holds_its_own_wheels_for_both_pythons(built_zips):
 def test_zip_holds_the_extension_but_no_tooling(built_zip):
     names = zipfile.ZipFile(built_zip).namelist()
     assert "blender_manifest.toml" in names and "__init__.py" in names
-    assert any(n.startswith("core/") for n in names) and "core/compute/compiled.py" in names
+    assert (
+        any(n.startswith("core/") for n in names)
+        and "core/compute/jit.py" in names
+        and "core/techniques/burley/_kernels.py" in names
+    )
     tooling = ("tests/", "sample_blends/", "benchmarks/", "tools/", "farm/", ".ci/", ".venv/", ".venv-4.5/", "Makefile")
     for excluded in tooling:
         assert not any(n.startswith(excluded) for n in names), excluded

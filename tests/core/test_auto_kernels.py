@@ -1,4 +1,4 @@
-"""core/pipeline/auto.py's feature loops on the compiled backend (``core.compute.compiled``: ``block_means``,
+"""core/pipeline/auto.py's feature loops on the compiled backend (``core/pipeline/_kernels.py``: ``block_means``,
 ``blurred_change``, ``index_box``, ``index_window``).
 
 The core tests run in ``core.compute.backend``'s check mode: every call below runs the kernel and the NumPy
@@ -84,7 +84,7 @@ def test_a_materials_window_and_pixels_as_the_index_rounds():
 def test_the_check_mode_catches_a_kernel_that_differs(monkeypatch):
     """The comparison with the reference can fail: a block-means kernel off by one unit in the
     last place in one value is refused."""
-    kernels = backend.compiled()
+    kernels = backend.kernels("sss_lab.core.pipeline")
     true_kernel = kernels.block_means
 
     def off_by_one_ulp(a, size, part, count, out):

@@ -1,4 +1,5 @@
-"""The compiled kernels (core/compute/compiled.py) and their switch (core/compute/backend.py): the check mode
+"""The compiled kernels (each owner's _kernels.py on core/compute/jit.py) and their switch (core/compute/backend.py):
+the check mode
 really compares, Numba's absence falls back to NumPy with one line, the cache is outside the
 package, and the kernels keep the reference's results on the benchmark's scene."""
 
@@ -65,7 +66,7 @@ def test_check_mode_catches_a_kernel_that_differs(monkeypatch):
     kw = dict(
         diffuse=diffuse, albedo=albedo, depth=passes["Depth"], mask=passes["Material Index"] > 0, camera=scene.camera
     )
-    module = backend.compiled()
+    module = backend.kernels("sss_lab.core.techniques.burley")
     original = module.burley_kernel
 
     def off_by_a_little(*args):
@@ -120,7 +121,7 @@ def test_the_cache_is_written_outside_the_package(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "ssss_kernel" in proc.stdout
     cached = [name for _, _, files in os.walk(tmp_path) for name in files]
-    assert any(name.startswith("compiled.ssss_kernel") and name.endswith(".nbi") for name in cached), cached
+    assert any(name.startswith("_kernels.ssss_kernel") and name.endswith(".nbi") for name in cached), cached
     in_package = [
         n for _, _, files in os.walk(os.path.join(ROOT, "core")) for n in files if n.endswith((".nbi", ".nbc"))
     ]
@@ -150,7 +151,7 @@ def test_one_cache_folder_serves_the_package_under_two_names(tmp_path):
         "module = backend.compiled()\n"
         "assert module is not None, backend.unavailable_reason()\n"
         "import numpy as np\n"
-        "print(module.__name__, float(module._exp(np.float32(-0.5))), backend.kernel_cache_dir())\n"
+        "print(module.__name__, float(module.fast_exp(np.float32(-0.5))), backend.kernel_cache_dir())\n"
     )
     runs = [(str(pkgs), "sss_x", "sss_lab,pkgs"), (str(tmp_path), "pkgs.sss_x", "sss_lab,sss_x")]
     folders = []
@@ -158,8 +159,8 @@ def test_one_cache_folder_serves_the_package_under_two_names(tmp_path):
         proc = subprocess.run([sys.executable, "-c", code, path, name, blocked], capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr[-3000:]
         module, value, folder = proc.stdout.split()
-        # _exp is within 1 unit in the last place of float32 (its docstring): 2^-23 relative.
-        assert module == name + ".core.compute.compiled" and float(value) == pytest.approx(math.exp(-0.5), rel=2.0**-23)
+        # fast_exp is within 1 unit in the last place of float32 (its docstring): 2^-23 relative.
+        assert module == name + ".core.compute.jit" and float(value) == pytest.approx(math.exp(-0.5), rel=2.0**-23)
         folders.append(folder)
     assert folders[0] != folders[1] and all(os.path.dirname(f) == str(cache) for f in folders)
 
@@ -272,10 +273,12 @@ def test_burley_bands_reuse_the_rows_they_share(monkeypatch):
     packed = []
     original = backend.run_kernel
 
-    def spy(name, *a):
-        if name == "burley_pack":
+    pack = backend.kernels(burley_module.__package__).burley_pack
+
+    def spy(kernel, *a):
+        if kernel is pack:
             packed.append((a[-4], a[-2].shape[0]))  # first row packed, rows packed
-        original(name, *a)
+        original(kernel, *a)
 
     monkeypatch.setattr(backend, "run_kernel", spy)
     banded = burley(**args)
@@ -288,10 +291,10 @@ def test_burley_bands_reuse_the_rows_they_share(monkeypatch):
 
 
 def test_sta_mask_spans_read_32_bytes_at_a_time_give_each_rows_first_and_last():
-    # The STA kernel finds each row's masked span 32 mask bytes at a time (core.compute.compiled._bytes_span):
+    # The STA kernel finds each row's masked span 32 mask bytes at a time (core.compute.jit.bytes_span):
     # the same (first, last + 1) as one byte at a time, on rows shorter and longer than 32, empty
     # (an empty span, first >= last + 1), full, and with the span's ends on and off the 32-byte steps.
-    mod = backend.compiled()
+    mod = backend.compiled()  # core.compute.jit
     rng = np.random.default_rng(5)
     rows = [np.zeros(n, bool) for n in (1, 31, 32, 33, 100)] + [np.ones(n, bool) for n in (1, 32, 65)]
     for _ in range(300):
@@ -301,8 +304,8 @@ def test_sta_mask_spans_read_32_bytes_at_a_time_give_each_rows_first_and_last():
         rows.append(row)
     for row in rows:
         first = np.flatnonzero(row)
-        got = mod._bytes_span(row.view(np.uint8))
-        assert got == mod._span(row), row
+        got = mod.bytes_span(row.view(np.uint8))
+        assert got == mod.span(row), row
         if first.size:
             assert got == (int(first[0]), int(first[-1]) + 1), row
         else:
@@ -310,7 +313,7 @@ def test_sta_mask_spans_read_32_bytes_at_a_time_give_each_rows_first_and_last():
 
 
 def test_sta_masks_of_every_shape_match_the_reference():
-    # Work items of core.compute.compiled.STA_ROWS rows: rows with no masked pixel (whole rows of zeros),
+    # Work items of core.techniques.sta._kernels.STA_ROWS rows: rows with no masked pixel (whole rows of zeros),
     # items with none at all, and spans of different widths, against the reference.
     passes, scene, albedo, normal = _scene(70, 53)
     rng = np.random.default_rng(9)
@@ -327,10 +330,10 @@ def test_sta_masks_of_every_shape_match_the_reference():
 
 
 def test_sta_rows_wider_than_a_segment_match_the_reference_to_the_bit():
-    # core.compute.compiled.sta_kernel takes a row's masked span STA_SEGMENT pixels at a time: spans
+    # core.techniques.sta._kernels.sta_kernel takes a row's masked span STA_SEGMENT pixels at a time: spans
     # that fill a row, cross the segments' border, start or end beside it, or lie beyond it,
     # against the reference (the same float32 operations in the same order: equal to the bit).
-    seg = backend.compiled().STA_SEGMENT
+    seg = backend.kernels("sss_lab.core.techniques.sta").STA_SEGMENT
     w = seg + 77
     passes, scene, _, _ = _scene(w, 6)
     rng = np.random.default_rng(12)
@@ -363,7 +366,8 @@ def test_sta_rows_wider_than_a_segment_match_the_reference_to_the_bit():
 
 
 def test_spread_of_the_light_from_behind_matches_the_reference_to_the_bit():
-    # core.compute.compiled.spread_light against core.techniques.combined.technique's NumPy spread (check mode, bound
+    # core.techniques.combined._spread_kernels.spread_light against core.techniques.combined.technique's NumPy spread
+    # (check mode, bound
     # 0): widths
     # from 0 to beyond the last level, a NaN width, a mask with holes, a frame not square.
     from sss_lab.core.techniques.combined.technique import spread_back_light
@@ -380,7 +384,7 @@ def test_spread_of_the_light_from_behind_matches_the_reference_to_the_bit():
 
 @pytest.mark.parametrize("kind", ("PERSP", "ORTHO"))
 def test_view_cosine_matches_the_reference_to_the_bit(kind):
-    # core.compute.compiled.view_cosine against core.optics.energy's NumPy code (check mode, bound 0): a sphere
+    # core.optics._kernels.view_cosine against core.optics.energy's NumPy code (check mode, bound 0): a sphere
     # scene's depth with holes in the mask, NaN, infinite, negative and background depths, a
     # lens shift, on the frame and on a window of it (origin and frame size).
     import dataclasses
@@ -408,7 +412,7 @@ def test_view_cosine_matches_the_reference_to_the_bit(kind):
 
 @pytest.mark.parametrize("kind", ("PERSP", "ORTHO"))
 def test_normal_view_cosine_matches_the_reference_to_the_bit(kind):
-    # core.compute.compiled.normal_cosine against core.optics.energy's NumPy code (check mode, bound 0, and the
+    # core.optics._kernels.normal_cosine against core.optics.energy's NumPy code (check mode, bound 0, and the
     # same pixels known): random normals of any length on a turned camera with a lens shift,
     # with NaN, infinite, zero, tiny and huge normals, holes in the mask, on the frame and on a
     # window of it.
@@ -443,7 +447,7 @@ def test_normal_view_cosine_matches_the_reference_to_the_bit(kind):
 
 
 def test_energy_table_reads_and_curvature_match_the_reference_to_the_bit():
-    # core.compute.compiled.table_lerp, curvature_pixels and smooth_curvature against core.optics.energy's NumPy
+    # core.optics._kernels.table_lerp, curvature_pixels and smooth_curvature against core.optics.energy's NumPy
     # code (check mode, bound 0), with values beyond the tables, NaN and infinite inputs.
     from sss_lab.core.optics import energy
 

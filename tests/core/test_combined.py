@@ -494,7 +494,8 @@ def test_compiled_pyramid_levels_equal_the_reference_to_the_bit(monkeypatch):
 
 @pytest.mark.parametrize("band_rows", (1, 5))
 def test_compiled_spread_in_bands_of_rows_equals_the_reference_to_the_bit(monkeypatch, band_rows):
-    # core.compute.compiled.spread_band goes down a part in bands of rows, carrying its vertical running
+    # core.techniques.combined._spread_kernels.spread_band goes down a part in bands of rows, carrying its vertical
+    # running
     # sums from band to band: bands of 1 and 5 rows (far fewer than the 3 r rows a level's three
     # box sums reach ahead, r up to 8) give the reference's bits, with one part and with two
     # objects, at lengths whose widths reach only the full-resolution levels and past them (the

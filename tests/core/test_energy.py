@@ -589,7 +589,9 @@ def test_burley_weighs_its_samples_by_the_surface_a_pixel_covers(kind, tilt):
     else:
         args = (False, float(camera.focal_px), w / 2, h / 2)
     far = np.float32(1e9)  # the background depth (core.base.arrays.BACKGROUND_DEPTH)
-    backend.run_kernel("surface_area", z, ok, far, *args, MIN_VIEW_COSINE, 0, h, 0, w, got)
+    backend.run_kernel(
+        backend.kernels("sss_lab.core.optics").surface_area, z, ok, far, *args, MIN_VIEW_COSINE, 0, h, 0, w, got
+    )
     np.testing.assert_allclose(got, area, rtol=1e-6)
 
 
@@ -659,13 +661,13 @@ def test_the_compiled_unseen_light_is_the_references_within_its_sums(ortho, pre_
     with backend.use("check"):
         energy.unseen_light(mask, **kw)
     if lamps:
-        original = backend.compiled().light_table
+        original = backend.kernels("sss_lab.core.optics").light_table
         try:
-            backend.compiled().light_table = lambda lights: original(lights[1:])
+            backend.kernels("sss_lab.core.optics").light_table = lambda lights: original(lights[1:])
             with backend.use("check"), pytest.raises(backend.BackendMismatch, match="unseen_light"):
                 energy.unseen_light(mask, **kw)
         finally:
-            backend.compiled().light_table = original
+            backend.kernels("sss_lab.core.optics").light_table = original
 
 
 def test_the_unseen_light_needs_a_pixel_with_a_normal_and_a_position():
@@ -700,7 +702,7 @@ def test_the_unseen_light_needs_a_pixel_with_a_normal_and_a_position():
     ],
 )
 def test_the_compiled_object_light_is_the_references_to_the_bit(method, pre_post, convention, lights):
-    """``apply_energy``'s "object" light on the compiled backend (``core.compute.compiled.energy_object``)
+    """``apply_energy``'s "object" light on the compiled backend (``core.optics._kernels.energy_object``)
     against the NumPy reference, every value equal: maps with NaN, +-inf, no far side and values
     beyond 0..1, a mask with a hole, albedos beyond the tables, each subsurface method (Christensen-
     Burley has no table: its light stays), both thickness conventions and albedo modes, with and
@@ -744,7 +746,7 @@ def test_check_mode_finds_a_compiled_object_light_that_differs():
     args, light = _object_inputs("sphere", thickness_distance_su=0.3, thickness=None)
     with backend.use("check"):
         energy.apply_energy(light.copy(), **args)
-    kernels = backend.compiled()
+    kernels = backend.kernels("sss_lab.core.optics")
     original = kernels.energy_object
 
     def one_bit_off(out, *rest):

@@ -79,13 +79,13 @@ def test_the_command_line_prepares_and_names_a_bad_method(capsys):
 
 
 def test_the_marker_follows_what_numbas_cache_is_keyed_by(monkeypatch, tmp_path):
-    # A reinstall unpacks compiled.py anew (a new time stamp): Numba compiles again, and the
+    # A reinstall unpacks the kernels anew (a new time stamp): Numba compiles again, and the
     # marker must no longer say the kernels are prepared.
     from sss_lab.core.study import prepare
 
     monkeypatch.setitem(backend._state, "cache_dir", str(tmp_path))
     before = marker_path()
-    source = os.path.join(os.path.dirname(os.path.dirname(prepare.__file__)), "compute", "compiled.py")
+    source = os.path.join(os.path.dirname(os.path.dirname(prepare.__file__)), "techniques", "burley", "_kernels.py")
     st = os.stat(source)
     real_stat = os.stat
 

@@ -44,6 +44,12 @@ from ...scene.scene import Camera
 from ..params import ENERGY_PARAM
 from ..spec import CALIBRATE_MAPPING, Param, Technique, profile_footprint
 
+
+def _kernels():
+    """This package's compiled kernels (``_kernels.py``), loaded on first use."""
+    return backend.kernels(__package__)
+
+
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 MAX_SAMPLES = 4096
 
@@ -476,7 +482,7 @@ def _inv3d(d: np.ndarray) -> np.ndarray:
 def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, albedo_mode):
     """``_gather`` on the compiled backend: the pixels that take part in one pass over the frame
     (``pixels.compiled_pixels``, with the footprint rule), then the gather and the clean-up as
-    one compiled kernel (``core.compute.compiled.burley_kernel``) over their bounding box, into the
+    one compiled kernel (``core.techniques.burley._kernels.burley_kernel``) over their bounding box, into the
     albedo x diffuse frame, with the NumPy code's tables: one bounded spiral per object
     (``spiral_su``), the rotation, the object ids."""
     f32 = np.float32
@@ -569,17 +575,28 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
             rows[:kept] = packed[start : start + kept]
             rows_area[:kept] = packed_area[start : start + kept]
         if py0 + kept < py1:
-            backend.run_kernel("burley_pack", light, z, ok, *area_args, py0 + kept, px0, rows[kept:], rows_area[kept:])
+            backend.run_kernel(
+                _kernels().burley_pack,
+                light,
+                z,
+                ok,
+                *area_args,
+                py0 + kept,
+                px0,
+                rows[kept:],
+                rows_area[kept:],
+            )
         packed_rows = (py0, py1)
         rot_y0 = rot_x0 = 0
         if random_rotation:
             rot_y0, rot_x0 = max(y_lo - radius, r0), c0
             phi = np.empty((min(y_hi + radius, r1) - rot_y0, c1 - c0), f32)
-            backend.run_kernel("burley_angles", ok, int(seed) & 0xFFFFFFFF, rot_y0, rot_x0, phi)
+            backend.run_kernel(_kernels().burley_angles, ok, int(seed) & 0xFFFFFFFF, rot_y0, rot_x0, phi)
             rot_sin = np.sin(phi)  # NumPy's cosine and sine, as the reference's
             rot_cos = np.cos(phi, out=phi)
         backend.run_kernel(
-            "burley_kernel", light, rows, rows_area, py0, px0, ok, cam, id_map, group_map, tables, rot_cos, rot_sin,
+            _kernels().burley_kernel,
+            light, rows, rows_area, py0, px0, ok, cam, id_map, group_map, tables, rot_cos, rot_sin,
             rot_y0, rot_x0, inv3d, reach, extents, z, tol, radius, SMOOTH_MIN_FOOTPRINT_PX, post, y_lo, y_hi, c0, c1,
             out,
         )  # fmt: skip

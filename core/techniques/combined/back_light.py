@@ -1,4 +1,4 @@
-"""The combined technique's light from behind on the compiled backend (``core.compute.compiled``).
+"""The combined technique's light from behind on the compiled backend (its ``_kernels.py``).
 
 ``core.techniques.combined.technique.back_light`` and ``BackLight.transmitted`` are the readable NumPy reference; here
 the same computation runs as fused per-pixel kernels on the bounding box of the mask's pixels
@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from ... import optics
 from ...base import arrays
 from ...compute import backend
 from ...optics.transmittance import (
@@ -59,6 +60,22 @@ from ...optics.transmittance import (
 from ...scene.scene import Light
 from .pyramid import box_radius, coarse_radii, full_levels, pyramid_layout, spread_levels
 
+
+def _kernels():
+    """This package's compiled kernels (``_kernels.py``), loaded on first use."""
+    return backend.kernels(__package__)
+
+
+def _spread_kernels():
+    """The compiled kernels of the spread (``_spread_kernels.py``), loaded on first use."""
+    return backend.kernels(__package__, "_spread_kernels")
+
+
+def _optics_kernels():
+    """The shared physics' compiled kernels (``core/optics/_kernels.py``), loaded on first use."""
+    return backend.kernels(optics.__name__)
+
+
 _c = np.ascontiguousarray
 
 
@@ -71,7 +88,8 @@ def _spans_box(lo: np.ndarray, hi: np.ndarray) -> tuple[int, int, int, int] | No
 
 
 def _camera_vector(camera) -> np.ndarray:
-    """``core.compute.compiled._view_vector``'s camera: (orthographic, position (3), -forward (3)) float32."""
+    """``core.techniques.combined._kernels._view_vector``'s camera: (orthographic, position (3), -forward (3))
+    float32."""
     cam = np.zeros(7, np.float32)
     if camera is not None:
         cam[0] = 1.0 if camera.type == "ORTHO" else 0.0
@@ -80,7 +98,7 @@ def _camera_vector(camera) -> np.ndarray:
     return cam
 
 
-#: Rows of the far side's box ``core.compute.compiled.largest_rows`` computes at a time.
+#: Rows of the far side's box ``core.optics._kernels.largest_rows`` computes at a time.
 CURVATURE_ROWS = 32
 
 
@@ -88,7 +106,7 @@ class _Curvature:
     """``core.optics.energy.surface_curvature``'s largest curvature (radius 1) on the far side's box
     (``box``: rows y0..y1 - 1, columns x0..x1 - 1 of the frame) of its pixels (``mask`` with finite
     normal and position), as ``core.techniques.combined.technique.far_side`` reads it, row by row:
-    ``core.compute.compiled.largest_rows``, which carries its column sums from one call to the next, so
+    ``core.optics._kernels.largest_rows``, which carries its column sums from one call to the next, so
     that rows asked for in ascending order are each computed once and nothing of the box's size
     is held (equal to the bit to the whole box's sums)."""
 
@@ -113,7 +131,8 @@ class _Curvature:
             if self.cums.shape[1] < need:
                 self.cums = np.empty((2, need, self.w), np.float64)
             backend.run_kernel(
-                "largest_rows", *self.inputs, y0, x0, self.h, self.w, c0, c1, self.carry, self.done, self.cums,
+                _optics_kernels().largest_rows,
+                *self.inputs, y0, x0, self.h, self.w, c0, c1, self.carry, self.done, self.cums,
                 out[c0 - a : c1 - a],
             )  # fmt: skip
             self.done = max(c1 - 1, 0)
@@ -157,7 +176,6 @@ def compiled_back_light(t, distance, **a) -> CompiledBackLight | None:
     """``core.techniques.combined.technique.back_light(**a)`` on the compiled backend (``t`` the thickness map as
     float32 (H, W), ``distance`` the bake's distance, both checked), or None where the NumPy code
     must run (no medium, or inputs whose shapes it rejects)."""
-    from ...compute import compiled as kernels
     from ...optics.energy import CHORD_CAP
 
     medium, camera = a["medium"], a["camera"]
@@ -193,7 +211,7 @@ def compiled_back_light(t, distance, **a) -> CompiledBackLight | None:
     as_thickness = a["thickness_convention"] == "thickness"
     mc, nc, pc, tc = _c(m), n, p, t
     spans = np.empty((shape[0], 4), np.int64)
-    backend.run_kernel("back_light_spans", mc, nc, pc, tc, spans)
+    backend.run_kernel(_kernels().back_light_spans, mc, nc, pc, tc, spans)
     far = _spans_box(spans[:, 0], spans[:, 1])
     region = _spans_box(spans[:, 2], spans[:, 3])
     kmin = 2.0 / (CHORD_CAP * float(distance))
@@ -215,7 +233,7 @@ def compiled_back_light(t, distance, **a) -> CompiledBackLight | None:
         ids=ids,
         albedo=albedo,
         pre_post=a["albedo_mode"] == "pre-post",
-        table=kernels.light_table([light for light in lights if light.energy > 0]),
+        table=_optics_kernels().light_table([light for light in lights if light.energy > 0]),
     )
     if region is None:
         return back
@@ -277,7 +295,8 @@ def _width_ranges(stats: np.ndarray, fill: np.ndarray) -> np.ndarray:
     return out
 
 
-#: Rows of a part the spread goes down at a time (``core.compute.compiled.spread_band``): its level planes
+#: Rows of a part the spread goes down at a time (``core.techniques.combined._spread_kernels.spread_band``): its
+#: level planes
 #: and results are held for a band of rows, not for the part.
 SPREAD_BAND = 128
 
@@ -329,7 +348,7 @@ def _band_state(radii, needed, n_full, columns) -> tuple[np.ndarray, np.ndarray]
     """``spread_band``'s running sums carried from band to band, float64, and where each level's
     start (int64 per level): per plane it blurs and strip of ``PART_STRIP`` of the part's
     ``columns``, three rings of 2 r + 2 rows."""
-    from ...compute.compiled import PART_STRIP
+    PART_STRIP = _kernels().PART_STRIP
 
     at = np.zeros(needed.shape[0], np.int64)
     size = 0
@@ -387,7 +406,7 @@ class CompiledBackLight:
     ids: np.ndarray | None
     albedo: np.ndarray | None
     pre_post: bool
-    #: ``core.compute.compiled.light_table`` of the lights with energy > 0.
+    #: ``core.optics._kernels.light_table`` of the lights with energy > 0.
     table: np.ndarray
     e: np.ndarray | None = None
     largest: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.float32))
@@ -440,7 +459,7 @@ class CompiledBackLight:
         """``back_light_pixels`` on the region's columns, frame rows from ``fy0``, into ``e``."""
         walks = self.camera is not None and self.medium.walks
         backend.run_kernel(
-            "back_light_pixels", self.mask, self.normal, self.position, self.thickness, self.as_thickness,
+            _kernels().back_light_pixels, self.mask, self.normal, self.position, self.thickness, self.as_thickness,
             self.distance, self.kmin, walks, self.cam, largest, cy0, cx0, self.table, fy0, self._region[2], e, lit_rows,
         )  # fmt: skip
 
@@ -511,7 +530,7 @@ class CompiledBackLight:
         else:
             light = np.zeros((0, 0, 3), np.float32)
         y0, x0 = (0, 0) if self.region is None else self._region[::2]
-        backend.run_kernel("finish_light", light, y0, x0, *finish, out)
+        backend.run_kernel(_kernels().finish_light, light, y0, x0, *finish, out)
 
     def _transmit_arguments(self, kind, ell, grid, columns, nodes, spread_len) -> tuple:
         """``transmit_pixels``' arguments after the curvature's origin up to ``spread`` (excluded),
@@ -553,7 +572,7 @@ class CompiledBackLight:
         """``transmit_pixels`` on the region's columns, frame rows from ``fy0``."""
         first, second, _ = transmit
         backend.run_kernel(
-            "transmit_pixels", e, self.mask, self.normal, self.position, self.thickness, self.as_thickness,
+            _kernels().transmit_pixels, e, self.mask, self.normal, self.position, self.thickness, self.as_thickness,
             self.distance, self.kmin, largest, cy0, cx0, fy0, self._region[2], *first, spread, *second, light,
             part_rows,
         )  # fmt: skip
@@ -601,7 +620,17 @@ class CompiledBackLight:
         rows = np.array([a, b, part[2], part[3]], np.int64)
         y0, _, x0, _ = self._region
         backend.run_kernel(
-            "part_pixels", self.mask, self.thickness, self.ids_c, self.part_ids, p, self.ids is None, y0, x0, rows, on
+            _kernels().part_pixels,
+            self.mask,
+            self.thickness,
+            self.ids_c,
+            self.part_ids,
+            p,
+            self.ids is None,
+            y0,
+            x0,
+            rows,
+            on,
         )
 
     def _blur_levels(self, q: _Part, flat) -> None:
@@ -612,7 +641,11 @@ class CompiledBackLight:
             if f == 0:
                 continue
             radii = np.array(coarse_radii(q.sigmas[k], f), np.int64)
-            backend.run_kernel("blur_reduced", radii, flat[off : off + 4 * hc * wc].reshape(4, hc, wc))
+            backend.run_kernel(
+                _spread_kernels().blur_reduced,
+                radii,
+                flat[off : off + 4 * hc * wc].reshape(4, hc, wc),
+            )
 
     def _bands_of(self, q: _Part, p, light, l0, on, o0, curvature, flat, band_light) -> None:
         """The spread of part ``p`` down its bands of rows: ``band_sigma``, ``spread_band``,
@@ -643,12 +676,13 @@ class CompiledBackLight:
             out = band_out[: b1 - b0]
             sig = band_sig[: b1 - b0]
             backend.run_kernel(
-                "band_sigma", self.mask, self.normal, self.position, self.thickness, self.as_thickness,
+                _kernels().band_sigma, self.mask, self.normal, self.position, self.thickness, self.as_thickness,
                 self.distance, self.kmin, largest, cy0, cx0, y0, x0, *widths, self.ids_c, self.part_ids, p,
                 self.ids is None, self.depth, ortho, focal, q.fill, part, b0, b1, sig,
             )  # fmt: skip
             backend.run_kernel(
-                "spread_band", light, sig, on, part, wide, q.grid, n_full, radii, needed, row_levels, b0, b1,
+                _spread_kernels().spread_band,
+                light, sig, on, part, wide, q.grid, n_full, radii, needed, row_levels, b0, b1,
                 state, at, band_planes, out, l0, o0,
             )  # fmt: skip
             # The band's rows as one part of their own, in the band's coordinates.
@@ -658,11 +692,12 @@ class CompiledBackLight:
             rows = light[b0 - l0 : b1 - l0]
             if n_full < len(q.sigmas):
                 backend.run_kernel(
-                    "spread_reduced_part", rows, sig, band_on, band, band_box, q.grid, n_full, flat, q.levels, out,
+                    _spread_kernels().spread_reduced_part,
+                    rows, sig, band_on, band, band_box, q.grid, n_full, flat, q.levels, out,
                 )  # fmt: skip
             # Nothing reads these rows of the light again: the next bands' running sums have
             # passed them, and the reduced levels are made.
-            backend.run_kernel("part_results", rows, band_on, band, out)
+            backend.run_kernel(_kernels().part_results, rows, band_on, band, out)
             if band_light is not None:
                 band_light(b0, b1, None)
 
@@ -690,7 +725,19 @@ class CompiledBackLight:
             # The reduced levels first, from the light before the bands below replace it.
             flat = np.empty(q.size, np.float32)
             if np.any(q.levels[:, 0] > 0):
-                backend.run_kernel("spread_pyramid", light, on, q.part, q.wide, q.levels, flat, 0, 1 << 62, 0, box[0])
+                backend.run_kernel(
+                    _spread_kernels().spread_pyramid,
+                    light,
+                    on,
+                    q.part,
+                    q.wide,
+                    q.levels,
+                    flat,
+                    0,
+                    1 << 62,
+                    0,
+                    box[0],
+                )
                 self._blur_levels(q, flat)
             self._bands_of(q, p, light, 0, on, box[0], curvature, flat, None)
         return light
@@ -744,12 +791,27 @@ class CompiledBackLight:
                 self._finish(buf[: b - a], y0 + a, mode_rest, np.zeros((1, 1), np.uint8), 0, owned, finish, out)
         if finish[4]:
             albedo, pre_post, walks, base, _, scale, scaled, add = finish
-            backend.run_kernel("finish_rest", y0, rh, x0, rw, albedo, pre_post, walks, base, scale, scaled, add, out)
+            backend.run_kernel(
+                _kernels().finish_rest,
+                y0,
+                rh,
+                x0,
+                rw,
+                albedo,
+                pre_post,
+                walks,
+                base,
+                scale,
+                scaled,
+                add,
+                out,
+            )
 
     def _finish(self, light, fy0, mode, on, ox0, owned, finish, out) -> None:
         """``finish_band`` of ``light``'s rows (frame rows from ``fy0``)."""
         backend.run_kernel(
-            "finish_band", light, fy0, self._region[2], mode, on, ox0, owned, self.mask, self.thickness, self.ids_c,
+            _kernels().finish_band,
+            light, fy0, self._region[2], mode, on, ox0, owned, self.mask, self.thickness, self.ids_c,
             self.part_ids, self.ids is None, *finish, out,
         )  # fmt: skip
 
@@ -774,7 +836,19 @@ class CompiledBackLight:
                 self._on(p, q.part, a, b, on)
             else:
                 a = 0
-            backend.run_kernel("spread_pyramid", light, on, q.part, wide, q.levels, flat, ja, jb, a, a)
+            backend.run_kernel(
+                _spread_kernels().spread_pyramid,
+                light,
+                on,
+                q.part,
+                wide,
+                q.levels,
+                flat,
+                ja,
+                jb,
+                a,
+                a,
+            )
         self._blur_levels(q, flat)
 
     def _stream_bands(self, transmit, p, q: _Part, flat, finish, finish_mode, owned, out) -> None:

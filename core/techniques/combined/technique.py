@@ -95,6 +95,12 @@ from .pyramid import (
     spread_levels,
 )
 
+
+def _spread_kernels():
+    """The compiled kernels of the spread (``_spread_kernels.py``), loaded on first use."""
+    return backend.kernels(__package__, "_spread_kernels")
+
+
 if TYPE_CHECKING:
     from .back_light import CompiledBackLight
 
@@ -240,7 +246,8 @@ def spread_back_light(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> 
     widths 2-40 px (``tests/core/test_combined.py``), less than those levels themselves miss a
     direct Gaussian by (3.6-5.4 % / 1.2-1.3 %).
 
-    On the compiled backend ``core.compute.compiled.spread_light`` computes it with the same float32 and
+    On the compiled backend ``core.techniques.combined._spread_kernels.spread_light`` computes it with the same
+    float32 and
     float64 operations in the same order (equal to the bit: check mode compares with bound 0); the
     NumPy code below is the reference (``core.compute.backend``)."""
     mode = backend.active()
@@ -254,7 +261,8 @@ def spread_back_light(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> 
 
 
 def _spread_compiled(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> np.ndarray:
-    """``spread_back_light`` on the compiled backend (``core.compute.compiled.spread_light`` for the levels
+    """``spread_back_light`` on the compiled backend (``core.techniques.combined._spread_kernels.spread_light`` for
+    the levels
     at full resolution, ``_reduced_levels`` and ``spread_reduced_frame`` for the wider ones)."""
     top = float(np.max(sigma_px[mask], initial=0.0))
     sigmas = spread_levels(top)
@@ -269,12 +277,12 @@ def _spread_compiled(e: np.ndarray, mask: np.ndarray, sigma_px: np.ndarray) -> n
     radii = np.array([box_radius(sg) for sg in sigmas[1:]], np.int64)
     grid = np.asarray(sigmas, np.float64)
     n_full = full_levels(sigmas)
-    backend.run_kernel("spread_light", e32, m, sig, grid, n_full, radii, prev, out)
+    backend.run_kernel(_spread_kernels().spread_light, e32, m, sig, grid, n_full, radii, prev, out)
     whole = np.array([0, m.shape[0], 0, m.shape[1]], np.int64)
     levels, size = pyramid_layout(sigmas, whole, None)
     flat = np.empty(size, np.float32)
     for k, f, reduced in _reduced_levels(e32, m.view(np.uint8), whole, whole, sigmas, levels, flat):
-        backend.run_kernel("spread_reduced_frame", m, sig, f, reduced, grid, k, prev, out)
+        backend.run_kernel(_spread_kernels().spread_reduced_frame, m, sig, f, reduced, grid, k, prev, out)
     return out
 
 
@@ -282,20 +290,32 @@ def _reduced_levels(light, on, part, box, sigmas, levels, flat):
     """The compiled pyramid (``_spread_reference``'s reduced levels): yields (k, f, the level's
     blurred reduced grid (4, rows, columns) float32: R, G, B and the mask) for each level k of
     ``sigmas`` blurred on blocks of f x f of ``box``, in ``flat`` as ``levels`` lays them out
-    (``pyramid_layout``; a level with f = 0 is not made). ``core.compute.compiled.spread_pyramid``
+    (``pyramid_layout``; a level with f = 0 is not made). ``core.techniques.combined._spread_kernels.spread_pyramid``
     makes the float32 of their block sums from the light ``light`` on the pixels ``on`` of
     ``part`` (region coordinates), ``blur_reduced`` blurs each."""
     n_full = full_levels(sigmas)
     if not np.any(levels[:, 0] > 0):
         return
-    backend.run_kernel("spread_pyramid", light, on, part, box, levels, flat, 0, 1 << 62, 0, part[0])
+    backend.run_kernel(
+        _spread_kernels().spread_pyramid,
+        light,
+        on,
+        part,
+        box,
+        levels,
+        flat,
+        0,
+        1 << 62,
+        0,
+        part[0],
+    )
     for k in range(n_full, len(sigmas)):
         f, off, hc, wc = (int(v) for v in levels[k - n_full])
         if f == 0:
             continue
         reduced = flat[off : off + 4 * hc * wc].reshape(4, hc, wc)
         radii = np.array(coarse_radii(sigmas[k], f), np.int64)
-        backend.run_kernel("blur_reduced", radii, reduced)
+        backend.run_kernel(_spread_kernels().blur_reduced, radii, reduced)
         yield k, f, reduced
 
 

@@ -46,6 +46,12 @@ from ...scene.scene import Camera
 from ..params import ENERGY_PARAM
 from ..spec import CALIBRATE_MAPPING, Param, Technique, profile_footprint
 
+
+def _kernels():
+    """This package's compiled kernels (``_kernels.py``), loaded on first use."""
+    return backend.kernels(__package__)
+
+
 #: Pixels (times taps) per block: small enough to stay in the cache, large enough to amortize calls.
 _BLOCK_ELEMENTS = 1 << 16
 
@@ -456,7 +462,7 @@ def _follow(kernel: SeparableKernel, follow_surface: bool) -> np.float32:
 def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode, weighting):
     """The NumPy code above on the compiled backend: the pixels that take part in one pass over
     the frame (``pixels.compiled_pixels``), then both passes as one kernel
-    (``core.compute.compiled.ssss_kernel``, which applies the one-pixel rule and the keys itself), into
+    (``core.techniques.ssss._kernels.ssss_kernel``, which applies the one-pixel rule and the keys itself), into
     the albedo x diffuse frame."""
     f32 = np.float32
     c = np.ascontiguousarray
@@ -471,7 +477,7 @@ def _compiled(e, a, z, m, camera, over_object, follow_surface, albedo_mode, weig
     if weighting == "surface":
         surface = np.empty(ok.shape, f32)  # the kernel writes each pixel's surface there, for its second pass
     backend.run_kernel(
-        "ssss_kernel",
+        _kernels().ssss_kernel,
         c(light, dtype=f32),
         c(z),
         ok,

@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from ... import optics
 from ...base import arrays
 from ...compute import backend
 from ...optics.lights import THICKNESS_CONVENTIONS, light_at, norm
@@ -36,6 +37,17 @@ from ...optics.medium import Medium, slab_transmittance_rgb
 from ...scene.passes import THICKNESS
 from ...scene.scene import Camera, Light
 from ..spec import Param, Technique
+
+
+def _kernels():
+    """This package's compiled kernels (``_kernels.py``), loaded on first use."""
+    return backend.kernels(__package__)
+
+
+def _optics_kernels():
+    """The shared physics' compiled kernels (``core/optics/_kernels.py``), loaded on first use."""
+    return backend.kernels(optics.__name__)
+
 
 _EPS = np.float32(1e-6)
 
@@ -391,7 +403,7 @@ def _medium_inputs(length_su, distance_su, medium_args):
 def _lookup(table: np.ndarray, translucency: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """T_c per pixel (B, 3) from ``medium_table``: bilinear in u = sqrt(x / D) (from the translucency
     t in [0, 1]: x / D = sqrt(1 - t)) and the view cosine ``mu``; the float32
-    operations of ``core.compute.compiled.sta_kernel``, in its order."""
+    operations of ``core.techniques.sta._kernels.sta_kernel``, in its order."""
     f32 = np.float32
     sx = np.sqrt(np.sqrt(np.maximum(f32(1.0) - translucency, f32(0.0)))) * f32(MEDIUM_X - 1)
     i = np.minimum(np.floor(sx), f32(MEDIUM_X - 2)).astype(np.int64)
@@ -407,7 +419,7 @@ def _lookup(table: np.ndarray, translucency: np.ndarray, mu: np.ndarray) -> np.n
 def _compiled(
     a, n, p, t, m, camera, lights, distortion, power, scale, ambient, convention, out, d_c, distance, through
 ):
-    """``_reference``'s per-pixel arithmetic as one compiled kernel (``core.compute.compiled.sta_kernel``)."""
+    """``_reference``'s per-pixel arithmetic as one compiled kernel (``core.techniques.sta._kernels.sta_kernel``)."""
     f32 = np.float32
     c = np.ascontiguousarray
     if camera.type == "ORTHO":
@@ -416,13 +428,13 @@ def _compiled(
         view = camera.position.astype(f32)
     three_d = np.zeros(3, f32) if d_c is None else np.array([f32(3.0 * v) if v > 0 else 0.0 for v in d_c], f32)
     backend.run_kernel(
-        "sta_kernel",
+        _kernels().sta_kernel,
         c(a),
         c(n),
         c(p),
         c(t),
         c(m),
-        backend.compiled().light_table(lights),
+        _optics_kernels().light_table(lights),
         camera.type == "ORTHO",
         view,
         f32(distortion),
