@@ -255,7 +255,7 @@ def set_threads(n: int) -> None:
     import numba
 
     numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
-    _arrays._WORKERS = n
+    _arrays.set_workers(n)
 
 
 def _best(fn, repeat: int, floor_s: float = 0.0) -> tuple[float, float]:

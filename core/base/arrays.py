@@ -158,6 +158,18 @@ _WORKERS = max(1, min(4, os.cpu_count() or 1))
 _POOL: ThreadPoolExecutor | None = None
 
 
+def set_workers(n: int) -> None:
+    """How many threads ``for_blocks`` runs the NumPy code's blocks on (at least 1; benchmarks
+    compare 1 and 2). Takes effect for the next pool: an existing one is shut down."""
+    global _WORKERS, _POOL
+    if int(n) != n or n < 1:
+        raise ValueError(f"workers: expected an integer >= 1, got {n!r}")
+    _WORKERS = int(n)
+    if _POOL is not None:
+        _POOL.shutdown(wait=True)
+        _POOL = None
+
+
 def for_blocks(count: int, block: int, func) -> None:
     """Call ``func(start, stop)`` over [0, count) in blocks, on a few threads.
 

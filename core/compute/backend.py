@@ -260,7 +260,9 @@ def run_kernel(kernel, *args) -> None:
     in this process."""
     import numba
 
-    chunks = getattr(getattr(kernel, "py_func", kernel), "parallel_chunks", compiled().ROWS_PER_CHUNK)
+    from .jit import ROWS_PER_CHUNK
+
+    chunks = getattr(getattr(kernel, "py_func", kernel), "parallel_chunks", ROWS_PER_CHUNK)
     with numba.parallel_chunksize(chunks):
         run_serial(kernel, *args)
 
