@@ -14,7 +14,9 @@ With ``BakeSettings.source`` "ray" (attribute target) there is no Cycles bake: `
 casts rays inwards along the normals around each vertex and the map holds the AO a slab of the
 shortest distance found would bake (``core/scene/thickness.py`` ``SOURCES``).
 
-What is baked is the mesh as Cycles renders it: modifiers applied with their render settings.
+What is baked is the mesh as Cycles renders it: modifiers applied with their render settings
+(``as_rendered``: the viewport's switches and subdivision levels set to the render's while the
+batch runs, and put back after).
 Targets:
 
 - ``attribute``: a float colour attribute (point domain) on the object's own mesh. Blender
@@ -218,6 +220,12 @@ class ThicknessBake:
         return resolved
 
     def _plan(self, objects) -> None:
+        # The meshes as Cycles renders them, for the plan only: the scene is as it was after it.
+        with SceneState() as st:
+            as_rendered(st, objects)
+            self._plan_rendered(objects)
+
+    def _plan_rendered(self, objects) -> None:
         s = self.settings
         depsgraph = self.context.evaluated_depsgraph_get()
         in_layer = set(self.view_layer.objects)
@@ -351,6 +359,7 @@ class ThicknessBake:
                 vl.objects.active = active
 
             st.on_restore(restore_selection)
+            as_rendered(st, [item.obj for item in self._queue])
             render_samples, node_samples = split_samples(s.samples)
             st.set(scene.render, "engine", "CYCLES")
             cycles = scene.cycles
@@ -757,6 +766,26 @@ def coarse_warning(obj_eval, mesh_name: str, distance_su: float) -> str:
         " from corners that see open space; subdivide the mesh (Edit Mode > Subdivide, or an applied Simple"
         " Subdivision modifier) or bake to an image (target 'image', needs a UV map)"
     )
+
+
+#: Modifiers whose viewport and render settings differ beyond their switches: (viewport, render).
+RENDER_LEVELS = {"SUBSURF": ("levels", "render_levels"), "MULTIRES": ("levels", "render_levels")}
+
+
+def as_rendered(st: SceneState, objects) -> None:
+    """Evaluate ``objects``' modifiers as Cycles renders them, until ``st`` is restored: each
+    modifier shown in the viewport as it is in the render, and a Subdivision Surface's or
+    Multiresolution's viewport level set to its render level. The depsgraph Python reads is the
+    viewport's, while the bake and the render evaluate render settings: a cage with 0 viewport and
+    3 render levels would otherwise be baked from its cage vertices. (A geometry node tree that
+    asks whether it is evaluated for the viewport still answers yes.)"""
+    for obj in objects:
+        for m in getattr(obj, "modifiers", ()):
+            if m.show_viewport != m.show_render:
+                st.set(m, "show_viewport", m.show_render)
+            viewport, render = RENDER_LEVELS.get(m.type, (None, None))
+            if viewport is not None and getattr(m, viewport) != getattr(m, render):
+                st.set(m, viewport, getattr(m, render))
 
 
 def _bake_signature(obj) -> tuple:

@@ -285,6 +285,26 @@ def test_attribute_target_bakes_the_mesh_with_its_modifiers_and_leaves_the_data_
     assert abs(float(v[kept].mean()) - (1.0 - p)) <= 5 * sigma / math.sqrt(kept.sum())
 
 
+@pytest.mark.parametrize("source", ("ao", "ray"))
+def test_the_mesh_is_baked_as_rendered_not_as_the_viewport_shows_it(source):
+    """A cage with a Subdivision Surface modifier at 0 viewport and 2 render levels, and a
+    Solidify modifier switched off in the viewport only: the bake evaluates both as the render
+    does (a cube's second Catmull-Clark level has 98 vertices, twice that once solidified), and
+    afterwards the modifiers are as they were."""
+    mesh = _box("Cage", size=(0.4, 0.4, 0.4))
+    obj = _link("Cage", mesh)
+    sub = obj.modifiers.new("Subdivision", "SUBSURF")
+    sub.levels, sub.render_levels = 0, 2
+    solid = obj.modifiers.new("Solidify", "SOLIDIFY")
+    solid.thickness, solid.show_viewport = 0.05, False
+    (r,) = bake_thickness(bpy.context, [obj], _settings(source=source, samples=8, distance_su=D), log=_quiet)
+    assert r.status == "baked" and r.vertices == 2 * 98, r
+    assert (sub.levels, sub.render_levels, solid.show_viewport, solid.show_render) == (0, 2, False, True)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    assert len(obj.evaluated_get(depsgraph).data.vertices) == 8  # the viewport's cage again
+    assert len(_values(mesh, "Thickness")) == 8
+
+
 def test_image_target_exr_with_modifiers_saved_linked_and_described(tmp_path):
     mesh = _plane("Leaf")
     obj = _link("Leaf", mesh)
