@@ -12,6 +12,7 @@ import numpy as np
 
 from ..core.scene.scene import Camera, Light, MaterialSSS, SceneDescription
 from . import compat
+from .shader_graph import PRINCIPLED, input_value, principled_sources
 from .stored import read_fit, thickness_metadata
 
 _SUBSURFACE_INPUTS = {
@@ -28,44 +29,114 @@ def _flat(matrix) -> tuple:
 
 
 def principled_node(material):
-    """The Principled BSDF that feeds the material's active output, or None."""
+    """The Principled BSDF whose closure reaches the material's active output (through Mix and
+    Add Shaders, reroutes and node groups: ``shader_graph.principled_sources``; the one that
+    scatters most when several do), else the first Principled BSDF of its tree, or None."""
+    reading = _principled(material)
+    return reading[0] if reading is not None else None
+
+
+def _principled(material):
+    """(node, its group nodes, notes on how it was found) or None; see ``principled_node``."""
     if material is None or material.node_tree is None or not compat.uses_nodes(material):
         return None
-    tree = material.node_tree
-    output = tree.get_output_node("CYCLES") or tree.get_output_node("ALL")
-    if output is not None:
-        surface = output.inputs["Surface"]
-        if surface.is_linked:
-            node = surface.links[0].from_node
-            if node.bl_idname == "ShaderNodeBsdfPrincipled":
-                return node
-    return next((n for n in tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"), None)
+    sources = principled_sources(material)
+    if not sources:
+        node = next((n for n in material.node_tree.nodes if n.bl_idname == PRINCIPLED), None)
+        if node is None:
+            return None
+        return node, (), [f"Principled BSDF {node.name!r} does not reach the material output; read as it is"]
+
+    def scatters(src) -> bool:
+        socket = src.node.inputs.get("Subsurface Weight")
+        return socket is not None and (socket.is_linked or socket.default_value > 0)
+
+    ranked = sorted(sources, key=lambda s: (not scatters(s), -(s.share if s.share is not None else 0.5)))
+    best = ranked[0]
+    notes = []
+    if best.groups or len(sources) > 1 or best.share != 1.0:
+        share = "a share set per pixel" if best.share is None else f"{best.share:.3g} of the surface"
+        notes.append(
+            f"Principled BSDF {best.node.name!r} reached through {' > '.join(best.path[:-1]) or 'the output'} ({share})"
+        )
+    others = [s for s in ranked[1:] if scatters(s)]
+    if others:
+        names = ", ".join(repr(s.node.name) for s in others)
+        notes.append(
+            f"also scattering: Principled BSDF {names}; its inputs are not read (the passes' Diffuse Color carries"
+            " each one's share)"
+        )
+    return best.node, best.groups, notes
 
 
-def material_sss(material, index: int) -> MaterialSSS | None:
-    """The subsurface inputs of ``material``'s Principled BSDF, or None if it has none.
+@dataclasses.dataclass
+class MaterialReading:
+    """What ``read_material`` found: the description (None when the material has no Principled
+    BSDF), how each subsurface input was read (one line each) and what could not be followed."""
 
-    Linked inputs (textures) are read at their unlinked default value.
-    """
-    node = principled_node(material)
-    if node is None:
-        return None
+    sss: MaterialSSS | None
+    inputs: list[str]
+    notes: list[str]
+
+
+def _fmt(value) -> str:
+    if isinstance(value, (tuple, list)):
+        return "(" + ", ".join(f"{float(v):.4g}" for v in value) + ")"
+    return f"{float(value):.4g}"
+
+
+def read_material(material, index: int) -> MaterialReading:
+    """``material``'s subsurface inputs as Cycles reads them where they are constants: typed in,
+    or a Value or RGB node's through reroutes and group sockets (``shader_graph.input_value``).
+    An input linked to anything else (a texture, an attribute, a Math node) is read at its
+    socket's own value, said in ``notes``; a linked Subsurface Weight whose socket holds 0 is read
+    as 1 (the material scatters wherever the link gives more than 0)."""
+    found = _principled(material)
+    if found is None:
+        return MaterialReading(None, [], [])
+    node, groups, notes = found
+    notes = list(notes)
+    lines = []
     values: dict[str, Any] = {}
-    for key, socket_name in _SUBSURFACE_INPUTS.items():
+    for key, socket_name in (*_SUBSURFACE_INPUTS.items(), ("base_color", "Base Color")):
         socket = node.inputs.get(socket_name)
         if socket is None:
             continue  # e.g. Subsurface IOR exists only for the Skin method
-        value = socket.default_value
-        values[key] = tuple(value)[:3] if key == "subsurface_radius" else float(value)
-    base = node.inputs["Base Color"].default_value
-    return MaterialSSS(
+        value, how = input_value(socket, groups)
+        vector = key in ("subsurface_radius", "base_color")
+        if value is not None:
+            try:
+                value = tuple(float(v) for v in value)[:3] if vector else float(value)
+            except TypeError:  # a single number for a colour or vector: the same three times
+                value = (float(value),) * 3 if vector else None
+            if value is None:
+                how += " (a colour read as a number: cannot tell how Cycles converts it)"
+        if value is None:
+            own = socket.default_value
+            value = tuple(float(v) for v in own)[:3] if vector else float(own)
+            if key == "subsurface_weight" and value <= 0:
+                value = 1.0
+            notes.append(f"{socket_name} {how}: not followed per pixel; {_fmt(value)} used instead")
+            lines.append(f"{socket_name}: {how}; read as {_fmt(value)}")
+        else:
+            lines.append(f"{socket_name}: {how}, {_fmt(value)}")
+        values[key] = value
+    base = values.pop("base_color")
+    sss = MaterialSSS(
         index=index,
         name=material.name,
         method=compat.subsurface_method(node),
-        base_color=tuple(min(float(c), 1.0) for c in base[:3]),
+        base_color=tuple(min(float(c), 1.0) for c in base),
         fit=read_fit(material),
         **values,
     )
+    return MaterialReading(sss, lines, notes)
+
+
+def material_sss(material, index: int) -> MaterialSSS | None:
+    """The subsurface inputs of ``material``'s Principled BSDF, or None if it has none
+    (``read_material``)."""
+    return read_material(material, index).sss
 
 
 def scene_materials(scene) -> list:
@@ -115,6 +186,16 @@ def sss_materials(scene, *, kept_weight=None) -> list[MaterialSSS]:
         if info is not None and info.scatters:
             result.append(dataclasses.replace(info, thickness_distance=bake_distance(scene, material)))
     return result
+
+
+def material_notes(scene) -> list[str]:
+    """What could not be read as Cycles renders it, per subsurface material of ``scene``: one
+    line each, ``material: note``."""
+    by_name = {m.name: m for m in scene_materials(scene)}
+    out = []
+    for m in sss_materials(scene):
+        out += [f"{m.name}: {note}" for note in read_material(by_name[m.name], m.index).notes]
+    return out
 
 
 def camera_description(scene) -> Camera:

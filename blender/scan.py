@@ -2,18 +2,24 @@
 
 from __future__ import annotations
 
-from .describe import sss_materials
+from .describe import read_material, scene_materials, sss_materials
 
 
 def scan_report(scene) -> list[str]:
-    """One line per subsurface material of ``scene``, or one line saying there is none."""
+    """Per subsurface material of ``scene``: its method, weight and radius, then each subsurface
+    input as typed in or linked and how it is read, and what could not be followed; or one line
+    saying there is none."""
     materials = sss_materials(scene)
     if not materials:
         return [f"Scene {scene.name!r}: no material with subsurface scattering (Subsurface Weight > 0)"]
+    by_name = {m.name: m for m in scene_materials(scene)}
     lines = [f"Scene {scene.name!r}: {len(materials)} subsurface material(s)"]
     for m in materials:
         radius = ", ".join(f"{r:.4g}" for r in m.radius)
         lines.append(f"  {m.name}: method {m.method}, weight {m.subsurface_weight:.3g}, radius x scale ({radius})")
+        reading = read_material(by_name[m.name], m.index)
+        lines += [f"    {line}" for line in reading.inputs]
+        lines += [f"    note: {note}" for note in reading.notes]
     return lines
 
 

@@ -1,5 +1,7 @@
 """The scan operator and the scene reader behind it."""
 
+import re
+
 import bpy
 import pytest
 
@@ -73,3 +75,75 @@ def test_scan_recommend_renders_small_passes_and_leaves_the_scene_as_it_was(tmp_
         if line.strip().startswith("=> "):
             chosen = line.strip()[3:].split(":", 1)[0]
             assert chosen == auto.NONE or auto.options_of(chosen) is not None, line
+
+
+def _group_with_principled(name):
+    """A shader node group holding a Principled BSDF (Weight 1, Radius (1, 0.5, 0.25), Scale from
+    the group's input "Scale") that the group outputs."""
+    group = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    group.interface.new_socket("Scale", in_out="INPUT", socket_type="NodeSocketFloat")
+    group.interface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
+    inside, outside = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+    bsdf = group.nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.name = "Inner"
+    bsdf.inputs["Subsurface Weight"].default_value = 1.0
+    bsdf.inputs["Subsurface Radius"].default_value = (1.0, 0.5, 0.25)
+    group.links.new(inside.outputs["Scale"], bsdf.inputs["Subsurface Scale"])
+    group.links.new(bsdf.outputs[0], outside.inputs["Shader"])
+    return group
+
+
+def test_materials_are_found_and_read_where_cycles_finds_them(addon):
+    """A Principled BSDF inside a node group (its Scale from the group node's input), one behind a
+    Mix Shader with its Weight and Scale from Value nodes, and one whose Weight (0 in the socket)
+    comes from a texture and whose Radius from an RGB node: every one is a subsurface material,
+    each input is listed as typed in or linked, and what cannot be read says what is used."""
+    scene = bpy.context.scene
+    grouped = bpy.data.materials.new("Grouped")
+    compat.ensure_node_tree(grouped)
+    nodes, links = grouped.node_tree.nodes, grouped.node_tree.links
+    nodes.remove(nodes["Principled BSDF"])
+    node = nodes.new("ShaderNodeGroup")
+    node.node_tree = _group_with_principled("SkinGroup")
+    node.inputs["Scale"].default_value = 0.03
+    links.new(node.outputs["Shader"], nodes["Material Output"].inputs["Surface"])
+
+    mixed = _principled("Mixed", 0.0)
+    nodes, links = mixed.node_tree.nodes, mixed.node_tree.links
+    bsdf = nodes["Principled BSDF"]
+    mix, gloss = nodes.new("ShaderNodeMixShader"), nodes.new("ShaderNodeBsdfGlossy")
+    mix.inputs["Fac"].default_value = 0.75
+    links.new(gloss.outputs[0], mix.inputs[1])
+    links.new(bsdf.outputs[0], mix.inputs[2])
+    links.new(mix.outputs[0], nodes["Material Output"].inputs["Surface"])
+    for socket, value in (("Subsurface Weight", 0.8), ("Subsurface Scale", 0.05)):
+        v = nodes.new("ShaderNodeValue")
+        v.name = socket.split()[-1]
+        v.outputs[0].default_value = value
+        links.new(v.outputs[0], bsdf.inputs[socket])
+
+    textured = _principled("Textured", 0.0)
+    nodes, links = textured.node_tree.nodes, textured.node_tree.links
+    bsdf = nodes["Principled BSDF"]
+    noise, tint = nodes.new("ShaderNodeTexNoise"), nodes.new("ShaderNodeRGB")
+    noise.name, tint.name = "Freckles", "Tint"
+    tint.outputs[0].default_value = (0.9, 0.4, 0.2, 1.0)
+    links.new(noise.outputs["Fac"], bsdf.inputs["Subsurface Weight"])
+    links.new(tint.outputs[0], bsdf.inputs["Subsurface Radius"])
+    for mat in (grouped, mixed, textured):
+        _cube_with(mat)
+
+    found = {m.name: m for m in sss_materials(scene)}
+    assert sorted(found) == ["Grouped", "Mixed", "Textured"]
+    assert found["Grouped"].subsurface_scale == pytest.approx(0.03)
+    assert (found["Mixed"].subsurface_weight, found["Mixed"].subsurface_scale) == pytest.approx((0.8, 0.05))
+    assert found["Textured"].subsurface_weight == 1.0
+    assert found["Textured"].subsurface_radius == pytest.approx((0.9, 0.4, 0.2))
+
+    text = "\n".join(scan_report(scene))
+    assert "3 subsurface material(s)" in text
+    assert "Subsurface Scale: typed in (through Group Input" in text and "'Inner' reached through" in text
+    assert "Subsurface Weight: linked to Value 'Weight', 0.8" in text and "0.75 of the surface" in text
+    assert "Subsurface Weight linked to Noise Texture 'Freckles': not followed per pixel; 1 used instead" in text
+    # The RGB node is called "Color" in Blender 5.x's interface, "RGB" in 4.5's.
+    assert re.search(r"Subsurface Radius: linked to (RGB|Color) 'Tint', \(0\.9, 0\.4, 0\.2\)", text)
