@@ -162,7 +162,7 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
         second, _, _ = reference(samples=settings.reference_samples, seed=settings.seed + 1, method=None)
     passes, desc, high = yield from _render_passes(scene, out_dir, settings, steps, timings, log)
     mask = _scattering_mask(passes, desc, ref)
-    rows = _Rows(ref, mask, settings, log)
+    rows = _Rows(ref, mask, settings, log, materials=material_masks(passes, desc))
     rows.add("no SSS", "baseline", passes["Combined"], timings["passes"], image_high=high and high[0]["Combined"])
     for technique in settings.techniques:
         for quality in settings.qualities.get(technique, ({},)):
@@ -279,6 +279,15 @@ def _render_passes(scene, out_dir: str, settings: CompareSettings, steps: Steps,
     return passes, desc, high
 
 
+def material_masks(passes, desc: SceneDescription) -> dict[str, np.ndarray]:
+    """Each scattering material's pixels (Material Index), by name: every score is also measured
+    on each of them."""
+    index = np.rint(np.nan_to_num(passes["Material Index"])).astype(np.int64)
+    if index.ndim == 3:
+        index = index[..., 0]
+    return {m.name: index == m.index for m in desc.materials if m.scatters}
+
+
 def _scattering_mask(passes, desc: SceneDescription, ref: np.ndarray) -> np.ndarray:
     """The pixels of the scattering materials, where every image is measured."""
     index = np.rint(np.nan_to_num(passes["Material Index"])).astype(np.int64)
@@ -301,6 +310,8 @@ class _Rows:
     log: Callable[[str], object]
     entries: list[dict] = field(default_factory=list)
     images: dict[str, np.ndarray] = field(default_factory=dict)
+    #: Each scattering material's pixels (``material_masks``): the scores per material.
+    materials: dict[str, np.ndarray] = field(default_factory=dict)
 
     def add(self, name, kind, image, total, apply_s=None, extra=None, image_high=None) -> None:
         settings = self.settings
@@ -317,6 +328,11 @@ class _Rows:
             "metrics": m,
             "time_s": {"total": total, "apply": apply_s, "sss_effect": apply_s},
         }
+        if len(self.materials) > 1:
+            entry["by_material"] = {
+                name: metrics.compare_images(image, self.ref, on, box=settings.box)
+                for name, on in self.materials.items()
+            }
         entry.update(extra or {})
         self.entries.append(entry)
         self.images[name] = image

@@ -185,6 +185,27 @@ def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, heigh
     return "\n".join(out)
 
 
+def _per_material(entries: list[dict]) -> list[str]:
+    """The error table per subsurface material (entries' ``by_material``; nothing when the scene
+    has one material, whose figures are the table above)."""
+    names = list(dict.fromkeys(n for e in entries for n in e.get("by_material", {})))
+    if not names:
+        return []
+    lines = [
+        "",
+        "## Per material",
+        "",
+        "Relative RMSE over each subsurface material's pixels alone (the table above: over all of them).",
+        "",
+        "| image | " + " | ".join(names) + " |",
+        "|---|" + "---|" * len(names),
+    ]
+    for e in entries:
+        by = e.get("by_material", {})
+        lines.append(f"| {e['name']} | " + " | ".join(_fmt(by.get(n, {}).get("rel_rmse")) for n in names) + " |")
+    return lines
+
+
 def _markdown(data: dict) -> str:
     s = data.get("settings", {})
     lines = [
@@ -243,6 +264,7 @@ def _markdown(data: dict) -> str:
             f" {_fmt(m.get('pass_noise'))} | {_fmt(m.get('rmse'))} | {_fmt(m.get('ssim'))}"
             f" | {_fmt(t.get('total'), 3)} | {_fmt(t.get('sss_effect'), 3)} | {'yes' if e['name'] in front else ''} |"
         )
+    lines += _per_material(data.get("entries", []))
     costs = data.get("costs")
     if costs:
         lines += [

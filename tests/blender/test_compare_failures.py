@@ -80,3 +80,32 @@ def test_a_failing_technique_is_a_note_and_the_others_run(scene):
     # The notes are what the report's schema reads: an incomplete report that says why.
     report = Report.from_dict({"entries": [], "notes": notes + fidelity_notes, "complete": False, "fidelity": table})
     assert not report.complete and len(report.notes) == 4
+
+
+def test_every_score_is_also_measured_per_material(scene):
+    """With two subsurface materials each row carries its score on each one alone, beside the
+    whole-image figure, and the report shows them; one material has no such breakdown."""
+    from sss_lab.core.study.metrics import compare_images
+
+    passes, desc = scene
+    masks = compare_mod.material_masks(passes, desc)
+    assert len(masks) == 2 and not any((a & b).any() for a, b in [tuple(masks.values())])
+    ref = np.array(passes["Combined"], dtype=np.float32)
+    image = ref.copy()
+    first, second = masks
+    image[masks[first]] *= np.float32(1.2)  # wrong on the first material only
+    settings = compare_mod.CompareSettings(techniques=("burley",), box=1)
+    rows = compare_mod._Rows(ref, masks[first] | masks[second], settings, lambda _line: None, materials=masks)
+    rows.add("off on one", "technique", image, 1.0)
+    by = rows.entries[0]["by_material"]
+    assert by[second]["rel_rmse"] == 0.0 and by[first]["rel_rmse"] > 0.1
+    assert by[first] == compare_images(image, ref, masks[first], box=1)
+    assert (
+        Report.from_dict({"entries": rows.entries, "pareto": [], "complete": True, "notes": []})
+        .entries[0]
+        .extra["by_material"]
+        == by
+    )
+    one = compare_mod._Rows(ref, masks[first], settings, lambda _line: None, materials={first: masks[first]})
+    one.add("off on one", "technique", image, 1.0)
+    assert "by_material" not in one.entries[0]

@@ -102,3 +102,18 @@ def test_pareto_labels_do_not_overprint_when_points_cluster():
     ]
     assert len(dots) == 7
     assert not any(_overlaps(a, d) for a in boxes for d in dots)
+
+
+def test_the_report_breaks_the_error_down_per_material(tmp_path):
+    ref = np.ones((8, 8, 3), np.float32)
+    by = {"Skin": {"rel_rmse": 0.0312345}, "Wax": {"rel_rmse": 0.0712345}}
+    entries = [{**_entry("burley n=32", 0.4, 0.05), "by_material": by}, _entry("no SSS", 0.2, 0.2, kind="baseline")]
+    data = {"scene": {"name": "t"}, "settings": {"box": 1}, "entries": entries, "complete": True}
+    write_report(str(tmp_path), data, {"ref": ref, "burley n=32": ref, "no SSS": ref}, reference="ref")
+    md = (tmp_path / "report.md").read_text()
+    html = (tmp_path / "report.html").read_text()
+    assert "## Per material" in md and "| image | Skin | Wax |" in md
+    assert "| burley n=32 | 0.03123 | 0.07123 |" in md and "| no SSS | — | — |" in md
+    assert "<h2>Per material</h2>" in html and "0.07123" in html
+    saved = json.loads((tmp_path / "metrics.json").read_text())
+    assert saved["entries"][0]["by_material"] == by
