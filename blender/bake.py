@@ -68,7 +68,7 @@ from ..core.scene.thickness import (
 )
 from . import compat
 from .bake_nodes import add_map_nodes, bake_material, result_image, use_material
-from .describe import principled_node, world_corners
+from .describe import material_sss, world_corners
 from .jobs import Job, Progress
 from .state import SceneState
 from .stored import META_KEY, thickness_metadata
@@ -673,10 +673,12 @@ class ThicknessBake:
 
 
 def carries_subsurface(obj) -> bool:
-    """Whether a material of ``obj`` scatters (its Principled BSDF's Subsurface Weight > 0)."""
+    """Whether a material of ``obj`` scatters, read as the scene description reads it
+    (``describe.material_sss``: a Principled BSDF inside a group or behind a Mix Shader, a
+    linked Subsurface Weight)."""
     for slot in obj.material_slots:
-        node = principled_node(slot.material)
-        if node is not None and node.inputs["Subsurface Weight"].default_value > 0.0:
+        sss = material_sss(slot.material, 1)
+        if sss is not None and sss.scatters:
             return True
     return False
 

@@ -764,6 +764,24 @@ def test_subsurface_meshes_are_the_command_lines_default():
     bpy.context.view_layer.update()
     assert [o.name for o in bake_mod.subsurface_meshes(bpy.context.scene)] == ["Head"]
     assert bake_mod.carries_subsurface(head) and not bake_mod.carries_subsurface(floor)
+    # A Subsurface Weight linked to a texture (0 in its socket), and a scattering Principled BSDF
+    # behind a Mix Shader, scatter as Cycles renders them: their meshes are baked too.
+    linked = bpy.data.materials.new("Freckled")
+    compat.ensure_node_tree(linked)
+    nodes = linked.node_tree.nodes
+    noise = nodes.new("ShaderNodeTexNoise")
+    linked.node_tree.links.new(noise.outputs["Fac"], nodes["Principled BSDF"].inputs["Subsurface Weight"])
+    mixed = bpy.data.materials.new("Coated")
+    compat.ensure_node_tree(mixed)
+    nodes = mixed.node_tree.nodes
+    nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
+    mix = nodes.new("ShaderNodeMixShader")
+    mixed.node_tree.links.new(nodes["Principled BSDF"].outputs[0], mix.inputs[2])
+    mixed.node_tree.links.new(mix.outputs[0], nodes["Material Output"].inputs["Surface"])
+    for name, mat in (("Cheek", linked), ("Vase", mixed)):
+        _link(name, _box(name)).data.materials.append(mat)
+    bpy.context.view_layer.update()
+    assert sorted(o.name for o in bake_mod.subsurface_meshes(bpy.context.scene)) == ["Cheek", "Head", "Vase"]
 
 
 def test_ray_source_reads_the_slab_law_on_low_poly_fins_and_the_diameter_of_a_tube():
