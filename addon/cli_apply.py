@@ -92,6 +92,7 @@ def run(args) -> int:
     from .cli import EXIT_NOTHING_TO_DO, parse_methods
 
     techniques = parse_methods(args.method, allow_auto=True)
+    said: set = set()  # the scene description's notes already printed
     if args.max_error is not None and techniques != ["auto"]:
         raise ValueError(f"--max-error {args.max_error}: only --method auto takes it")
     if args.max_error is not None and not (math.isfinite(args.max_error) and args.max_error >= 0):
@@ -175,9 +176,13 @@ def run(args) -> int:
                     extra += f"; {p.overflow_pixels} pixels overflowed float32 (light near 3.4e38), left as they were"
                 print(f"  {p.technique}: {len(applied)} material(s) computed ({names}){extra}")
                 for m in applied:
+                    name = m.material.name or m.material.index
                     if m.warning:
-                        name = m.material.name or m.material.index
                         print(f"  {p.technique}: warning: material {name!r}: {m.warning}")
+                    for note in m.material.notes:
+                        if (name, note) not in said:  # once per run, not per technique or frame
+                            said.add((name, note))
+                            print(f"  note: material {name!r}: {note}")
         if result.written:
             print(saved_line(result.out_path), flush=True)
         print(f"apply: {what} done in {time.perf_counter() - started:.2f} s ({progress.finish()})", flush=True)

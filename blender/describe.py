@@ -128,6 +128,7 @@ def read_material(material, index: int) -> MaterialReading:
         method=compat.subsurface_method(node),
         base_color=tuple(min(float(c), 1.0) for c in base),
         fit=read_fit(material),
+        notes=tuple(notes),
         **values,
     )
     return MaterialReading(sss, lines, notes)

@@ -264,6 +264,10 @@ class MaterialSSS:
     #: {"gain": (R, G, B), "d_scale": k, ...}; empty when the material was never fitted. Not
     #: hashed (a dict), compared like the other fields.
     fit: dict = field(default_factory=dict, hash=False)
+    #: What the scene reader says about the material, one line each: where it found the Principled
+    #: BSDF when not at the top of the tree, and each input it could not read as Cycles renders it
+    #: (linked to a texture, read at its socket's value instead). Apply says them again.
+    notes: tuple = ()
 
     def __post_init__(self):
         if not isinstance(self.index, int) or isinstance(self.index, bool) or self.index < 1:
@@ -281,6 +285,9 @@ class MaterialSSS:
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"material {self.name!r} {name}: expected a finite number >= 0, got {v!r}")
         object.__setattr__(self, "fit", check_fit(self.fit, f"material {self.name!r}"))
+        if isinstance(self.notes, str) or not all(isinstance(n, str) for n in self.notes):
+            raise ValueError(f"material {self.name!r} notes: expected a list of strings, got {self.notes!r}")
+        object.__setattr__(self, "notes", tuple(self.notes))
         if not (math.isfinite(self.subsurface_ior) and self.subsurface_ior > 0):
             raise ValueError(
                 f"material {self.name!r} subsurface_ior: expected a finite number > 0, got {self.subsurface_ior!r}"

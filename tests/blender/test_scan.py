@@ -139,6 +139,13 @@ def test_materials_are_found_and_read_where_cycles_finds_them(addon):
     assert (found["Mixed"].subsurface_weight, found["Mixed"].subsurface_scale) == pytest.approx((0.8, 0.05))
     assert found["Textured"].subsurface_weight == 1.0
     assert found["Textured"].subsurface_radius == pytest.approx((0.9, 0.4, 0.2))
+    # What the reader could not read travels with the scene description (apply and compare say it).
+    assert found["Textured"].notes == (
+        "Subsurface Weight linked to Noise Texture 'Freckles': not followed per pixel; 1 used instead",
+    )
+    assert found["Mixed"].notes == (
+        "Principled BSDF 'Principled BSDF' reached through Mix Shader 'Mix Shader' (0.75 of the surface)",
+    )
 
     text = "\n".join(scan_report(scene))
     assert "3 subsurface material(s)" in text

@@ -249,3 +249,22 @@ def test_a_bad_param_is_one_line_naming_what_is_allowed(passes_file, args, messa
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], r.stderr
     assert not os.path.exists(os.path.splitext(path)[0] + ".sss.exr")
+
+
+def test_what_the_scene_reader_could_not_read_is_said_once_per_run(tmp_path):
+    """A material whose Subsurface Radius came from a texture carries the reader's note in the
+    scene description; apply says it once, however many techniques run, and --explain shows it."""
+    arrays, scene = sphere_scene(32, 24)
+    note = "Subsurface Radius linked to Image Texture 'skin': not followed per pixel; (1, 0.2, 0.1) used instead"
+    first = next(m for m in scene.materials if m.scatters)
+    scene = dataclasses.replace(
+        scene, materials=tuple(dataclasses.replace(m, notes=(note,)) if m is first else m for m in scene.materials)
+    )
+    path = str(tmp_path / "passes.exr")
+    write_scene(path, arrays, scene)
+    assert SceneDescription.from_json((tmp_path / "passes.json").read_text()) == scene
+    proc = run_apply(path, "--method", "all")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.count(f"note: material {first.name!r}: {note}") == 1, proc.stdout
+    proc = run_apply(path, "--method", "burley", "--explain")
+    assert proc.returncode == 0 and f"read from the scene: {note}" in proc.stdout, proc.stdout + proc.stderr

@@ -83,3 +83,13 @@ def test_scattering_needs_weight_scale_and_radius():
     assert not MaterialSSS(index=1, subsurface_weight=0.0).scatters
     assert not MaterialSSS(index=1, subsurface_radius=(0.0, 0.0, 0.0)).scatters
     assert MaterialSSS(index=1, subsurface_scale=0.01).radius == pytest.approx((0.01, 0.002, 0.001))
+
+
+def test_a_materials_notes_are_strings_kept_as_a_tuple():
+    from sss_lab.core.scene.scene import MaterialSSS
+
+    assert MaterialSSS(index=1, notes=["a", "b"]).notes == ("a", "b")
+    with pytest.raises(ValueError, match="notes: expected a list of strings"):
+        MaterialSSS(index=1, name="Skin", notes="not a list")
+    with pytest.raises(ValueError, match="notes: expected a list of strings"):
+        MaterialSSS(index=1, notes=(1,))
