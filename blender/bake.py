@@ -785,9 +785,9 @@ def as_rendered(st: SceneState, objects) -> None:
         for m in getattr(obj, "modifiers", ()):
             if m.show_viewport != m.show_render:
                 st.set(m, "show_viewport", m.show_render)
-            viewport, render = RENDER_LEVELS.get(m.type, (None, None))
-            if viewport is not None and getattr(m, viewport) != getattr(m, render):
-                st.set(m, viewport, getattr(m, render))
+            levels = RENDER_LEVELS.get(m.type)
+            if levels is not None and getattr(m, levels[0]) != getattr(m, levels[1]):
+                st.set(m, levels[0], getattr(m, levels[1]))
 
 
 def _bake_signature(obj) -> tuple:

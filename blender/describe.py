@@ -113,9 +113,10 @@ def read_material(material, index: int) -> MaterialReading:
                 how += " (a colour read as a number: cannot tell how Cycles converts it)"
         if value is None:
             own = socket.default_value
-            value = tuple(float(v) for v in own)[:3] if vector else float(own)
-            if key == "subsurface_weight" and value <= 0:
-                value = 1.0
+            if vector:
+                value = tuple(float(v) for v in own)[:3]
+            else:  # a linked Weight of 0 in its socket: the link gives more than 0 somewhere
+                value = 1.0 if key == "subsurface_weight" and float(own) <= 0 else float(own)
             notes.append(f"{socket_name} {how}: not followed per pixel; {_fmt(value)} used instead")
             lines.append(f"{socket_name}: {how}; read as {_fmt(value)}")
         else:
