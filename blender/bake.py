@@ -782,6 +782,8 @@ def as_rendered(st: SceneState, objects) -> None:
     3 render levels would otherwise be baked from its cage vertices. (A geometry node tree that
     asks whether it is evaluated for the viewport still answers yes.)"""
     for obj in objects:
+        if getattr(obj, "library", None) is not None or not getattr(obj, "is_editable", True):
+            continue  # cannot be changed, and is refused with its reason before anything is baked
         for m in getattr(obj, "modifiers", ()):
             if m.show_viewport != m.show_render:
                 st.set(m, "show_viewport", m.show_render)
