@@ -39,7 +39,7 @@ def begin(scene) -> list[str]:
         return []
     state = SceneState()
     try:
-        changed, _ = zero_subsurface(state, scene)
+        changed = zero_subsurface(state, scene)
     except Exception:
         state.restore()
         raise

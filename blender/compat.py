@@ -52,8 +52,10 @@ def random_walk_method() -> str:
 
 
 def subsurface_method(bsdf) -> str:
-    """The Principled BSDF's subsurface method, as the scene description names it."""
-    return _method_names()[bsdf.subsurface_method]
+    """The subsurface method of a Principled BSDF (``subsurface_method``) or a Subsurface
+    Scattering node (``falloff``), as the scene description names it."""
+    item = bsdf.falloff if bsdf.bl_idname == "ShaderNodeSubsurfaceScattering" else bsdf.subsurface_method
+    return _method_names()[item]
 
 
 def subsurface_method_item(method: str) -> str:

@@ -12,9 +12,17 @@ import numpy as np
 
 from ..core.scene.scene import Camera, Light, MaterialSSS, SceneDescription
 from . import compat
-from .shader_graph import PRINCIPLED, input_value, principled_sources
+from .shader_graph import PRINCIPLED, SUBSURFACE, input_value, principled_sources
 from .stored import read_fit, thickness_metadata
 
+#: The Subsurface Scattering node's inputs by the same keys (its Weight is the node itself: 1).
+_NODE_INPUTS = {
+    "subsurface_radius": "Radius",
+    "subsurface_scale": "Scale",
+    "subsurface_ior": "IOR",
+    "subsurface_anisotropy": "Anisotropy",
+    "base_color": "Color",
+}
 _SUBSURFACE_INPUTS = {
     "subsurface_weight": "Subsurface Weight",
     "subsurface_radius": "Subsurface Radius",
@@ -48,7 +56,7 @@ def _principled(material):
         return node, (), [f"Principled BSDF {node.name!r} does not reach the material output; read as it is"]
 
     def scatters(src) -> bool:
-        socket = src.node.inputs.get("Subsurface Weight")
+        socket = src.node.inputs.get("Subsurface Weight" if src.node.bl_idname == PRINCIPLED else "Scale")
         return socket is not None and (socket.is_linked or socket.default_value > 0)
 
     ranked = sorted(sources, key=lambda s: (not scatters(s), -(s.share if s.share is not None else 0.5)))
@@ -56,9 +64,8 @@ def _principled(material):
     notes = []
     if best.groups or len(sources) > 1 or best.share != 1.0:
         share = "a share set per pixel" if best.share is None else f"{best.share:.3g} of the surface"
-        notes.append(
-            f"Principled BSDF {best.node.name!r} reached through {' > '.join(best.path[:-1]) or 'the output'} ({share})"
-        )
+        route = " > ".join(best.path[:-1]) or "the output"
+        notes.append(f"{best.node.bl_rna.name} {best.node.name!r} reached through {route} ({share})")
     others = [s for s in ranked[1:] if scatters(s)]
     if others:
         names = ", ".join(repr(s.node.name) for s in others)
@@ -96,9 +103,15 @@ def read_material(material, index: int) -> MaterialReading:
         return MaterialReading(None, [], [])
     node, groups, notes = found
     notes = list(notes)
-    lines = []
+    lines: list[str] = []
     values: dict[str, Any] = {}
-    for key, socket_name in (*_SUBSURFACE_INPUTS.items(), ("base_color", "Base Color")):
+    if node.bl_idname == SUBSURFACE:
+        inputs = list(_NODE_INPUTS.items())
+        values["subsurface_weight"] = 1.0
+        lines.append(f"{node.bl_rna.name} {node.name!r}: its closure is the subsurface scattering (weight 1)")
+    else:
+        inputs = [*_SUBSURFACE_INPUTS.items(), ("base_color", "Base Color")]
+    for key, socket_name in inputs:
         socket = node.inputs.get(socket_name)
         if socket is None:
             continue  # e.g. Subsurface IOR exists only for the Skin method

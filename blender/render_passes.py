@@ -107,33 +107,28 @@ def _rendered_materials(scene) -> list:
     return [found[k] for k in sorted(found)]
 
 
-def zero_subsurface(st: SceneState, scene) -> tuple[list[str], list[str]]:
-    """Render every Principled BSDF of the scene's materials with Subsurface Weight 0 (links
-    cut); ``st`` puts them back. Returns (materials changed, materials with a Subsurface
-    Scattering node, which still scatters)."""
+def zero_subsurface(st: SceneState, scene) -> list[str]:
+    """Render every Principled BSDF of the scene's materials with Subsurface Weight 0, and every
+    Subsurface Scattering node with Scale 0 (links cut): both as plain diffuse (Cycles renders a
+    subsurface closure of no radius as a diffuse one, with its colour); ``st`` puts them back.
+    Returns the materials changed."""
     seen: set = set()
-    other_sss, changed = [], []
+    changed = []
     for mat in _rendered_materials(scene):
         if not mat.is_editable:
             if any(
-                node.bl_idname == _PRINCIPLED
-                and "Subsurface Weight" in node.inputs
-                and (node.inputs["Subsurface Weight"].is_linked or node.inputs["Subsurface Weight"].default_value > 0)
+                _socket_to_zero(node) is not None and _scatters(_socket_to_zero(node))
                 for tree in walk_trees(mat.node_tree, set())
                 for node in tree.nodes
             ):
                 raise ValueError(
-                    f"material {mat.name!r} is linked from a library, so its Subsurface Weight cannot be set to 0 "
-                    "for the passes; make it local (Object > Relations > Make Local)"
+                    f"material {mat.name!r} is linked from a library, so its subsurface scattering cannot be switched"
+                    " off for the passes; make it local (Object > Relations > Make Local)"
                 )
             continue
         for tree in walk_trees(mat.node_tree, seen):
             for node in tree.nodes:
-                if node.bl_idname == "ShaderNodeSubsurfaceScattering" and not node.mute:
-                    other_sss.append(mat.name)
-                if node.bl_idname != _PRINCIPLED:
-                    continue
-                socket = node.inputs.get("Subsurface Weight")
+                socket = _socket_to_zero(node)
                 if socket is None:
                     continue
                 for link in list(socket.links):
@@ -146,9 +141,23 @@ def zero_subsurface(st: SceneState, scene) -> tuple[list[str], list[str]]:
                     st.on_restore(relink)
                     changed.append(mat.name)
                 if socket.default_value != 0.0:
-                    st.set_input(node, "Subsurface Weight", 0.0)
+                    st.set(socket, "default_value", 0.0)
                     changed.append(mat.name)
-    return sorted(set(changed)), sorted(set(other_sss))
+    return sorted(set(changed))
+
+
+def _socket_to_zero(node):
+    """The input that switches ``node``'s subsurface scattering off: a Principled BSDF's
+    Subsurface Weight, a (not muted) Subsurface Scattering node's Scale; None for other nodes."""
+    if node.bl_idname == _PRINCIPLED:
+        return node.inputs.get("Subsurface Weight")
+    if node.bl_idname == "ShaderNodeSubsurfaceScattering" and not node.mute:
+        return node.inputs.get("Scale")
+    return None
+
+
+def _scatters(socket) -> bool:
+    return socket.is_linked or socket.default_value > 0
 
 
 def _material_indices(st: SceneState, scene, materials: list) -> None:
@@ -407,12 +416,7 @@ def _set_up(st: SceneState, scene, plan: _Plan, *, samples, seed, res, say) -> d
         if vl.use != (vl == layer):
             st.set(vl, "use", vl == layer)
     _set_passes(st, scene, layer, plan.names, plan.aov_name if plan.needs_thickness else None)
-    _, other_sss = zero_subsurface(st, scene)
-    if other_sss:
-        say(
-            f"material(s) {', '.join(map(repr, other_sss))} use a Subsurface Scattering node, which SSS Lab "
-            "does not model: it still scatters in these passes"
-        )
+    zero_subsurface(st, scene)
     _material_indices(st, scene, plan.materials)
     assigned = _object_indices(st, scene) if "Object Index" in plan.names else {}
     if assigned:

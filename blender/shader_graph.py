@@ -1,10 +1,12 @@
-"""Where a material's Principled BSDF is, and what its inputs hold, as Cycles follows the nodes.
+"""Where a material's Principled BSDF (or Subsurface Scattering node) is, and what its inputs
+hold, as Cycles follows the nodes.
 
 Cycles renders the closure that reaches the material output's Surface through Mix and Add
 Shaders, reroutes and node groups (nested, each group's output leading to its Group Output and a
 Group Input back to the group node's socket). ``principled_sources`` follows the same links and
-returns each Principled BSDF found with the group nodes it sits in and its share of the surface
-(the Mix Shaders' factors along the way; unknown where a factor is linked).
+returns each Principled BSDF or Subsurface Scattering node found with the group nodes it sits in
+and its share of the surface (the Mix Shaders' factors along the way; unknown where a factor is
+linked).
 
 ``input_value`` reads an input as Cycles would see it where that is a constant: its own value,
 or a Value or RGB node's, through reroutes and group sockets. Anything else (a texture, an
@@ -18,6 +20,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 PRINCIPLED = "ShaderNodeBsdfPrincipled"
+SUBSURFACE = "ShaderNodeSubsurfaceScattering"
+#: The nodes whose closure scatters below the surface.
+SCATTERING = (PRINCIPLED, SUBSURFACE)
 _MIX, _ADD, _REROUTE, _GROUP = "ShaderNodeMixShader", "ShaderNodeAddShader", "NodeReroute", "ShaderNodeGroup"
 _GROUP_INPUT, _GROUP_OUTPUT = "NodeGroupInput", "NodeGroupOutput"
 _CONSTANTS = {"ShaderNodeValue", "ShaderNodeRGB"}
@@ -28,9 +33,9 @@ MAX_DEPTH = 32
 
 @dataclass
 class Source:
-    """A Principled BSDF reaching the output: the node, the group nodes around it (outermost
-    first), its share of the surface (None: a linked Mix factor decides it per pixel) and how it
-    was reached (for messages)."""
+    """A Principled BSDF or Subsurface Scattering node reaching the output: the node, the group
+    nodes around it (outermost first), its share of the surface (None: a linked Mix factor
+    decides it per pixel) and how it was reached (for messages)."""
 
     node: Any
     groups: tuple = ()
@@ -64,8 +69,8 @@ def _linked_from(socket):
 
 
 def principled_sources(material) -> list[Source]:
-    """The Principled BSDFs whose closure reaches ``material``'s active Cycles output, in the
-    order the links reach them; [] when none does (or the material uses no nodes)."""
+    """The Principled BSDFs and Subsurface Scattering nodes whose closure reaches ``material``'s
+    active Cycles output, in the order the links reach them; [] when none does (or the material uses no nodes)."""
     tree = getattr(material, "node_tree", None)
     output = _output_node(tree) if tree is not None else None
     if output is None or "Surface" not in output.inputs:
@@ -85,7 +90,7 @@ def _follow(socket, groups: tuple, share, path: list[str], found: list[Source]) 
     if node.mute:
         return
     kind = node.bl_idname
-    if kind == PRINCIPLED:
+    if kind in SCATTERING:
         found.append(Source(node, groups, share, [*path, _label(node)]))
     elif kind == _REROUTE:
         _follow(node.inputs[0], groups, share, path, found)

@@ -93,7 +93,7 @@ class SSS_LAB_OT_render_passes(ModalJob, bpy.types.Operator):
 
     def job_done(self, context, paths):
         for line in self._notes:
-            warn = "thickness 0" in line or "does not model" in line
+            warn = "thickness 0" in line or "not followed per pixel" in line
             self.report({"WARNING"} if warn else {"INFO"}, line)
         exrs = [p for p in paths if p.endswith(".exr")]
         settings = getattr(context.scene, "sss_lab", None)

@@ -612,3 +612,50 @@ def test_cli_render_sta_without_thickness(tmp_path, capsys):
     blend = _save(tmp_path, thickness=False)
     assert main(["render", str(blend), "--out", str(tmp_path / "out"), "--samples", str(SAMPLES)]) == 2
     assert "bake thickness first" in capsys.readouterr().err
+
+
+def test_a_subsurface_scattering_node_is_read_and_renders_as_diffuse_in_the_passes(addon, sss_quads, tmp_path):
+    """A material whose closure is a Subsurface Scattering node (not a Principled BSDF) is a
+    subsurface material with the node's method, Scale, Radius and Color; in the passes it renders
+    as a Diffuse BSDF of its Color renders, to the bit (Cycles turns a BSSRDF of no radius into a
+    diffuse closure), with its Scale's link cut and put back afterwards."""
+    from sss_lab.blender.describe import sss_materials
+    from sss_lab.blender.state import SceneState
+
+    scene = sss_quads
+    tree = bpy.data.materials["Skin"].node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    node = tree.nodes.new("ShaderNodeSubsurfaceScattering")
+    node.falloff = "BURLEY"
+    node.inputs["Color"].default_value = (0.8, 0.5, 0.3, 1.0)
+    node.inputs["Radius"].default_value = (1.0, 0.5, 0.25)
+    scale = tree.nodes.new("ShaderNodeValue")
+    scale.outputs[0].default_value = 0.1
+    tree.links.new(scale.outputs[0], node.inputs["Scale"])
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    skin = next(m for m in sss_materials(scene) if m.name == "Skin")
+    assert (skin.method, skin.subsurface_weight, skin.subsurface_scale) == ("BURLEY", 1.0, pytest.approx(0.1))
+    assert skin.subsurface_radius == pytest.approx((1.0, 0.5, 0.25)) and skin.base_color == pytest.approx(
+        (0.8, 0.5, 0.3)
+    )
+
+    def rendered():
+        scene.render.filepath = str(tmp_path / "frame.exr")
+        scene.render.image_settings.file_format = "OPEN_EXR"
+        bpy.ops.render.render(write_still=True)
+        return read_layers(str(tmp_path / "frame.exr")).layers
+
+    with SceneState() as st:
+        assert "Skin" in rp.zero_subsurface(st, scene)
+        assert not node.inputs["Scale"].is_linked and node.inputs["Scale"].default_value == 0.0
+        as_passes = rendered()
+    assert node.inputs["Scale"].is_linked  # put back
+    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (0.8, 0.5, 0.3, 1.0)
+    tree.links.new(diffuse.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    with SceneState() as st:
+        rp.zero_subsurface(st, scene)  # the other quad's Principled BSDF, as above
+        as_diffuse = rendered()
+    assert as_passes.keys() == as_diffuse.keys()
+    for name, pixels in as_passes.items():
+        np.testing.assert_array_equal(pixels, as_diffuse[name], err_msg=name)
