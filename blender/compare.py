@@ -280,20 +280,15 @@ def _render_passes(scene, out_dir: str, settings: CompareSettings, steps: Steps,
 
 
 def material_masks(passes, desc: SceneDescription) -> dict[str, np.ndarray]:
-    """Each scattering material's pixels (Material Index), by name: every score is also measured
-    on each of them."""
-    index = np.rint(np.nan_to_num(passes["Material Index"])).astype(np.int64)
-    if index.ndim == 3:
-        index = index[..., 0]
+    """Each scattering material's pixels (Material Index, ``plan.index_map``), by name: every
+    score is also measured on each of them."""
+    index = plan.index_map(passes)
     return {m.name: index == m.index for m in desc.materials if m.scatters}
 
 
 def _scattering_mask(passes, desc: SceneDescription, ref: np.ndarray) -> np.ndarray:
     """The pixels of the scattering materials, where every image is measured."""
-    index = np.rint(np.nan_to_num(passes["Material Index"])).astype(np.int64)
-    if index.ndim == 3:
-        index = index[..., 0]
-    mask = np.isin(index, [m.index for m in desc.materials if m.scatters])
+    mask = np.isin(plan.index_map(passes), [m.index for m in desc.materials if m.scatters])
     if ref.shape[:2] != mask.shape:
         raise ValueError(f"reference {ref.shape[:2]} and passes {mask.shape} differ in size")
     return mask

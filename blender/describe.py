@@ -203,16 +203,6 @@ def sss_materials(scene, *, kept_weight=None) -> list[MaterialSSS]:
     return result
 
 
-def material_notes(scene) -> list[str]:
-    """What could not be read as Cycles renders it, per subsurface material of ``scene``: one
-    line each, ``material: note``."""
-    by_name = {m.name: m for m in scene_materials(scene)}
-    out = []
-    for m in sss_materials(scene):
-        out += [f"{m.name}: {note}" for note in read_material(by_name[m.name], m.index).notes]
-    return out
-
-
 def camera_description(scene) -> Camera:
     cam_obj = scene.camera
     if cam_obj is None:

@@ -53,7 +53,7 @@ from ..core.scene.scene import parse_resolution
 from ..core.scene.thickness import CONVENTIONS
 from ..core.techniques.registry import TECHNIQUES, check_technique
 from . import compat
-from .describe import describe_scene, material_notes, sss_materials, walk_trees
+from .describe import describe_scene, sss_materials, walk_trees
 from .jobs import Job, Progress, run
 from .state import SceneState
 from .thickness import thickness_aov_name, thickness_setup
@@ -374,8 +374,9 @@ def _plan(scene, out_dir, *, techniques, frames, view_layer, overwrite, say) -> 
             f"scene {scene.name!r} has no material with subsurface scattering (Subsurface Weight > 0, "
             "a Subsurface Radius and Scale above 0): nothing to render"
         )
-    for note in material_notes(scene):
-        say(note)
+    for m in materials:  # what the reader could not read as Cycles renders it
+        for note in m.notes:
+            say(f"{m.name}: {note}")
     aov_name = thickness_aov_name(scene)
     convention = "translucency"
     needs_thickness = any(aov_name in required_passes(t, aov_name) for t in techniques)

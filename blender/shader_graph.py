@@ -70,7 +70,8 @@ def _linked_from(socket):
 
 def principled_sources(material) -> list[Source]:
     """The Principled BSDFs and Subsurface Scattering nodes whose closure reaches ``material``'s
-    active Cycles output, in the order the links reach them; [] when none does (or the material uses no nodes)."""
+    active Cycles output, in the order the links reach them; [] when none does (or the material
+    uses no nodes)."""
     tree = getattr(material, "node_tree", None)
     output = _output_node(tree) if tree is not None else None
     if output is None or "Surface" not in output.inputs:
@@ -92,8 +93,6 @@ def _follow(socket, groups: tuple, share, path: list[str], found: list[Source]) 
     kind = node.bl_idname
     if kind in SCATTERING:
         found.append(Source(node, groups, share, [*path, _label(node)]))
-    elif kind == _REROUTE:
-        _follow(node.inputs[0], groups, share, path, found)
     elif kind == _MIX:
         fac = node.inputs[0]
         f = None if fac.is_linked or share is None else min(max(float(fac.default_value), 0.0), 1.0)
@@ -104,15 +103,25 @@ def _follow(socket, groups: tuple, share, path: list[str], found: list[Source]) 
         here = [*path, _label(node)]
         _follow(node.inputs[0], groups, share, here, found)
         _follow(node.inputs[1], groups, share, here, found)
-    elif kind == _GROUP and node.node_tree is not None:
+    else:
+        step = _step(node, out, groups)
+        if step is not None and step[0] is not None:
+            _follow(step[0], step[1], share, [*path, _label(node)] if kind == _GROUP else path, found)
+
+
+def _step(node, out, groups: tuple):
+    """Where a reroute, a group node or a Group Input takes what its output ``out`` gives from:
+    (that input socket, the group nodes around it), the socket None where the group has no
+    matching one; None for any other node."""
+    kind = node.bl_idname
+    if kind == _REROUTE:
+        return node.inputs[0], groups
+    if kind == _GROUP and node.node_tree is not None:
         inner = _group_output(node.node_tree)
-        target = inner.inputs.get(out.name) if inner is not None else None
-        if target is not None:
-            _follow(target, (*groups, node), share, [*path, _label(node)], found)
-    elif kind == _GROUP_INPUT and groups:
-        outer = groups[-1].inputs.get(out.name)
-        if outer is not None:
-            _follow(outer, groups[:-1], share, path, found)
+        return (inner.inputs.get(out.name) if inner is not None else None), (*groups, node)
+    if kind == _GROUP_INPUT and groups:
+        return groups[-1].inputs.get(out.name), groups[:-1]
+    return None
 
 
 def input_value(socket, groups: tuple = ()) -> tuple[Any, str]:
@@ -133,19 +142,12 @@ def input_value(socket, groups: tuple = ()) -> tuple[Any, str]:
         kind = node.bl_idname
         if kind in _CONSTANTS:
             return out.default_value, f"linked to {where}"
-        if kind == _REROUTE:
-            socket = node.inputs[0]
-        elif kind == _GROUP_INPUT and groups:
-            outer = groups[-1].inputs.get(out.name)
-            if outer is None:
-                return None, f"linked to {where}'s {out.name!r}, which its group node lacks"
-            socket, groups = outer, groups[:-1]
-        elif kind == _GROUP and node.node_tree is not None:
-            inner = _group_output(node.node_tree)
-            target = inner.inputs.get(out.name) if inner is not None else None
-            if target is None:
-                return None, f"linked to {where}, whose group has no output {out.name!r}"
-            socket, groups = target, (*groups, node)
-        else:
+        step = _step(node, out, groups)
+        if step is None:
             return None, f"linked to {where}"
+        if step[0] is None:
+            if kind == _GROUP_INPUT:
+                return None, f"linked to {where}'s {out.name!r}, which its group node lacks"
+            return None, f"linked to {where}, whose group has no output {out.name!r}"
+        socket, groups = step
     return None, f"linked through more than {MAX_DEPTH} groups"

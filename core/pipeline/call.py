@@ -1,10 +1,10 @@
 """Call a technique's function with the keywords it takes, and no others.
 
-Every caller (``core.pipeline.apply``, ``core.study.fit``, ``core.study.fidelity``, and through apply
-``core.study.sweep``
-and ``core.pipeline.auto``) offers a technique the same set of inputs (``docs/adding-a-technique.md``);
-a technique declares in its signature which of them it reads, and ``call_technique`` passes
-those alone, so that a technique need not take ``depth`` or ``camera`` it does not use.
+Every caller (``core.pipeline.apply``, ``core.study.fit``, ``core.study.fidelity``, and through
+apply ``core.study.sweep`` and ``core.pipeline.auto``) offers a technique the same set of inputs
+(``docs/adding-a-technique.md``); a technique declares in its signature which of them it reads,
+and ``call_technique`` passes those alone, so that a technique need not take ``depth`` or
+``camera`` it does not use.
 """
 
 from __future__ import annotations
