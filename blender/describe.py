@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.scene.passes import INPUT_AOVS
 from ..core.scene.scene import Camera, Light, MaterialSSS, SceneDescription
 from . import compat
 from .shader_graph import PRINCIPLED, SUBSURFACE, input_value, principled_sources
@@ -105,6 +106,7 @@ def read_material(material, index: int) -> MaterialReading:
     notes = list(notes)
     lines: list[str] = []
     values: dict[str, Any] = {}
+    per_pixel: list[str] = []
     if node.bl_idname == SUBSURFACE:
         inputs = list(_NODE_INPUTS.items())
         values["subsurface_weight"] = 1.0
@@ -130,8 +132,17 @@ def read_material(material, index: int) -> MaterialReading:
                 value = tuple(float(v) for v in own)[:3]
             else:  # a linked Weight of 0 in its socket: the link gives more than 0 somewhere
                 value = 1.0 if key == "subsurface_weight" and float(own) <= 0 else float(own)
-            notes.append(f"{socket_name} {how}: not followed per pixel; {_fmt(value)} used instead")
-            lines.append(f"{socket_name}: {how}; read as {_fmt(value)}")
+            aov = INPUT_AOVS.get(key)
+            if aov is not None and socket.is_linked:
+                per_pixel.append(key)
+                notes.append(
+                    f"{socket_name} {how}: read per pixel from the render (shader AOV {aov.name!r}); "
+                    f"{_fmt(value)} until the passes are read"
+                )
+                lines.append(f"{socket_name}: {how}; read per pixel from the render (shader AOV {aov.name!r})")
+            else:
+                notes.append(f"{socket_name} {how}: not followed per pixel; {_fmt(value)} used instead")
+                lines.append(f"{socket_name}: {how}; read as {_fmt(value)}")
         else:
             lines.append(f"{socket_name}: {how}, {_fmt(value)}")
         values[key] = value
@@ -143,9 +154,22 @@ def read_material(material, index: int) -> MaterialReading:
         base_color=tuple(min(float(c), 1.0) for c in base),
         fit=read_fit(material),
         notes=tuple(notes),
+        per_pixel=tuple(per_pixel),
         **values,
     )
     return MaterialReading(sss, lines, notes)
+
+
+def input_sockets(material, keys) -> list[tuple[str, Any]]:
+    """(key, the input socket) of ``material``'s scattering node for each of ``keys`` (fields of
+    ``MaterialSSS``, as ``MaterialSSS.per_pixel`` lists them) that the node has: where the passes
+    render takes a per-pixel input from."""
+    found = _principled(material)
+    if found is None:
+        return []
+    node = found[0]
+    names = _NODE_INPUTS if node.bl_idname == SUBSURFACE else {**_SUBSURFACE_INPUTS, "base_color": "Base Color"}
+    return [(k, node.inputs[names[k]]) for k in keys if k in names and names[k] in node.inputs]
 
 
 def material_sss(material, index: int) -> MaterialSSS | None:

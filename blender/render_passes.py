@@ -48,12 +48,12 @@ from ..core.base.errors import DamagedFileError, OutputError, describe_os_error
 from ..core.base.progress import saved_line
 from ..core.pipeline.plan import required_passes
 from ..core.pipeline.sequence import frame_path, sidecar_path
-from ..core.scene.passes import PASSES
+from ..core.scene.passes import INPUT_AOVS, PASSES, InputAOV
 from ..core.scene.scene import parse_resolution
 from ..core.scene.thickness import CONVENTIONS
 from ..core.techniques.registry import TECHNIQUES, check_technique
 from . import compat
-from .describe import describe_scene, sss_materials, walk_trees
+from .describe import describe_scene, input_sockets, sss_materials, walk_trees
 from .jobs import Job, Progress, run
 from .state import SceneState
 from .thickness import thickness_aov_name, thickness_setup
@@ -146,6 +146,48 @@ def zero_subsurface(st: SceneState, scene) -> list[str]:
     return sorted(set(changed))
 
 
+def input_aovs_of(materials) -> list[InputAOV]:
+    """The input AOVs some of ``materials`` (``MaterialSSS``) read per pixel, in the table's order."""
+    keys = {k for m in materials for k in m.per_pixel}
+    return [a for k, a in INPUT_AOVS.items() if k in keys]
+
+
+def wire_input_aovs(st: SceneState, materials) -> None:
+    """For each input a material reads per pixel (``MaterialSSS.per_pixel``), an AOV Output node
+    beside its Principled BSDF (or Subsurface Scattering node), inside the node group that holds
+    it, fed by the link that feeds the input: Cycles writes the input's value per pixel into the
+    input's AOV. ``st`` removes the nodes."""
+    done: set = set()
+    for m in materials:
+        if not m.per_pixel:
+            continue
+        material = bpy.data.materials.get(m.name)
+        if material is None:
+            continue
+        for key, socket in input_sockets(material, m.per_pixel):
+            link = next((lk for lk in socket.links if lk.is_valid and not getattr(lk, "is_muted", False)), None)
+            if link is None:
+                continue
+            tree = socket.node.id_data
+            ident = (tree.as_pointer(), key, link.from_node.name, link.from_socket.identifier)
+            if ident in done:
+                continue  # a node group two materials share: one AOV Output writes for both
+            done.add(ident)
+            aov = INPUT_AOVS[key]
+            node = tree.nodes.new("ShaderNodeOutputAOV")
+            node.aov_name = aov.name
+            node.location = (socket.node.location.x, socket.node.location.y - 400)
+            tree.links.new(link.from_socket, node.inputs[aov.socket])
+            name = node.name
+
+            def remove(tree=tree, name=name):
+                added = tree.nodes.get(name)
+                if added is not None:
+                    tree.nodes.remove(added)
+
+            st.on_restore(remove)
+
+
 def _socket_to_zero(node):
     """The input that switches ``node``'s subsurface scattering off: a Principled BSDF's
     Subsurface Weight, a (not muted) Subsurface Scattering node's Scale; None for other nodes."""
@@ -198,8 +240,9 @@ def _object_indices(st: SceneState, scene) -> dict[str, int]:
     return assigned
 
 
-def _set_passes(st: SceneState, scene, layer, names: list[str], aov_name: str | None) -> None:
-    """Exactly ``names`` on ``layer``: every other pass flag, AOV and light group off."""
+def _set_passes(st: SceneState, scene, layer, names: list[str], wanted_aovs: list[tuple[str, str]]) -> None:
+    """Exactly ``names`` on ``layer``: every other pass flag, AOV and light group off;
+    ``wanted_aovs`` the shader AOVs (name, type) the passes hold."""
     # The view-layer flags of the pass table (core/scene/passes.py); AOVs are set below.
     flags: set[str] = set()
     for n in names:
@@ -222,10 +265,11 @@ def _set_passes(st: SceneState, scene, layer, names: list[str], aov_name: str | 
     if missing_flags:  # a Blender without one of them: say so rather than render without it
         raise RuntimeError(f"view layer has no pass flag(s) {', '.join(sorted(missing_flags))}")
 
-    # Shader AOVs: keep only the thickness AOV (as a value AOV), put the others back after.
+    # Shader AOVs: exactly the wanted ones (the thickness AOV, the per-pixel inputs), the others
+    # put back after.
     aovs = [(a.name, a.type) for a in layer.aovs]
     active = layer.active_aov_index if hasattr(layer, "active_aov_index") else None
-    if any(name != aov_name or kind != "VALUE" for name, kind in aovs) or (aov_name and not aovs):
+    if aovs != wanted_aovs:
 
         def restore_aovs():
             while len(layer.aovs):
@@ -239,9 +283,9 @@ def _set_passes(st: SceneState, scene, layer, names: list[str], aov_name: str | 
         st.on_restore(restore_aovs)
         while len(layer.aovs):
             layer.aovs.remove(layer.aovs[0])
-        if aov_name:
+        for name, kind in wanted_aovs:
             a = layer.aovs.add()
-            a.name, a.type = aov_name, "VALUE"
+            a.name, a.type = name, kind
 
     groups = [g.name for g in getattr(layer, "lightgroups", ())]
     if groups:
@@ -329,6 +373,9 @@ class _Plan:
     out_dir: str
     #: (frame, EXR path) per frame.
     targets: list
+    #: The shader AOVs of the inputs read per pixel (``core.scene.passes.INPUT_AOVS``), [] when
+    #: every input is a constant.
+    input_aovs: list
 
 
 def _check_numbers(samples, seed) -> None:
@@ -385,9 +432,12 @@ def _plan(scene, out_dir, *, techniques, frames, view_layer, overwrite, say) -> 
         if without:
             say(f"no thickness map in {', '.join(repr(n) for n in without)}: STA reads thickness 0 there")
     assert convention in CONVENTIONS
-    names = needed_passes(techniques, aov_name)
+    input_aovs = input_aovs_of(materials)
+    names = needed_passes(techniques, aov_name) + [a.name for a in input_aovs]
     out_dir, targets = _targets(out_dir, frames, overwrite)
-    return _Plan(techniques, layer, materials, aov_name, needs_thickness, convention, names, out_dir, targets)
+    return _Plan(
+        techniques, layer, materials, aov_name, needs_thickness, convention, names, out_dir, targets, input_aovs
+    )
 
 
 def _set_up(st: SceneState, scene, plan: _Plan, *, samples, seed, res, say) -> dict[str, int]:
@@ -416,7 +466,9 @@ def _set_up(st: SceneState, scene, plan: _Plan, *, samples, seed, res, say) -> d
     for vl in scene.view_layers:
         if vl.use != (vl == layer):
             st.set(vl, "use", vl == layer)
-    _set_passes(st, scene, layer, plan.names, plan.aov_name if plan.needs_thickness else None)
+    wanted = [(plan.aov_name, "VALUE")] if plan.needs_thickness else []
+    _set_passes(st, scene, layer, plan.names, wanted + [(a.name, a.kind) for a in plan.input_aovs])
+    wire_input_aovs(st, plan.materials)  # before zero_subsurface cuts the Weight's link
     zero_subsurface(st, scene)
     _material_indices(st, scene, plan.materials)
     assigned = _object_indices(st, scene) if "Object Index" in plan.names else {}

@@ -24,6 +24,7 @@ import numpy as np
 from ..base import arrays
 from ..compute import backend
 from ..scene.exr import Passes
+from ..scene.inputs import weight_map
 from ..scene.passes import THICKNESS
 from ..scene.scene import SceneDescription
 from ..techniques.spec import Technique
@@ -245,6 +246,31 @@ def _composite_numpy(image, sss, out, gain, original, mask, unchanged) -> int:
     return overflow
 
 
+def _weighted(out, gain, original, mask, weight) -> tuple[np.ndarray, None]:
+    """``out`` as Cycles mixes it at Subsurface Weight ``weight`` (a number, or per pixel (H, W)):
+    the Principled BSDF is (1 - w) diffuse + w subsurface at the pixel the camera sees
+    (docs/references.md §2), so a technique that scatters gives the diffuse light Combined holds
+    plus ``w`` times its change, one that adds light ``w`` times its light. The fitted ``gain`` is
+    applied first (to the technique's light, as ``_composite`` would); returns (the mixed result,
+    None for the gain). Only the mask's bounding box is computed."""
+    out = np.array(out, dtype=np.float32)
+    box = arrays.bounding_box(mask)
+    if box is None:
+        return out, None
+    part = out[box]
+    if gain is not None:
+        part *= np.asarray(gain, np.float32)
+    w = np.float32(weight) if np.ndim(weight) == 0 else np.asarray(weight, np.float32)[box][..., None]
+    if original is None:
+        part *= w
+    else:
+        held = original[0][box] * original[1][box]
+        part -= held
+        part *= w
+        part += held
+    return out, None
+
+
 def apply(
     passes: Passes,
     scene: SceneDescription,
@@ -314,6 +340,12 @@ def apply(
             out = np.asarray(call_technique(spec, **kwargs), dtype=np.float32)
         if out.shape != rgb.shape:
             raise ValueError(f"{spec.name} returned shape {out.shape}; expected {rgb.shape}")
+        # Cycles mixes diffuse and subsurface by the Subsurface Weight, per pixel where it is linked.
+        weight: np.ndarray | float | None = weight_map(mp.material, passes, mask)
+        if weight is None and mp.material.subsurface_weight < 1.0:
+            weight = mp.material.subsurface_weight
+        if weight is not None:
+            out, gain = _weighted(out, gain, original, mask, weight)
         # The techniques only read their inputs: the diffuse light Combined holds on the material
         # (albedo x (Direct + Indirect)) is what it was before the technique ran.
         overflow += _composite(image, sss, out, gain, original, mask, mp.unchanged_channels)

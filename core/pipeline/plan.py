@@ -16,6 +16,7 @@ import numpy as np
 from ..base import arrays
 from ..scene.exr import Passes
 from ..scene.extent import kernel_warning, mask_extent_px
+from ..scene.inputs import measured_scene
 from ..scene.passes import THICKNESS
 from ..scene.scene import MaterialSSS, SceneDescription
 from ..techniques.registry import get_spec
@@ -307,6 +308,8 @@ def plan_and_masks(
     if index is not None and np.count_nonzero(index > 0) > listed:
         values, numbers = np.unique(index[index > 0], return_counts=True)
         unknown_indices = {int(i): int(c) for i, c in zip(values, numbers, strict=True) if int(i) not in known}
+    # Inputs the render wrote per pixel (textures, attributes...): each material's median of them.
+    scene = measured_scene(passes, scene, masks)
     result = []
     for material in scene.materials:
         mp = MaterialPlan(material=material, pixels=counts.get(material.index, 0))

@@ -109,3 +109,31 @@ def view_layer_flag(name: str) -> str:
     if info is None or info.flag is None:
         raise ValueError(f"{name!r} is not a render pass with a view-layer flag; known: {', '.join(PASSES)}")
     return info.flag
+
+
+@dataclass(frozen=True)
+class InputAOV:
+    """A shader AOV that carries one subsurface input per pixel, rendered only for the
+    materials whose input is linked to something the scene reader cannot read as a constant (a
+    texture, an attribute, a Math node, a driver through a node group)."""
+
+    #: The ``MaterialSSS`` field it measures.
+    key: str
+    #: The AOV's name on the view layer and in the passes file.
+    name: str
+    #: Blender's AOV type: "COLOR" for an RGB input, "VALUE" for a number.
+    kind: str
+    #: The AOV Output node's input that takes it.
+    socket: str
+
+
+#: The subsurface inputs read per pixel when linked, by ``MaterialSSS`` field.
+INPUT_AOVS: dict[str, InputAOV] = {
+    a.key: a
+    for a in (
+        InputAOV("base_color", "SSSLab Base Color", "COLOR", "Color"),
+        InputAOV("subsurface_radius", "SSSLab Radius", "COLOR", "Color"),
+        InputAOV("subsurface_scale", "SSSLab Scale", "VALUE", "Value"),
+        InputAOV("subsurface_weight", "SSSLab Weight", "VALUE", "Value"),
+    )
+}

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..base import arrays
 from .fit_values import check_fit
+from .passes import INPUT_AOVS
 
 #: Version of the JSON layout; bump on any incompatible change.
 SCENE_DESCRIPTION_VERSION = 1
@@ -268,6 +269,14 @@ class MaterialSSS:
     #: BSDF when not at the top of the tree, and each input it could not read as Cycles renders it
     #: (linked to a texture, read at its socket's value instead). Apply says them again.
     notes: tuple = ()
+    #: The inputs linked to something read per pixel from the render (keys of
+    #: ``core.scene.passes.INPUT_AOVS``: "base_color", "subsurface_radius", ...): the passes file
+    #: holds a shader AOV for each, and ``core.scene.inputs`` reads it back. Empty when every
+    #: input is typed in or a constant (the usual case, which costs nothing).
+    per_pixel: tuple = ()
+    #: True once ``core.scene.inputs.measure`` replaced the ``per_pixel`` inputs by their medians
+    #: over the material's pixels.
+    measured: bool = False
 
     def __post_init__(self):
         if not isinstance(self.index, int) or isinstance(self.index, bool) or self.index < 1:
@@ -288,6 +297,12 @@ class MaterialSSS:
         if isinstance(self.notes, str) or not all(isinstance(n, str) for n in self.notes):
             raise ValueError(f"material {self.name!r} notes: expected a list of strings, got {self.notes!r}")
         object.__setattr__(self, "notes", tuple(self.notes))
+        if isinstance(self.per_pixel, str) or not all(isinstance(k, str) and k in INPUT_AOVS for k in self.per_pixel):
+            raise ValueError(
+                f"material {self.name!r} per_pixel: expected a list of some of {', '.join(INPUT_AOVS)}, "
+                f"got {self.per_pixel!r}"
+            )
+        object.__setattr__(self, "per_pixel", tuple(self.per_pixel))
         if not (math.isfinite(self.subsurface_ior) and self.subsurface_ior > 0):
             raise ValueError(
                 f"material {self.name!r} subsurface_ior: expected a finite number > 0, got {self.subsurface_ior!r}"

@@ -141,8 +141,11 @@ def test_materials_are_found_and_read_where_cycles_finds_them(addon):
     assert found["Textured"].subsurface_radius == pytest.approx((0.9, 0.4, 0.2))
     # What the reader could not read travels with the scene description (apply and compare say it).
     assert found["Textured"].notes == (
-        "Subsurface Weight linked to Noise Texture 'Freckles': not followed per pixel; 1 used instead",
+        "Subsurface Weight linked to Noise Texture 'Freckles': read per pixel from the render "
+        "(shader AOV 'SSSLab Weight'); 1 until the passes are read",
     )
+    assert found["Textured"].per_pixel == ("subsurface_weight",)
+    assert found["Grouped"].per_pixel == found["Mixed"].per_pixel == ()
     assert found["Mixed"].notes == (
         "Principled BSDF 'Principled BSDF' reached through Mix Shader 'Mix Shader' (0.75 of the surface)",
     )
@@ -151,6 +154,9 @@ def test_materials_are_found_and_read_where_cycles_finds_them(addon):
     assert "3 subsurface material(s)" in text
     assert "Subsurface Scale: typed in (through Group Input" in text and "'Inner' reached through" in text
     assert "Subsurface Weight: linked to Value 'Weight', 0.8" in text and "0.75 of the surface" in text
-    assert "Subsurface Weight linked to Noise Texture 'Freckles': not followed per pixel; 1 used instead" in text
+    assert (
+        "Subsurface Weight: linked to Noise Texture 'Freckles'; read per pixel from the render "
+        "(shader AOV 'SSSLab Weight')" in text
+    )
     # The RGB node is called "Color" in Blender 5.x's interface, "RGB" in 4.5's.
     assert re.search(r"Subsurface Radius: linked to (RGB|Color) 'Tint', \(0\.9, 0\.4, 0\.2\)", text)
