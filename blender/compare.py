@@ -37,6 +37,7 @@ from ..core.base.progress import saved_line
 from ..core.pipeline import apply as core_apply
 from ..core.pipeline import plan, sequence
 from ..core.scene import exr
+from ..core.scene.inputs import read_scene
 from ..core.scene.scene import SUBSURFACE_METHODS, SceneDescription
 from ..core.study import fidelity, metrics, report
 from ..core.study import reference as core_reference
@@ -186,7 +187,8 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
         "scene": {
             "name": _scene_label(scene),
             "file": bpy.data.filepath,
-            "materials": [asdict(m) for m in desc.materials],
+            # As the techniques read them: inputs linked to textures at their medians, with the notes.
+            "materials": [asdict(m) for m in read_scene(passes, desc).materials],
             "fingerprint": fingerprint,
         },
         "settings": _settings_data(settings, materials, ref, ref_seconds, merged),

@@ -102,6 +102,7 @@ from ..compute import backend
 from ..optics.energy import SLAB_ABOVE, entry_gain, slab_factors, unseen_light
 from ..optics.medium import medium_of
 from ..scene.exr import Passes
+from ..scene.inputs import read_scene
 from ..scene.scene import MaterialSSS, SceneDescription
 from ..techniques.combined.technique import transmission, view_cosine
 from ..techniques.registry import TECHNIQUES, get_spec
@@ -900,6 +901,7 @@ def choose(
         if lacking:
             missing[t] = f"missing pass(es) {', '.join(lacking)}"
     auto = AutoPlan(shape=passes.shape, max_error=float(max_error), choices=[], plans={}, model=model)
+    scene = read_scene(passes, scene)  # inputs linked to textures: their medians on screen
     chosen_by: dict[str, set[int]] = {}
     shared = _Shared(passes, scene)
     for material in scene.materials:

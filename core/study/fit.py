@@ -58,6 +58,7 @@ from ..pipeline import mapping as _mapping
 from ..pipeline.call import call_technique
 from ..pipeline.fit_params import FIT_PARAMETERS, INFO, PARAMETERS
 from ..pipeline.plan import index_map, plan
+from ..scene.inputs import read_scene
 from ..scene.scene import MaterialSSS, SceneDescription
 from ..techniques.combined.technique import light_from_behind
 from ..techniques.registry import get_spec
@@ -803,6 +804,7 @@ def fit_scene(
     (material name, technique, its problem line) for each fit its held-out check refused
     (``HeldOutError``).
     """
+    scene = read_scene(passes, scene)  # inputs linked to textures: their medians on screen
     scattering = [m for m in scene.materials if m.scatters]
     if not scattering:
         raise FitError("no material in the scene scatters light (Subsurface Weight > 0): nothing to fit")

@@ -206,6 +206,19 @@ def _per_material(entries: list[dict]) -> list[str]:
     return lines
 
 
+def _materials_read(data: dict) -> list[str]:
+    """What the scene reader and the passes said about each subsurface material (its notes: where
+    its Principled BSDF was found, each input read per pixel or at a stand-in value); nothing when
+    every input was typed in."""
+    materials = [m for m in data.get("scene", {}).get("materials", []) if m.get("notes")]
+    if not materials:
+        return []
+    lines = ["", "## Materials as read", ""]
+    for m in materials:
+        lines.append(f"- **{m.get('name', '?')}**: " + "; ".join(str(n) for n in m["notes"]) + ".")
+    return lines
+
+
 def _markdown(data: dict) -> str:
     s = data.get("settings", {})
     lines = [
@@ -265,6 +278,7 @@ def _markdown(data: dict) -> str:
             f" | {_fmt(t.get('total'), 3)} | {_fmt(t.get('sss_effect'), 3)} | {'yes' if e['name'] in front else ''} |"
         )
     lines += _per_material(data.get("entries", []))
+    lines += _materials_read(data)
     costs = data.get("costs")
     if costs:
         lines += [

@@ -117,3 +117,22 @@ def test_the_report_breaks_the_error_down_per_material(tmp_path):
     assert "<h2>Per material</h2>" in html and "0.07123" in html
     saved = json.loads((tmp_path / "metrics.json").read_text())
     assert saved["entries"][0]["by_material"] == by
+
+
+def test_the_report_says_how_each_material_was_read(tmp_path):
+    """A material's notes (an input read per pixel from the render, a Principled BSDF found behind
+    a Mix Shader) are listed under "Materials as read"; a material without notes is not."""
+    ref = np.ones((8, 8, 3), np.float32)
+    notes = [
+        "Principled BSDF 'Inner' reached through Group 'Asset' (1 of the surface)",
+        "Base Color: read from the render ('SSSLab Base Color' AOV): median (0.4, 0.2, 0.1) over 900 pixels",
+    ]
+    materials = [{"name": "Skin", "notes": notes}, {"name": "Wax", "notes": []}]
+    data = {"scene": {"name": "t", "materials": materials}, "settings": {"box": 1}, "complete": True}
+    data["entries"] = [_entry("no SSS", 0.2, 0.2, kind="baseline")]
+    write_report(str(tmp_path), data, {"ref": ref, "no SSS": ref}, reference="ref")
+    md = (tmp_path / "report.md").read_text()
+    assert "## Materials as read" in md
+    assert f"- **Skin**: {notes[0]}; {notes[1]}." in md
+    assert "**Wax**" not in md
+    assert "<h2>Materials as read</h2>" in (tmp_path / "report.html").read_text()
