@@ -62,6 +62,7 @@ format: venv
 
 bench: venv
 	$(PY) -m benchmarks.speed
+	$(PY) -m benchmarks.input_aovs
 
 # Every technique on every scene of the fidelity suite against the stored Cycles references
 # (benchmarks/fidelity/): benchmarks/results/fidelity.json, docs/fidelity.md, docs/images/fidelity_grid.png.
