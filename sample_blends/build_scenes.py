@@ -541,10 +541,12 @@ def sss_objects(scene) -> list:
 
 
 def scatters(mat) -> bool:
-    if mat is None or mat.node_tree is None:
-        return False
-    bsdf = next((n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"), None)
-    return bsdf is not None and bsdf.inputs["Subsurface Weight"].default_value > 0.0
+    """True when SSS Lab's scene reader finds subsurface scattering in ``mat`` (its Principled
+    BSDF wherever Cycles finds it: in node groups, behind Mix Shaders)."""
+    from sss_lab.blender.describe import material_sss
+
+    info = material_sss(mat, 1) if mat is not None else None
+    return info is not None and info.scatters
 
 
 def _finish(scene) -> None:

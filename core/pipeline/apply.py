@@ -328,27 +328,31 @@ def apply(
             if not left:
                 continue
             mask = within
-        kwargs = dict(inputs)
-        kwargs.update(mp.params)
-        # A technique that takes the fitted gain applies it itself (the combined technique, to its
-        # diffusion only); for the others it scales their result below.
-        gain = None if "gain" in spec.keywords else kwargs.pop("gain", None)
-        kwargs["mask"] = mask
-        # Light near float32's limit can overflow in a technique's sums: counted below and said
-        # (overflow_pixels), instead of NumPy's raw RuntimeWarning.
-        with np.errstate(over="ignore", invalid="ignore"):
-            out = np.asarray(call_technique(spec, **kwargs), dtype=np.float32)
-        if out.shape != rgb.shape:
-            raise ValueError(f"{spec.name} returned shape {out.shape}; expected {rgb.shape}")
         # Cycles mixes diffuse and subsurface by the Subsurface Weight, per pixel where it is linked.
         weight: np.ndarray | float | None = weight_map(mp.material, passes, mask)
         if weight is None and mp.material.subsurface_weight < 1.0:
             weight = mp.material.subsurface_weight
-        if weight is not None:
-            out, gain = _weighted(out, gain, original, mask, weight)
-        # The techniques only read their inputs: the diffuse light Combined holds on the material
-        # (albedo x (Direct + Indirect)) is what it was before the technique ran.
-        overflow += _composite(image, sss, out, gain, original, mask, mp.unchanged_channels)
+        # One run with the material's parameters, or one per zone of its d (core.pipeline.zones),
+        # each gathering from the whole material and kept on the zone's pixels.
+        for pixels, params in mp.zones or [(None, mp.params)]:
+            kwargs = dict(inputs)
+            kwargs.update(params)
+            # A technique that takes the fitted gain applies it itself (the combined technique, to
+            # its diffusion only); for the others it scales their result below.
+            gain = None if "gain" in spec.keywords else kwargs.pop("gain", None)
+            kwargs["mask"] = mask
+            # Light near float32's limit can overflow in a technique's sums: counted below and said
+            # (overflow_pixels), instead of NumPy's raw RuntimeWarning.
+            with np.errstate(over="ignore", invalid="ignore"):
+                out = np.asarray(call_technique(spec, **kwargs), dtype=np.float32)
+            if out.shape != rgb.shape:
+                raise ValueError(f"{spec.name} returned shape {out.shape}; expected {rgb.shape}")
+            keep = mask if pixels is None else mask & pixels
+            if weight is not None:
+                out, gain = _weighted(out, gain, original, keep, weight)
+            # The techniques only read their inputs: the diffuse light Combined holds on the
+            # material (albedo x (Direct + Indirect)) is what it was before the technique ran.
+            overflow += _composite(image, sss, out, gain, original, keep, mp.unchanged_channels)
     p.nonfinite_pixels = nonfinite
     p.overflow_pixels = overflow
     name_image, name_sss = layer_names(spec.name)

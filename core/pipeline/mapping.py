@@ -143,6 +143,20 @@ def _burley_d(method: str, name: str, radius: tuple, base_color: tuple, ior: flo
     return r, g, b
 
 
+def burley_d_pixels(method: str, radius_su: np.ndarray, base_color: np.ndarray, ior: float, mapping=None):
+    """``burley_d`` for many points at once: ``radius_su`` (n, 3) Radius x Scale in scene units and
+    ``base_color`` (n, 3) per point, the method's mapping; (n, 3) float64."""
+    name = mapping_name(method, mapping)
+    radius_su = np.asarray(radius_su, np.float64)
+    color = np.asarray(base_color, np.float64)
+    if method == "RANDOM_WALK_SKIN":
+        ell = radius_su * _skin_factor(color, ior)
+    else:
+        ell = _mean_free_path(method, radius_su, color, ior)
+    d = ell if name == "none" else ell / albedo_scaling(color, name)
+    return np.where(d < MIN_RADIUS, 0.0, d)
+
+
 def technique_params(material: MaterialSSS, technique, *, mapping=None, use_fit: bool = True) -> dict:
     """Keyword parameters of ``technique`` (a name or a ``Technique`` spec) for ``material``
     (without the passes): its parameters' defaults (the function's signature) plus what the

@@ -22,6 +22,7 @@ from ..scene.scene import MaterialSSS, SceneDescription
 from ..techniques.registry import get_spec
 from ..techniques.spec import Technique
 from .call import accepted_keywords
+from .zones import zones
 
 
 def required_passes(technique: str | Technique, thickness_aov: str = THICKNESS) -> tuple[str, ...]:
@@ -59,6 +60,10 @@ class MaterialPlan:
     notes: list[str] = field(default_factory=list)
     #: Said when the kernel reaches beyond the material on screen or the image (core.scene.extent).
     warning: str | None = None
+    #: Where the material's d varies over its pixels (``core.pipeline.zones``): (bool (H, W) pixels,
+    #: their parameters) per zone, each computed over the whole material and kept on its pixels;
+    #: empty when the material is computed once with ``params``.
+    zones: list = field(default_factory=list, repr=False)
 
     @property
     def applied(self) -> bool:
@@ -333,6 +338,10 @@ def plan_and_masks(
         mp.samples = footprint.samples
         mp.kernel_su = footprint.radius_su
         mask = masks[material.index]
+        found, note = zones(material, passes, mask, mapping)
+        if found and note:
+            mp.zones = [(z.pixels, _material_params(z.material, technique, mapping, options)) for z in found]
+            mp.notes.append(note)
         if depth is not None:
             z = depth[mask]
             valid = (z > 0) & (z < arrays.BACKGROUND_DEPTH)  # NaN and +inf fail these comparisons

@@ -113,6 +113,24 @@ def measure(material: MaterialSSS, passes: Passes, mask: np.ndarray) -> Material
     return dataclasses.replace(material, notes=tuple(notes), per_pixel=material.per_pixel, measured=True, **changes)
 
 
+def usable_map(material: MaterialSSS, passes: Passes, key: str, where: np.ndarray) -> np.ndarray | None:
+    """Input ``key``'s AOV on the pixels ``where`` (float64 (n, channels)), as Cycles uses it:
+    negatives 0, Base Color at most 1; the material's own value where the AOV is not finite.
+    None when the passes have no such AOV."""
+    aov = INPUT_AOVS[key]
+    if aov.name not in passes.names:
+        return None
+    values = np.array(_channels(passes[aov.name], aov.kind)[where], dtype=np.float64)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        own = np.broadcast_to(np.asarray(getattr(material, key), np.float64).reshape(-1), values.shape[1:])
+        values = np.where(bad, own, values)
+    np.maximum(values, 0.0, out=values)
+    if key in ("base_color", "subsurface_weight"):
+        np.minimum(values, 1.0, out=values)
+    return values
+
+
 def measured_scene(passes: Passes, scene: SceneDescription, masks: dict[int, np.ndarray]) -> SceneDescription:
     """``scene`` with ``measure`` applied to each material that has per-pixel inputs and pixels
     in ``masks`` (pass index -> bool (H, W)); ``scene`` itself when there is none (the usual

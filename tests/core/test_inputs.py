@@ -148,3 +148,43 @@ def test_per_pixel_round_trips_and_rejects_unknown_inputs():
     assert back.materials[0].per_pixel == ("base_color", "subsurface_scale")
     with pytest.raises(ValueError, match=r"per_pixel: expected a list of some of base_color.*'roughness'"):
         MaterialSSS(index=1, name="Skin", per_pixel=("roughness",))
+
+
+def test_a_scale_that_varies_gives_each_pixel_its_own_d(sphere):
+    """A Scale AOV of s on the left half of a sphere and 3 s on the right: the plan splits the
+    material into zones by d, and each half's interior gets what the material with its own Scale
+    typed in gets there (the zone gathers from the whole material, as the typed-in one does)."""
+    from sss_lab.core.pipeline.zones import ZONES
+
+    arrays, scene = sphere
+    index = 2
+    material = scene.material(index)
+    mask = np.rint(arrays["Material Index"]) == index
+    cols = np.nonzero(mask)[1]
+    middle = (cols.min() + cols.max()) // 2
+    s = material.subsurface_scale
+    scale = np.where(np.arange(mask.shape[1])[None, :] < middle, s, 3 * s) * np.ones(mask.shape)
+    passes = Passes({**arrays, SCALE_AOV: scale.astype(np.float32)})
+    linked = _with(scene, index, per_pixel=("subsurface_scale",))
+    p = plan(passes, linked, "burley")
+    mp = next(m for m in p.materials if m.material.index == index)
+    assert 2 <= len(mp.zones) <= ZONES
+    assert "computed in" in p.explain() and "zones by their own d" in p.explain()
+    got = apply(passes, linked, "burley", prepared=p)["SSSLab.burley.SSS"]
+    inner = interior(mask)
+    for part, factor in ((inner & (scale == s), 1.0), (inner & (scale == 3 * s), 3.0)):
+        typed = _with(scene, index, subsurface_scale=factor * s)
+        want = apply(Passes(arrays), typed, "burley")["SSSLab.burley.SSS"]
+        assert part.any()
+        np.testing.assert_allclose(got[part], want[part], rtol=1e-4, atol=1e-6 * np.abs(want).max())
+    assert np.all(np.isfinite(got)) and np.any(got[mask & ~inner])  # the silhouette is computed too
+
+
+def test_a_scale_that_barely_varies_stays_one_zone(sphere):
+    arrays, scene = sphere
+    index = 2
+    s = scene.material(index).subsurface_scale
+    rng = np.random.default_rng(1)
+    scale = (s * rng.uniform(0.98, 1.02, arrays["Depth"].shape)).astype(np.float32)
+    p = plan(Passes({**arrays, SCALE_AOV: scale}), _with(scene, index, per_pixel=("subsurface_scale",)), "burley")
+    assert not next(m for m in p.materials if m.material.index == index).zones
