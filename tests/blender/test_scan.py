@@ -160,3 +160,24 @@ def test_materials_are_found_and_read_where_cycles_finds_them(addon):
     )
     # The RGB node is called "Color" in Blender 5.x's interface, "RGB" in 4.5's.
     assert re.search(r"Subsurface Radius: linked to (RGB|Color) 'Tint', \(0\.9, 0\.4, 0\.2\)", text)
+
+
+def test_a_group_without_an_output_is_no_subsurface_material_and_breaks_nothing(addon):
+    """A node group with a Principled BSDF inside but no Group Output gives the material output
+    nothing (Cycles renders no closure there): the material is not a subsurface material, and
+    the reader and ``scan`` say so instead of failing; the material beside it is still found."""
+    scene = bpy.context.scene
+    group = _group_with_principled("Broken")
+    group.nodes.remove(next(n for n in group.nodes if n.bl_idname == "NodeGroupOutput"))
+    broken = bpy.data.materials.new("Broken")
+    compat.ensure_node_tree(broken)
+    nodes = broken.node_tree.nodes
+    nodes.remove(nodes["Principled BSDF"])
+    node = nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    broken.node_tree.links.new(node.outputs[0], nodes["Material Output"].inputs["Surface"])
+    _cube_with(broken)
+    _cube_with(_principled("Skin", 1.0))
+    assert [m.name for m in sss_materials(scene)] == ["Skin"]
+    text = "\n".join(scan_report(scene))
+    assert "1 subsurface material(s)" in text
