@@ -1,7 +1,7 @@
 """Fit to Cycles, measured on the fidelity suite: ``.venv/bin/python -m benchmarks.fit [SCENE ...]``.
 
-For every scene of the fidelity suite (``benchmarks/fidelity``: its builders, stored references
-and metric, nothing duplicated here):
+For every scene of the fidelity suite (``benchmarks/fidelity``, or of ``--scenes-module`` with
+``--store``: its builders, stored references and metric, nothing duplicated here):
 
 1. **frame A**, the scene as the suite builds it (``fidelity.run.load_scene``: the converged
    reference, the mean of two 1024-sample seeds, and the passes at 64 samples, seed 7);
@@ -160,7 +160,9 @@ def run_scene(name: str, args, log) -> dict:
     methods = tuple(args.methods.split(","))
     cache = os.path.join(args.cache, "fit")
     os.makedirs(cache, exist_ok=True)
-    a = fidelity.load_scene(name, cache=args.cache, log=log)
+    module = fidelity.load_scenes_module(args.scenes_module)
+    store = args.store or references.STORE
+    a = fidelity.load_scene(name, scenes=module, cache=args.cache, store=store, log=log)
     scene = bpy.context.scene  # the suite's scene as built, prepared and baked by load_scene
     if args.oracle:  # fitted on what it is scored against: the suite's passes and converged reference
         noisy, fit_passes, fit_desc = a.reference, a.passes, a.desc
@@ -430,6 +432,11 @@ def main(argv=None) -> int:
         f" least error the fit's parameters can reach (written to {os.path.basename(ORACLE)} unless --out is given)",
     )
     parser.add_argument("--no-frame-b", action="store_true", help="frame A only")
+    parser.add_argument(
+        "--scenes-module",
+        help="a module with SCENES built the suite's way (default: the suite; frame B is the suite's only)",
+    )
+    parser.add_argument("--store", default=None, help="folder of the scenes' stored references (default: the suite's)")
     parser.add_argument("--cache", default=os.path.join(ROOT, "out", "fidelity_cache"))
     parser.add_argument("--out", default=None, help=f"results file (default {os.path.relpath(RESULTS, ROOT)})")
     args = parser.parse_args(argv)
@@ -444,12 +451,15 @@ def main(argv=None) -> int:
     import bpy
 
     from benchmarks._common import write_results
-    from benchmarks.fidelity import scenes as suite
 
     def log(line):
         print(line, flush=True)
 
-    names = args.names or list(suite.SCENES)
+    if args.scenes_module:
+        args.no_frame_b = True  # the suite's frame B exists for the suite's scenes only
+    from benchmarks.fidelity.run import load_scenes_module
+
+    names = args.names or list(load_scenes_module(args.scenes_module).SCENES)
     methods = tuple(args.methods.split(","))
     start = time.perf_counter()
     rows = []

@@ -212,6 +212,20 @@ def _scatter_adder(technique: str, ensure: Callable) -> Callable:
                 notes.append(f"{material.name}: no screen scale (no visible object in front of the camera): left out")
                 continue
             d_su = mapping.burley_d(material, mapping=options.get("mapping"))
+            if material.per_pixel:
+                # The group's kernel is built once from numbers; the AOVs it would need per pixel
+                # are not rendered for the compositor.
+                inputs = ", ".join(k.replace("_", " ") for k in material.per_pixel)
+                notes.append(
+                    f"{material.name}: {inputs} linked to a texture or node: the {technique} node group uses the "
+                    "sockets' values (d " + "/".join(f"{v:.3g}" for v in d_su) + "); Render Passes and Apply read"
+                    " them per pixel"
+                )
+            if material.subsurface_weight < 1.0:
+                notes.append(
+                    f"{material.name}: Subsurface Weight {material.subsurface_weight:.3g}: the {technique} node group"
+                    " scatters all of the diffuse light; Apply mixes it by the weight as Cycles does"
+                )
             name = group_name(technique, material.name)
             group = ensure(name=name, pixels_per_unit=pixels_per_unit[material.index], d_su=d_su, **kernel_options)
             node = tree.nodes.new(compat.COMPOSITOR_GROUP_NODE)

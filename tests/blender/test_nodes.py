@@ -28,6 +28,7 @@ Where the tolerances come from:
 - Depth-varying surfaces are measured and printed, not asserted (docs/compositor.md has the figures).
 """
 
+import dataclasses
 import inspect
 import math
 import os
@@ -701,3 +702,28 @@ def test_operator_takes_the_panel_settings_and_the_panel_has_its_button(addon, d
 
     drawn = [(panel, name) for panel, _, name, _ in draw_panels("render")]
     assert ("Compositor", "sss_lab.setup_compositor") in drawn
+
+
+@pytest.mark.parametrize("technique", ["burley", "ssss"])
+def test_the_groups_say_what_they_cannot_read_per_pixel(addon, tmp_path, technique):
+    """A material with inputs read per pixel from the render, and one with a Subsurface Weight
+    below 1: the node groups are built from numbers and do not mix by the weight, and the set-up
+    says so for each (Apply reads and mixes them)."""
+    linked = dataclasses.replace(SKIN, per_pixel=("base_color", "subsurface_scale"))
+    half = dataclasses.replace(WAX, subsurface_weight=0.5)
+    materials_map = np.zeros((H, W))
+    materials_map[:, : W // 2], materials_map[:, W // 2 :] = 1, 2
+    path = _write(tmp_path, _passes(materials_map))
+    tree, _ = _tree(bpy.context.scene)
+    src = _source(tree, path)
+    _, notes = build_chain(
+        tree,
+        src,
+        image=src.outputs["Combined"],
+        technique=technique,
+        scene=_desc(linked, half),
+        pixels_per_unit={1: SCALE, 2: SCALE},
+    )
+    assert any(n.startswith("Skin: base color, subsurface scale linked") and "per pixel" in n for n in notes)
+    assert any(n.startswith("Wax: Subsurface Weight 0.5") and "mixes it by the weight" in n for n in notes)
+    assert len(notes) == 2
