@@ -451,7 +451,23 @@ def _fmt(v, pct=False):
     return f"{v:+.0%}" if pct else f"{v:.3f}"
 
 
-def markdown(data: dict) -> str:
+#: The line after which a table file holds sections other commands write
+#: (``benchmarks/fidelity/pairs.py --into``): ``main`` keeps them when it writes the table again.
+KEPT = "<!-- Sections below are written by other commands (benchmarks/fidelity/pairs.py); make fidelity keeps them. -->"
+
+
+def kept_sections(path: str) -> str:
+    """What ``path`` holds from the ``KEPT`` line on ("" when it has none or does not exist)."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except FileNotFoundError:
+        return ""
+    at = text.find(KEPT)
+    return "" if at < 0 else text[at:]
+
+
+def markdown(data: dict, grid: str = "images/fidelity_grid.png") -> str:
     techs = _techniques(data["scenes"])
     lines = [
         "# Fidelity suite results",
@@ -571,7 +587,7 @@ def markdown(data: dict) -> str:
         "Columns: no SSS, " + ", ".join(techs) + " (each at its default quality, default passes), reference; "
         "one row per scene in the order of the table.",
         "",
-        "![fidelity grid](images/fidelity_grid.png)",
+        f"![fidelity grid]({grid})",
         "",
     ]
     return "\n".join(lines)
@@ -653,7 +669,9 @@ def main(argv=None) -> int:
     from benchmarks._common import write_results
 
     write_results(args.out, data)
-    write_text(args.table, markdown(data))
+    grid = os.path.relpath(os.path.abspath(args.grid), os.path.dirname(os.path.abspath(args.table)))
+    kept = kept_sections(args.table)
+    write_text(args.table, markdown(data, grid.replace(os.sep, "/")) + ("\n" + kept if kept else ""))
     print(f"Saved: {args.table}")
     os.makedirs(os.path.dirname(args.grid), exist_ok=True)
     _grid(out["scenes"], args.grid)

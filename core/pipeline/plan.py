@@ -331,7 +331,7 @@ def plan_and_masks(
             mp.skip = f"no pixel on screen has Material Index {material.index}"
             continue
         mp.params = _material_params(material, technique, mapping, options)
-        mp.notes += [f"read from the scene: {note}" for note in material.notes]
+        mp.notes += [f"note: {note}" for note in material.notes]
         if technique.prepare is not None:
             mp.notes += technique.prepare(mp.params)
         footprint = technique.footprint(mp.params)

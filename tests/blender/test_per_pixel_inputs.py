@@ -84,7 +84,7 @@ def test_linked_inputs_are_rendered_per_pixel_and_read_back_exactly(addon, sss_q
     assert measured.base_color == pytest.approx((0.3, 0.35, 0.5), abs=1e-6)
     assert measured.subsurface_scale == pytest.approx(0.1, abs=1e-7)
     assert any("read from the render ('SSSLab Scale' AOV): median 0.1 over" in n for n in measured.notes)
-    assert "read from the scene: Base Color" in p.explain() or "Base Color: read from the render" in p.explain()
+    assert "note: Base Color: read from the render ('SSSLab Base Color' AOV): median (0.3, 0.35, 0.5)" in p.explain()
 
     # Weight 0 and 1 per check (pixels across a check's edge average the two): the pixels of
     # weight 0 keep Combined to the bit, those of weight 1 change.

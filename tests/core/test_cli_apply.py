@@ -267,4 +267,4 @@ def test_what_the_scene_reader_could_not_read_is_said_once_per_run(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.count(f"note: material {first.name!r}: {note}") == 1, proc.stdout
     proc = run_apply(path, "--method", "burley", "--explain")
-    assert proc.returncode == 0 and f"read from the scene: {note}" in proc.stdout, proc.stdout + proc.stderr
+    assert proc.returncode == 0 and f"note: {note}" in proc.stdout, proc.stdout + proc.stderr
