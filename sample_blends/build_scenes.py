@@ -19,6 +19,9 @@ The scenes (``SCENES``), each meant for some of the techniques:
   strongly different per-channel radii, a sharp shadow line across both (colour bleeding).
 - ``depth_leak``: SSS and non-SSS objects at different depths overlapping on screen (light that
   screen-space techniques leak across depth discontinuities).
+- ``asset_head``: the head built as assets are: a low-poly cage subdivided at render time only,
+  its skin a node-group shader with an image-textured Base Color behind a glossy coat, and a
+  marble ball textured by a noise (inputs read per pixel from the render).
 
 Conventions shared by all scenes:
 
@@ -26,7 +29,8 @@ Conventions shared by all scenes:
   path per channel: 3 mm to 2 cm for the longest channel (one to several pixels at 128x128),
   no channel under 1 mm.
 - Every subsurface input of every material is set explicitly (Subsurface IOR too, although the
-  Random Walk method reads the IOR input instead; a material without SSS has Weight 0).
+  Random Walk method reads the IOR input instead; a material without SSS has Weight 0), or
+  linked (``asset_head``), a linked socket keeping Blender's default.
 - SSS materials get pass indices 1, 2, ... in name order (the order in which
   ``blender.describe.sss_materials`` numbers them), other materials 0; mesh objects get
   object pass indices 1, 2, ... in name order.
@@ -519,11 +523,123 @@ def build_depth_leak():
     return scene
 
 
+def mottled_image(name, color, size=64, seed=7):
+    """A packed image (8-bit, linear values) of ``color`` varied by +-30 % in smooth blotches, from
+    a fixed seed: a stand-in for a painted albedo texture."""
+    import bpy
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    ys, xs = np.mgrid[0:size, 0:size] / size
+    shade = np.zeros((size, size))
+    for _ in range(10):
+        fx, fy, phase = rng.integers(1, 5), rng.integers(1, 5), rng.uniform(0, 2 * math.pi)
+        shade += np.sin(2 * math.pi * (fx * xs + fy * ys) + phase)  # whole periods: it tiles
+    rgb = np.asarray(color) * (1.0 + 0.3 * shade / np.abs(shade).max())[..., None]
+    rgba = np.concatenate([np.clip(rgb, 0.0, 1.0), np.ones((size, size, 1))], axis=2).astype(np.float32)
+    image = bpy.data.images.new(name, size, size, alpha=True)
+    image.colorspace_settings.name = "Non-Color"  # the values are linear reflectances
+    image.pixels.foreach_set(rgba.ravel())
+    image.pack()
+    return image
+
+
+def skin_asset_material(name, base_color, *, radius, scale):
+    """Skin made the way an asset library makes it: the Principled BSDF inside a node group
+    ("<name> Shader", inputs Albedo, Radius, Scale), its Base Color from an image texture and its
+    Radius from an RGB node outside the group, behind a Mix Shader with a thin glossy coat; the
+    inner Principled BSDF keeps Blender's defaults where its inputs are linked."""
+    import bpy
+
+    from sss_lab.blender import compat
+
+    group = bpy.data.node_groups.new(f"{name} Shader", "ShaderNodeTree")
+    group.interface.new_socket("Albedo", in_out="INPUT", socket_type="NodeSocketColor")
+    group.interface.new_socket("Radius", in_out="INPUT", socket_type="NodeSocketVector")
+    group.interface.new_socket("Scale", in_out="INPUT", socket_type="NodeSocketFloat")
+    group.interface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
+    inside, outside = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+    bsdf = group.nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.subsurface_method = compat.subsurface_method_item(compat.random_walk_method())
+    if compat.random_walk_method() == "RANDOM_WALK_LEGACY":
+        scale *= 4.0 * math.pi  # the mean free path of new_material's convention
+    bsdf.inputs["Roughness"].default_value = 0.45
+    bsdf.inputs["IOR"].default_value = 1.4
+    bsdf.inputs["Subsurface Weight"].default_value = 1.0
+    bsdf.inputs["Subsurface Anisotropy"].default_value = 0.0
+    _socket(bsdf, "Subsurface IOR").default_value = 1.4
+    for socket, target in (("Albedo", "Base Color"), ("Radius", "Subsurface Radius"), ("Scale", "Subsurface Scale")):
+        group.links.new(inside.outputs[socket], bsdf.inputs[target])
+    group.links.new(bsdf.outputs[0], outside.inputs["Shader"])
+
+    mat = bpy.data.materials.new(name)
+    _nodes(mat)
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    node.inputs["Scale"].default_value = scale
+    texture = tree.nodes.new("ShaderNodeTexImage")
+    texture.image = mottled_image(f"{name} Albedo", base_color)
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    tree.links.new(coords.outputs["Generated"], texture.inputs["Vector"])
+    tree.links.new(texture.outputs["Color"], node.inputs["Albedo"])
+    tint = tree.nodes.new("ShaderNodeRGB")
+    tint.outputs[0].default_value = (*radius, 1.0)
+    tree.links.new(tint.outputs[0], node.inputs["Radius"])
+    mix, coat = tree.nodes.new("ShaderNodeMixShader"), tree.nodes.new("ShaderNodeBsdfGlossy")
+    coat.inputs["Roughness"].default_value = 0.25
+    mix.inputs["Fac"].default_value = 0.08
+    tree.links.new(node.outputs["Shader"], mix.inputs[1])
+    tree.links.new(coat.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    mat.diffuse_color = (*base_color, 1.0)
+    return mat
+
+
+def build_asset_head():
+    """The head of ``head_frontlit`` built as an asset is: a low-poly cage subdivided at render
+    time only (0 levels in the viewport, 2 in the render), its skin a node-group shader with an
+    image-textured Base Color behind a glossy coat (``skin_asset_material``); beside it a marble
+    ball whose Base Color comes from a noise texture through a colour ramp."""
+    scene = reset_scene()
+    skin = skin_asset_material("Skin", (0.8, 0.52, 0.42), radius=(1.0, 0.35, 0.2), scale=0.012)
+    head = add_object(scene, "Head", head_mesh("Head"), material=skin)
+    cage = add_subsurf(head, 2)
+    cage.levels = 0  # the viewport shows the cage; Cycles renders the subdivided surface
+    marble = new_material("Marble", (0.83, 0.79, 0.75), radius=(1.0, 0.66, 0.46), scale=0.0085, roughness=0.3)
+    tree = marble.node_tree
+    noise, ramp = tree.nodes.new("ShaderNodeTexNoise"), tree.nodes.new("ShaderNodeValToRGB")
+    noise.inputs["Scale"].default_value = 40.0
+    ramp.color_ramp.elements[0].color = (0.62, 0.58, 0.55, 1.0)
+    ramp.color_ramp.elements[1].color = (0.9, 0.87, 0.84, 1.0)
+    tree.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    tree.links.new(ramp.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
+    tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)  # Blender's default
+    ball = uv_sphere_mesh("Ball", 0.04, segments=32, rings=16)
+    add_object(scene, "Ball", ball, location=(-0.12, -0.06, -0.07), material=marble)
+    wall = add_object(
+        scene,
+        "Backdrop",
+        plane_mesh("Backdrop", 2.0, 2.0),
+        location=(0.0, 0.3, 0.0),
+        rotation=(math.radians(90), 0.0, 0.0),
+        material=plain_material("Backdrop", (0.2, 0.2, 0.2)),
+        smooth=False,
+    )
+    wall.visible_shadow = True
+    add_camera(scene, (-0.04, -0.62, 0.02), (-0.04, 0.0, -0.02), lens=50.0)
+    add_light(scene, "Key", "SUN", (-1.0, -0.45, 0.3), (0.0, 0.0, 0.0), 3.0, angle=math.radians(1.0))
+    add_light(scene, "Fill", "AREA", (0.6, -0.6, 0.1), (0.0, 0.0, 0.0), 0.3, size=0.4)
+    return scene
+
+
 SCENES = {
     "head_frontlit": build_head_frontlit,
     "backlit_thin": build_backlit_thin,
     "wax_marble": build_wax_marble,
     "depth_leak": build_depth_leak,
+    "asset_head": build_asset_head,
 }
 
 #: The scene `make demo` runs on.

@@ -104,3 +104,31 @@ def test_typed_in_inputs_render_no_input_aov(addon, sss_quads, tmp_path):
     assert all(not m.per_pixel for m in sss_materials(sss_quads))
     exr, _ = render_passes(sss_quads, str(tmp_path), techniques=["burley"], log=None)
     assert not set(read_passes(exr).names) & {a.name for a in INPUT_AOVS.values()}
+
+
+def test_the_asset_sample_scene_is_read_per_pixel(addon, tmp_path):
+    """``asset_head`` (a node-group skin with an image-textured Base Color behind a glossy coat, a
+    noise-textured marble): both Base Colors come back from the render within the range their
+    texture spans (the sockets hold Blender's 0.8 grey, outside the skin's blue range), and the
+    plan says where each was read."""
+    from sss_lab.blender.samples import load_sample_scenes
+
+    path = tmp_path / "asset_head.blend"
+    load_sample_scenes().build("asset_head", str(path))
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    scene = bpy.context.scene
+    image = bpy.data.images["Skin Albedo"]
+    texels = np.array(image.pixels[:], np.float32).reshape(-1, 4)[:, :3]
+    exr, _ = render_passes(scene, str(tmp_path / "out"), techniques=["burley"], samples=4, resolution="48x48", log=None)
+    passes, desc = read_passes(exr), load_scene(exr)
+    p = plan(passes, desc, "burley")
+    read = {mp.material.name: mp.material for mp in p.materials}
+    assert read["Skin"].measured and read["Marble"].measured
+    skin = np.array(read["Skin"].base_color)
+    assert np.all(skin >= texels.min(axis=0) - 1e-3) and np.all(skin <= texels.max(axis=0) + 1e-3), skin
+    assert skin[2] < 0.8 - 0.1  # not the socket's grey
+    marble = np.array(read["Marble"].base_color)
+    dark, light = np.array((0.62, 0.58, 0.55)), np.array((0.9, 0.87, 0.84))  # the colour ramp's ends
+    assert np.all(marble >= dark - 1e-3) and np.all(marble <= light + 1e-3), marble
+    text = p.explain()
+    assert "Skin" in text and "reached through Mix Shader" in text and "'SSSLab Base Color' AOV): median" in text
