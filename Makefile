@@ -65,9 +65,17 @@ bench: venv
 	$(PY) -m benchmarks.input_aovs
 
 # Every technique on every scene of the fidelity suite against the stored Cycles references
-# (benchmarks/fidelity/): benchmarks/results/fidelity.json, docs/fidelity.md, docs/images/fidelity_grid.png.
+# (benchmarks/fidelity/): benchmarks/results/fidelity.json, docs/fidelity.md, docs/images/fidelity_grid.png;
+# then the textured pairs (benchmarks/fidelity/textured.py) and their table in docs/fidelity.md, beside the
+# stored run of the version before linked inputs were read per pixel and the stored calibrate run.
+TEXTURED := --scenes-module benchmarks.fidelity.textured --store benchmarks/fidelity/textured_references
 fidelity: venv
 	nice -n 10 $(PY) -m benchmarks.fidelity.run
+	nice -n 10 $(PY) -m benchmarks.fidelity.run $(TEXTURED) --out benchmarks/results/fidelity_textured.json \
+		--table docs/fidelity_textured.md --grid docs/images/fidelity_textured.png
+	$(PY) -m benchmarks.fidelity.pairs --twins benchmarks.fidelity.textured \
+		--run before=benchmarks/results/fidelity_textured_before.json --run after=benchmarks/results/fidelity_textured.json \
+		--run "after, calibrated=benchmarks/results/fit_textured.json" --into docs/fidelity.md
 
 extension: venv
 	$(PY) tools/build_extension.py
