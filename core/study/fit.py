@@ -58,7 +58,7 @@ from ..pipeline import mapping as _mapping
 from ..pipeline.call import call_technique
 from ..pipeline.fit_params import FIT_PARAMETERS, INFO, PARAMETERS
 from ..pipeline.plan import index_map, plan
-from ..scene.inputs import read_scene
+from ..scene.inputs import read_scene, weight_map
 from ..scene.scene import MaterialSSS, SceneDescription
 from ..techniques.combined.technique import light_from_behind
 from ..techniques.registry import get_spec
@@ -256,6 +256,24 @@ def _fmt(v) -> str:
     return f"{v:.4g}"
 
 
+#: The least Subsurface Weight of a block the fit reads (core/scene/inputs.py: Cycles' mix).
+MIN_WEIGHT = 0.1
+
+
+def _weight_image(material: MaterialSSS, passes, mask: np.ndarray) -> np.ndarray:
+    """The material's Subsurface Weight per pixel (its AOV where it is linked, else its number)."""
+    w = weight_map(material, passes, mask)
+    return np.full(mask.shape, material.subsurface_weight, np.float32) if w is None else w
+
+
+def _weight_blocks(material: MaterialSSS, passes, mask: np.ndarray, keep: np.ndarray, box: int):
+    """None when the material's weight is 1 everywhere (nothing to undo), else the blocks (h, w)
+    whose mean weight is at least ``MIN_WEIGHT``."""
+    if material.subsurface_weight >= 1.0 and "subsurface_weight" not in material.per_pixel:
+        return None
+    return box_downsample(_weight_image(material, passes, mask).astype(np.float64), box) >= MIN_WEIGHT
+
+
 def _rel_rmse(residual: np.ndarray, target: np.ndarray) -> float:
     mean = float(np.mean(target))
     if residual.size == 0 or mean <= 0:
@@ -348,6 +366,21 @@ def fit_material(
             f" ({count} of {box}x{box}): too few to fit (at least {MIN_BLOCKS} needed; render larger or move the"
             " camera closer); left unchanged"
         )
+    # Cycles mixes (1 - w) diffuse + w subsurface at each pixel, and apply mixes the technique's
+    # light the same way (core/pipeline/apply.py): the fit matches the technique's own light to what
+    # the reference shows of it, on the blocks where at least MIN_WEIGHT of the surface scatters.
+    weights = _weight_blocks(material, passes, mask, keep, box)
+    if weights is not None:
+        keep = keep & weights
+        count = int(keep.sum())
+        if count < MIN_BLOCKS:
+            raise FitError(
+                f"material {name!r}: only {count} blocks of {box}x{box} have a Subsurface Weight of at least"
+                f" {MIN_WEIGHT} (at least {MIN_BLOCKS} needed): too little of it scatters to fit; left unchanged"
+            )
+        w = _blocks(np.repeat(_weight_image(material, passes, mask)[..., None], 3, axis=2), keep, box)
+    else:
+        w = None
     plain = dataclasses.replace(material, fit={})
     single = dataclasses.replace(scene, materials=(plain,))
     fold = block_folds(count, folds=folds, seed=seed)
@@ -360,6 +393,7 @@ def fit_material(
         base = _blocks(combined_rgb, keep, box)
         layers = core_apply.apply(passes, single, spec, scale=1.0)
         basis = _blocks(layers[core_apply.layer_names(spec.name)[1]], keep, box)
+        # STA's basis is apply's layer: the weight's mix is in it already.
         return _finish_sta(
             material, name, base, basis, target, fold, regularization, samples, start, pixels, heldout_check
         )
@@ -368,6 +402,9 @@ def fit_material(
     original = albedo * (core_apply.clean(passes["Diffuse Direct"]) + core_apply.clean(passes["Diffuse Indirect"]))
     rest = _blocks(combined_rgb - original, keep, box)
     y = target - rest
+    if w is not None:  # apply gives held + w (light - held): the light the reference shows
+        held = _blocks(original, keep, box)
+        y = held + (y - held) / w
     params0 = _mapping.technique_params(plain, technique)
 
     # Light from behind (combined only): E_back per channel and slab thickness, at full size.

@@ -348,3 +348,25 @@ def test_a_fit_a_technique_does_not_make_is_refused_where_it_is_read():
         fitted({"burley": {"scale": 2.0}}, "burley")
     with pytest.raises(ValueError, match="unknown technique 'nope'"):
         fitted({"nope": {"gain": 1.0}}, "burley")
+
+
+@pytest.mark.parametrize("technique", ["burley", "combined", "sta"])
+def test_a_weight_below_one_is_undone_before_the_fit(synthetic, technique):
+    """Apply mixes the technique's light by the Subsurface Weight (Cycles' (1 - w) diffuse + w
+    subsurface); the fit matches the technique's own light, so on a reference made at weight 0.5
+    it finds the true values as at weight 1. Without undoing the mix it could not: the gain would
+    absorb half of the change."""
+    passes, scene = synthetic
+    half = dataclasses.replace(
+        scene,
+        materials=tuple(dataclasses.replace(m, subsurface_weight=0.5) if m.scatters else m for m in scene.materials),
+    )
+    truth = TRUTH.get(technique, {"scale": 2.0})
+    ref = _reference(passes, half, technique, truth)
+    r = fit_material(passes, half, ref, _skin(half), technique, regularization=0.0)
+    if technique == "sta":
+        assert r.params["scale"] == pytest.approx(2.0, rel=1e-5)
+    else:
+        assert r.params["d_scale"] == pytest.approx(truth["d_scale"], rel=1e-9)
+        np.testing.assert_allclose(r.params["gain"], truth["gain"], rtol=1e-3)
+    assert r.heldout_after < 0.01 * r.heldout_before
