@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from ..core.pipeline.fit_params import FIT_PARAMETERS, INFO, PARAMETERS, check_fit
+from ..core.pipeline.fit_params import FIT_PARAMETERS, INFO, OFF, PARAMETERS, check_fit
 
 #: Custom-property prefix of the fitted values on a material.
 PREFIX = "sss_lab_fit_"
@@ -42,7 +42,7 @@ def read_fit(material) -> dict:
     keys = set(material.keys())
     for technique, names in FIT_PARAMETERS.items():
         params: dict[str, Any] = {}
-        for name in names:
+        for name in (*names, OFF):
             key = fit_key(technique, name)
             if key in keys:
                 value = material[key]

@@ -107,7 +107,7 @@ from ..scene.scene import MaterialSSS, SceneDescription
 from ..techniques.combined.technique import transmission, view_cosine
 from ..techniques.registry import TECHNIQUES, get_spec
 from . import apply as core_apply
-from .fit_params import INFO, fitted
+from .fit_params import INFO, OFF, fitted
 from .mapping import burley_d, mean_free_path, technique_params
 from .plan import EXACT_FLOAT32, Plan, index_map, plan, required_passes
 
@@ -577,7 +577,8 @@ def features(passes: Passes, scene: SceneDescription, material: MaterialSSS, *, 
     start = time.perf_counter()
     sh = _shared or _Shared(passes, scene)
     f = Features(name=material.name or str(material.index), index=material.index)
-    f.fitted = tuple(t for t in material.fit if fitted(material.fit, t))
+    # Fits that hold values (not a technique switched off by calibrate, which holds none).
+    f.fitted = tuple(t for t in material.fit if fitted(material.fit, t) and not fitted(material.fit, t).get(OFF))
     found = _window(sh, material.index)
     if found is not None:
         win, mask = found
@@ -833,8 +834,8 @@ def measured_errors(material: MaterialSSS) -> dict[str, float]:
     different noise are not compared."""
     found: dict[str, tuple] = {}
     for technique, params in (material.fit or {}).items():
-        if not fitted(material.fit, technique):
-            continue
+        if not fitted(material.fit, technique) or fitted(material.fit, technique).get(OFF):
+            continue  # no fit, or switched off (not a candidate)
         info = params.get(INFO) or {}
         try:
             err = float(info["heldout_after"])
@@ -927,6 +928,10 @@ def choose(
             unmodelled += [n for n in every if n not in runs]
             if t in missing:
                 cands += [Candidate(n, math.nan, math.nan, f"its passes are missing ({missing[t]})") for n in runs]
+                continue
+            if fitted(material.fit, t).get(OFF):
+                why = "calibrate measured it worse than no SSS on this material (its fit switched it off)"
+                cands += [Candidate(n, math.nan, math.nan, why) for n in runs]
                 continue
             works = _works(t, material, f.pixels, len(scene.lights), mapping, list(runs.values()))
             for (n, options), work in zip(runs.items(), works, strict=True):

@@ -14,17 +14,19 @@ side stores it on the material as custom properties (``sss_lab_fit_<technique>_<
   channel of its transmittance (the random walk's mean free path, Christensen-Burley's d); a
   single number is read as the same for the three channels.
 - ``scale``: STA's s_T.
+- ``off`` (any technique): 1 when calibrate measured the technique worse than no SSS on the
+  material's held-out pixels, fit and all; the technique then leaves the material as it is.
 
 Anything else in the dict (``info``: samples, errors) is provenance and never read by a technique.
 """
 
 from __future__ import annotations
 
-from ..scene.fit_values import INFO, PARAMETERS, check_value
+from ..scene.fit_values import INFO, OFF, PARAMETERS, check_value
 from ..scene.fit_values import check_fit as check_form
 from ..techniques.registry import TECHNIQUES
 
-__all__ = ["FIT_PARAMETERS", "INFO", "PARAMETERS", "check_fit", "check_value", "fitted"]
+__all__ = ["FIT_PARAMETERS", "INFO", "OFF", "PARAMETERS", "check_fit", "check_value", "fitted"]
 
 
 def _fit_parameters() -> dict[str, tuple[str, ...]]:

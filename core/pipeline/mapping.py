@@ -29,7 +29,7 @@ import numpy as np
 from ..optics.profiles import ALBEDO_SCALINGS, MIN_RADIUS, albedo_scaling
 from ..scene.scene import SUBSURFACE_METHODS, MaterialSSS
 from ..techniques import registry
-from .fit_params import fitted
+from .fit_params import OFF, fitted
 
 #: Subsurface method -> mapping names, the default first. A name is an albedo scaling of
 #: ``profiles.ALBEDO_SCALINGS`` (d = l / s(A)) or "none" (d = l).
@@ -190,5 +190,5 @@ def technique_params(material: MaterialSSS, technique, *, mapping=None, use_fit:
     }
     params = dict(spec.defaults)
     params.update({k: v for k, v in from_material.items() if k in spec.keywords})
-    params.update({k: v for k, v in fit.items() if k != "d_scale"})
+    params.update({k: v for k, v in fit.items() if k not in ("d_scale", OFF)})
     return params

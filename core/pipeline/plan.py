@@ -235,6 +235,23 @@ def _material_params(material: MaterialSSS, technique: Technique, mapping_table,
     return params
 
 
+def _switched_off(material: MaterialSSS, technique: Technique) -> str | None:
+    """Why ``technique`` leaves ``material`` as it is when ``calibrate`` switched it off there (its
+    fit's ``off``: worse than no SSS on the held-out pixels, fit and all), else None."""
+    from .fit_params import OFF, fitted
+
+    if not fitted(material.fit, technique.name).get(OFF):
+        return None
+    info = (material.fit.get(technique.name) or {}).get("info") or {}
+    measured = ""
+    if "heldout_after" in info and "heldout_none" in info:
+        measured = f" (error {info['heldout_after']:.3g} against {info['heldout_none']:.3g} with no SSS)"
+    return (
+        f"calibrate measured {technique.label} worse than no SSS on its held-out pixels{measured}: left as it is"
+        " (the panel's Clear Fit uses it again)"
+    )
+
+
 def _changes_level(technique: Technique, params: dict, material: MaterialSSS) -> bool:
     """True when the technique's energy model (``core/optics/energy.py``, docs/references.md §15, §17)
     gives the material Cycles' level of light, which differs from the passes' however small its
@@ -329,6 +346,10 @@ def plan_and_masks(
             continue
         if mp.pixels == 0:
             mp.skip = f"no pixel on screen has Material Index {material.index}"
+            continue
+        off = _switched_off(material, technique)
+        if off:
+            mp.skip = off
             continue
         mp.params = _material_params(material, technique, mapping, options)
         mp.notes += [f"note: {note}" for note in material.notes]

@@ -16,7 +16,13 @@ PARAMETERS: dict[str, tuple[int, float, float]] = {
     "transmission_scale": (3, 0.0, 16.0),
     "transmission_d_su": (3, 0.0, 1e6),
     "scale": (1, 0.0, 64.0),
+    "off": (1, 0.0, 1.0),
 }
+
+#: The parameter every technique's fit may hold besides its own: 1 when ``calibrate`` measured
+#: the technique worse than no SSS on the material's held-out pixels even after the fit; the
+#: technique then leaves the material as it is (``core/pipeline/plan.py`` says why).
+OFF = "off"
 
 
 #: Key of the provenance entry (fit samples, errors before and after, pixels).
@@ -63,7 +69,7 @@ def check_fit(fit, where: str, fit_parameters: Mapping[str, tuple[str, ...]] | N
             if name == INFO:
                 clean[name] = dict(value) if isinstance(value, dict) else {}
                 continue
-            allowed = PARAMETERS if fit_parameters is None else fit_parameters[technique]
+            allowed = PARAMETERS if fit_parameters is None else (*fit_parameters[technique], OFF)
             if name not in allowed:
                 raise ValueError(
                     f"{where} fit for {technique}: unknown parameter {name!r}; expected: {', '.join(allowed)}"

@@ -56,7 +56,7 @@ from ..optics.energy import apply_energy, energy_inputs
 from ..pipeline import apply as core_apply
 from ..pipeline import mapping as _mapping
 from ..pipeline.call import call_technique
-from ..pipeline.fit_params import FIT_PARAMETERS, INFO, PARAMETERS
+from ..pipeline.fit_params import FIT_PARAMETERS, INFO, OFF, PARAMETERS
 from ..pipeline.plan import index_map, plan
 from ..scene.inputs import read_scene, weight_map
 from ..scene.scene import MaterialSSS, SceneDescription
@@ -231,6 +231,9 @@ class FitResult:
     blocks: int
     heldout_blocks: int
     folds: int = FOLDS
+    #: The error with no SSS on the same blocks: a fit whose held-out error is not below it switches
+    #: the technique off on the material (``fit_params.OFF``).
+    heldout_none: float = math.nan
     at_bounds: list = field(default_factory=list)
     notes: list = field(default_factory=list)
     seconds: float = 0.0
@@ -402,8 +405,8 @@ def fit_material(
     original = albedo * (core_apply.clean(passes["Diffuse Direct"]) + core_apply.clean(passes["Diffuse Indirect"]))
     rest = _blocks(combined_rgb - original, keep, box)
     y = target - rest
+    held = _blocks(original, keep, box)  # no SSS: the diffuse light the passes hold
     if w is not None:  # apply gives held + w (light - held): the light the reference shows
-        held = _blocks(original, keep, box)
         y = held + (y - held) / w
     params0 = _mapping.technique_params(plain, technique)
 
@@ -476,6 +479,7 @@ def fit_material(
         heldout_blocks=count,
         folds=folds,
         notes=notes,
+        heldout_none=_rel_rmse(held - y, target),
     )
     params = {"gain": tuple(float(v) for v in final.g), "d_scale": float(final.k)}
     if final.lengths is not None:
@@ -717,10 +721,19 @@ def _accept(result: FitResult, params: dict, samples, pixels: int, start: float,
             )
         result.notes.append("kept although it does not hold on the held-out blocks (held-out check off)")
     result.seconds = time.perf_counter() - start
+    if check and math.isfinite(result.heldout_none) and result.heldout_after >= result.heldout_none:
+        # Worse than no SSS on the held-out blocks, fit and all: the technique leaves the material
+        # as it is (core/pipeline/plan.py says so), rather than making it worse.
+        result.notes.append(
+            f"worse than no SSS on the held-out blocks even fitted (error {result.heldout_after:.4g} against"
+            f" {result.heldout_none:.4g} with no SSS): switched off on this material"
+        )
+        params = {OFF: 1.0}
     params[INFO] = {
         "samples": samples,
         "heldout_before": result.heldout_before,
         "heldout_after": result.heldout_after,
+        "heldout_none": result.heldout_none,
         "pixels": pixels,
     }
     result.params = params
@@ -754,6 +767,7 @@ def _finish_sta(material, name, base, basis, target, fold, regularization, sampl
         blocks=len(fold),
         heldout_blocks=len(fold),
         folds=int(fold.max()) + 1,
+        heldout_none=_rel_rmse(y, target),
     )
     if s in (lo, hi):
         result.at_bounds.append("scale")

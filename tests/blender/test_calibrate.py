@@ -60,6 +60,16 @@ def test_a_hand_edited_value_out_of_bounds_is_named():
         stored.read_fit(mat)
 
 
+def test_a_switched_off_fit_is_stored_and_read_back():
+    """A fit that switched its technique off (worse than no SSS even fitted) is stored on the
+    material and read back as it was, provenance included; Clear Fit removes it."""
+    mat = bpy.data.materials.new("Off")
+    info = {"samples": 32, "heldout_before": 0.3, "heldout_after": 0.25, "heldout_none": 0.2, "pixels": 900}
+    stored.write_fit(mat, "combined", {"off": 1.0, "info": info})
+    assert stored.read_fit(mat) == {"combined": {"off": 1.0, "info": info}}
+    assert stored.clear_fit(mat, "combined") and stored.read_fit(mat) == {}
+
+
 def test_bad_input_changes_nothing(backlit, tmp_path):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene

@@ -370,3 +370,51 @@ def test_a_weight_below_one_is_undone_before_the_fit(synthetic, technique):
         assert r.params["d_scale"] == pytest.approx(truth["d_scale"], rel=1e-9)
         np.testing.assert_allclose(r.params["gain"], truth["gain"], rtol=1e-3)
     assert r.heldout_after < 0.01 * r.heldout_before
+
+
+def test_a_technique_worse_than_no_sss_even_fitted_is_switched_off(synthetic):
+    """A "Cycles" image that is the passes' own Combined, with the diffuse light modulated pixel by
+    pixel (a checkerboard no blur keeps): no SSS is exact there, and Burley, whatever its fit, blurs
+    the pattern away. The fit stores ``off`` with the errors, the plan leaves the material as it is
+    and says why, and apply keeps Combined there to the bit; Clear Fit (an empty fit) uses it again."""
+    passes, scene = synthetic
+    arrays = {n: np.array(passes[n]) for n in passes.names}
+    rows, cols = np.indices(arrays["Depth"].shape)
+    checker = np.where((rows + cols) % 2 == 0, 1.6, 0.4).astype(np.float32)[..., None]
+    original = arrays["Diffuse Color"] * (arrays["Diffuse Direct"] + arrays["Diffuse Indirect"])
+    arrays["Diffuse Direct"] = arrays["Diffuse Direct"] * checker
+    arrays["Combined"][..., :3] += arrays["Diffuse Color"] * (arrays["Diffuse Direct"] + arrays["Diffuse Indirect"])
+    arrays["Combined"][..., :3] -= original
+    checkered = Passes(arrays)
+    ref = np.array(arrays["Combined"])
+    r = fit_material(checkered, scene, ref, _skin(scene), "burley")
+    assert r.params["off"] == 1.0 and set(r.params) == {"off", "info"}
+    assert r.heldout_after >= r.heldout_none and r.params["info"]["heldout_none"] == r.heldout_none
+    assert any("worse than no SSS" in n for n in r.notes)
+    off = with_fits(scene, [r])
+    again = SceneDescription.from_json(off.to_json())
+    p = core_apply.plan(checkered, again, "burley")
+    skin = next(mp for mp in p.materials if mp.material.index == 2)
+    assert skin.skip is not None and "worse than no SSS" in skin.skip and "Clear Fit" in skin.skip
+    out = core_apply.apply(checkered, again, "burley")["SSSLab.burley.Image"]
+    mask = core_apply.index_map(checkered) == 2
+    np.testing.assert_array_equal(out[mask], ref[mask])
+    cleared = dataclasses.replace(again.material(2), fit={})
+    assert core_apply.plan(checkered, dataclasses.replace(again, materials=(cleared,)), "burley").applied
+
+
+def test_auto_does_not_pick_a_technique_calibrate_switched_off(synthetic):
+    """A material whose Burley fit is ``off``: Burley is not a candidate of ``auto`` there, and says
+    why; the other techniques still are."""
+    from sss_lab.core.pipeline.auto import choose
+
+    passes, scene = synthetic
+    info = {"samples": 32, "heldout_before": 0.2, "heldout_after": 0.2, "heldout_none": 0.1, "pixels": 100}
+    skin = dataclasses.replace(_skin(scene), fit={"burley": {"off": 1.0, "info": info}})
+    off = dataclasses.replace(scene, materials=tuple(skin if m.index == 2 else m for m in scene.materials))
+    auto = choose(passes, off)
+    choice = next(c for c in auto.choices if c.material.index == 2)
+    burley = [c for c in choice.candidates if c.technique == "burley"]
+    assert burley and all("worse than no SSS" in (c.excluded or "") for c in burley)
+    assert not choice.chosen.startswith("burley")
+    assert any(c.excluded is None for c in choice.candidates if c.technique not in ("burley", "none"))
