@@ -61,11 +61,34 @@ def add_parser(subparsers):
     p.set_defaults(run=run)
 
 
+def _json_out(args, blend_out: str) -> str | None:
+    """The absolute path of ``--json``, checked before anything runs: a .json file name that is
+    neither the input .blend nor ``--out`` (links resolved) and, without ``--overwrite``, no
+    existing file; None without ``--json``."""
+    from .cli import CommandError
+
+    if not args.json:
+        return None
+    path = os.path.abspath(args.json)
+    if not path.endswith(".json"):
+        raise CommandError(f"--json {args.json!r}: expected a .json file name")
+    if os.path.isdir(path):
+        raise CommandError(f"--json {args.json!r} is a folder; expected a .json file name")
+    real = os.path.realpath(path)
+    for flag, other in (("the input .blend", args.blend), ("--out", blend_out)):
+        if real == os.path.realpath(os.path.abspath(other)):
+            raise CommandError(f"--json {args.json!r} is {flag}; refusing to write the results over it")
+    if os.path.exists(path) and not args.overwrite:
+        raise CommandError(f"--json {args.json!r} exists; refusing to overwrite it (pass --overwrite to allow it)")
+    return path
+
+
 def run(args) -> int:
     from .cli_options import read_blend_out, read_resolution
     from .cli_scan import open_blend
 
     out = read_blend_out(args)
+    json_out = _json_out(args, out)
     resolution = read_resolution(args)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     scene = open_blend(args.blend, args.scene)
@@ -97,9 +120,11 @@ def run(args) -> int:
         print(saved_line(out), flush=True)
     else:
         print("sss_lab calibrate: no material could be fitted; nothing written", flush=True)
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(data, fh, indent=2, default=str)
+    if json_out:
+        from ..core.base import files
+
+        files.write_text(json_out, json.dumps(data, indent=2, default=str))
+        print(saved_line(json_out), flush=True)
     s = data["seconds"]
     line = f"calibrate: Cycles {s['reference']:.1f} s, passes {s['passes']:.1f} s, fit {s['fit']:.1f} s"
     if "start_up" in s:

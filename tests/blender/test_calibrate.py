@@ -80,6 +80,20 @@ def test_bad_input_changes_nothing(backlit, tmp_path):
         cal.calibrate(bpy.context.scene, techniques=("blur",))
     # The command line refuses to overwrite its input and writes nothing for a scene without SSS.
     assert main(["calibrate", backlit, "--out", backlit]) == 2
+    # --json is checked before anything runs: never the input, never --out, never an existing file
+    # without --overwrite (it once replaced the input .blend with the results).
+    with open(backlit, "rb") as fh:
+        before = fh.read()
+    out = str(tmp_path / "out.blend")
+    existing = tmp_path / "old.json"
+    existing.write_text("{}")
+    link = tmp_path / "link.json"
+    link.symlink_to(backlit)
+    for target in (backlit, out, str(existing), str(link), str(tmp_path / "results.txt")):
+        assert main(["calibrate", backlit, "--out", out, "--json", target]) == 2, target
+    with open(backlit, "rb") as fh:
+        assert fh.read() == before
+    assert existing.read_text() == "{}" and not (tmp_path / "out.blend").exists()
     for bad in (["--budget", "2"], ["--samples", "16", "--max-samples", "8"]):
         assert main(["calibrate", backlit, "--out", str(tmp_path / "bad.blend"), *bad]) == 2
         assert not (tmp_path / "bad.blend").exists()
@@ -227,3 +241,16 @@ def test_the_start_up_is_timed_apart_once_per_process(backlit, monkeypatch):
     assert cal._STARTED == {"burley"}
     again = cal.calibrate(bpy.context.scene, techniques=("burley",), samples=4, pass_samples=4, log=lambda _l: None)
     assert "start_up" not in again["seconds"]
+
+
+def test_the_command_writes_its_json_beside_the_blend_and_says_so(backlit, tmp_path, capsys):
+    out, results = tmp_path / "out.blend", tmp_path / "fit.json"
+    args = ["calibrate", backlit, "--out", str(out), "--json", str(results), "--samples", "8"]
+    code = main([*args, "--pass-samples", "8", "--resolution", "48x48", "--methods", "burley"])
+    assert code in (0, 1)  # 1: a material could not be fitted at this size (named on a line)
+    import json
+
+    data = json.loads(results.read_text())
+    assert {"results", "problems", "seconds"} <= set(data)
+    printed = capsys.readouterr().out
+    assert f"Saved: {str(results)!r}" in printed or f"Saved: '{results}'" in printed
