@@ -34,13 +34,21 @@ def open_blend(path: str, scene_name: str | None = None):
     if not path.endswith(".blend"):
         raise CommandError(f"{path!r} is not a .blend file")
     try:
-        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
+        # Scripts off whatever the preferences say: a .blend from elsewhere never runs code here.
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False, use_scripts=False)
     except RuntimeError as exc:  # Blender's "File format is not supported", "Missing DNA block", ...
         reason = " ".join(str(exc).replace("Error:", " ").split()) or "unknown error"
         raise CommandError(
             f"{path!r} cannot be opened as a .blend file ({reason[:200]}): it is damaged, truncated or not a "
             "Blender file; open it in Blender to check, or use its backup (.blend1)"
         ) from None
+    if bpy.app.autoexec_fail:  # what the blocked scripts drive keeps the value saved in the file
+        print(
+            f"sss_lab: note: {path!r}: its scripts were not run (SSS Lab opens files with scripts off;"
+            f" Blender blocked {' '.join(bpy.app.autoexec_fail_message.split())[:200]!r}): what they drive keeps"
+            " the value saved in the file",
+            flush=True,
+        )
     if scene_name is None:
         return bpy.context.scene
     scene = bpy.data.scenes.get(scene_name)

@@ -46,3 +46,33 @@ def test_a_damaged_blend_is_one_line(good_blend, tmp_path, capsys, command):
         assert err.count("\n") == 1 and "Traceback" not in err, (kind, err)
         assert f"'{path}' cannot be opened as a .blend file" in err and "backup (.blend1)" in err, (kind, err)
         assert hashlib.sha256(path.read_bytes()).digest() == hashlib.sha256(data).digest()
+
+
+def test_scripts_in_a_blend_never_run_even_when_the_preferences_allow_it(tmp_path, capsys):
+    """A .blend holding a text block registered to run on load (and a driver expression): the
+    commands open user files with scripts off whatever Blender's preferences say, so the script
+    leaves no trace (it would write a file)."""
+    from sss_lab.addon.cli_scan import open_blend
+
+    marker = tmp_path / "ran.txt"
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    text = bpy.data.texts.new("autorun.py")
+    text.write(f"open({str(marker)!r}, 'w').write('ran')\n")
+    text.use_module = True  # "Register": Blender runs it when the file loads, if scripts may run
+    cube = bpy.data.objects.new("Cube", bpy.data.meshes.new("Cube"))
+    bpy.context.scene.collection.objects.link(cube)
+    driver = cube.driver_add("location", 0).driver
+    driver.type, driver.expression = "SCRIPTED", f"len(open({str(marker)!r}, 'w').write('ran')) * 0"
+    path = tmp_path / "scripted.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    prefs = bpy.context.preferences.filepaths
+    before = prefs.use_scripts_auto_execute
+    prefs.use_scripts_auto_execute = True
+    try:
+        open_blend(str(path))
+    finally:
+        prefs.use_scripts_auto_execute = before
+    assert "autorun.py" in bpy.data.texts  # the file was opened
+    bpy.context.view_layer.update()  # drivers evaluate here, if they may
+    assert not marker.exists()
+    assert "its scripts were not run" in capsys.readouterr().out  # and the command says so
