@@ -385,8 +385,17 @@ def summarize(results: list[dict]) -> dict:
     the checks of the suite's goals."""
     techniques = sorted({r["technique"] for s in results for r in s["rows"] if r["technique"] != "none"})
     out = {"kinds": {}, "worse_than_no_sss": [], "burley_vs_ssss": None, "mappings": summarize_mappings(results)}
+    groups = []
     for kind in sorted({s["kind"] for s in results}):
-        scenes = [s for s in results if s["kind"] == kind]
+        of_kind = [s for s in results if s["kind"] == kind]
+        groups.append((kind, of_kind))
+        out_of_fits = [s for s in of_kind if s.get("held_out")]
+        if out_of_fits:  # the held-out scenes apart (scenes.held_out), and the rest
+            groups.append((f"{kind}, held out", out_of_fits))
+            groups.append((f"{kind}, the rest", [s for s in of_kind if not s.get("held_out")]))
+    for kind, scenes in groups:
+        if not scenes:
+            continue
         medians = {}
         for t in techniques:
             removed = [r["removed"] for s in scenes for r in s["rows"] if r["technique"] == t and r["default"]]
@@ -528,7 +537,7 @@ def markdown(data: dict, grid: str = "images/fidelity_grid.png") -> str:
             return text if t == "none" else f"{text} {_fmt(r['removed'], True)}"
 
         lines.append(
-            f"| {s['scene']} | {s['kind']} | {s['noise_floor']:.3f} | "
+            f"| {s['scene']} | {s['kind']}{' (held out)' if s.get('held_out') else ''} | {s['noise_floor']:.3f} | "
             + " | ".join(cell(t) for t in ("none", *techs))
             + " |"
         )
@@ -615,6 +624,7 @@ def run(
         log(f"{name}:")
         data = load_scene(name, scenes=module, cache=cache, store=store, log=log, thickness_source=thickness_source)
         result = score_scene(data, qualities=qualities, log=log)
+        result["held_out"] = bool(getattr(module.SCENES[name], "held_out", False))
         result["_images"]["reference"] = data.reference
         results.append(result)
     return {"scenes": results, "summary": summarize(results)}

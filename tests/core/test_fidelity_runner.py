@@ -28,3 +28,29 @@ def test_summary_medians_and_checks():
     # SSSS on "c" is worse than no SSS by 0.015, more than the reference noise 0.01.
     assert [(w["scene"], w["label"]) for w in s["worse_than_no_sss"]] == [("c", "ssss")]
     assert s["burley_vs_ssss"]["scenes_burley_better_or_equal"] == 2
+
+
+def test_the_held_out_scenes_are_summarized_apart():
+    results = [
+        _scene("a", "diffusion", 0.2, ssss=0.1),
+        _scene("b", "diffusion", 0.1, ssss=0.08),
+        {**_scene("c", "diffusion", 0.1, ssss=0.05), "held_out": True},
+        _scene("d", "backlit", 1.0, ssss=0.4),
+    ]
+    kinds = run.summarize(results)["kinds"]
+    assert kinds["diffusion"]["scenes"] == 3
+    assert kinds["diffusion, held out"]["scenes"] == 1
+    assert kinds["diffusion, held out"]["median_removed_by_technique"]["ssss"] == pytest.approx(0.5)
+    assert kinds["diffusion, the rest"]["median_removed_by_technique"]["ssss"] == pytest.approx(0.35)
+    assert "backlit, held out" not in kinds  # no held-out back-lit scene: no such group
+
+
+def test_a_third_of_the_suite_is_held_out_by_name_alone():
+    """The rule depends on the name only (the same on every machine and run) and keeps about a
+    third of the suite, of both kinds, out of the fits."""
+    from benchmarks.fidelity.scenes import SCENES, held_out
+
+    out = [n for n in SCENES if held_out(n)]
+    assert len(SCENES) / 4 <= len(out) <= len(SCENES) / 2
+    assert {SCENES[n].kind for n in out} == {SCENES[n].kind for n in SCENES}
+    assert all(SCENES[n].held_out == held_out(n) for n in SCENES)
