@@ -45,7 +45,7 @@ import numpy as np
 
 from ..core.base import files
 from ..core.base.errors import DamagedFileError, OutputError, describe_os_error
-from ..core.base.progress import saved_line
+from ..core.base.progress import printable, saved_line
 from ..core.pipeline.plan import required_passes
 from ..core.pipeline.sequence import frame_path, sidecar_path
 from ..core.scene.passes import INPUT_AOVS, PASSES, InputAOV
@@ -423,7 +423,7 @@ def _plan(scene, out_dir, *, techniques, frames, view_layer, overwrite, say) -> 
         )
     for m in materials:  # what the reader could not read as Cycles renders it
         for note in m.notes:
-            say(f"{m.name}: {note}")
+            say(f"{printable(m.name)}: {printable(note)}")
     aov_name = thickness_aov_name(scene)
     convention = "translucency"
     needs_thickness = any(aov_name in required_passes(t, aov_name) for t in techniques)

@@ -12,9 +12,19 @@ import time
 from collections.abc import Callable
 
 
+def printable(text: str) -> str:
+    """``text`` with every character that is not printable (a newline, a carriage return, an
+    escape sequence's ESC, a backspace...) written as its Python escape (``\\n``, ``\\x1b``): a name
+    read from a file can then neither start a log line of its own nor drive the terminal."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+
+
 def saved_line(path: str | os.PathLike[str]) -> str:
-    """``Saved: '<absolute path>'``, the form Blender prints for every file it writes."""
-    return f"Saved: '{os.path.abspath(os.fspath(path))}'"
+    """``Saved: '<absolute path>'``, the form Blender prints for every file it writes; a character
+    of the path that is not printable is escaped (``printable``), so the line stays one line."""
+    return f"Saved: '{printable(os.path.abspath(os.fspath(path)))}'"
 
 
 def format_seconds(seconds: float) -> str:

@@ -4,7 +4,7 @@ import os
 
 import pytest
 
-from sss_lab.core.base.progress import Progress, format_seconds, saved_line
+from sss_lab.core.base.progress import Progress, format_seconds, printable, saved_line
 
 
 class Clock:
@@ -48,3 +48,15 @@ def test_long_durations_read_as_clock_times():
 def test_saved_line_is_blenders_form_with_an_absolute_path(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert saved_line("out/a b.exr") == f"Saved: '{os.path.join(tmp_path, 'out', 'a b.exr')}'"
+
+
+@pytest.mark.parametrize(
+    "name",
+    ["skin\nSaved: '/etc/passwd'", "skin\rSaved: 'x'", "red\x1b[31m skin", "tab\there", "bell\x07", "del\x7f"],
+)
+def test_a_name_that_is_not_printable_cannot_forge_a_line_or_drive_the_terminal(tmp_path, name):
+    """A file or material name holding a newline, a carriage return or an escape sequence: the
+    Saved line stays one printable line, the characters written as escapes."""
+    line = saved_line(tmp_path / name)
+    assert line.isprintable() and line.startswith("Saved: '") and len(line.splitlines()) == 1
+    assert printable(name) != name and printable("Skin.001 ü") == "Skin.001 ü"
