@@ -310,6 +310,14 @@ def test_model_validation_and_the_shipped_model():
     assert "none" in shipped.coefficients and shipped.trained_on and shipped.command
 
 
+def test_the_shipped_model_never_saw_the_held_out_scenes():
+    """The suite's held-out third stays out of every tuning decision, the shipped model's included."""
+    from benchmarks.fidelity.scenes import held_out
+
+    trained_on = auto.load_model().trained_on
+    assert trained_on and not [name for name in trained_on if held_out(name)]
+
+
 def test_fitted_energy_counts_against_techniques_without_the_fit():
     f = auto.Features(name="m", index=1, pixels=1, diffusion=0.1, energy=0.2, fitted=("burley",))
     assert MODEL.predict("burley", f) == pytest.approx(math.sqrt(0.19 * 0.01))
