@@ -99,6 +99,7 @@ def run(args) -> int:
         image_format=_FORMATS[args.format],
         image_folder=image_dir,
         link_materials=not args.no_materials,
+        overwrite=bool(args.overwrite),
     )
     scene = open_blend(args.blend, args.scene)
     import bpy

@@ -57,6 +57,7 @@ import bpy
 import numpy as np
 
 from ..core.base import files
+from ..core.base.progress import printable
 from ..core.scene.thickness import (
     IMAGE_FORMATS,
     SOURCES,
@@ -316,6 +317,8 @@ class ThicknessBake:
                 self._image_folder = os.path.abspath(bpy.path.abspath(folder))
                 if os.path.exists(self._image_folder) and not os.path.isdir(self._image_folder):
                     errors.append(f"image folder {self._image_folder!r} exists and is not a folder")
+                else:
+                    errors += self._image_clashes()
         if errors:
             raise BakeError("cannot bake thickness:\n  - " + "\n  - ".join(errors))
         if not self._queue and all(r.status == "skipped" and not r.mesh for r in self._results.values()):
@@ -580,10 +583,44 @@ class ThicknessBake:
             meta.update(attribute=s.attribute_name, domain="POINT")
         return meta
 
+    def _image_file(self, item: _Item) -> str:
+        """The file name of ``item``'s map in the image folder."""
+        return bpy.path.clean_name(item.mesh.name) + "_thickness" + IMAGE_FORMATS[self.settings.image_format]
+
+    def _image_clashes(self) -> list[str]:
+        """Why the maps cannot be written (checked before anything is baked): two meshes whose names
+        give the same file name, or an existing file that SSS Lab did not bake from the same mesh
+        (its sidecar JSON says which mesh it was) while ``overwrite`` is off."""
+        errors = []
+        by_file: dict[str, list[str]] = {}
+        for item in self._queue:
+            by_file.setdefault(self._image_file(item), []).append(item.mesh.name)
+        for filename, meshes in by_file.items():
+            if len(meshes) > 1:
+                names = ", ".join(printable(repr(m)) for m in meshes)
+                errors.append(
+                    f"meshes {names} would all be written to {filename!r} (their names differ only in characters a "
+                    "file name cannot hold): rename all but one"
+                )
+                continue
+            path = os.path.join(self._image_folder, filename)
+            if self.settings.overwrite or not any(os.path.lexists(p) for p in (path, path + ".json")):
+                continue
+            try:
+                with open(path + ".json", encoding="utf-8") as fh:
+                    ours = json.load(fh).get("mesh") == meshes[0]
+            except (OSError, ValueError, AttributeError):
+                ours = False
+            if not ours or not os.path.isfile(path):
+                errors.append(
+                    f"{path!r} exists and SSS Lab did not bake it from mesh {printable(meshes[0])!r}; refusing to"
+                    " overwrite it (choose another image folder; on the command line --overwrite allows it)"
+                )
+        return errors
+
     def _save_image(self, image, item: _Item, meta: dict) -> str:
         s = self.settings
-        ext = IMAGE_FORMATS[s.image_format]
-        filename = bpy.path.clean_name(item.mesh.name) + "_thickness" + ext
+        filename = self._image_file(item)
         path = os.path.join(self._image_folder, filename)
         sidecar = path + ".json"
         meta = dict(meta, file=filename, format=s.image_format, bit_depth=32 if s.image_format == "OPEN_EXR" else 16)

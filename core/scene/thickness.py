@@ -77,7 +77,10 @@ class BakeSettings:
     ``image_format``. ``link_materials``: add the result to the object's materials, feeding a
     Shader AOV output named ``aov_name`` (the render passes' thickness AOV). ``source``: what the
     map is measured from (``SOURCES``; "ray" needs the attribute target and ignores ``samples``
-    and ``only_local``); None (the default) takes ``default_source(target)``.
+    and ``only_local``); None (the default) takes ``default_source(target)``. ``overwrite``: the
+    image target may replace files in ``image_folder`` that SSS Lab did not bake from the same mesh
+    (without it such a file stops the bake before anything runs; a map SSS Lab baked from the same
+    mesh, as its sidecar JSON says, is baked again).
     """
 
     target: str = "attribute"
@@ -93,6 +96,7 @@ class BakeSettings:
     link_materials: bool = True
     aov_name: str = "Thickness"
     source: str | None = None
+    overwrite: bool = False
 
     def __post_init__(self):
         if self.target not in TARGETS:

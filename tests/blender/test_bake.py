@@ -429,6 +429,30 @@ def test_rebake_reuses_its_image_and_attribute(tmp_path):
     assert len(obj.data.materials) == 0  # nothing to link into, and no slot left behind
 
 
+def test_image_target_never_overwrites_a_file_it_did_not_bake(tmp_path):
+    """An image file of the same name that SSS Lab did not bake from this mesh (no sidecar, or a
+    sidecar naming another mesh) stops the bake before anything runs, the file untouched; two meshes
+    whose names give the same file name stop it too. A map baked from the same mesh is baked again,
+    and ``overwrite`` allows the rest."""
+    obj = _link("Block", _box("Block"))
+    settings = _settings(target="image", resolution_px=8, image_folder=str(tmp_path))
+    foreign = tmp_path / "Block_thickness.exr"
+    foreign.write_bytes(b"someone else's map")
+    with pytest.raises(BakeError, match=r"Block_thickness\.exr' exists and SSS Lab did not bake it from mesh 'Block'"):
+        bake_thickness(bpy.context, [obj], settings, log=_quiet)
+    (tmp_path / "Block_thickness.exr.json").write_text('{"mesh": "Other"}')
+    with pytest.raises(BakeError, match="did not bake it"):
+        bake_thickness(bpy.context, [obj], settings, log=_quiet)
+    assert foreign.read_bytes() == b"someone else's map" and len(bpy.data.images) == 0
+    (r,) = bake_thickness(bpy.context, [obj], dataclasses.replace(settings, overwrite=True), log=_quiet)
+    assert r.status == "baked" and foreign.read_bytes() != b"someone else's map"
+    (again,) = bake_thickness(bpy.context, [obj], settings, log=_quiet)  # its own map: baked again
+    assert again.status == "baked"
+    twins = [_link(name, _box(name)) for name in ("Rock:1", "Rock/1")]  # both clean to "Rock_1"
+    with pytest.raises(BakeError, match=r"meshes 'Rock:1', 'Rock/1' would all be written to 'Rock_1_thickness\.exr'"):
+        bake_thickness(bpy.context, twins, settings, log=_quiet)
+
+
 # -- input that is not bakeable --------------------------------------------------------------
 def test_mesh_without_uv_map_image_target_error_names_it_attribute_target_works(tmp_path):
     obj = _link("NoUV", _box("NoUV", uv=False))
