@@ -145,11 +145,9 @@ def run(args) -> int:
     from ..core.base import files
 
     files.check_interrupted()  # a bake cut short by Ctrl-C is not saved
-    try:
-        os.makedirs(os.path.dirname(out), exist_ok=True)
-        bpy.ops.wm.save_as_mainfile(filepath=out, copy=True, check_existing=False, relative_remap=True)
-    except (OSError, RuntimeError) as exc:  # Blender reports a failed save as a RuntimeError
-        raise files.write_failure(out, exc) from None
+    from .cli_options import save_blend
+
+    save_blend(out)  # written, read back, then moved into place
     for r in results:
         if r.status == "baked" and r.filepath:
             print(saved_line(r.filepath))

@@ -92,7 +92,6 @@ def run(args) -> int:
     resolution = read_resolution(args)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     scene = open_blend(args.blend, args.scene)
-    import bpy
 
     from ..blender.calibrate import calibrate
 
@@ -116,7 +115,9 @@ def run(args) -> int:
         from ..core.base import files
 
         files.check_interrupted()  # a fit cut short by Ctrl-C is not saved
-        bpy.ops.wm.save_as_mainfile(filepath=out, copy=True, check_existing=False, relative_remap=True)
+        from .cli_options import save_blend
+
+        save_blend(out)  # written, read back, then moved into place
         print(saved_line(out), flush=True)
     else:
         print("sss_lab calibrate: no material could be fitted; nothing written", flush=True)

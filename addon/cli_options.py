@@ -164,3 +164,48 @@ def render_device(args, scene, log=print):
         if said and log is not None:
             log(said)
         yield
+
+
+def _save_copy(path: str) -> None:
+    """Blender's save of the open file as a copy at ``path`` (a seam the tests replace)."""
+    import bpy
+
+    bpy.ops.wm.save_as_mainfile(filepath=path, copy=True, check_existing=False, relative_remap=True)
+
+
+def _read_back(path: str) -> None:
+    """Read the .blend file at ``path`` back (its list of scenes): OSError for a file Blender cannot
+    open, RuntimeError for one without a scene. Nothing is linked into the open file."""
+    import bpy
+
+    before = set(bpy.data.libraries)
+    with bpy.data.libraries.load(path) as (source, _):
+        scenes = list(source.scenes)
+    for library in set(bpy.data.libraries) - before:
+        bpy.data.libraries.remove(library)
+    if not scenes:
+        raise RuntimeError("the written file holds no scene")
+
+
+def save_blend(out: str) -> None:
+    """Save the open file as a copy at ``out``: written under a temporary name beside it, read back
+    by Blender, then moved into place; OutputError (and nothing at ``out``) when the write or the
+    read-back fails, as on a full disk where Blender's saver leaves a truncated file and no error.
+    ``out`` was checked by ``read_blend_out`` (existing only with ``--overwrite``)."""
+    import os
+
+    from ..core.base import files
+
+    with files.temporary_beside(out, suffix=".blend") as tmp:
+        try:
+            # Blender backs up a file it saves over (tmp + "1"): the placeholder goes first.
+            os.remove(tmp)
+            _save_copy(tmp)
+            if os.path.lexists(tmp + "1"):
+                os.remove(tmp + "1")
+            if os.path.getsize(tmp) == 0:
+                raise RuntimeError("Blender wrote an empty file")
+            _read_back(tmp)
+        except (OSError, RuntimeError) as exc:
+            raise files.write_failure(out, exc) from None
+        files.move_into_place(tmp, out)

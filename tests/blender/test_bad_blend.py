@@ -76,3 +76,30 @@ def test_scripts_in_a_blend_never_run_even_when_the_preferences_allow_it(tmp_pat
     bpy.context.view_layer.update()  # drivers evaluate here, if they may
     assert not marker.exists()
     assert "its scripts were not run" in capsys.readouterr().out  # and the command says so
+
+
+@pytest.mark.parametrize("damage", ["truncated", "empty"])
+def test_a_blend_written_damaged_is_an_error_and_leaves_no_file(tmp_path, monkeypatch, damage):
+    """On a full disk Blender's saver can leave a short file and report nothing: the written copy
+    is read back before it is moved into place, so the command fails with the write named and
+    nothing is left under the output's name (nor a temporary beside it)."""
+    from sss_lab.addon import cli_options
+    from sss_lab.core.base.errors import OutputError
+
+    real = cli_options._save_copy
+
+    def short_write(path):
+        real(path)
+        data = open(path, "rb").read()
+        open(path, "wb").write(data[: len(data) // 2] if damage == "truncated" else b"")
+
+    bpy.ops.wm.read_factory_settings(use_empty=False)
+    monkeypatch.setattr(cli_options, "_save_copy", short_write)
+    out = tmp_path / "out.blend"
+    with pytest.raises(OutputError, match="out.blend: could not be written"):
+        cli_options.save_blend(str(out))
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(cli_options, "_save_copy", real)
+    cli_options.save_blend(str(out))  # a whole write is read back and kept
+    assert [p.name for p in tmp_path.iterdir()] == ["out.blend"]
+    assert len(bpy.data.libraries) == 0  # the read-back linked nothing into the open file
