@@ -50,12 +50,17 @@ def add_parser(subparsers):
     p.set_defaults(run=run)
 
 
-def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | None) -> str | None:
-    """The passes file of ``frame`` when it and its scene description exist (then it is kept);
-    None when the frame must be rendered. CommandError when the kept frame was rendered for
-    other techniques or samples: skipping it would deliver files the job did not ask for."""
+def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | None, job: dict) -> str | None:
+    """The passes file of ``frame`` when it and its scene description exist, the file is whole and
+    it is this job's (then it is kept); None when the frame must be rendered (a file that does not
+    read whole is rendered again). CommandError when the kept frame was rendered for other
+    techniques, samples, seed, scene or size: skipping it would deliver files the job did not ask
+    for. ``job``: what the frame must match besides ("scene": name, "size": (w, h), "seed": int or
+    None)."""
     from ..blender.render_passes import FILE_PATTERN
+    from ..core.base.errors import SSSLabError
     from ..core.pipeline.sequence import frame_path, sidecar_path
+    from ..core.scene.exr import read_passes
     from .cli import CommandError
 
     exr = os.path.join(out_dir, frame_path(FILE_PATTERN, frame))
@@ -63,7 +68,9 @@ def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | No
         return None
     try:
         with open(sidecar_path(exr), encoding="utf-8") as fh:
-            meta = json.load(fh).get("meta", {})
+            description = json.load(fh)
+        meta = description.get("meta", {})
+        camera = description.get("camera", {})
     except (OSError, ValueError, AttributeError) as exc:
         raise CommandError(f"{sidecar_path(exr)}: not a readable scene description ({exc}); pass --overwrite") from None
     missing = [t for t in techniques if t not in meta.get("techniques", [])]
@@ -72,11 +79,28 @@ def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | No
             f"{exr} exists but holds no passes for {', '.join(missing)} (it was rendered for "
             f"{', '.join(meta.get('techniques', [])) or 'unknown techniques'}); pass --overwrite or another --out"
         )
+    differs = []
     if samples is not None and meta.get("samples") != samples:
+        differs.append(f"{meta.get('samples')} samples, not {samples}")
+    if job.get("seed") is not None and meta.get("seed") != job["seed"]:
+        differs.append(f"seed {meta.get('seed')}, not {job['seed']}")
+    if meta.get("scene") != job["scene"]:
+        differs.append(f"scene {meta.get('scene')!r}, not {job['scene']!r}")
+    size = (camera.get("width_px"), camera.get("height_px"))
+    if size != tuple(job["size"]):
+        differs.append(f"{size[0]}x{size[1]} pixels, not {job['size'][0]}x{job['size'][1]}")
+    if differs:
         raise CommandError(
-            f"{exr} exists but was rendered with {meta.get('samples')} samples, not {samples}; "
-            "pass --overwrite or another --out"
+            f"{exr} exists but was rendered with {'; '.join(differs)}; pass --overwrite or another --out"
         )
+    try:
+        passes = read_passes(exr)
+    except (SSSLabError, OSError, ValueError) as exc:  # cut short or damaged: rendered again
+        print(f"render: {exr} does not read whole ({exc}): rendering frame {frame} again", flush=True)
+        return None
+    if (passes.shape[1], passes.shape[0]) != tuple(job["size"]):
+        print(f"render: {exr} holds {passes.shape[1]}x{passes.shape[0]} pixels: rendering frame {frame} again")
+        return None
     return exr
 
 
@@ -121,9 +145,15 @@ def run(args) -> int:
     progress = Progress(len(frames))
     todo = frames
     if args.skip_existing:
+        render = scene.render
+        size = resolution or (
+            max(1, int(render.resolution_x * render.resolution_percentage / 100)),
+            max(1, int(render.resolution_y * render.resolution_percentage / 100)),
+        )
+        job = {"scene": scene.name, "size": size, "seed": args.seed}
         todo = []
         for frame in frames:
-            kept = _finished(out_dir, frame, techniques, args.samples)
+            kept = _finished(out_dir, frame, techniques, args.samples, job)
             if kept is None:
                 todo.append(frame)
             else:

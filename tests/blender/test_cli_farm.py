@@ -61,6 +61,25 @@ def test_skip_existing_renders_only_the_missing_frames_and_says_which(blend, tmp
     # Frames rendered for other techniques are not passed off as this request's.
     assert _render(blend, tmp_path, "--skip-existing", "--methods", "burley") == 2
     assert "holds no passes for burley" in capsys.readouterr().err
+    # Nor frames of another size or seed.
+    assert _render(blend, tmp_path, "--skip-existing", "--resolution", "16x12") == 2
+    assert "32x24 pixels, not 16x12" in capsys.readouterr().err
+    assert _render(blend, tmp_path, "--skip-existing", "--seed", "5") == 2
+    assert "seed 0, not 5" in capsys.readouterr().err
+
+
+def test_skip_existing_renders_a_cut_short_frame_again(blend, tmp_path, capsys):
+    """A passes file cut short (a copy interrupted, a disk that filled) beside its scene
+    description does not read whole: --skip-existing renders that frame again, and says so."""
+    assert _render(blend, tmp_path, "--frames", "1") == 0
+    exr = tmp_path / "passes_0001.exr"
+    data = exr.read_bytes()
+    exr.write_bytes(data[: len(data) // 2])
+    capsys.readouterr()
+    assert _render(blend, tmp_path, "--frames", "1", "--skip-existing") == 0
+    out = capsys.readouterr().out
+    assert "does not read whole" in out and f"Saved: '{exr}'" in out
+    assert exr.read_bytes() != data[: len(data) // 2]
 
 
 def test_threads_and_device_apply_while_rendering_and_are_put_back(blend, tmp_path, monkeypatch, capsys):
