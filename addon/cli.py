@@ -14,7 +14,7 @@ import traceback
 
 from ..core.base.errors import SSSLabError, describe_os_error
 from ..core.techniques.registry import TECHNIQUES, check_technique
-from .interrupt import EXIT_INTERRUPTED, finished_summary, interrupt_guard
+from .interrupt import EXIT_INTERRUPTED, finished_summary, interrupt_guard, interrupted_by
 
 #: Command modules, relative to this package, in the order ``--help`` lists them.
 COMMANDS = (
@@ -118,7 +118,7 @@ def main(argv: list[str] | None = None, *, prog: str = "python -m sss_lab") -> i
     except KeyboardInterrupt:
         if debug:
             traceback.print_exc()
-        print(f"sss_lab {command}: interrupted (Ctrl-C){finished_summary()}", file=sys.stderr)
+        print(f"sss_lab {command}: interrupted ({interrupted_by()}){finished_summary()}", file=sys.stderr)
         return EXIT_INTERRUPTED
     except (SSSLabError, ValueError, OSError) as exc:
         if debug:

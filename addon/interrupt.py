@@ -19,6 +19,9 @@ never written, and every output is moved into place whole or not at all.
 Blender catches a KeyboardInterrupt raised inside its render and bake callbacks, and the job
 may then go on with a cut-short result. So once SIGINT has arrived no output is moved into
 place any more (``core.base.files.INTERRUPTED``), and a job that finishes anyway exits 130.
+
+SIGTERM and SIGHUP (a farm manager cancelling a task, a closed terminal) stop a command exactly as
+Ctrl-C does, and the messages name the signal.
 """
 
 from __future__ import annotations
@@ -35,8 +38,25 @@ from ..core.base import files
 
 #: Seconds the main thread gets to unwind after Ctrl-C before the process is ended for it.
 GRACE_SECONDS = 2.0
-#: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
+#: Exit status after Ctrl-C (128 + SIGINT), as shells report it; also after SIGTERM and SIGHUP,
+#: which stop a command the same way (a farm manager cancelling a task, a closed terminal).
 EXIT_INTERRUPTED = 130
+#: The signals that interrupt a command: Ctrl-C, and where the platform has them a polite kill
+#: and a hang-up.
+SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+#: How the last interrupt arrived, for the messages: "Ctrl-C", "SIGTERM" or "SIGHUP".
+_RECEIVED = ["Ctrl-C"]
+
+
+def _name(signum: int) -> str:
+    return "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+
+
+def interrupted_by() -> str:
+    """ "Ctrl-C", or the name of the signal that interrupted the command."""
+    return _RECEIVED[0]
 
 
 def finished_summary() -> str:
@@ -54,7 +74,7 @@ def _force_exit(command: str) -> None:
     except (OSError, ValueError):
         pass
     message = (
-        f"sss_lab {command}: interrupted (Ctrl-C) while Blender was busy (starting, rendering or baking): "
+        f"sss_lab {command}: interrupted ({interrupted_by()}) while Blender was busy (starting, rendering or baking): "
         f"stopped{finished_summary()}; no partial file left\n"
     )
     try:
@@ -84,6 +104,7 @@ def _handler(signum, frame) -> None:
     """Python's default SIGINT behaviour (KeyboardInterrupt), except inside one of Blender's own
     Python callbacks: Blender prints an exception raised there as a traceback and carries on, so
     there the interrupt is left to the watcher, which ends the process within the grace period."""
+    _RECEIVED[0] = _name(signum)
     scripts = _blender_scripts()
     while frame is not None:  # the whole stack: Blender may be importing or calling its scripts
         name = frame.f_code.co_filename
@@ -97,7 +118,8 @@ def _handler(signum, frame) -> None:
 
 @contextlib.contextmanager
 def interrupt_guard(command: str, grace: float = GRACE_SECONDS):
-    """Within the block, Ctrl-C raises KeyboardInterrupt in the main thread as usual, and ends
+    """Within the block, Ctrl-C (or SIGTERM, SIGHUP: ``SIGNALS``) raises KeyboardInterrupt in the
+    main thread as Ctrl-C does, and ends
     the process with status 130 when the main thread does not get back to Python within
     ``grace`` seconds. Does nothing outside the main thread (signals go to the main thread)."""
     if threading.current_thread() is not threading.main_thread():
@@ -106,11 +128,12 @@ def interrupt_guard(command: str, grace: float = GRACE_SECONDS):
     _blender_scripts()  # known before the first signal: the handler only compares strings
     read_fd, write_fd = os.pipe()
     os.set_blocking(write_fd, False)
-    previous_handler = signal.signal(signal.SIGINT, _handler)
+    previous_handlers = {s: signal.signal(s, _handler) for s in SIGNALS}
     try:
         previous_fd = signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
     except ValueError:  # not the main interpreter
-        signal.signal(signal.SIGINT, previous_handler)
+        for s, h in previous_handlers.items():
+            signal.signal(s, h)
         os.close(read_fd)
         os.close(write_fd)
         yield
@@ -125,13 +148,16 @@ def interrupt_guard(command: str, grace: float = GRACE_SECONDS):
                 return
             if done.is_set() or not data:
                 return
-            if signal.SIGINT in data:
+            arrived = [s for s in SIGNALS if s in data]
+            if arrived:
+                _RECEIVED[0] = _name(arrived[-1])
                 files.INTERRUPTED.set()
                 if not done.wait(grace):
                     _force_exit(command)
 
     watcher = threading.Thread(target=watch, name="sss_lab-interrupt", daemon=True)
     files.INTERRUPTED.clear()
+    _RECEIVED[0] = "Ctrl-C"
     watcher.start()
     try:
         yield
@@ -141,7 +167,8 @@ def interrupt_guard(command: str, grace: float = GRACE_SECONDS):
     finally:
         done.set()
         signal.set_wakeup_fd(previous_fd)
-        signal.signal(signal.SIGINT, previous_handler)
+        for s, h in previous_handlers.items():
+            signal.signal(s, h)
         os.write(write_fd, b"\0")  # wake the watcher so that it ends
         watcher.join(timeout=1.0)
         os.close(write_fd)

@@ -40,7 +40,7 @@ def _digest(path):
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _interrupt(argv, *, when_line=None, after=None):
+def _interrupt(argv, *, when_line=None, after=None, signum=signal.SIGINT):
     """Run ``python -m sss_lab ARGV``, send SIGINT when stdout shows ``when_line`` (then wait
     ``after`` s) or ``after`` s after the start; (exit status, seconds to stop, stdout, stderr)."""
     proc = subprocess.Popen(
@@ -59,7 +59,7 @@ def _interrupt(argv, *, when_line=None, after=None):
             pytest.fail(f"the job ended before {when_line!r}: {''.join(seen)[-500:]} {proc.stderr.read()[-500:]}")
     time.sleep(after or 0.0)
     assert proc.poll() is None, "the job ended before the interrupt"
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(signum)
     sent = time.monotonic()
     out, err = proc.communicate(timeout=300)
     return proc.returncode, time.monotonic() - sent, "".join(seen) + out, err
@@ -88,6 +88,25 @@ def test_render_stops_and_keeps_the_finished_frame(cube_blend, tmp_path):
     assert read_passes(out / "passes_0001.exr").shape == (48, 48)  # the finished frame is whole
     assert _temporaries(tmp_path) == []
     assert _digest(cube_blend) == before
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
+def test_a_kill_or_a_hang_up_stops_a_render_as_ctrl_c_does(cube_blend, tmp_path, signum):
+    """A farm manager cancelling a task (SIGTERM) or a closed terminal (SIGHUP): the same stop as
+    Ctrl-C (exit 130, the finished frame kept whole, no temporary file), the signal named."""
+    out = tmp_path / "passes"
+    code, stopped, stdout, err = _interrupt(
+        ["render", cube_blend, "--out", out, "--frames", "1-3", "--resolution", "48x48", "--samples", "10000"]
+        + ["--methods", "ssss"],
+        when_line="frame 1 done",
+        after=0.2,
+        signum=signum,
+    )
+    assert code == 130, err
+    assert stopped < STOP_WITHIN
+    assert f"interrupted ({signal.Signals(signum).name})" in err and "Traceback" not in err
+    assert sorted(os.listdir(out)) == ["passes_0001.exr", "passes_0001.json"]
+    assert _temporaries(tmp_path) == []
 
 
 def test_compare_stops_during_the_reference_render(cube_blend, tmp_path):
