@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 import os
 import time
 from collections.abc import Callable
@@ -454,10 +453,7 @@ def _merged_reference(
     the scene: a reference of another scene state would make every figure meaningless."""
     merged = core_reference.read_merged(path)
     meta_path = core_reference.sidecar(path)
-    meta = {}
-    if os.path.isfile(meta_path):
-        with open(meta_path, encoding="utf-8") as fh:
-            meta = json.load(fh)
+    meta = core_reference.read_meta(meta_path) if os.path.isfile(meta_path) else {}
     if meta.get("frame") is not None and meta["frame"] != frame:
         raise InputError(
             f"{path} shows frame {meta['frame']}; the comparison is of frame {frame}: compare that frame "

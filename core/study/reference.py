@@ -180,20 +180,83 @@ def sidecar(path: str) -> str:
     return os.path.splitext(path)[0] + ".json"
 
 
+def _count(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool) and v >= 1
+
+
+def _seed(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool) and v >= 0
+
+
+def _pair(v) -> bool:
+    return isinstance(v, list) and len(v) == 2 and all(_count(x) for x in v)
+
+
+#: The fields a part's or a merged reference's JSON may hold, and what each must be; a field
+#: absent is not checked (older files), one present with another type is refused.
+_META_FIELDS: dict = {
+    "samples": ("an integer >= 1", _count),
+    "seed": ("an integer >= 0", _seed),
+    "seeds": ("a list of integers >= 0", lambda v: isinstance(v, list) and all(_seed(x) for x in v)),
+    "half_samples": (
+        "null or two integers >= 1",
+        lambda v: v is None or (isinstance(v, list) and len(v) == 2 and all(_count(x) for x in v)),
+    ),
+    "half_seeds": (
+        "null or two lists of integers >= 0",
+        lambda v: (
+            v is None
+            or (
+                isinstance(v, list) and len(v) == 2 and all(isinstance(s, list) and all(_seed(x) for x in s) for s in v)
+            )
+        ),
+    ),
+    "frame": ("an integer", lambda v: isinstance(v, int) and not isinstance(v, bool)),
+    "fingerprint": ("a string", lambda v: isinstance(v, str)),
+    "resolution": (
+        "two integers >= 1 (width, height)",
+        lambda v: isinstance(v, list) and len(v) == 2 and all(_count(x) for x in v),
+    ),
+    "seconds": (
+        "a finite number >= 0",
+        lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0,
+    ),
+}
+
+
+def read_meta(meta_path: str, required: Sequence[str] = ()) -> dict:
+    """The JSON beside a reference part or a merged reference, checked field by field as a scene
+    description is (``_META_FIELDS``): InputError naming the file, the field and what it must be
+    for a file that is not JSON, not an object, lacks a ``required`` field or holds a wrong value."""
+    try:
+        with open(meta_path, encoding="utf-8") as fh:
+            meta = json.load(fh)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{meta_path}: not readable JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise InputError(f"{meta_path}: expected a JSON object, got {type(meta).__name__}")
+    missing = [k for k in required if k not in meta]
+    if missing:
+        raise InputError(f"{meta_path}: missing {', '.join(map(repr, missing))}")
+    for key, (expected, ok) in _META_FIELDS.items():
+        if key in meta and not ok(meta[key]):
+            raise InputError(f"{meta_path}: {key}: expected {expected}, got {meta[key]!r}")
+    return meta
+
+
 def read_part(path: str) -> tuple[ReferencePart, dict]:
     """A part written by ``sss_lab reference`` and its description: the EXR's Combined pass,
     samples, seed (and what was rendered) from the JSON beside it."""
     meta_path = sidecar(path)
     if not os.path.isfile(meta_path):
         raise InputError(f"{path}: no {os.path.basename(meta_path)} beside it (samples and seed of the part)")
-    try:
-        with open(meta_path, encoding="utf-8") as fh:
-            meta = json.load(fh)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{meta_path}: not readable JSON ({exc})") from None
-    if not isinstance(meta, dict) or "samples" not in meta or "seed" not in meta:
-        raise InputError(f"{meta_path}: expected a JSON object with 'samples' and 'seed'")
+    meta = read_meta(meta_path, required=("samples", "seed"))
     image = exr.read_passes(path)["Combined"]
+    if "resolution" in meta and list(image.shape[1::-1]) != meta["resolution"]:
+        raise InputError(
+            f"{path} is {image.shape[1]}x{image.shape[0]} pixels but {os.path.basename(meta_path)} says"
+            f" {meta['resolution'][0]}x{meta['resolution'][1]}: they are not one part"
+        )
     return ReferencePart(image=image, samples=meta["samples"], seed=meta["seed"], source=path), meta
 
 
@@ -246,10 +309,7 @@ def read_merged(path: str) -> MergedReference:
     if MERGED_LAYER not in contents.layers:
         raise InputError(f"{path}: no layer {MERGED_LAYER!r}; expected a reference merged by sss_lab merge-reference")
     meta_path = sidecar(path)
-    meta = {}
-    if os.path.isfile(meta_path):
-        with open(meta_path, encoding="utf-8") as fh:
-            meta = json.load(fh)
+    meta = read_meta(meta_path) if os.path.isfile(meta_path) else {}
     halves = None
     if all(name in contents.layers for name in HALF_LAYERS):
         first, second = (contents.layers[name] for name in HALF_LAYERS)

@@ -156,3 +156,46 @@ def test_parts_from_files_must_agree(tmp_path):
     (tmp_path / "p1.json").unlink()
     with pytest.raises(InputError, match="p1.json"):
         ref.read_part(paths[1])
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"samples": "32"}, r"samples: expected an integer >= 1, got '32'"),
+        ({"samples": 0}, r"samples: expected an integer >= 1"),
+        ({"seeds": [0, -1]}, r"seeds: expected a list of integers >= 0"),
+        ({"half_samples": [16]}, r"half_samples: expected null or two integers >= 1"),
+        ({"half_seeds": [[0, 1], "2"]}, r"half_seeds: expected null or two lists"),
+        ({"frame": 1.5}, r"frame: expected an integer"),
+        ({"fingerprint": 7}, r"fingerprint: expected a string"),
+        ({"seconds": -1}, r"seconds: expected a finite number >= 0"),
+    ],
+)
+def test_a_merged_references_json_is_checked_field_by_field(tmp_path, change, message):
+    """The JSON beside a merged reference, hand-edited or damaged: one line naming the file and
+    the field, as a scene description's checks do, never a traceback or a silent wrong value."""
+    out = tmp_path / "reference.exr"
+    ref.write_merged(str(out), ref.merge_parts(_parts(4, 8)), {"frame": 1})
+    meta_path = tmp_path / "reference.json"
+    meta = json.loads(meta_path.read_text())
+    meta.update(change)
+    meta_path.write_text(json.dumps(meta))
+    with pytest.raises(InputError, match=r"reference\.json: " + message):
+        ref.read_merged(str(out))
+
+
+def test_a_damaged_json_or_a_part_of_another_size_is_refused(tmp_path):
+    from sss_lab.core.scene import exr
+
+    out = tmp_path / "reference.exr"
+    ref.write_merged(str(out), ref.merge_parts(_parts(4, 8)), {"frame": 1})
+    (tmp_path / "reference.json").write_text('{"samples": 32,')
+    with pytest.raises(InputError, match="reference.json: not readable JSON"):
+        ref.read_merged(str(out))
+    part = tmp_path / "p0.exr"
+    image = _render(_truth(), 4, 0)
+    exr.write_layers(str(part), {"ViewLayer.Combined": image})
+    h, w = image.shape[:2]
+    (tmp_path / "p0.json").write_text(json.dumps({"samples": 4, "seed": 0, "resolution": [w + 1, h]}))
+    with pytest.raises(InputError, match=f"p0.exr is {w}x{h} pixels but p0.json says {w + 1}x{h}"):
+        ref.read_part(str(part))
