@@ -13,7 +13,7 @@ import numpy as np
 from ..core.scene.passes import INPUT_AOVS
 from ..core.scene.scene import Camera, Light, MaterialSSS, SceneDescription
 from . import compat
-from .shader_graph import PRINCIPLED, SUBSURFACE, input_value, principled_sources
+from .shader_graph import PRINCIPLED, SUBSURFACE, input_value, principled_sources, renders_an_output
 from .stored import read_fit, thickness_metadata
 
 #: The Subsurface Scattering node's inputs by the same keys (its Weight is the node itself: 1).
@@ -50,7 +50,9 @@ def _principled(material):
     if material is None or material.node_tree is None or not compat.uses_nodes(material):
         return None
     sources = principled_sources(material)
-    if not sources:
+    if not sources and renders_an_output(material):
+        return None  # Cycles renders what reaches the active output: no scattering node does
+    if not sources:  # no output node at all: the tree's Principled BSDF, said so
         node = next((n for n in material.node_tree.nodes if n.bl_idname == PRINCIPLED), None)
         if node is None:
             return None

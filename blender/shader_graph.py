@@ -68,6 +68,13 @@ def _linked_from(socket):
     return None
 
 
+def renders_an_output(material) -> bool:
+    """True when ``material``'s tree has an active output Cycles renders (then what reaches its
+    Surface, and nothing else, is what Cycles renders)."""
+    tree = getattr(material, "node_tree", None)
+    return tree is not None and _output_node(tree) is not None
+
+
 def principled_sources(material) -> list[Source]:
     """The Principled BSDFs and Subsurface Scattering nodes whose closure reaches ``material``'s
     active Cycles output, in the order the links reach them; [] when none does (or the material

@@ -181,3 +181,20 @@ def test_a_group_without_an_output_is_no_subsurface_material_and_breaks_nothing(
     assert [m.name for m in sss_materials(scene)] == ["Skin"]
     text = "\n".join(scan_report(scene))
     assert "1 subsurface material(s)" in text
+
+
+def test_a_principled_bsdf_on_an_inactive_output_is_not_read(addon):
+    """Cycles renders the active Material Output: a Principled BSDF wired to another, inactive one
+    (the active one showing a plain Diffuse BSDF) does not make the material a subsurface one."""
+    scene = bpy.context.scene
+    mat = _principled("TwoOutputs", 1.0)
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    inactive = nodes["Material Output"]
+    active = nodes.new("ShaderNodeOutputMaterial")
+    diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+    links.new(diffuse.outputs[0], active.inputs["Surface"])
+    active.is_active_output = True
+    assert not inactive.is_active_output and inactive.inputs["Surface"].is_linked
+    _cube_with(mat)
+    _cube_with(_principled("Skin", 1.0))
+    assert [m.name for m in sss_materials(scene)] == ["Skin"]
