@@ -101,6 +101,21 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(text.split()) or type(exc).__name__
 
 
+#: The options that name a file or folder: given empty, they are an error, not "the default".
+_PATH_OPTIONS = ("out", "json", "cache", "description", "image_dir", "reference", "frames")
+
+
+def _no_empty_paths(args) -> None:
+    """CommandError for an option in ``_PATH_OPTIONS`` given as an empty string (``--out ''``,
+    which a script building the command line from an unset variable produces): it named no file,
+    and taking the default instead would write or read somewhere the user did not say."""
+    for name in _PATH_OPTIONS:
+        value = getattr(args, name, None)
+        if isinstance(value, str) and not value.strip():
+            flag = "--" + name.replace("_", "-")
+            raise CommandError(f"{flag}: empty; expected a value (leave the option out for its default)")
+
+
 def main(argv: list[str] | None = None, *, prog: str = "python -m sss_lab") -> int:
     """Run one command. Errors SSS Lab raises on purpose (``SSSLabError``), bad values and files,
     and the operating system's refusals (a full or read-only disk) end as one line on stderr
@@ -114,6 +129,7 @@ def main(argv: list[str] | None = None, *, prog: str = "python -m sss_lab") -> i
         with interrupt_guard(command):
             args = build_parser(prog).parse_args(argv)
             debug = getattr(args, "debug", False)
+            _no_empty_paths(args)
             return int(args.run(args) or 0)
     except KeyboardInterrupt:
         if debug:

@@ -134,3 +134,17 @@ def test_after_ctrl_c_nothing_is_published_and_the_job_is_not_a_success(tmp_path
                 files.write_text(str(target), "finished after the interrupt")
     assert not target.exists() and os.listdir(tmp_path) == []
     files.INTERRUPTED.clear()
+
+
+@pytest.mark.parametrize(
+    ("extra", "flag"), [(["--out", ""], "--out"), (["--out", "  "], "--out"), (["--frames", ""], "--frames")]
+)
+def test_an_empty_path_or_frame_list_is_an_error_not_the_default(passes, capsys, extra, flag):
+    """``--out ''`` (a script's unset variable) silently wrote the default output beside the input,
+    and ``--frames ''`` applied every frame: both are one line naming the flag, exit 2, nothing
+    written."""
+    folder = os.path.dirname(passes)
+    before = sorted(os.listdir(folder))
+    code, _, err = _run(capsys, "apply", passes, "--method", "burley", *extra)
+    assert code == 2 and f"{flag}: empty" in err and err.count("\n") == 1
+    assert sorted(os.listdir(folder)) == before
