@@ -85,6 +85,18 @@ def _outputs(args, frames):
     return [frame_path(args.out, f) if f is not None else args.out for f, _ in frames]
 
 
+def _reads_whole(path: str) -> str | None:
+    """None when the EXR at ``path`` reads whole, else why not (cut short, damaged)."""
+    from ..core.base.errors import SSSLabError
+    from ..core.scene.exr import read_layers
+
+    try:
+        read_layers(path)
+    except (SSSLabError, OSError, ValueError) as exc:
+        return " ".join(str(exc).split())[:200]
+    return None
+
+
 def run(args) -> int:
     from ..core.pipeline.apply import ALBEDO_MODES
     from ..core.pipeline.sequence import apply_file, frame_path, parse_frames, sequence_frames
@@ -117,9 +129,15 @@ def run(args) -> int:
     progress = Progress(total)
     for (frame, path), out in zip(frames, outputs, strict=True):
         what = f"frame {frame}" if frame is not None else os.path.basename(path)
+        redo = False
         if args.skip_existing and not args.explain and os.path.exists(out):
-            print(f"apply: {progress.position()} {what}: skipped, {os.path.basename(out)} exists ({progress.skip()})")
-            continue
+            whole = _reads_whole(out)
+            if whole is None:
+                kept = os.path.basename(out)
+                print(f"apply: {progress.position()} {what}: skipped, {kept} exists ({progress.skip()})")
+                continue
+            print(f"apply: {out} does not read whole ({whole}): applying {what} again", flush=True)
+            redo = True
         print(f"apply: {progress.position()} {what}: {path}", flush=True)
         started = time.perf_counter()
         description = args.description
@@ -132,7 +150,7 @@ def run(args) -> int:
                 scene_path=scene_path,
                 albedo_mode=args.albedo_mode,
                 explain=args.explain,
-                overwrite=args.overwrite,
+                overwrite=args.overwrite or redo,
                 skip_missing=args.method.strip() == "all",
                 view_layer=args.view_layer,
                 max_error=args.max_error,

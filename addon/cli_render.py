@@ -56,7 +56,7 @@ def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | No
     read whole is rendered again). CommandError when the kept frame was rendered for other
     techniques, samples, seed, scene or size: skipping it would deliver files the job did not ask
     for. ``job``: what the frame must match besides ("scene": name, "size": (w, h), "seed": int or
-    None)."""
+    None, "file": the .blend file's name)."""
     from ..blender.render_passes import FILE_PATTERN
     from ..core.base.errors import SSSLabError
     from ..core.pipeline.sequence import frame_path, sidecar_path
@@ -86,6 +86,10 @@ def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | No
         differs.append(f"seed {meta.get('seed')}, not {job['seed']}")
     if meta.get("scene") != job["scene"]:
         differs.append(f"scene {meta.get('scene')!r}, not {job['scene']!r}")
+    # The .blend file by name (a farm may move it between nodes, not rename it).
+    theirs = os.path.basename(str(meta.get("file") or ""))
+    if theirs != job["file"]:
+        differs.append(f"from {theirs or 'an unsaved file'!r}, not {job['file']!r}")
     size = (camera.get("width_px"), camera.get("height_px"))
     if size != tuple(job["size"]):
         differs.append(f"{size[0]}x{size[1]} pixels, not {job['size'][0]}x{job['size'][1]}")
@@ -150,7 +154,7 @@ def run(args) -> int:
             max(1, int(render.resolution_x * render.resolution_percentage / 100)),
             max(1, int(render.resolution_y * render.resolution_percentage / 100)),
         )
-        job = {"scene": scene.name, "size": size, "seed": args.seed}
+        job = {"scene": scene.name, "size": size, "seed": args.seed, "file": os.path.basename(args.blend)}
         todo = []
         for frame in frames:
             kept = _finished(out_dir, frame, techniques, args.samples, job)

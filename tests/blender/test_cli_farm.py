@@ -3,6 +3,7 @@
 sss_lab`` calls). Small: the demo scene at 32 × 24, 2 samples."""
 
 import os
+import shutil
 
 import pytest
 
@@ -66,6 +67,11 @@ def test_skip_existing_renders_only_the_missing_frames_and_says_which(blend, tmp
     assert "32x24 pixels, not 16x12" in capsys.readouterr().err
     assert _render(blend, tmp_path, "--skip-existing", "--seed", "5") == 2
     assert "seed 0, not 5" in capsys.readouterr().err
+    # Nor frames of another .blend file (the same scene name, "Scene", in both).
+    other = tmp_path.parent / f"{tmp_path.name}_other.blend"
+    shutil.copy(blend, other)
+    assert _render(other, tmp_path, "--skip-existing") == 2
+    assert f"from 'head.blend', not '{other.name}'" in capsys.readouterr().err
 
 
 def test_skip_existing_renders_a_cut_short_frame_again(blend, tmp_path, capsys):

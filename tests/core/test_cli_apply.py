@@ -212,6 +212,13 @@ def test_skip_existing_resumes_a_chunk_and_says_what_it_kept(tmp_path):
     assert re.search(r"apply: frame 3 done in [\d.]+ s \(3/3, elapsed [\d.]+ s, ETA 0\.0 s\)", proc.stdout)
     both = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--skip-existing", "--overwrite")
     assert both.returncode == 2 and "not allowed with" in both.stderr
+    # An output cut short (a copy interrupted, a full disk elsewhere) is not kept: applied again.
+    data = kept.read_bytes()
+    kept.write_bytes(data[: len(data) // 2])
+    again = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--frames", "2", "--skip-existing")
+    assert again.returncode == 0, again.stderr
+    assert "does not read whole" in again.stdout and saved_lines(again.stdout) == [str(kept)]
+    assert read_layers(kept).layers  # whole again
 
 
 def test_param_sets_a_technique_parameter(passes_file, tmp_path):
