@@ -362,16 +362,9 @@ def fit_like_calibrate(
 
 def summarize(rows, methods) -> dict:
     out = {}
-    groups = []
-    for kind in sorted({r["kind"] for r in rows}):
-        of_kind = [r for r in rows if r["kind"] == kind]
-        groups.append((kind, of_kind))
-        if any(r.get("held_out") for r in of_kind):  # the held-out scenes apart (scenes.held_out)
-            groups.append((f"{kind}, held out", [r for r in of_kind if r.get("held_out")]))
-            groups.append((f"{kind}, the rest", [r for r in of_kind if not r.get("held_out")]))
-    for kind, sel in groups:
-        if not sel:
-            continue
+    from benchmarks.fidelity.run import kind_groups
+
+    for kind, sel in kind_groups(rows):
         k = {"scenes": len(sel)}
         for frame in ("A", "B"):
             have = [r for r in sel if frame in r]

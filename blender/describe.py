@@ -33,6 +33,12 @@ _SUBSURFACE_INPUTS = {
 }
 
 
+def _input_names(node) -> dict[str, str]:
+    """``MaterialSSS`` field -> the input socket of ``node`` (a Principled BSDF or a Subsurface
+    Scattering node) that holds it."""
+    return _NODE_INPUTS if node.bl_idname == SUBSURFACE else {**_SUBSURFACE_INPUTS, "base_color": "Base Color"}
+
+
 def _flat(matrix) -> tuple:
     return tuple(float(v) for row in matrix for v in row)
 
@@ -110,12 +116,9 @@ def read_material(material, index: int) -> MaterialReading:
     values: dict[str, Any] = {}
     per_pixel: list[str] = []
     if node.bl_idname == SUBSURFACE:
-        inputs = list(_NODE_INPUTS.items())
         values["subsurface_weight"] = 1.0
         lines.append(f"{node.bl_rna.name} {node.name!r}: its closure is the subsurface scattering (weight 1)")
-    else:
-        inputs = [*_SUBSURFACE_INPUTS.items(), ("base_color", "Base Color")]
-    for key, socket_name in inputs:
+    for key, socket_name in _input_names(node).items():
         socket = node.inputs.get(socket_name)
         if socket is None:
             continue  # e.g. Subsurface IOR exists only for the Skin method
@@ -170,7 +173,7 @@ def input_sockets(material, keys) -> list[tuple[str, Any]]:
     if found is None:
         return []
     node = found[0]
-    names = _NODE_INPUTS if node.bl_idname == SUBSURFACE else {**_SUBSURFACE_INPUTS, "base_color": "Base Color"}
+    names = _input_names(node)
     return [(k, node.inputs[names[k]]) for k in keys if k in names and names[k] in node.inputs]
 
 

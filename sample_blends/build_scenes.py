@@ -337,14 +337,8 @@ def head_mesh(name, size=(0.16, 0.19, 0.22)):
     return new_mesh(name, build)
 
 
-def build_head_frontlit():
-    """A head-sized shape (~16 x 19 x 22 cm, skin, red mean free path 1.2 cm) lit from the
-    front-left by a small sun (1 degree), so that the terminator and the nose's shadow draw sharp
-    shadow edges across the face: the case for diffusion (SSSS, Burley)."""
-    scene = reset_scene()
-    skin = new_material("Skin", (0.8, 0.52, 0.42), radius=(1.0, 0.35, 0.2), scale=0.012, roughness=0.45)
-    head = add_object(scene, "Head", head_mesh("Head"), material=skin)
-    add_subsurf(head, 1)
+def _backdrop(scene):
+    """The head scenes' dark grey backdrop, 30 cm behind the head, catching its shadow."""
     wall = add_object(
         scene,
         "Backdrop",
@@ -355,9 +349,26 @@ def build_head_frontlit():
         smooth=False,
     )
     wall.visible_shadow = True
-    add_camera(scene, (0.0, -0.62, 0.03), (0.0, 0.0, 0.0), lens=60.0)
+    return wall
+
+
+def _front_lights(scene) -> None:
+    """The head scenes' small key sun from the front-left (1 degree) and soft fill from the right."""
     add_light(scene, "Key", "SUN", (-1.0, -0.45, 0.3), (0.0, 0.0, 0.0), 3.0, angle=math.radians(1.0))
     add_light(scene, "Fill", "AREA", (0.6, -0.6, 0.1), (0.0, 0.0, 0.0), 0.3, size=0.4)
+
+
+def build_head_frontlit():
+    """A head-sized shape (~16 x 19 x 22 cm, skin, red mean free path 1.2 cm) lit from the
+    front-left by a small sun (1 degree), so that the terminator and the nose's shadow draw sharp
+    shadow edges across the face: the case for diffusion (SSSS, Burley)."""
+    scene = reset_scene()
+    skin = new_material("Skin", (0.8, 0.52, 0.42), radius=(1.0, 0.35, 0.2), scale=0.012, roughness=0.45)
+    head = add_object(scene, "Head", head_mesh("Head"), material=skin)
+    add_subsurf(head, 1)
+    _backdrop(scene)
+    add_camera(scene, (0.0, -0.62, 0.03), (0.0, 0.0, 0.0), lens=60.0)
+    _front_lights(scene)
     return scene
 
 
@@ -618,19 +629,9 @@ def build_asset_head():
     tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)  # Blender's default
     ball = uv_sphere_mesh("Ball", 0.04, segments=32, rings=16)
     add_object(scene, "Ball", ball, location=(-0.12, -0.06, -0.07), material=marble)
-    wall = add_object(
-        scene,
-        "Backdrop",
-        plane_mesh("Backdrop", 2.0, 2.0),
-        location=(0.0, 0.3, 0.0),
-        rotation=(math.radians(90), 0.0, 0.0),
-        material=plain_material("Backdrop", (0.2, 0.2, 0.2)),
-        smooth=False,
-    )
-    wall.visible_shadow = True
+    _backdrop(scene)
     add_camera(scene, (-0.04, -0.62, 0.02), (-0.04, 0.0, -0.02), lens=50.0)
-    add_light(scene, "Key", "SUN", (-1.0, -0.45, 0.3), (0.0, 0.0, 0.0), 3.0, angle=math.radians(1.0))
-    add_light(scene, "Fill", "AREA", (0.6, -0.6, 0.1), (0.0, 0.0, 0.0), 0.3, size=0.4)
+    _front_lights(scene)
     return scene
 
 

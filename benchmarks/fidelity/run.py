@@ -380,22 +380,27 @@ def summarize_mappings(results: list[dict]) -> list[dict]:
     return out
 
 
+def kind_groups(rows: list[dict]) -> list[tuple[str, list[dict]]]:
+    """(label, rows) per scene kind, and, where a kind has held-out scenes (``scenes.held_out``),
+    "<kind>, held out" and "<kind>, the rest" apart: the groups every summary reports. Rows are
+    per-scene results with "kind" and "held_out"."""
+    groups = []
+    for kind in sorted({r["kind"] for r in rows}):
+        of_kind = [r for r in rows if r["kind"] == kind]
+        groups.append((kind, of_kind))
+        out_of_fits = [r for r in of_kind if r.get("held_out")]
+        if out_of_fits:
+            groups.append((f"{kind}, held out", out_of_fits))
+            groups.append((f"{kind}, the rest", [r for r in of_kind if not r.get("held_out")]))
+    return [(label, group) for label, group in groups if group]
+
+
 def summarize(results: list[dict]) -> dict:
     """Medians per scene kind (technique at default quality), the best technique per kind, and
     the checks of the suite's goals."""
     techniques = sorted({r["technique"] for s in results for r in s["rows"] if r["technique"] != "none"})
     out = {"kinds": {}, "worse_than_no_sss": [], "burley_vs_ssss": None, "mappings": summarize_mappings(results)}
-    groups = []
-    for kind in sorted({s["kind"] for s in results}):
-        of_kind = [s for s in results if s["kind"] == kind]
-        groups.append((kind, of_kind))
-        out_of_fits = [s for s in of_kind if s.get("held_out")]
-        if out_of_fits:  # the held-out scenes apart (scenes.held_out), and the rest
-            groups.append((f"{kind}, held out", out_of_fits))
-            groups.append((f"{kind}, the rest", [s for s in of_kind if not s.get("held_out")]))
-    for kind, scenes in groups:
-        if not scenes:
-            continue
+    for kind, scenes in kind_groups(results):
         medians = {}
         for t in techniques:
             removed = [r["removed"] for s in scenes for r in s["rows"] if r["technique"] == t and r["default"]]

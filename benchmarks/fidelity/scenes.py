@@ -146,11 +146,15 @@ def fins_backlit_jade():
 def torus_spot_wax():
     """A wax torus (16 cm across, 3 cm tube) lying on a floor under a small spot light, with a bar
     casting a hard shadow line across it; long mean free path (3 cm red, Random Walk)."""
+    return torus_spot(lambda: kit.wax(scale=0.03))
+
+
+def torus_spot(material):
+    """``torus_spot_wax``'s torus, floor, shadow bar, camera and lights around the material
+    ``material()`` makes (called after the factory reset): the set-up other scene modules share."""
     scene = kit.reset_scene()
-    torus = kit.add_object(
-        scene, "Torus", kit.torus("Torus", 0.065, 0.03), location=(0.0, 0.0, 0.03), material=kit.wax(scale=0.03)
-    )
-    del torus
+    torus = kit.torus("Torus", 0.065, 0.03)
+    kit.add_object(scene, "Torus", torus, location=(0.0, 0.0, 0.03), material=material())
     kit.floor(scene)
     kit.shadow_bar(scene, (-0.07, -0.1, 0.2), size=(0.006, 0.5, 0.006), rotation=(0.0, 0.0, math.radians(20)))
     kit.add_camera(scene, (0.0, -0.38, 0.28), (0.0, 0.0, 0.02), lens=50.0)
@@ -164,8 +168,14 @@ def torus_spot_wax():
 def head_area_skin():
     """The head-like shape (16 x 19 x 22 cm) lit by a small area light from the side (hard
     shadows of the nose and brow); skin with a 1.2 cm red mean free path (Random Walk)."""
+    return head_area(lambda: kit.skin(scale=0.012))
+
+
+def head_area(material):
+    """``head_area_skin``'s head, wall, camera and lights around the material ``material()`` makes
+    (called after the factory reset)."""
     scene = kit.reset_scene()
-    head = kit.add_object(scene, "Head", kit.head_mesh("Head"), material=kit.skin(scale=0.012))
+    head = kit.add_object(scene, "Head", kit.head_mesh("Head"), material=material())
     kit.add_subsurf(head, 1)
     kit.wall(scene, 0.3, z=0.0)
     kit.add_camera(scene, (0.15, -0.6, 0.05), (0.0, 0.0, 0.0), lens=60.0)
@@ -283,8 +293,14 @@ def jade_behind_pillar():
     """A jade ball (11 cm) half hidden behind a grey pillar (no SSS) in front of it, and a jade
     block beside it on a floor: subsurface objects behind another object, lit by a small area
     light whose hard shadow of the pillar falls across the ball."""
+    return jade_ball_and_block(lambda: kit.jade(scale=0.008), pillar=True)
+
+
+def jade_ball_and_block(material, *, pillar: bool):
+    """``jade_behind_pillar``'s ball, block, floor, camera and lights around the material
+    ``material()`` makes (called after the factory reset), with its pillar or without."""
     scene = kit.reset_scene()
-    jade = kit.jade(scale=0.008)
+    jade = material()
     kit.add_object(
         scene,
         "Ball",
@@ -292,7 +308,7 @@ def jade_behind_pillar():
         location=(0.0, 0.05, 0.055),
         material=jade,
     )
-    block = kit.add_object(
+    kit.add_object(
         scene,
         "Block",
         kit.box_mesh("Block", (0.05, 0.05, 0.08), cuts=3),
@@ -300,14 +316,14 @@ def jade_behind_pillar():
         material=jade,
         smooth=False,
     )
-    del block
-    kit.add_object(
-        scene,
-        "Pillar",
-        kit.cylinder_mesh("Pillar", 0.015, 0.2, rings=4),
-        location=(-0.02, -0.07, 0.0),
-        material=kit.plain_material("Pillar", (0.4, 0.4, 0.4), roughness=0.4),
-    )
+    if pillar:
+        kit.add_object(
+            scene,
+            "Pillar",
+            kit.cylinder_mesh("Pillar", 0.015, 0.2, rings=4),
+            location=(-0.02, -0.07, 0.0),
+            material=kit.plain_material("Pillar", (0.4, 0.4, 0.4), roughness=0.4),
+        )
     kit.floor(scene)
     kit.add_camera(scene, (0.0, -0.42, 0.12), (0.02, 0.03, 0.05), lens=50.0)
     kit.add_light(scene, "Key", "AREA", (-0.3, -0.45, 0.3), (0.0, 0.0, 0.05), 12.0, size=0.015)

@@ -37,6 +37,7 @@ import numpy as np
 
 from benchmarks import scene_kit as kit
 
+from . import scenes as suite
 from .scenes import SuiteScene
 
 #: Blender 5.2's Principled BSDF defaults, left in a linked socket.
@@ -86,18 +87,6 @@ def _bsdf(mat):
     return mat.node_tree.nodes["Principled BSDF"]
 
 
-def _head(material):
-    """The scene around the material ``material()`` makes (after the factory reset)."""
-    scene = kit.reset_scene()
-    head = kit.add_object(scene, "Head", kit.head_mesh("Head"), material=material())
-    kit.add_subsurf(head, 1)
-    kit.wall(scene, 0.3, z=0.0)
-    kit.add_camera(scene, (0.15, -0.6, 0.05), (0.0, 0.0, 0.0), lens=60.0)
-    kit.add_light(scene, "Key", "AREA", (-0.5, -0.35, 0.25), (0.0, 0.0, 0.0), 20.0, size=0.02)
-    kit.add_light(scene, "Fill", "AREA", (0.6, -0.6, 0.1), (0.0, 0.0, 0.0), 0.4, size=0.4)
-    return scene
-
-
 def head_image_skin():
     """The suite's head under a small area light, its skin's Base Color from an image texture."""
 
@@ -109,7 +98,7 @@ def head_image_skin():
         mat.node_tree.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
         return mat
 
-    return _head(material)
+    return suite.head_area(material)
 
 
 def head_typed_skin():
@@ -120,7 +109,7 @@ def head_typed_skin():
         _bsdf(mat).inputs["Base Color"].default_value = (*_skin_image()[..., :3].reshape(-1, 3).mean(axis=0), 1.0)
         return mat
 
-    return _head(material)
+    return suite.head_area(material)
 
 
 def _ball(material):
@@ -168,19 +157,6 @@ def ball_typed_marble():
     return _ball(material)
 
 
-def _torus(material):
-    scene = kit.reset_scene()
-    kit.add_object(scene, "Torus", kit.torus("Torus", 0.065, 0.03), location=(0.0, 0.0, 0.03), material=material())
-    kit.floor(scene)
-    kit.shadow_bar(scene, (-0.07, -0.1, 0.2), size=(0.006, 0.5, 0.006), rotation=(0.0, 0.0, math.radians(20)))
-    kit.add_camera(scene, (0.0, -0.38, 0.28), (0.0, 0.0, 0.02), lens=50.0)
-    kit.add_light(
-        scene, "Key", "SPOT", (-0.25, -0.25, 0.45), (0.0, 0.0, 0.03), 15.0, shadow_soft_size=0.002, spot_size=1.0
-    )
-    kit.add_light(scene, "Fill", "AREA", (0.5, -0.3, 0.3), (0.0, 0.0, 0.0), 0.5, size=0.5)
-    return scene
-
-
 def torus_scale_wax():
     """A wax torus under a spot with a bar's hard shadow; Subsurface Scale from a Noise Texture
     through Map Range, 0.5 to 1.5 times ``WAX_SCALE``."""
@@ -198,37 +174,12 @@ def torus_scale_wax():
         tree.links.new(span.outputs["Result"], bsdf.inputs["Subsurface Scale"])
         return mat
 
-    return _torus(material)
+    return suite.torus_spot(material)
 
 
 def torus_typed_wax():
     """``torus_scale_wax`` with the Scale's middle typed in."""
-    return _torus(lambda: kit.wax(scale=WAX_SCALE))
-
-
-def _jade_scene(material):
-    scene = kit.reset_scene()
-    material = material()
-    kit.add_object(
-        scene,
-        "Ball",
-        kit.uv_sphere_mesh("Ball", 0.055, segments=48, rings=24),
-        location=(0.0, 0.05, 0.055),
-        material=material,
-    )
-    kit.add_object(
-        scene,
-        "Block",
-        kit.box_mesh("Block", (0.05, 0.05, 0.08), cuts=3),
-        location=(0.1, 0.1, 0.04),
-        material=material,
-        smooth=False,
-    )
-    kit.floor(scene)
-    kit.add_camera(scene, (0.0, -0.42, 0.12), (0.02, 0.03, 0.05), lens=50.0)
-    kit.add_light(scene, "Key", "AREA", (-0.3, -0.45, 0.3), (0.0, 0.0, 0.05), 12.0, size=0.015)
-    kit.add_light(scene, "Fill", "AREA", (0.5, -0.3, 0.3), (0.0, 0.0, 0.0), 0.4, size=0.5)
-    return scene
+    return suite.torus_spot(lambda: kit.wax(scale=WAX_SCALE))
 
 
 #: The jade pair's Subsurface Weight, Scale and the glossy coat's share.
@@ -249,7 +200,7 @@ def _coat(mat, shader_output):
 
 def ball_grouped_jade():
     """Jade whose Principled BSDF sits in a node group behind a Mix Shader with a glossy coat."""
-    return _jade_scene(_grouped_jade)
+    return suite.jade_ball_and_block(_grouped_jade, pillar=False)
 
 
 def _grouped_jade():
@@ -299,7 +250,7 @@ def ball_plain_jade():
         _coat(mat, _bsdf(mat).outputs[0])
         return mat
 
-    return _jade_scene(material)
+    return suite.jade_ball_and_block(material, pillar=False)
 
 
 def _scene(name, build, kind="diffusion"):

@@ -132,29 +132,26 @@ def burley_d(material: MaterialSSS, *, mapping=None) -> tuple[float, float, floa
 def _burley_d(method: str, name: str, radius: tuple, base_color: tuple, ior: float) -> tuple[float, float, float]:
     """``burley_d`` of a material's values (every technique's parameters ask again for each
     material and frame: ``core.pipeline.auto`` reads them for each candidate)."""
+    r, g, b = (float(v) for v in _d_of(method, name, radius, base_color, ior))
+    return r, g, b
+
+
+def _d_of(method: str, name: str, radius, base_color, ior: float) -> np.ndarray:
+    """d per channel (float64, the shape of ``radius``: (3,) or (n, 3)) from the method's length
+    (``_mean_free_path``) and mapping ``name`` (an albedo scaling or "none"); below ``MIN_RADIUS``, 0."""
     ell = _mean_free_path(method, np.asarray(radius, dtype=np.float64), base_color, ior)
     if name == "none":
         d = ell
     else:
         assert name in ALBEDO_SCALINGS
         d = ell / albedo_scaling(base_color, name)
-    d = np.where(d < MIN_RADIUS, 0.0, d)
-    r, g, b = (float(v) for v in d)
-    return r, g, b
+    return np.where(d < MIN_RADIUS, 0.0, d)
 
 
 def burley_d_pixels(method: str, radius_su: np.ndarray, base_color: np.ndarray, ior: float, mapping=None):
     """``burley_d`` for many points at once: ``radius_su`` (n, 3) Radius x Scale in scene units and
     ``base_color`` (n, 3) per point, the method's mapping; (n, 3) float64."""
-    name = mapping_name(method, mapping)
-    radius_su = np.asarray(radius_su, np.float64)
-    color = np.asarray(base_color, np.float64)
-    if method == "RANDOM_WALK_SKIN":
-        ell = radius_su * _skin_factor(color, ior)
-    else:
-        ell = _mean_free_path(method, radius_su, color, ior)
-    d = ell if name == "none" else ell / albedo_scaling(color, name)
-    return np.where(d < MIN_RADIUS, 0.0, d)
+    return _d_of(method, mapping_name(method, mapping), radius_su, np.asarray(base_color, np.float64), ior)
 
 
 def technique_params(material: MaterialSSS, technique, *, mapping=None, use_fit: bool = True) -> dict:

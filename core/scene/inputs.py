@@ -63,6 +63,15 @@ def _channels(raw: np.ndarray, kind: str) -> np.ndarray:
     return raw[..., :1] if kind == "VALUE" else raw[..., :3]
 
 
+def _as_cycles(values: np.ndarray, key: str) -> np.ndarray:
+    """``values`` of input ``key`` clamped in place as Cycles' closure clamps them: no negative
+    radius, scale or weight; Base Color and Weight at most 1. Returns ``values``."""
+    np.maximum(values, 0.0, out=values)
+    if key in ("base_color", "subsurface_weight"):
+        np.minimum(values, 1.0, out=values)
+    return values
+
+
 def measure(material: MaterialSSS, passes: Passes, mask: np.ndarray) -> MaterialSSS:
     """``material`` with each of its ``per_pixel`` inputs replaced by the median of its AOV over
     the material's pixels ``mask`` (bool (H, W)); a note per input says what was read, or why the
@@ -93,10 +102,7 @@ def measure(material: MaterialSSS, passes: Passes, mask: np.ndarray) -> Material
             continue
         values = values[usable]
         negative = int(np.count_nonzero((values < 0).any(axis=1)))
-        # Cycles' clamps: no negative radius, scale or weight; Base Color and Weight at most 1.
-        np.maximum(values, 0.0, out=values)
-        if key in ("base_color", "subsurface_weight"):
-            np.minimum(values, 1.0, out=values)
+        _as_cycles(values, key)
         med = tuple(arrays.median(np.array(values[:, c])) for c in range(values.shape[1]))
         value = med if aov.kind == "COLOR" else med[0]
         lo, hi = np.percentile(values.max(axis=1), (5, 95))
@@ -125,10 +131,7 @@ def usable_map(material: MaterialSSS, passes: Passes, key: str, where: np.ndarra
     if bad.any():
         own = np.broadcast_to(np.asarray(getattr(material, key), np.float64).reshape(-1), values.shape[1:])
         values = np.where(bad, own, values)
-    np.maximum(values, 0.0, out=values)
-    if key in ("base_color", "subsurface_weight"):
-        np.minimum(values, 1.0, out=values)
-    return values
+    return _as_cycles(values, key)
 
 
 def measured_scene(passes: Passes, scene: SceneDescription, masks: dict[int, np.ndarray]) -> SceneDescription:
@@ -166,7 +169,7 @@ def weight_map(material: MaterialSSS, passes: Passes, mask: np.ndarray) -> np.nd
     stand_in = ~np.isfinite(raw) | (mask & ~interior(mask))
     if stand_in.any():
         raw[stand_in] = material.subsurface_weight
-    return np.clip(raw, 0.0, 1.0, out=raw)
+    return _as_cycles(raw, "subsurface_weight")
 
 
 def _fmt(value) -> str:

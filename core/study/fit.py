@@ -263,18 +263,13 @@ def _fmt(v) -> str:
 MIN_WEIGHT = 0.1
 
 
-def _weight_image(material: MaterialSSS, passes, mask: np.ndarray) -> np.ndarray:
-    """The material's Subsurface Weight per pixel (its AOV where it is linked, else its number)."""
+def _weight_image(material: MaterialSSS, passes, mask: np.ndarray) -> np.ndarray | None:
+    """The material's Subsurface Weight per pixel (its AOV where it is linked, else its number),
+    float64 (H, W); None when it is 1 everywhere (no mix to undo)."""
     w = weight_map(material, passes, mask)
-    return np.full(mask.shape, material.subsurface_weight, np.float32) if w is None else w
-
-
-def _weight_blocks(material: MaterialSSS, passes, mask: np.ndarray, keep: np.ndarray, box: int):
-    """None when the material's weight is 1 everywhere (nothing to undo), else the blocks (h, w)
-    whose mean weight is at least ``MIN_WEIGHT``."""
-    if material.subsurface_weight >= 1.0 and "subsurface_weight" not in material.per_pixel:
-        return None
-    return box_downsample(_weight_image(material, passes, mask).astype(np.float64), box) >= MIN_WEIGHT
+    if w is None:
+        return None if material.subsurface_weight >= 1.0 else np.full(mask.shape, material.subsurface_weight)
+    return w.astype(np.float64)
 
 
 def _rel_rmse(residual: np.ndarray, target: np.ndarray) -> float:
@@ -372,16 +367,16 @@ def fit_material(
     # Cycles mixes (1 - w) diffuse + w subsurface at each pixel, and apply mixes the technique's
     # light the same way (core/pipeline/apply.py): the fit matches the technique's own light to what
     # the reference shows of it, on the blocks where at least MIN_WEIGHT of the surface scatters.
-    weights = _weight_blocks(material, passes, mask, keep, box)
-    if weights is not None:
-        keep = keep & weights
+    weight = _weight_image(material, passes, mask)
+    if weight is not None:
+        keep = keep & (box_downsample(weight, box) >= MIN_WEIGHT)
         count = int(keep.sum())
         if count < MIN_BLOCKS:
             raise FitError(
                 f"material {name!r}: only {count} blocks of {box}x{box} have a Subsurface Weight of at least"
                 f" {MIN_WEIGHT} (at least {MIN_BLOCKS} needed): too little of it scatters to fit; left unchanged"
             )
-        w = _blocks(np.repeat(_weight_image(material, passes, mask)[..., None], 3, axis=2), keep, box)
+        w = _blocks(np.repeat(weight[..., None], 3, axis=2), keep, box)
     else:
         w = None
     plain = dataclasses.replace(material, fit={})
