@@ -33,6 +33,7 @@ def check_value(name: str, value, where: str):
     """``value`` as a float or a 3-tuple of floats within the bounds of ``name``; ValueError naming
     ``where``, the parameter, the value and the bounds otherwise."""
     count, lo, hi = PARAMETERS[name]
+    given = value  # as written, for the messages
     if count == 3 and isinstance(value, (int, float)) and not isinstance(value, bool):
         value = (value, value, value)
     try:
@@ -41,10 +42,10 @@ def check_value(name: str, value, where: str):
         values = None
     if values is None or len(values) != count:
         what = "three numbers (R, G, B)" if count == 3 else "a number"
-        raise ValueError(f"{where} fitted {name}: expected {what}, got {value!r}")
+        raise ValueError(f"{where} fitted {name}: expected {what}, got {given!r}")
     for v in values:
         if not (math.isfinite(v) and lo <= v <= hi):
-            raise ValueError(f"{where} fitted {name}: {value!r} is outside {lo:g}..{hi:g}")
+            raise ValueError(f"{where} fitted {name}: {given!r} is outside {lo:g}..{hi:g}")
     return tuple(values) if count == 3 else values[0]
 
 

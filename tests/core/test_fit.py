@@ -259,6 +259,9 @@ def test_the_fit_travels_in_the_scene_description_and_apply_uses_it(synthetic):
     # Hand-edited values outside the bounds, or unknown names, are rejected with the bounds.
     with pytest.raises(ValueError, match="fitted gain: .* is outside 0.25..4"):
         dataclasses.replace(scene.material(2), fit={"burley": {"gain": (5.0, 1.0, 1.0)}})
+    # One number for a per-channel value is read for the three channels, and named as written.
+    with pytest.raises(ValueError, match=r"fitted gain: 9\.0 is outside 0.25..4"):
+        dataclasses.replace(scene.material(2), fit={"burley": {"gain": 9.0}})
     with pytest.raises(ValueError, match="unknown parameter 'radius'"):
         dataclasses.replace(scene.material(2), fit={"burley": {"radius": 1.0}})
 
