@@ -58,6 +58,13 @@ def add_parser(subparsers):
         "rendering one; its halves give the noise floor",
     )
     p.add_argument("--frame", type=int, help="frame to compare (default: the scene's current frame)")
+    p.add_argument(
+        "--no-eevee",
+        action="store_true",
+        help="leave EEVEE out (by default it is rendered with and without scattering and scored beside the"
+        " techniques; it needs an OpenGL context, made through EGL when headless)",
+    )
+    add_samples(p, "--eevee-samples", default=None, help="EEVEE's render samples (default: the scene's own)")
     add_render_device(p)
     p.set_defaults(run=run)
 
@@ -84,6 +91,8 @@ def run(args) -> int:
         cache_dir=args.cache,
         calibrate_methods=_methods(args.calibrate_methods),
         reference_file=os.path.abspath(args.reference) if args.reference else None,
+        eevee=not args.no_eevee,
+        eevee_samples=args.eevee_samples,
     )
     from .cli_options import render_device
 

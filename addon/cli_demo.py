@@ -69,12 +69,15 @@ def run(args) -> int:
     shown = report.extra.get("summary", {}).get("columns", [])
     front = set(report.pareto)
     for e in report.entries:
-        if e.name in shown or (e.kind == "technique" and e.name in front):
+        if e.name in shown or (e.kind == "technique" and e.name in front) or e.kind == "eevee":
             apply_s = e.time_s.get("apply")
             cost = f", apply {apply_s * 1e3:.0f} ms" if apply_s is not None else ""
             mark = " (on the error/time Pareto front)" if e.name in front else ""
             print(f"  {e.name:22s} {e.metrics['rel_rmse']:.3f}{cost}{mark}")
     print(f"  noise floor of the reference: {noise:.3f}")
+    eevee = data.get("eevee") or {}
+    if eevee.get("error"):
+        print(f"  EEVEE left out: {eevee['error']}")
     print(f"Report: {os.path.join(out, 'report.html')} (and report.md, metrics.json)")
     if not report.complete:
         print("The report is incomplete: " + "; ".join(report.notes))

@@ -76,6 +76,11 @@ class CompareSettings:
     #: Samples of the second set of passes that splits each technique's error into bias and pass
     #: noise: more than ``pass_samples``; None = 4 x ``pass_samples``; 0 leaves the split out.
     bias_samples: int | None = None
+    #: EEVEE as a peer (``blender/eevee.py``): rendered with scattering on and off, scored on its
+    #: image and on its SSS effect. Off: not rendered.
+    eevee: bool = True
+    #: EEVEE's render samples; None keeps the scene's own (its render setting).
+    eevee_samples: int | None = None
 
     @property
     def bias_pass_samples(self) -> int:
@@ -93,6 +98,9 @@ class CompareSettings:
                 f"bias_samples: expected 0 (off) or an integer > pass_samples ({self.pass_samples}),"
                 f" got {self.bias_samples!r}"
             )
+        e = self.eevee_samples
+        if e is not None and (not isinstance(e, int) or isinstance(e, bool) or e < 1):
+            raise ValueError(f"eevee_samples: expected an integer >= 1 (or None: the scene's own), got {e!r}")
         if any(not isinstance(s, int) or s < 1 for s in self.peer_samples):
             raise ValueError(f"peer_samples: expected integers >= 1, got {self.peer_samples!r}")
         if self.resolution is not None:
@@ -173,6 +181,9 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
                 extra = {"technique": technique, "quality": quality}
                 rows.add(run.label, "technique", run.image, total, run.apply_s, extra, image_high=run.image_high)
     rw_at_pass_samples = yield from _peers(settings, reference, rows, timings, steps)
+    eevee = None
+    if settings.eevee:
+        eevee = yield from _eevee(scene, settings, cache_dir, fingerprint, passes, rows, steps, log)
 
     rows.images["Cycles reference"] = ref
     if merged is not None:
@@ -197,6 +208,7 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
         "entries": rows.entries,
         "fidelity": _fidelity(desc, settings.techniques, notes),
         "calibration": calibration,
+        "eevee": eevee,
         "notes": notes,
         "complete": not notes,
     }
@@ -406,6 +418,52 @@ def _peers(settings: CompareSettings, reference, rows: _Rows, timings: dict, ste
     return rw_at_pass_samples
 
 
+def _eevee(scene, settings: CompareSettings, cache_dir: str, fingerprint: str, passes, rows: _Rows, steps: Steps, log):
+    """EEVEE as a peer (``blender/eevee.py``): its image with scattering, and its SSS effect (with
+    minus without) on Cycles' image without scattering. A generator: one step per render; returns
+    what was measured, or why EEVEE could not render here (the rest of the comparison goes on)."""
+    from .eevee import EeveeUnavailable, cached_eevee
+
+    samples = settings.eevee_samples or scene.eevee.taa_render_samples
+    images = {}
+    try:
+        for sss in (True, False):
+            yield steps.next(f"EEVEE {samples} samples, scattering {'on' if sss else 'off'}")
+            images[sss] = cached_eevee(
+                scene,
+                cache_dir,
+                samples=settings.eevee_samples,
+                resolution=settings.resolution,
+                sss=sss,
+                fingerprint=fingerprint,
+                log=log,
+            )
+    except EeveeUnavailable as exc:
+        log(f"note: {exc}; EEVEE is left out of the comparison")
+        return {"samples": samples, "error": str(exc)}
+    (on, on_s, _), (off, off_s, _) = images[True], images[False]
+    if on.shape[:2] != rows.ref.shape[:2]:
+        h, w = rows.ref.shape[:2]
+        raise ValueError(f"EEVEE rendered {on.shape[1]}x{on.shape[0]}, the reference is {w}x{h}")
+    info = {"samples": samples, "seconds_with_sss": on_s, "seconds_without_sss": off_s}
+    rows.add(f"EEVEE {samples} samples", "eevee", on, on_s, extra={"eevee": dict(info, image="as rendered")})
+    # Its SSS effect on Cycles' image without scattering: scored like a technique's image, its share of
+    # the no-SSS error removed is the share of Cycles' SSS effect it reproduces.
+    effect = np.array(passes["Combined"], dtype=np.float32)
+    effect[..., :3] += on[..., :3] - off[..., :3]
+    rows.add(
+        f"EEVEE {samples} samples, SSS effect",
+        "eevee",
+        effect,
+        on_s,
+        max(on_s - off_s, 0.0),
+        extra={"eevee": dict(info, image="Cycles without SSS + (EEVEE with SSS - EEVEE without)")},
+    )
+    # What its SSS costs EEVEE: the frame with it against the frame without (no apply of its own).
+    rows.entries[-1]["time_s"] = {"total": on_s, "apply": None, "sss_effect": max(on_s - off_s, 0.0)}
+    return info
+
+
 def _settings_data(settings: CompareSettings, materials, ref: np.ndarray, ref_seconds: float, merged) -> dict:
     """The report's ``settings``: what was rendered and measured."""
     return {
@@ -431,6 +489,7 @@ def _write(out_dir: str, data: dict, rows: _Rows, mask: np.ndarray, log) -> dict
         ["no SSS"]
         + [e["name"] for e in entries if e["kind"] == "technique"]
         + [e["name"] for e in entries if e["kind"] == "cycles"]
+        + [e["name"] for e in entries if e["kind"] == "eevee"]
         + ["Cycles reference"]
     )
     out = report.write_report(
@@ -556,6 +615,7 @@ def _step_count(settings: CompareSettings, own: set) -> int:
     runs = sum(len(settings.qualities.get(t, ({},))) for t in settings.techniques)
     peers = sum(1 for s in {*settings.peer_samples, settings.pass_samples} if s < settings.reference_samples)
     peers += bool(settings.cycles_burley and not settings.reference_file)
+    peers += 2 * bool(settings.eevee)  # with and without scattering
     return refs + passes + runs + peers + len(_calibration_methods(settings, own)) + 1
 
 

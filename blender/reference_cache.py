@@ -236,7 +236,7 @@ def cached_reference(
     ]
     path = os.path.join(cache_dir, f"cycles_{key}.exr")
     meta_path = path[:-4] + ".json"
-    cached = _read_cached(path, meta_path, log)
+    cached = read_cached_image(path, meta_path, log)
     if cached is not None:
         log(f"Cycles {method or 'scene method'} {samples} samples seed {seed}: cached ({os.path.basename(path)})")
         return cached[0], cached[1], True
@@ -259,7 +259,7 @@ def cached_reference(
     return image, seconds, False
 
 
-def _read_cached(path: str, meta_path: str, log) -> tuple[np.ndarray, float] | None:
+def read_cached_image(path: str, meta_path: str, log) -> tuple[np.ndarray, float] | None:
     """(image, render seconds) of a cache entry; None when there is none, or with a note when
     it cannot be read (an empty or damaged metadata file, a truncated EXR): it is rendered again."""
     if not (os.path.isfile(path) and os.path.isfile(meta_path)):

@@ -39,12 +39,23 @@ class SSS_LAB_OT_compare(DialogModalJob, bpy.types.Operator):
         default=CompareSettings.pass_samples,
         description="Cycles samples of the passes the techniques run on",
     )
+    eevee: bpy.props.BoolProperty(
+        name="Include EEVEE",
+        default=CompareSettings.eevee,
+        description="Also render EEVEE with and without scattering and score it beside the techniques"
+        " (its image, and its SSS effect against Cycles')",
+    )
     # Hidden flags of the dialog-then-modal run (``DialogModalJob``).
     confirmed: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
     from_dialog: bpy.props.BoolProperty(options={"HIDDEN", "SKIP_SAVE"})
 
     def dialog_settings(self) -> dict:
-        return dict(directory=self.directory, reference_samples=self.reference_samples, pass_samples=self.pass_samples)
+        return dict(
+            directory=self.directory,
+            reference_samples=self.reference_samples,
+            pass_samples=self.pass_samples,
+            eevee=self.eevee,
+        )
 
     def new_job(self, context):
         out_dir = bpy.path.abspath(self.directory)
@@ -52,13 +63,18 @@ class SSS_LAB_OT_compare(DialogModalJob, bpy.types.Operator):
         if not out_dir or (self.directory.startswith("//") and not bpy.data.filepath):
             raise ValueError("Save the .blend file first, or choose an absolute report folder")
         self._out_dir = out_dir
-        settings = CompareSettings(reference_samples=self.reference_samples, pass_samples=self.pass_samples)
+        settings = CompareSettings(
+            reference_samples=self.reference_samples, pass_samples=self.pass_samples, eevee=self.eevee
+        )
         return compare_job(context.scene, out_dir, settings, log=print)
 
     def job_done(self, context, data):
         result = Report.from_dict(data)
         for e in result.best_techniques:
             self.report({"INFO"}, f"{e.name}: rel. RMSE {e.metrics['rel_rmse']:.4f}, {e.time_s['total']:.2f} s")
+        eevee = data.get("eevee") or {}
+        if eevee.get("error"):
+            self.report({"WARNING"}, f"EEVEE left out: {eevee['error']}")
         level = {"INFO"} if result.complete else {"WARNING"}
         self.report(
             level,

@@ -140,7 +140,7 @@ def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, heigh
     def sy(v):
         return height - bottom - v / y1 * (height - top - bottom)
 
-    colours = {"technique": "#1f77b4", "cycles": "#d62728", "baseline": "#7f7f7f"}
+    colours = {"technique": "#1f77b4", "cycles": "#d62728", "baseline": "#7f7f7f", "eevee": "#ff7f0e"}
     out = [
         f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {width} {height}"'
         ' font-family="sans-serif" font-size="12" role="img">',

@@ -14,8 +14,9 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-#: The kinds of row: the passes' own image, a technique run, a Cycles render.
-ENTRY_KINDS = ("baseline", "technique", "cycles")
+#: The kinds of row: the passes' own image, a technique run, a Cycles render, an EEVEE render (or its
+#: SSS effect on Cycles' image without scattering).
+ENTRY_KINDS = ("baseline", "technique", "cycles", "eevee")
 
 
 @dataclass

@@ -49,6 +49,8 @@ const JOB_TYPE = {
       description: "How the NumPy tasks (apply, merge) run SSS Lab, e.g. 'python -m sss_lab'" },
     { key: "compare", type: "bool", default: false, visible: "submission",
       description: "Also render the reference over several tasks and write the comparison report" },
+    { key: "compare_eevee", type: "bool", default: true, visible: "submission",
+      description: "Score EEVEE beside the techniques in the comparison (needs an OpenGL context on the worker)" },
     { key: "compare_frame", type: "int32", eval: "C.scene.frame_current", visible: "submission",
       description: "The frame the reference shows and the comparison measures" },
     { key: "reference_tasks", type: "int32", default: 8, visible: "submission",
@@ -98,7 +100,7 @@ function compileJob(job) {
   const compare = blenderTask("compare", "compare", settings.blendfile, [
     "--out", path.join(out, "compare"), "--reference", merged, "--frame", String(settings.compare_frame),
     "--methods", settings.methods,
-    "--pass-samples", String(settings.pass_samples), ...common,
+    "--pass-samples", String(settings.pass_samples), ...common, ...(settings.compare_eevee ? [] : ["--no-eevee"]),
   ]);
   compare.addDependency(merge);
   for (const apply of applyTasks) {

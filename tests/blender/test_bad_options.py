@@ -83,6 +83,7 @@ def test_compare_warns_about_a_kernel_far_beyond_the_object_and_still_scatters(t
         cycles_burley=False,
         techniques=("ssss", "burley"),
         qualities={"ssss": ({},), "burley": ({},)},
+        eevee=False,
     )
     lines = []
     data = compare(bpy.context.scene, str(tmp_path / "report"), settings, log=lines.append)

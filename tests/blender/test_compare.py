@@ -13,11 +13,13 @@ technique remove a clear share of the error the missing SSS causes. The figures 
 are in the comparison report of each scene (README, "Comparison").
 """
 
+import dataclasses
 import json
 import os
 import re
 
 import bpy
+import numpy as np
 import pytest
 
 from sss_lab.blender import compare as compare_mod
@@ -25,7 +27,9 @@ from sss_lab.blender import compat, reference_cache
 from sss_lab.blender.compare import CompareSettings, compare
 from sss_lab.blender.reference_cache import cached_reference
 from sss_lab.blender.samples import load_sample_scenes
+from sss_lab.core.pipeline import apply as core_apply
 from sss_lab.core.pipeline import mapping
+from sss_lab.core.scene import exr
 
 pytestmark = pytest.mark.slow
 
@@ -50,6 +54,7 @@ def _settings(**kw):
         peer_samples=(),
         cycles_burley=False,
         qualities=QUALITIES,
+        eevee=False,  # EEVEE has its own test: software OpenGL takes seconds a frame
     )
     base.update(kw)
     return CompareSettings(**base)
@@ -188,6 +193,10 @@ def _snapshot(scene):
         c.seed,
         c.use_adaptive_sampling,
         tuple(o.pass_index for o in scene.objects),
+        r.engine,
+        r.use_compositing,
+        scene.eevee.taa_render_samples,
+        sum(len(m.node_tree.links) for m in bpy.data.materials if m.node_tree is not None),
     )
 
 
@@ -231,6 +240,7 @@ def test_scene_is_unchanged_and_bad_input_is_refused(blends, tmp_path, monkeypat
 def test_compare_operator_writes_the_report_and_leaves_the_scene(addon, blends, tmp_path):
     scene = _open(blends["head_frontlit"])
     scene.render.resolution_x = scene.render.resolution_y = 32  # small and quick; the operator keeps the scene's
+    scene.eevee.taa_render_samples = 4  # the scene's own EEVEE setting, which the comparison uses
     before = _snapshot(scene)
     result = bpy.ops.sss_lab.compare(directory=str(tmp_path), reference_samples=4, pass_samples=2)
     assert result == {"FINISHED"}
@@ -239,12 +249,74 @@ def test_compare_operator_writes_the_report_and_leaves_the_scene(addon, blends, 
     assert data["settings"]["resolution"] == [32, 32]
     ran = {e["technique"] for e in data["entries"] if e["kind"] == "technique"}
     assert ran == {"sta", "ssss", "burley", "combined"}
+    # The panel's Compare includes EEVEE by default (here EGL makes its context headless).
+    assert [e["name"] for e in data["entries"] if e["kind"] == "eevee"] == [
+        "EEVEE 4 samples",
+        "EEVEE 4 samples, SSS effect",
+    ]
     assert os.path.isfile(tmp_path / "report.html")
     assert _snapshot(scene) == before
     # A relative folder of an unsaved file cannot be resolved: refused, nothing written.
     bpy.ops.wm.read_factory_settings(use_empty=True)
     with pytest.raises(RuntimeError, match="Save the .blend file first"):
         bpy.ops.sss_lab.compare(directory="//report/")
+
+
+def test_eevee_is_scored_on_its_image_and_on_its_sss_effect(blends, tmp_path):
+    """EEVEE rendered with and without scattering: its image against the reference, and Cycles'
+    image without scattering plus EEVEE's difference scored the same way; cached like the Cycles
+    images; the scene left as it was."""
+    from sss_lab.blender.eevee import cached_eevee
+    from sss_lab.blender.reference_cache import scene_fingerprint
+    from sss_lab.core.study import metrics
+
+    scene = _open(blends["head_frontlit"])
+    before = _snapshot(scene)
+    settings = _settings(resolution=(32, 32), reference_samples=4, pass_samples=2, techniques=("burley",))
+    settings = dataclasses.replace(settings, eevee=True, eevee_samples=2)
+    lines = []
+    data = compare(scene, str(tmp_path), settings, log=lines.append)
+    assert _snapshot(scene) == before
+    assert data["complete"] and data["eevee"]["samples"] == 2 and "error" not in data["eevee"]
+    rows = {e["name"]: e for e in data["entries"] if e["kind"] == "eevee"}
+    assert list(rows) == ["EEVEE 2 samples", "EEVEE 2 samples, SSS effect"]
+    # From the cache now: the images the rows were scored on.
+    cache = str(tmp_path / "cache")
+    fp = scene_fingerprint(scene)
+    on, _, cached_on = cached_eevee(scene, cache, samples=2, resolution=(32, 32), sss=True, fingerprint=fp, log=None)
+    off, _, cached_off = cached_eevee(scene, cache, samples=2, resolution=(32, 32), sss=False, fingerprint=fp, log=None)
+    assert cached_on and cached_off and not np.array_equal(on, off)  # scattering changes EEVEE's picture
+    passes = exr.read_passes(str(tmp_path / "passes" / "passes_0001.exr"))
+    ref, _, _ = cached_reference(scene, cache, samples=4, seed=0, resolution=(32, 32), method=None, log=lambda _s: None)
+    mask = core_apply.index_map(passes) >= 1
+    effect = np.array(passes["Combined"], np.float32)
+    effect[..., :3] += on[..., :3] - off[..., :3]
+    # The same arrays and the same metric: equal to the float.
+    expected = metrics.compare_images(effect, ref, mask, box=settings.box)["rel_rmse"]
+    assert rows["EEVEE 2 samples, SSS effect"]["metrics"]["rel_rmse"] == expected
+    assert rows["EEVEE 2 samples"]["metrics"]["rel_rmse"] == metrics.compare_images(on, ref, mask, box=2)["rel_rmse"]
+    timed = rows["EEVEE 2 samples, SSS effect"]["time_s"]
+    assert timed["apply"] is None and timed["sss_effect"] >= 0
+    report = (tmp_path / "report.md").read_text(encoding="utf-8")
+    assert "EEVEE 2 samples, SSS effect" in report
+
+
+def test_without_an_opengl_context_eevee_is_left_out_with_one_line(blends, tmp_path, monkeypatch):
+    from sss_lab.blender import eevee
+
+    def no_context(*args, **kw):
+        raise eevee.EeveeUnavailable("EEVEE could not render here (no OpenGL context)")
+
+    monkeypatch.setattr(eevee, "render_eevee", no_context)
+    scene = _open(blends["head_frontlit"])
+    settings = _settings(resolution=(32, 32), reference_samples=4, pass_samples=2, techniques=("burley",))
+    lines = []
+    data = compare(scene, str(tmp_path), dataclasses.replace(settings, eevee=True), log=lines.append)
+    assert data["complete"] and data["eevee"]["error"].startswith("EEVEE could not render here")
+    assert not [e for e in data["entries"] if e["kind"] == "eevee"]
+    assert [line for line in lines if "EEVEE is left out" in line] == [
+        "note: EEVEE could not render here (no OpenGL context); EEVEE is left out of the comparison"
+    ]
 
 
 def _mesh(faces, verts):

@@ -127,7 +127,12 @@ def test_compare_uses_the_merged_reference_and_its_halves(rendered, capsys):
     bpy.ops.wm.open_mainfile(filepath=str(rendered["work"] / "head.blend"), load_ui=False)
     scene = bpy.context.scene
     settings = CompareSettings(
-        resolution=SIZE, pass_samples=2, peer_samples=(16,), techniques=("ssss",), reference_file=str(merged_path)
+        resolution=SIZE,
+        pass_samples=2,
+        peer_samples=(16,),
+        techniques=("ssss",),
+        reference_file=str(merged_path),
+        eevee=False,
     )
     data = compare(scene, str(rendered["work"] / "report"), settings, log=lambda _line: None)
     assert data["settings"]["reference_samples"] == TASKS * SAMPLES

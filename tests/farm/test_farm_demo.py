@@ -17,7 +17,7 @@ from sss_lab.core.scene import exr
 ROOT = Path(__file__).resolve().parents[2]
 PARAMS = (
     "-p Frames=1-3 -p FramesPerTask=2 -p Resolution=32x32 -p PassSamples=4 -p Threads=1 "
-    "-p Compare=yes -p ReferenceTasks=2 -p ReferenceSamples=4"
+    "-p Compare=yes -p CompareEevee=no -p ReferenceTasks=2 -p ReferenceSamples=4"
 )
 
 pytestmark = pytest.mark.slow

@@ -55,7 +55,7 @@ def test_openjd_check_rejects_a_broken_template(tmp_path):
     assert openjd("check", str(broken)).returncode != 0
 
 
-def _openjd_commands(tmp_path, compare: bool) -> list[dict]:
+def _openjd_commands(tmp_path, compare: bool, extra: dict | None = None) -> list[dict]:
     """Run the whole template with the recorder as SSS Lab: one entry per command a task ran."""
     recorder = tmp_path / "recorder.py"
     recorder.write_text(RECORDER)
@@ -68,6 +68,7 @@ def _openjd_commands(tmp_path, compare: bool) -> list[dict]:
         **SMALL,
         **REFERENCE,
         "Compare": "yes" if compare else "no",
+        **(extra or {}),
     }
     run = openjd("run", str(TEMPLATE), "--step", "Compare", "--run-dependencies", *params(values), cwd=tmp_path)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
@@ -135,6 +136,7 @@ FLAMENCO_SETTINGS = {
     "device": "CPU",
     "numpy_command": "python -m sss_lab",
     "compare": True,
+    "compare_eevee": True,
     "compare_frame": 1,
     "reference_tasks": REFERENCE["ReferenceTasks"],
     "reference_samples": REFERENCE["ReferenceSamples"],
@@ -174,6 +176,17 @@ def test_flamenco_job_type_builds_the_commands_of_the_openjd_template(tmp_path):
     assert all(deps[a] == {"render-" + a[len("apply-") :]} for a in applies)
     assert deps["merge-reference"] == {"reference-1", "reference-2", "reference-3"}
     assert deps["compare"] == {"merge-reference"} | applies
+
+
+def test_eevee_can_be_left_out_of_the_farm_comparison_in_both_formats(tmp_path):
+    """CompareEevee=no (OpenJD) and compare_eevee false (Flamenco) both give compare --no-eevee;
+    by default neither does (the test above)."""
+    job = _flamenco_tasks({**FLAMENCO_SETTINGS, "compare_eevee": False})
+    (compare,) = [argv for who, argv in map(_flamenco_argv, job["tasks"]) if argv[0] == "compare"]
+    openjd_calls = _openjd_commands(tmp_path, compare=True, extra={"CompareEevee": "no"})
+    (openjd_compare,) = [c["argv"] for c in openjd_calls if c["argv"][0] == "compare"]
+    assert compare[-1] == "--no-eevee" and openjd_compare[-1] == "--no-eevee"
+    assert _normal(compare) == _normal(openjd_compare)
 
 
 def test_flamenco_job_type_without_compare(tmp_path):
