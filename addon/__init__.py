@@ -18,6 +18,7 @@ _MODULES = (
     ".operators.apply",
     ".operators.presets",
     ".operators.comparison",
+    ".operators.eevee_match",
     ".operators.fit",
     ".operators.compositing",
     ".addon.panels",

@@ -25,6 +25,7 @@ COMMANDS = (
     ".cli_render",
     ".cli_compare",
     ".cli_calibrate",
+    ".cli_match_eevee",
     ".cli_reference",
     ".cli_merge_reference",
     ".cli_prepare",

@@ -162,6 +162,8 @@ class SSS_LAB_PT_compare(_Step, bpy.types.Panel):
         layout.operator("sss_lab.compare", icon="SORTTIME")
         _note(layout, "Esc cancels between renders; rendered references stay cached.")
         layout.operator("sss_lab.fit_to_cycles", icon="DRIVER_DISTANCE")
+        layout.operator("sss_lab.match_eevee", icon="SHADING_RENDERED")
+        layout.operator("sss_lab.remove_eevee_match", icon="X")
 
 
 classes = (

@@ -100,11 +100,13 @@ def cached_eevee(
     sss: bool,
     fingerprint: str,
     log=print,
+    warm_up: bool = True,
 ) -> tuple[np.ndarray, float, bool]:
     """EEVEE's image of ``scene`` (scattering on or off), from the cache when neither the scene
     (``fingerprint``, ``blender.reference_cache.scene_fingerprint``) nor its EEVEE settings changed.
     Returns (RGBA float32 image, render seconds as measured when rendered, from cache). The scene
-    is left as it was."""
+    is left as it was. ``warm_up`` False leaves out the untimed frame that compiles the shaders
+    first (for a caller that does not use the seconds)."""
     log = log or (lambda _line: None)
     what = f"EEVEE {samples or scene.eevee.taa_render_samples} samples, scattering {'on' if sss else 'off'}"
     key = hashlib.sha256(
@@ -126,7 +128,8 @@ def cached_eevee(
     with SceneState() as state, files.temporary_beside(path, suffix=".exr") as tmp:
         # First an untimed frame of WARM_UP pixels with one sample: EEVEE compiles the scene's shaders on
         # its first frame (there 33 s of a 46 s first 96 px frame), which is no part of what a frame costs.
-        render_eevee(scene, samples=1, resolution=(WARM_UP, WARM_UP), sss=sss, path=tmp, state=state)
+        if warm_up:
+            render_eevee(scene, samples=1, resolution=(WARM_UP, WARM_UP), sss=sss, path=tmp, state=state)
         seconds = render_eevee(scene, samples=samples, resolution=resolution, sss=sss, path=tmp, state=state)
         image = exr.read_passes(tmp)["Combined"]
         files.move_into_place(tmp, path)
