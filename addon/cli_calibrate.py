@@ -61,7 +61,7 @@ def add_parser(subparsers):
     p.set_defaults(run=run)
 
 
-def _json_out(args, blend_out: str) -> str | None:
+def json_out_path(args, blend_out: str) -> str | None:
     """The absolute path of ``--json``, checked before anything runs: a .json file name that is
     neither the input .blend nor ``--out`` (links resolved) and, without ``--overwrite``, no
     existing file; None without ``--json``."""
@@ -88,7 +88,7 @@ def run(args) -> int:
     from .cli_scan import open_blend
 
     out = read_blend_out(args)
-    json_out = _json_out(args, out)
+    json_out = json_out_path(args, out)
     resolution = read_resolution(args)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     scene = open_blend(args.blend, args.scene)

@@ -269,7 +269,7 @@ def add_branch(material) -> list:
             f"material {name!r} already has an output for EEVEE ({own.name!r}): match-eevee would hide it;"
             " remove it (or set its target to All) first"
         )
-    output = shader_graph._output_node(tree)
+    output = shader_graph.output_node(tree)
     if output is None or not output.inputs["Surface"].is_linked:
         raise InputError(f"material {name!r} has no active Material Output with a Surface Cycles renders")
     made: dict = {}
@@ -291,7 +291,7 @@ def add_branch(material) -> list:
                 src = _clone(tree, src, made, groups, memo)
             tree.links.new(src, new_output.inputs[socket_name])
     found: list = []
-    shader_graph._follow(new_output.inputs["Surface"], (), 1.0, [], found)
+    shader_graph.follow(new_output.inputs["Surface"], found)
     return found
 
 

@@ -55,6 +55,17 @@ def _output_node(tree, kinds=("CYCLES", "ALL")):
     return None
 
 
+def output_node(tree):
+    """The Material Output Cycles renders from (targeting Cycles, or All), or None."""
+    return _output_node(tree)
+
+
+def follow(socket, found: list) -> None:
+    """Append to ``found`` every scattering node whose closure reaches ``socket`` (a Surface input
+    of any output), as ``principled_sources`` follows them."""
+    _follow(socket, (), 1.0, [], found)
+
+
 def _group_output(tree):
     outputs = [n for n in tree.nodes if n.bl_idname == _GROUP_OUTPUT]
     return next((n for n in outputs if getattr(n, "is_active_output", False)), outputs[0] if outputs else None)

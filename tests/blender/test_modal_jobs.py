@@ -141,7 +141,7 @@ def test_compare_runs_render_by_render_and_esc_keeps_the_cached_references(
     scene, window = sss_quads, modal.Window()
     context = modal.context(window)
     before = _state(scene, quad_weights)
-    props = dict(directory=str(tmp_path), reference_samples=4, pass_samples=2, confirmed=True)
+    props = dict(directory=str(tmp_path), reference_samples=4, pass_samples=2, eevee=False, confirmed=True)
     op = modal.driver(SSS_LAB_OT_compare, **props)
 
     # Start: 2 references, the passes at 2 and at 8 samples (the bias split), 3 SSSS and 4 Burley
