@@ -26,6 +26,7 @@ COMMANDS = (
     ".cli_compare",
     ".cli_calibrate",
     ".cli_match_eevee",
+    ".cli_export_profiles",
     ".cli_reference",
     ".cli_merge_reference",
     ".cli_prepare",

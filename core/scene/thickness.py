@@ -202,3 +202,25 @@ def binomial_sigma(p, rays: int) -> np.ndarray:
     _integer(rays, "rays", 1, 1 << 30)
     q = np.asarray(p, dtype=np.float64)
     return np.sqrt(q * (1.0 - q) / rays)
+
+
+def bakers_map(values, convention: str) -> np.ndarray:
+    """A baked map in the convention of the thickness bakers artists know (Substance, Marmoset:
+    white = thick, docs/references.md §19): the slab thickness the value stands for over the bake
+    distance D, min(t, D) / D = sqrt(inside AO) (``slab_unoccluded_fraction`` inverted). Linear in
+    the thickness, so an engine's remap 0..D (HDRP's Thickness Remap) gives it back. float32, same
+    shape, input not mutated; values outside 0..1 are refused."""
+    v = np.asarray(values, dtype=np.float64)
+    if v.size and (not np.all(np.isfinite(v)) or v.min() < 0 or v.max() > 1):
+        raise ValueError(f"values: expected a baked map in 0..1, got values in {v.min():.4g}..{v.max():.4g}")
+    ao = 1.0 - v if check_convention(convention) == "translucency" else v
+    return np.sqrt(ao).astype(np.float32)
+
+
+def object_thickness_su(values, convention: str, distance_su: float) -> np.ndarray:
+    """The slab thickness (scene units, at most D) a baked map stands for: D sqrt(inside AO), what
+    EEVEE's Thickness socket reads (an object-space length, docs/references.md §19)."""
+    d = float(distance_su)
+    if not (math.isfinite(d) and d > 0):
+        raise ValueError(f"distance_su: expected the bake distance, a finite number > 0, got {distance_su!r}")
+    return (np.float32(d) * bakers_map(values, convention)).astype(np.float32)

@@ -32,6 +32,23 @@ def encode_png(rgb8: np.ndarray) -> bytes:
     )
 
 
+def encode_png16_gray(values: np.ndarray) -> bytes:
+    """PNG bytes of a single-channel image at 16 bits: ``values`` float (H, W) in 0..1, rows top to
+    bottom, written linearly (0 -> 0, 1 -> 65535, rounded); values outside 0..1 are refused."""
+    v = np.asarray(values, dtype=np.float64)
+    if v.ndim != 2 or v.shape[0] < 1 or v.shape[1] < 1:
+        raise ValueError(f"encode_png16_gray: expected a (H, W) array, got shape {v.shape}")
+    if not np.all(np.isfinite(v)) or v.min() < 0 or v.max() > 1:
+        raise ValueError("encode_png16_gray: expected finite values in 0..1")
+    h, w = v.shape
+    rows = np.round(v * 65535.0).astype(">u2").view(np.uint8).reshape(h, 2 * w)
+    raw = np.concatenate([np.zeros((h, 1), dtype=np.uint8), rows], axis=1).tobytes()
+    header = struct.pack(">IIBBBBB", w, h, 16, 0, 0, 0, 0)
+    return (
+        b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", header) + _chunk(b"IDAT", zlib.compress(raw, 6)) + _chunk(b"IEND", b"")
+    )
+
+
 def to_display(linear: np.ndarray, *, exposure: float = 1.0) -> np.ndarray:
     """Linear scene-referred RGB(A) to 8-bit display RGB (tone mapped, NaN shown as magenta)."""
     x = np.asarray(linear, dtype=np.float64)[..., :3] * exposure
