@@ -11,7 +11,11 @@ except the two the match sets (``core/study/eevee_match.py``):
 - **Radius**, per channel, so that EEVEE gathers over k times its own d as authored
   (docs/references.md §18);
 - **Base Color** times a gain g per channel (Cycles' walk shifts a material's energy where EEVEE's
-  gather only moves it), the Radius set for the new colour so that d stays k times the authored.
+  gather only moves it), the Radius set for the new colour so that d stays k times the authored;
+- and, where it brings EEVEE closer, the Base Color also times the entry's dependence on the view
+  angle (``set_view_factor``: a Color Ramp of the view cosine, ``eevee_match.view_table``): Cycles'
+  walk returns less light seen straight on than at a grazing angle (docs/references.md §15), which
+  a screen-space gather cannot do by itself.
 
 k is tried on ``eevee_match.K_GRID`` (one EEVEE frame each, every material at once) and then half
 an octave either side of each material's best, g solved in closed form per k
@@ -36,7 +40,9 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from ..core.base import arrays
 from ..core.base.errors import InputError
+from ..core.optics.energy import entry_view_cosine
 from ..core.pipeline import plan, sequence
 from ..core.pipeline.mapping import burley_d
 from ..core.scene import exr
@@ -104,6 +110,9 @@ class MaterialMatch:
     removed_after: float | None = None
     errors: dict = field(default_factory=dict)
     skipped: str | None = None
+    #: True when the branch also multiplies the Base Color by the entry's view dependence
+    #: (``set_view_factor``), because that brought EEVEE closer on the match's frame.
+    view: bool = False
 
     def to_dict(self) -> dict:
         return {
@@ -115,6 +124,7 @@ class MaterialMatch:
             "removed_after": self.removed_after,
             "errors_by_k": self.errors,
             "skipped": self.skipped,
+            "view": self.view,
         }
 
 
@@ -346,6 +356,54 @@ def set_branch(source, d_now, color_now, d_wanted, gain) -> None:
     _scaled_input(node, _input_name(node, _RADIUS_INPUTS), factor)
 
 
+def _new(tree, kind: str, label: str, location):
+    node = tree.nodes.new(kind)
+    node[EEVEE_TAG] = True
+    node.label = label
+    node.location = location
+    return node
+
+
+def set_view_factor(source, table) -> None:
+    """Multiply the copied scattering node's Base Color by a Color Ramp of the view cosine
+    (``eevee_match.view_table``: Geometry's Normal dot Incoming, its absolute value, the ramp's
+    stops): the entry's view dependence that Cycles' walk shows and EEVEE's gather does not. The
+    nodes are tagged, so ``remove_match`` removes them with the branch."""
+    node = source.node
+    tree = node.id_data
+    socket = node.inputs[_input_name(node, _COLOR_INPUTS)]
+    x, y = node.location.x - 900.0, node.location.y - 300.0
+    geometry = _new(tree, "ShaderNodeNewGeometry", "View for EEVEE (SSS Lab match)", (x, y))
+    dot = _new(tree, "ShaderNodeVectorMath", "View cosine", (x + 180.0, y))
+    dot.operation = "DOT_PRODUCT"
+    absolute = _new(tree, "ShaderNodeMath", "|View cosine|", (x + 360.0, y))
+    absolute.operation = "ABSOLUTE"
+    ramp = _new(tree, "ShaderNodeValToRGB", "Entry gain by view angle (SSS Lab match)", (x + 540.0, y))
+    multiply = _new(tree, "ShaderNodeVectorMath", "Base Color x entry gain", (x + 820.0, y + 150.0))
+    multiply.operation = "MULTIPLY"
+    tree.links.new(geometry.outputs["Normal"], dot.inputs[0])
+    tree.links.new(geometry.outputs["Incoming"], dot.inputs[1])
+    tree.links.new(dot.outputs["Value"], absolute.inputs[0])
+    tree.links.new(absolute.outputs[0], ramp.inputs["Fac"])
+    mu, factors = table
+    elements = ramp.color_ramp.elements
+    ramp.color_ramp.interpolation = "LINEAR"
+    # The two default stops become the ends, the others are made in place (a stop keeps the ramp
+    # sorted by position: setting positions one by one would move stops under the loop).
+    elements[0].position, elements[-1].position = float(mu[0]), float(mu[-1])
+    for position in mu[1:-1]:
+        elements.new(float(position))
+    for element, factor in zip(elements, factors, strict=True):
+        element.color = (*(float(v) for v in factor), 1.0)
+    links = [link for link in socket.links if link.is_valid]
+    if links:
+        tree.links.new(links[0].from_socket, multiply.inputs[0])
+    else:
+        multiply.inputs[0].default_value = tuple(socket.default_value)[:3]
+    tree.links.new(ramp.outputs["Color"], multiply.inputs[1])
+    tree.links.new(multiply.outputs[0], socket)
+
+
 # --- the match ----------------------------------------------------------------------------------
 
 
@@ -441,6 +499,9 @@ def match_eevee_job(scene, settings: MatchSettings | None = None, *, log=print) 
         d_eevee = {
             name: eevee_match.eevee_d(read[name].radius, 1.0, colors[name]) for name in branches
         }  # the radius read is Radius x Scale already (MaterialSSS.radius)
+        views = {
+            name: _view_factor(passes, desc, index == read[name].index, read[name], colors[name]) for name in branches
+        }
 
         def set_all(k_of, gain_of) -> None:
             for name, sources in branches.items():
@@ -450,39 +511,52 @@ def match_eevee_job(scene, settings: MatchSettings | None = None, *, log=print) 
         yield steps.next("EEVEE with the Base Color black (what the albedo does not scale)")
         set_all(lambda _n: 1.0, lambda _n: (0.0, 0.0, 0.0))
         e_rest = eevee(True)
-        trials: dict[str, dict[float, tuple]] = {name: {} for name in branches}
+        # (k, with the view factor) -> (gain, error) per material.
+        trials: dict[str, dict[tuple[float, bool], tuple]] = {name: {} for name in branches}
+
+        def solve(e_k, k: float, label: str) -> None:
+            for name in branches:
+                trials[name][(k, False)] = eevee_match.solve_gain(e_k, e_rest, target, keeps[name])
+                results[name].errors[label] = trials[name][(k, False)][1]
+                if views[name] is not None:
+                    one = e_rest[..., :3] + views[name] * (e_k[..., :3] - e_rest[..., :3])
+                    trials[name][(k, True)] = eevee_match.solve_gain(one, e_rest, target, keeps[name])
+                    results[name].errors[f"{label} view"] = trials[name][(k, True)][1]
+
         for k in eevee_match.K_GRID:
             yield steps.next(f"EEVEE with d x {k:g}")
             set_all(lambda _n, k=k: k, lambda _n: (1.0, 1.0, 1.0))
-            e_k = eevee(True)
-            for name in branches:
-                gain, error = eevee_match.solve_gain(e_k, e_rest, target, keeps[name])
-                trials[name][k] = (gain, error)
-                results[name].errors[f"{k:g}"] = error
+            solve(eevee(True), k, f"{k:g}")
         best = {name: _lowest(trials[name]) for name in branches}
         # Half an octave either side of each material's best (every material at once: the i-th side).
         for side in (2**-0.5, 2**0.5):
             yield steps.next(f"EEVEE with each material's best d x {side:.3g}")
-            set_all(lambda n, side=side: best[n] * side, lambda _n: (1.0, 1.0, 1.0))
+            set_all(lambda n, side=side: best[n][0] * side, lambda _n: (1.0, 1.0, 1.0))
             e_k = eevee(True)
             for name in branches:
-                k = best[name] * side
-                trials[name][k] = eevee_match.solve_gain(e_k, e_rest, target, keeps[name])
-                results[name].errors[f"{k:.4g}"] = trials[name][k][1]
+                k = best[name][0] * side
+                for view in (False, True):
+                    if views[name] is not None or not view:
+                        one = e_k if not view else e_rest[..., :3] + views[name] * (e_k[..., :3] - e_rest[..., :3])
+                        trials[name][(k, view)] = eevee_match.solve_gain(one, e_rest, target, keeps[name])
+                        results[name].errors[f"{k:.4g}" + (" view" if view else "")] = trials[name][(k, view)][1]
         best = {name: _lowest(trials[name]) for name in branches}
         yield steps.next("EEVEE with the match, to check it")
-        set_all(lambda n: best[n], lambda n: tuple(trials[n][best[n]][0]))
+        set_all(lambda n: best[n][0], lambda n: tuple(trials[n][best[n]][0]))
+        for name, sources in branches.items():
+            if best[name][1]:
+                for source in sources:
+                    set_view_factor(source, eevee_match.view_table(read[name].method, colors[name]))
         e_after = eevee(True)
         for name in list(branches):
             r = results[name]
-            r.k = float(best[name])
+            k_best, r.view = float(best[name][0]), bool(best[name][1])
+            r.k = k_best
             gr, gg, gb = (float(v) for v in trials[name][best[name]][0])
             r.gain = (gr, gg, gb)
-            dr, dg, db = (float(v) for v in best[name] * d_eevee[name])
+            dr, dg, db = (float(v) for v in k_best * d_eevee[name])
             r.d = (dr, dg, db)
-            r.d_over_ssslab = float(
-                best[name] * np.mean(d_eevee[name] / np.where(d_ssslab[name] > 0, d_ssslab[name], 1.0))
-            )
+            r.d_over_ssslab = float(k_best * np.mean(d_eevee[name] / np.where(d_ssslab[name] > 0, d_ssslab[name], 1.0)))
             r.removed_after = eevee_match.effect_removed(e_after, e_none, c_sss, c_none, keeps[name])
             if r.removed_after is None or (r.removed_before is not None and r.removed_after <= r.removed_before):
                 remove_match(blender_mats[name])
@@ -515,8 +589,8 @@ def match_eevee_job(scene, settings: MatchSettings | None = None, *, log=print) 
             tmp.cleanup()
 
 
-def _lowest(trials: dict) -> float:
-    """The trial k whose (gain, error) has the lowest error."""
+def _lowest(trials: dict):
+    """The trial (k, view) whose (gain, error) has the lowest error."""
     return min(trials, key=lambda k: trials[k][1])
 
 
@@ -529,9 +603,27 @@ def _line(r: MaterialMatch) -> str:
         return f"  {r.name}: no EEVEE branch ({r.skipped})"
     gain = ", ".join(f"{v:.3g}" for v in r.gain or ())
     return (
-        f"  {r.name}: EEVEE's d x {r.k:.3g} (SSS Lab's x {r.d_over_ssslab:.3g}), Base Color x ({gain}): reproduces"
+        f"  {r.name}: EEVEE's d x {r.k:.3g} (SSS Lab's x {r.d_over_ssslab:.3g}), Base Color x ({gain})"
+        + (" and the view angle's ramp" if r.view else "")
+        + ": reproduces"
         f" {_pct(r.removed_after)} of Cycles' SSS effect (as authored {_pct(r.removed_before)})"
     )
+
+
+def _view_factor(passes, desc, mask: np.ndarray, material, color) -> np.ndarray | None:
+    """The entry's view dependence per pixel on ``mask`` (``eevee_match.view_factor``, 1 elsewhere)
+    for ``material``'s method at ``color``, the view cosine from the passes' Normal (else Depth);
+    None for a method without one."""
+    table = eevee_match.view_table(material.method, color)
+    box = arrays.bounding_box(mask)
+    if table is None or box is None:
+        return None
+    normal = passes["Normal"] if "Normal" in passes else None
+    cos = np.ones(mask.shape, np.float64)
+    cos[box] = entry_view_cosine(passes["Depth"], normal, mask, desc.camera, box)
+    factor = eevee_match.view_factor(cos, table)
+    factor[~mask] = 1.0
+    return factor
 
 
 def _passes(scene, cache: str, settings: MatchSettings, say):

@@ -15,6 +15,11 @@ authored, so the match starts from it). This module holds the arithmetic, withou
   EEVEE applies the albedo after the blur, so with d held (``eevee_radius`` at the new colour)
   its image is linear in g: E(g) = E_rest + g (E_1 - E_rest), E_rest the image with the Base Color
   black (what the albedo does not scale: the specular layer, other materials);
+- ``view_table`` / ``view_factor``: the entry's dependence on the view angle that Cycles' walk
+  shows and EEVEE's gather does not (docs/references.md §15, ``core.optics.energy.entry_gain``:
+  a random walk returns less light seen straight on than at a grazing angle), as the stops of a
+  Color Ramp on the view cosine that the branch multiplies the Base Color with, and the same
+  factor per pixel for the solve: with it E(g) = E_rest + g F (E_1 - E_rest), still linear in g;
 - ``effect_removed``: the share of Cycles' SSS effect an EEVEE pair (with and without scattering)
   reproduces, 1 - |(E_sss - E_none) - (C_sss - C_none)| / |C_sss - C_none| over the material's
   blocks, the *removed* of the fidelity suite with EEVEE's change in place of a technique's.
@@ -26,6 +31,7 @@ import math
 
 import numpy as np
 
+from ..optics.energy import VIEW_DEG, entry_gain
 from ..optics.profiles import albedo_scaling
 from .metrics import box_downsample
 
@@ -52,6 +58,27 @@ def eevee_radius(d, scale: float, base_color) -> np.ndarray:
         raise ValueError(f"scale: expected a number > 0, got {scale!r}")
     s = albedo_scaling(np.clip(np.asarray(base_color, np.float64), 0.0, 1.0))
     return np.asarray(d, np.float64) * 4.0 * math.pi * s / float(scale)
+
+
+def view_table(method: str, albedo) -> tuple[np.ndarray, np.ndarray] | None:
+    """(view cosines ascending (n,), factors (n, 3) per channel, each channel's largest 1): the entry
+    gain of Cycles' ``method`` for Base Color ``albedo`` at the table's own view angles, so that a
+    linear ramp between them reads what ``entry_gain`` reads; None for a method whose light does
+    not depend on the view angle (Christensen-Burley, measured equal to Lambert)."""
+    mu = np.cos(np.radians(np.asarray(VIEW_DEG[::-1], np.float64)))
+    a = np.broadcast_to(np.clip(np.asarray(albedo, np.float64), 0.0, 1.0), mu.shape + (3,))
+    gain = entry_gain(method, a, mu).astype(np.float64)
+    if np.allclose(gain, 1.0):
+        return None
+    return mu, gain / gain.max(axis=0)
+
+
+def view_factor(cos_view, table: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """The ramp of ``view_table`` read at each pixel's view cosine ``cos_view`` (H, W), clamped at
+    its ends like a Color Ramp: (H, W, 3) float64 (NaN reads the straight-on end)."""
+    mu, factors = table
+    c = np.nan_to_num(np.abs(np.asarray(cos_view, np.float64)), nan=1.0)
+    return np.stack([np.interp(c, mu, factors[:, k]) for k in range(3)], axis=-1)
 
 
 def _blocks(image: np.ndarray, keep: np.ndarray) -> np.ndarray:

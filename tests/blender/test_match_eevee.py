@@ -18,6 +18,7 @@ from sss_lab.blender.samples import load_sample_scenes
 from sss_lab.blender.state import SceneState
 from sss_lab.core.base.errors import InputError
 from sss_lab.core.scene import exr
+from sss_lab.core.study import eevee_match
 
 pytestmark = pytest.mark.slow
 
@@ -61,7 +62,11 @@ def test_the_match_adds_an_eevee_branch_that_cycles_never_reads(blends):
     assert r["skipped"] is None, r
     # Kept only where it comes closer to Cycles' SSS effect than EEVEE as authored.
     assert r["removed_after"] > r["removed_before"]
-    assert r["k"] in {float(v) for v in r["errors_by_k"]} or f"{r['k']:.4g}" in r["errors_by_k"]
+    label = (f"{r['k']:g}" if r["k"] in eevee_match.K_GRID else f"{r['k']:.4g}") + (" view" if r["view"] else "")
+    assert label in r["errors_by_k"], (label, r["errors_by_k"])
+    if r["view"]:  # the branch reads the view angle: Geometry -> |Normal . Incoming| -> ramp -> Base Color
+        ramps = [n for n in skin.node_tree.nodes if n.bl_idname == "ShaderNodeValToRGB" and n.get(match.EEVEE_TAG)]
+        assert len(ramps) == 1 and len(ramps[0].color_ramp.elements) == 7
     assert json.loads(skin[match.MATCH_KEY])["removed_after"] == r["removed_after"]
     tree = skin.node_tree
     eevee_out = tree.get_output_node("EEVEE")

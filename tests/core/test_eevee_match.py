@@ -62,3 +62,20 @@ def test_effect_removed_is_the_share_of_cycles_effect_reproduced():
     assert em.effect_removed(e_none, e_none, c_none, c_none, keep) is None  # no effect to reproduce
     # What EEVEE should show: its own image without scattering plus Cycles' effect.
     np.testing.assert_allclose(em.target_image(e_none, c_sss, c_none), e_none + effect)
+
+
+def test_the_view_ramp_reads_the_entry_gain_between_its_stops():
+    from sss_lab.core.optics.energy import entry_gain
+
+    albedo = (0.8, 0.45, 0.2)
+    mu, factors = em.view_table("RANDOM_WALK", albedo)
+    assert np.all(np.diff(mu) > 0) and mu[-1] == pytest.approx(1.0) and len(mu) <= 32  # a Color Ramp's stops
+    np.testing.assert_allclose(factors.max(axis=0), 1.0)
+    cos = np.linspace(0.1, 1.0, 37).reshape(1, -1)
+    gain = entry_gain("RANDOM_WALK", np.broadcast_to(albedo, cos.shape + (3,)), cos)
+    ratio = gain / em.view_factor(cos, (mu, factors))
+    # Linear between the table's own view angles: the ramp is the gain up to one factor per channel.
+    np.testing.assert_allclose(ratio, np.broadcast_to(ratio[:, :1], ratio.shape), rtol=1e-5)
+    # Seen straight on, a random walk returns less than at a grazing angle (docs/references.md §15).
+    assert np.all(em.view_factor(np.array([[1.0]]), (mu, factors)) < em.view_factor(np.array([[0.2]]), (mu, factors)))
+    assert em.view_table("BURLEY", albedo) is None  # Christensen-Burley: equal to Lambert at every angle
