@@ -19,6 +19,7 @@ _MODULES = (
     ".operators.presets",
     ".operators.comparison",
     ".operators.eevee_match",
+    ".operators.export",
     ".operators.fit",
     ".operators.compositing",
     ".addon.panels",

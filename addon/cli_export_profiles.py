@@ -13,11 +13,10 @@ arguments or input, 3 no material with subsurface scattering (nothing written).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 
-from ..core.base.progress import printable, saved_line
+from ..core.base.progress import saved_line
 
 
 def add_parser(subparsers):
@@ -53,18 +52,6 @@ def add_parser(subparsers):
     p.set_defaults(run=run)
 
 
-def _png_name(image_name: str, taken: set) -> str:
-    import bpy
-
-    base = bpy.path.clean_name(image_name) + "_bakers"
-    name, k = base + ".png", 1
-    while name in taken:
-        k += 1
-        name = f"{base}_{k}.png"
-    taken.add(name)
-    return name
-
-
 def run(args) -> int:
     from ..core.techniques.registry import check_technique
     from .cli import EXIT_NOTHING_TO_DO, CommandError
@@ -82,46 +69,25 @@ def run(args) -> int:
         raise CommandError(f"--out {args.out!r} is a file; expected a folder")
     scene = open_blend(args.blend, args.scene)
 
-    from ..blender.export_profiles import export_profiles, thickness_maps
-    from ..core.base import files
-    from ..core.study import png
-    from ..core.study.profile_export import page
+    from ..blender.export_profiles import write_export
+    from ..core.base.errors import InputError
 
-    data = export_profiles(scene, technique=args.technique, albedo_mode=args.albedo_mode, metres=m)
-    if not data["materials"]:
+    try:
+        _, written = write_export(
+            scene,
+            out,
+            overwrite=args.overwrite,
+            technique=args.technique,
+            albedo_mode=args.albedo_mode,
+            metres=m,
+            protect=(args.blend,),
+            log=lambda line: print(f"export-profiles: {line}", flush=True),
+        )
+    except InputError as exc:
+        raise CommandError(str(exc)) from None
+    if not written:
         print("export-profiles: no material with subsurface scattering; nothing written", flush=True)
         return EXIT_NOTHING_TO_DO
-    maps, taken = [], {"profiles.json", "profiles.md"}
-    for item in thickness_maps(scene):
-        values = item.pop("values", None)
-        if values is not None:
-            item["file"] = _png_name(item["image"], taken)
-        maps.append((item, values))
-    data["thickness_maps"] = [item for item, _ in maps]
-    blend = os.path.realpath(os.path.abspath(args.blend))
-    writes = [("profiles.json", json.dumps(data, indent=2)), ("profiles.md", page(data))]
-    paths = [os.path.join(out, name) for name, _ in writes] + [
-        os.path.join(out, item["file"]) for item, v in maps if v is not None
-    ]
-    for path in paths:  # every check before anything is written
-        if os.path.realpath(path) == blend:
-            raise CommandError(f"{printable(path)!r} is the input .blend; refusing to write over it")
-        if os.path.lexists(path) and not args.overwrite:
-            raise CommandError(f"{printable(path)!r} exists; refusing to overwrite it (pass --overwrite to allow it)")
-    os.makedirs(out, exist_ok=True)
-    for material in data["materials"]:
-        for engine in ("hdrp", "unreal"):
-            for note in material[engine]["notes"]:
-                print(f"export-profiles: {printable(material['material'])}: {engine}: {printable(note)}", flush=True)
-    for item, values in maps:
-        if values is None:
-            print(f"export-profiles: thickness image {printable(item['image'])}: {printable(item['error'])}")
-            continue
-        path = os.path.join(out, item["file"])
-        files.write_bytes(path, png.encode_png16_gray(values))
-        print(saved_line(path), flush=True)
-    for name, text in writes:
-        path = os.path.join(out, name)
-        files.write_text(path, text)
+    for path in written:
         print(saved_line(path), flush=True)
     return 0

@@ -164,6 +164,7 @@ class SSS_LAB_PT_compare(_Step, bpy.types.Panel):
         layout.operator("sss_lab.fit_to_cycles", icon="DRIVER_DISTANCE")
         layout.operator("sss_lab.match_eevee", icon="SHADING_RENDERED")
         layout.operator("sss_lab.remove_eevee_match", icon="X")
+        layout.operator("sss_lab.export_profiles", icon="EXPORT")
 
 
 classes = (

@@ -11,12 +11,18 @@ Units, formulas and sources: docs/references.md §19.
 
 from __future__ import annotations
 
+import json
+import os
+
 import numpy as np
 
+from ..core.base import files
+from ..core.base.errors import InputError
+from ..core.base.progress import printable
 from ..core.pipeline.fit_params import OFF, fitted
 from ..core.pipeline.mapping import burley_d, mapping_name
 from ..core.scene.thickness import bakers_map
-from ..core.study import profile_export
+from ..core.study import png, profile_export
 from .describe import sss_materials, world_corners
 from .stored import META_KEY, thickness_metadata
 
@@ -102,3 +108,74 @@ def thickness_maps(scene) -> list[dict]:
         item["values"] = bakers_map(values, meta.get("convention", "translucency"))
         out.append(item)
     return out
+
+
+def _png_name(image_name: str, taken: set) -> str:
+    import bpy
+
+    base = bpy.path.clean_name(image_name) + "_bakers"
+    name, k = base + ".png", 1
+    while name in taken:
+        k += 1
+        name = f"{base}_{k}.png"
+    taken.add(name)
+    return name
+
+
+def write_export(
+    scene,
+    folder: str,
+    *,
+    overwrite: bool = False,
+    technique: str = "burley",
+    albedo_mode: str = "post",
+    metres: float | None = None,
+    protect: tuple[str, ...] = (),
+    log=print,
+) -> tuple[dict, list[str]]:
+    """Write ``folder``/profiles.json, profiles.md and each baked thickness image as
+    <image>_bakers.png (16-bit, the bakers' convention); (the export, the paths written). Every file
+    is checked before the first is written: none may be one of ``protect`` (the input, links
+    resolved) or, without ``overwrite``, exist (InputError naming it). No material with
+    subsurface scattering: nothing written, (export, [])."""
+    data = export_profiles(scene, technique=technique, albedo_mode=albedo_mode, metres=metres)
+    if not data["materials"]:
+        return data, []
+    maps, taken = [], {"profiles.json", "profiles.md"}
+    for item in thickness_maps(scene):
+        values = item.pop("values", None)
+        if values is not None:
+            item["file"] = _png_name(item["image"], taken)
+        maps.append((item, values))
+    data["thickness_maps"] = [item for item, _ in maps]
+    writes: list[tuple[str, bytes | str]] = [
+        (os.path.join(folder, item["file"]), png.encode_png16_gray(v)) for item, v in maps if v is not None
+    ]
+    writes += [
+        (os.path.join(folder, "profiles.json"), json.dumps(data, indent=2)),
+        (os.path.join(folder, "profiles.md"), profile_export.page(data)),
+    ]
+    protected = {os.path.realpath(p) for p in protect}
+    if os.path.exists(folder) and not os.path.isdir(folder):
+        raise InputError(f"{printable(folder)!r} is a file; expected a folder for the export")
+    for path, _ in writes:
+        if os.path.realpath(path) in protected:
+            raise InputError(f"{printable(path)!r} is an input; refusing to write over it")
+        if os.path.lexists(path) and not overwrite:
+            raise InputError(f"{printable(path)!r} exists; refusing to overwrite it (pass --overwrite to allow it)")
+    for material in data["materials"]:
+        for engine in ("hdrp", "unreal"):
+            for note in material[engine]["notes"]:
+                log(f"{printable(material['material'])}: {engine}: {printable(note)}")
+    for item, values in maps:
+        if values is None:
+            log(f"thickness image {printable(item['image'])}: {printable(item['error'])}")
+    os.makedirs(folder, exist_ok=True)
+    written = []
+    for path, content in writes:
+        if isinstance(content, bytes):
+            files.write_bytes(path, content)
+        else:
+            files.write_text(path, content)
+        written.append(path)
+    return data, written

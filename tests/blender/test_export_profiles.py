@@ -110,3 +110,20 @@ def test_bad_options_are_named(baked, tmp_path, capsys):
     assert main(["export-profiles", baked, "--out", str(tmp_path / "x"), "--technique", "nope"]) == 2
     assert "--technique" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_the_panel_exports_into_a_folder_and_refuses_to_overwrite(addon, baked, tmp_path):
+    bpy.ops.wm.open_mainfile(filepath=baked, load_ui=False)
+    folder = tmp_path / "panel"
+    assert bpy.ops.sss_lab.export_profiles(directory=str(folder)) == {"FINISHED"}
+    data = json.loads((folder / "profiles.json").read_text())
+    assert [m["material"] for m in data["materials"]] == ["Skin"]
+    assert (folder / data["thickness_maps"][0]["file"]).is_file()
+    stamp = (folder / "profiles.md").stat().st_mtime_ns
+    with pytest.raises(RuntimeError, match="exists; refusing to overwrite it"):
+        bpy.ops.sss_lab.export_profiles(directory=str(folder))
+    assert (folder / "profiles.md").stat().st_mtime_ns == stamp
+    assert bpy.ops.sss_lab.export_profiles(directory=str(folder), overwrite=True, albedo_mode="pre-post") == {
+        "FINISHED"
+    }
+    assert json.loads((folder / "profiles.json").read_text())["albedo_mode"] == "pre-post"
