@@ -15,7 +15,10 @@ except the two the match sets (``core/study/eevee_match.py``):
 - and, where it brings EEVEE closer, the Base Color also times the entry's dependence on the view
   angle (``set_view_factor``: a Color Ramp of the view cosine, ``eevee_match.view_table``): Cycles'
   walk returns less light seen straight on than at a grazing angle (docs/references.md §15), which
-  a screen-space gather cannot do by itself.
+  a screen-space gather cannot do by itself;
+- **Thickness** on the EEVEE output: where the material reads a thickness map SSS Lab baked, the
+  slab thickness it stands for as the object-space length EEVEE expects (``wire_thickness``),
+  in place of EEVEE's guess from the object's smallest dimension.
 
 k is tried on ``eevee_match.K_GRID`` (one EEVEE frame each, every material at once) and then half
 an octave either side of each material's best, g solved in closed form per k
@@ -113,6 +116,8 @@ class MaterialMatch:
     #: True when the branch also multiplies the Base Color by the entry's view dependence
     #: (``set_view_factor``), because that brought EEVEE closer on the match's frame.
     view: bool = False
+    #: What feeds the branch's Thickness (``wire_thickness``), None: EEVEE's own guess.
+    thickness: str | None = None
 
     def to_dict(self) -> dict:
         return {
@@ -125,6 +130,7 @@ class MaterialMatch:
             "errors_by_k": self.errors,
             "skipped": self.skipped,
             "view": self.view,
+            "thickness": self.thickness,
         }
 
 
@@ -404,6 +410,59 @@ def set_view_factor(source, table) -> None:
     tree.links.new(multiply.outputs[0], socket)
 
 
+def wire_thickness(scene, material) -> str | None:
+    """Feed the EEVEE output of ``material``'s branch the slab thickness its baked map stands for,
+    as the object-space length EEVEE's Thickness socket reads (docs/references.md §19): the map
+    the material's thickness AOV reads (``blender.thickness.thickness_source``), through tagged Math
+    nodes, D sqrt(inside AO) / s (``core.scene.thickness.object_thickness_su``; D the bake distance,
+    s the smallest scale of the first object that carries the material, since EEVEE multiplies
+    the socket by the object's scale and takes the smallest axis). Returns what was wired, in
+    words, or None when the material has no map SSS Lab baked (EEVEE then guesses from the
+    object's smallest dimension, as authored)."""
+    from .describe import bake_distance
+    from .thickness import source_convention, thickness_aov_name, thickness_source
+
+    tree = material.node_tree
+    output = next(
+        (n for n in tree.nodes if _tagged(n) and n.bl_idname == "ShaderNodeOutputMaterial" and n.target == "EEVEE"),
+        None,
+    )
+    source = thickness_source(material, thickness_aov_name(scene))
+    distance = bake_distance(scene, material)
+    if output is None or source is None or not distance > 0:
+        return None
+    aov = next(
+        n
+        for n in tree.nodes
+        if n.bl_idname == "ShaderNodeOutputAOV" and any(link.from_node == source for i in n.inputs for link in i.links)
+    )
+    from_socket = next(link.from_socket for i in aov.inputs for link in i.links if link.from_node == source)
+    convention = source_convention(scene, material, source) or "translucency"
+    holders = [o for o in scene.objects if any(slot.material == material for slot in o.material_slots)]
+    scales = [min(abs(v) for v in o.matrix_world.to_scale()) for o in holders]
+    scale = scales[0] if scales and scales[0] > 0 else 1.0
+    x, y = output.location.x - 720.0, output.location.y - 200.0
+    value = from_socket
+    if convention == "translucency":  # inside AO = 1 - the map
+        flip = _new(tree, "ShaderNodeMath", "Inside AO", (x, y))
+        flip.operation = "SUBTRACT"
+        flip.inputs[0].default_value = 1.0
+        tree.links.new(value, flip.inputs[1])
+        value = flip.outputs[0]
+    root = _new(tree, "ShaderNodeMath", "Thickness over D", (x + 180.0, y))
+    root.operation = "SQRT"
+    tree.links.new(value, root.inputs[0])
+    length = _new(tree, "ShaderNodeMath", "Object-space thickness (SSS Lab)", (x + 360.0, y))
+    length.operation = "MULTIPLY"
+    tree.links.new(root.outputs[0], length.inputs[0])
+    length.inputs[1].default_value = distance / scale
+    tree.links.new(length.outputs[0], output.inputs["Thickness"])
+    what = f"{source.bl_idname.removeprefix('ShaderNode')} {convention} map, D {distance:.4g}"
+    if len({round(s, 6) for s in scales}) > 1:
+        what += f" (the scale of {holders[0].name!r}; the material's objects differ in scale)"
+    return what
+
+
 # --- the match ----------------------------------------------------------------------------------
 
 
@@ -494,6 +553,8 @@ def match_eevee_job(scene, settings: MatchSettings | None = None, *, log=print) 
                 remove_match(mat)
                 del branches[name]
                 result.skipped = "no scattering node reaches its EEVEE output"
+                continue
+            result.thickness = wire_thickness(scene, mat)
         d_ssslab = {name: np.asarray(burley_d(read[name]), np.float64) for name in branches}
         colors = {name: np.clip(np.asarray(read[name].base_color, np.float64), 0.0, 1.0) for name in branches}
         d_eevee = {
@@ -605,6 +666,7 @@ def _line(r: MaterialMatch) -> str:
     return (
         f"  {r.name}: EEVEE's d x {r.k:.3g} (SSS Lab's x {r.d_over_ssslab:.3g}), Base Color x ({gain})"
         + (" and the view angle's ramp" if r.view else "")
+        + (f", Thickness from the {r.thickness}" if r.thickness else "")
         + ": reproduces"
         f" {_pct(r.removed_after)} of Cycles' SSS effect (as authored {_pct(r.removed_before)})"
     )

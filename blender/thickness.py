@@ -17,7 +17,7 @@ def thickness_aov_name(scene) -> str:
     return (getattr(bake, "aov_name", "") or "Thickness").strip() or "Thickness"
 
 
-def _thickness_source(material, aov_name: str):
+def thickness_source(material, aov_name: str):
     """The node that feeds ``material``'s thickness AOV, or None when nothing does."""
     if material.node_tree is None:
         return None
@@ -29,7 +29,7 @@ def _thickness_source(material, aov_name: str):
     return None
 
 
-def _source_convention(scene, material, source) -> str | None:
+def source_convention(scene, material, source) -> str | None:
     """The convention stored with the baked map ``source`` reads, if SSS Lab baked it."""
     if source.bl_idname == "ShaderNodeTexImage" and source.image is not None:
         meta = thickness_metadata(source.image)
@@ -54,11 +54,11 @@ def thickness_setup(scene, materials: list, aov_name: str) -> tuple[str, list[st
     missing = []
     for info in materials:
         mat = by_name[info.name]
-        source = _thickness_source(mat, aov_name)
+        source = thickness_source(mat, aov_name)
         if source is None:
             missing.append(mat.name)
             continue
-        conv = _source_convention(scene, mat, source) or "translucency"
+        conv = source_convention(scene, mat, source) or "translucency"
         conventions.setdefault(conv, []).append(mat.name)
     if len(missing) == len(materials):
         names = ", ".join(repr(n) for n in missing)

@@ -13,6 +13,7 @@ import pytest
 
 from sss_lab.addon.cli import main
 from sss_lab.blender import match_eevee as match
+from sss_lab.blender.describe import bake_distance
 from sss_lab.blender.reference_cache import render_combined
 from sss_lab.blender.samples import load_sample_scenes
 from sss_lab.blender.state import SceneState
@@ -71,6 +72,12 @@ def test_the_match_adds_an_eevee_branch_that_cycles_never_reads(blends):
     tree = skin.node_tree
     eevee_out = tree.get_output_node("EEVEE")
     assert eevee_out.get(match.EEVEE_TAG) and eevee_out.target == "EEVEE"
+    # The baked map feeds EEVEE's Thickness as an object-space length: D sqrt(1 - translucency) / scale.
+    assert r["thickness"] and "translucency" in r["thickness"]
+    length = eevee_out.inputs["Thickness"].links[0].from_node
+    assert length.get(match.EEVEE_TAG) and length.operation == "MULTIPLY"
+    assert length.inputs[1].default_value == pytest.approx(bake_distance(scene, skin), rel=1e-6)  # scale 1
+    assert length.inputs[0].links[0].from_node.operation == "SQRT"
     assert not tree.get_output_node("CYCLES").get(match.EEVEE_TAG)
     # Cycles renders exactly what it rendered before (same seed, same pixels).
     np.testing.assert_array_equal(_cycles(scene), before_cycles)
