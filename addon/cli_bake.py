@@ -147,7 +147,7 @@ def run(args) -> int:
     files.check_interrupted()  # a bake cut short by Ctrl-C is not saved
     from .cli_options import save_blend
 
-    save_blend(out)  # written, read back, then moved into place
+    save_blend(out, overwrite=args.overwrite)  # written, read back, then moved into place
     for r in results:
         if r.status == "baked" and r.filepath:
             print(saved_line(r.filepath))

@@ -117,7 +117,7 @@ def run(args) -> int:
         files.check_interrupted()  # a fit cut short by Ctrl-C is not saved
         from .cli_options import save_blend
 
-        save_blend(out)  # written, read back, then moved into place
+        save_blend(out, overwrite=args.overwrite)  # written, read back, then moved into place
         print(saved_line(out), flush=True)
     else:
         print("sss_lab calibrate: no material could be fitted; nothing written", flush=True)

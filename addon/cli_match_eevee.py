@@ -78,7 +78,7 @@ def run(args) -> int:
         code = 0 if all(not m["skipped"] for m in data["materials"].values()) else 1
     os.makedirs(os.path.dirname(out), exist_ok=True)
     files.check_interrupted()  # a match cut short by Ctrl-C is not saved
-    save_blend(out)
+    save_blend(out, overwrite=args.overwrite)
     print(saved_line(out), flush=True)
     if json_out:
         files.write_text(json_out, json.dumps(data, indent=2, default=str))

@@ -42,13 +42,23 @@ def _part_files(items: list[str]) -> list[str]:
 
 
 def run(args) -> int:
-    from ..core.base.progress import saved_line
+    from ..core.base.progress import printable, saved_line
     from ..core.study import reference
+    from .cli import CommandError
 
     files = _part_files(args.parts)
     out = os.path.abspath(args.out)
-    if out in files:
-        raise FileExistsError(f"--out {args.out!r} is one of the parts; refusing to overwrite it")
+    if os.path.isdir(out):
+        raise CommandError(f"--out {printable(args.out)!r} is a folder; expected the merged reference's EXR file name")
+    # Every file the merge writes against every file it reads, links resolved: a folder reached
+    # through a link, or an output whose JSON is a part's, must not replace an input.
+    inputs = {os.path.realpath(f) for f in files} | {os.path.realpath(reference.sidecar(f)) for f in files}
+    for what, path in (("--out", out), ("the JSON beside --out", reference.sidecar(out))):
+        if os.path.realpath(path) in inputs:
+            raise CommandError(
+                f"{what} {printable(path)!r} is one of the parts or a part's JSON; refusing to overwrite it"
+                " (choose another output name)"
+            )
     parts, metas = reference.read_parts(files)
     merged = reference.merge_parts(parts)
     counts = sorted({p.samples for p in parts})

@@ -187,11 +187,13 @@ def _read_back(path: str) -> None:
         raise RuntimeError("the written file holds no scene")
 
 
-def save_blend(out: str) -> None:
+def save_blend(out: str, *, overwrite: bool = False) -> None:
     """Save the open file as a copy at ``out``: written under a temporary name beside it, read back
     by Blender, then moved into place; OutputError (and nothing at ``out``) when the write or the
     read-back fails, as on a full disk where Blender's saver leaves a truncated file and no error.
-    ``out`` was checked by ``read_blend_out`` (existing only with ``--overwrite``)."""
+    ``out`` was checked by ``read_blend_out`` (existing only with ``--overwrite``); without
+    ``overwrite`` the move never replaces a file, so of two runs started together with one --out
+    the second to finish refuses (FileExistsError) instead of replacing the first's file."""
     import os
 
     from ..core.base import files
@@ -208,4 +210,4 @@ def save_blend(out: str) -> None:
             _read_back(tmp)
         except (OSError, RuntimeError) as exc:
             raise files.write_failure(out, exc) from None
-        files.move_into_place(tmp, out)
+        files.move_into_place(tmp, out, overwrite=overwrite)

@@ -273,6 +273,12 @@ def read_parts(paths: Sequence[str]) -> tuple[list[ReferencePart], list[dict]]:
         if len(values) > 1:
             detail = ", ".join(f"{os.path.basename(p)}: {m.get(key)!r}" for p, m in zip(paths, metas, strict=True))
             raise InputError(f"the parts differ in {key} ({detail}); merge parts of one scene, frame and size only")
+    unknown = [os.path.basename(p) for p, m in zip(paths, metas, strict=True) if not m.get("fingerprint")]
+    if len(metas) > 1 and unknown:
+        raise InputError(
+            f"{', '.join(unknown)}: no scene fingerprint in the JSON beside it, so nothing says the parts render"
+            " the same scene; render the parts with sss_lab reference (which records it)"
+        )
     return parts, metas
 
 

@@ -103,3 +103,32 @@ def test_a_blend_written_damaged_is_an_error_and_leaves_no_file(tmp_path, monkey
     cli_options.save_blend(str(out))  # a whole write is read back and kept
     assert [p.name for p in tmp_path.iterdir()] == ["out.blend"]
     assert len(bpy.data.libraries) == 0  # the read-back linked nothing into the open file
+
+
+@pytest.mark.parametrize("command", ["bake-thickness", "match-eevee --remove"])
+def test_a_blend_output_that_appears_meanwhile_is_not_replaced_without_overwrite(
+    tmp_path, monkeypatch, capsys, command
+):
+    """Two runs started together with one --out both pass the check made at the start; the second
+    to finish must refuse, not replace the first's file (and print no Saved line for it)."""
+    from sss_lab.addon import cli_options
+    from sss_lab.blender.samples import load_sample_scenes
+
+    src = load_sample_scenes().build("head_frontlit", str(tmp_path / "in.blend"))
+    out = tmp_path / "out.blend"
+    real = cli_options._save_copy
+
+    def other_run_finishes_first(path):
+        out.write_bytes(b"the other run's file")
+        real(path)
+
+    monkeypatch.setattr(cli_options, "_save_copy", other_run_finishes_first)
+    argv = [*command.split(), src, "--out", str(out)] + (["--samples", "2"] if command == "bake-thickness" else [])
+    assert cli.main([command.split()[0], *argv[1:]]) == 2
+    printed = capsys.readouterr()
+    assert "already exists; refusing to overwrite it" in printed.err and "Saved:" not in printed.out
+    assert out.read_bytes() == b"the other run's file"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.blend", "out.blend"]  # no temporary left
+    out.unlink()
+    assert cli.main([command.split()[0], *argv[1:], "--overwrite"]) == 0  # said: replaced
+    assert out.read_bytes() != b"the other run's file"

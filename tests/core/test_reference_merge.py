@@ -199,3 +199,62 @@ def test_a_damaged_json_or_a_part_of_another_size_is_refused(tmp_path):
     (tmp_path / "p0.json").write_text(json.dumps({"samples": 4, "seed": 0, "resolution": [w + 1, h]}))
     with pytest.raises(InputError, match=f"p0.exr is {w}x{h} pixels but p0.json says {w + 1}x{h}"):
         ref.read_part(str(part))
+
+
+def _part_folder(folder, seeds=(1, 2), fingerprint="abc"):
+    from sss_lab.core.scene import exr
+
+    folder.mkdir()
+    for seed in seeds:
+        exr.write_layers(
+            str(folder / f"reference_seed_{seed:05d}.exr"), {"ViewLayer.Combined": _render(_truth(), 4, seed)}
+        )
+        meta = {"samples": 4, "seed": seed, "frame": 1}
+        if fingerprint:
+            meta["fingerprint"] = fingerprint
+        (folder / f"reference_seed_{seed:05d}.json").write_text(json.dumps(meta))
+    return folder
+
+
+def _contents(folder):
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+@pytest.mark.parametrize(
+    "out",
+    [
+        "alias/reference_seed_00001.exr",  # a part, through a link to its folder
+        "parts/reference_seed_00001.merged",  # its JSON would be part 1's
+        "alias/reference_seed_00002.exr",
+        "parts/./reference_seed_00002.json.exr",  # a name whose JSON is not a part's: allowed
+    ],
+)
+def test_merge_never_writes_over_a_part_or_its_json_however_spelled(tmp_path, out, capsys):
+    from sss_lab.addon.cli import main
+
+    parts = _part_folder(tmp_path / "parts")
+    (tmp_path / "alias").symlink_to(parts, target_is_directory=True)
+    before = _contents(parts)
+    code = main(["merge-reference", str(parts), "--out", str(tmp_path / out), "--overwrite"])
+    if out.endswith(".json.exr"):
+        assert code == 0
+        return
+    assert code == 2
+    assert "is one of the parts or a part's JSON; refusing to overwrite it" in capsys.readouterr().err
+    assert _contents(parts) == before
+
+
+def test_merge_names_a_folder_output_and_refuses_parts_it_cannot_tell_apart(tmp_path, capsys):
+    from sss_lab.addon.cli import main
+
+    parts = _part_folder(tmp_path / "parts")
+    (tmp_path / "x").mkdir()
+    assert main(["merge-reference", str(parts), "--out", str(tmp_path / "x")]) == 2
+    assert "is a folder; expected the merged reference's EXR file name" in capsys.readouterr().err
+    bare = _part_folder(tmp_path / "bare", fingerprint=None)
+    assert main(["merge-reference", str(bare), "--out", str(tmp_path / "m.exr")]) == 2
+    err = capsys.readouterr().err
+    assert "reference_seed_00001.exr, reference_seed_00002.exr: no scene fingerprint" in err
+    assert not (tmp_path / "m.exr").exists()
+    single = _part_folder(tmp_path / "single", seeds=(3,), fingerprint=None)  # one part: nothing to mix up
+    assert main(["merge-reference", str(single), "--out", str(tmp_path / "one.exr")]) == 0
