@@ -236,7 +236,9 @@ def cached_reference(
     ]
     path = os.path.join(cache_dir, f"cycles_{key}.exr")
     meta_path = path[:-4] + ".json"
-    cached = read_cached_image(path, meta_path, log)
+    cached = read_cached_image(
+        path, meta_path, log, expect={"samples": samples, "seed": seed, "method": method}, size=resolution
+    )
     if cached is not None:
         log(f"Cycles {method or 'scene method'} {samples} samples seed {seed}: cached ({os.path.basename(path)})")
         return cached[0], cached[1], True
@@ -259,19 +261,40 @@ def cached_reference(
     return image, seconds, False
 
 
-def read_cached_image(path: str, meta_path: str, log) -> tuple[np.ndarray, float] | None:
+#: The longest render a cache entry may claim (a week): beyond it the metadata is damaged.
+MAX_CACHED_SECONDS = 7 * 24 * 3600.0
+
+
+def read_cached_image(
+    path: str, meta_path: str, log, *, expect: dict | None = None, size=None
+) -> tuple[np.ndarray, float] | None:
     """(image, render seconds) of a cache entry; None when there is none, or with a note when
-    it cannot be read (an empty or damaged metadata file, a truncated EXR): it is rendered again."""
+    it cannot be read or is not what the key stands for: an empty or damaged metadata file, render
+    seconds that are not a number in 0..``MAX_CACHED_SECONDS``, a value of ``expect`` (what was
+    asked for: samples, seed, ...) that differs, a truncated EXR, pixels that are not finite (a
+    render's are), an image of another ``size`` (width, height). It is then rendered again."""
     if not (os.path.isfile(path) and os.path.isfile(meta_path)):
         return None
     try:
         with open(meta_path, encoding="utf-8") as fh:
-            seconds = json.load(fh)["seconds"]
+            meta = json.load(fh)
+        if not isinstance(meta, dict):
+            raise ValueError(f"the metadata is a {type(meta).__name__}, not an object")
+        seconds = meta["seconds"]
         if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not math.isfinite(seconds):
             raise ValueError(f"'seconds' is {seconds!r}, not a number")
+        if not 0 <= seconds <= MAX_CACHED_SECONDS:
+            raise ValueError(f"'seconds' is {seconds!r}, not a render time (0..{MAX_CACHED_SECONDS:g})")
+        for key, value in (expect or {}).items():
+            if key in meta and meta[key] != value:
+                raise ValueError(f"{key!r} is {meta[key]!r} where the entry's key stands for {value!r}")
         image = exr.read_passes(path)["Combined"]
+        if size is not None and tuple(image.shape[1::-1]) != tuple(size):
+            raise ValueError(f"the image is {image.shape[1]}x{image.shape[0]}, not {size[0]}x{size[1]}")
+        if not np.all(np.isfinite(image)):
+            raise ValueError(f"{int(np.count_nonzero(~np.isfinite(image)))} values are not finite")
     except (OSError, ValueError, KeyError, TypeError) as exc:  # JSONDecodeError and UnicodeError are ValueErrors
         reason = " ".join(str(exc.args[0] if isinstance(exc, KeyError) and exc.args else exc).split())[:200]
-        log(f"note: the cached reference {path} cannot be read ({reason}); rendering it again")
+        log(f"note: the cached reference {path} cannot be used ({reason}); rendering it again")
         return None
     return image, float(seconds)

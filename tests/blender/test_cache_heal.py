@@ -33,7 +33,29 @@ DAMAGE = {
     "EXR one byte short": lambda exr, meta: open(exr, "r+b").truncate(os.path.getsize(exr) - 1),
     "EXR replaced by text": lambda exr, meta: open(exr, "w").write("not an image"),
     "metadata missing": lambda exr, meta: os.remove(meta),
+    "seconds negative": lambda exr, meta: _edit(meta, seconds=-5),
+    "seconds beyond any render": lambda exr, meta: _edit(meta, seconds=1e308),
+    "metadata a list": lambda exr, meta: open(meta, "w").write("[1, 2]"),
+    "samples edited": lambda exr, meta: _edit(meta, samples=999),
+    "EXR all NaN": lambda exr, meta: _image(exr, float("nan")),
+    "EXR all Inf": lambda exr, meta: _image(exr, float("inf")),
+    "EXR of another size": lambda exr, meta: _image(exr, 0.5, size=(8, 8)),
 }
+
+
+def _edit(meta, **values):
+    data = json.loads(open(meta).read())
+    data.update(values)
+    open(meta, "w").write(json.dumps(data))
+
+
+def _image(path, value, size=(16, 16)):
+    import numpy as np
+
+    from sss_lab.core.scene import exr
+
+    os.remove(path)
+    exr.write_layers(str(path), {"ViewLayer.Combined": np.full((*size, 4), value, np.float32)})
 
 
 @pytest.mark.parametrize("damage", sorted(DAMAGE))
@@ -52,7 +74,7 @@ def test_a_damaged_entry_is_rendered_again_with_a_note(cube_scene, tmp_path, dam
     again, _, from_cache = _reference(cube_scene, cache, notes)
     assert not from_cache and again.shape == image.shape
     if damage != "metadata missing":  # an entry without metadata is simply not there yet
-        assert any(n.startswith(f"note: the cached reference {exr} cannot be read") for n in notes), notes
+        assert any(n.startswith(f"note: the cached reference {exr} cannot be used") for n in notes), notes
     assert isinstance(json.loads(meta.read_text())["seconds"], float)  # healed
     assert _reference(cube_scene, cache, notes)[2]  # and reused from then on
     assert sorted(os.listdir(cache)) == sorted([exr.name, meta.name])  # no temporary file
