@@ -98,3 +98,26 @@ def test_the_marker_follows_what_numbas_cache_is_keyed_by(monkeypatch, tmp_path)
     assert marker_path() != before
     monkeypatch.setattr(os, "stat", real_stat)
     assert marker_path() == before
+
+
+def test_ctrl_c_while_prepare_compiles_ends_as_an_interrupt(tmp_path):
+    """A Ctrl-C that lands inside Numba's compiler (an empty cache, so it compiles for seconds)
+    ends as every command's interrupt: exit 130 and one line, not a traceback from the compiler."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sss_lab", "prepare"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    deadline = time.monotonic() + 60
+    while not (tmp_path / "cache").exists() and time.monotonic() < deadline:  # compiling has begun
+        time.sleep(0.1)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, (proc.returncode, err)
+    assert "Traceback" not in err and err.strip().endswith("no file was finished"), err
