@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import functools
 import os
-import tempfile
 import time
 
 import bpy
 
+from ..core.base import files
 from ..core.base.errors import InputError
 from ..core.compute import backend
 from ..core.pipeline.fit_params import FIT_PARAMETERS
@@ -265,7 +265,7 @@ def calibrate_job(
             return render_combined(scene, samples=n, seed=s, resolution=resolution, path=path, state=state)
 
     yield steps.next(f"Cycles random walk, {samples} samples")
-    with tempfile.TemporaryDirectory(prefix="sss_lab_fit_") as tmp:
+    with files.temporary_folder("sss_lab_fit_") as tmp:
         log(f"Cycles random walk, {samples} samples (seed {seed})")
         ref_path = os.path.join(tmp, "reference.exr")
         seconds["reference"] = render(samples, seed, ref_path)

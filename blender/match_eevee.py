@@ -34,16 +34,16 @@ matched is stored on the material (``MATCH_KEY``, JSON).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 
 import bpy
 import numpy as np
 
-from ..core.base import arrays
+from ..core.base import arrays, files
 from ..core.base.errors import InputError
 from ..core.optics.energy import entry_view_cosine
 from ..core.pipeline import plan, sequence
@@ -485,11 +485,10 @@ def match_eevee_job(scene, settings: MatchSettings | None = None, *, log=print) 
         raise InputError(f"scene {scene.name!r} has no material with subsurface scattering: nothing to match")
     blender_mats = {m.name: bpy.data.materials[m.name] for m in materials if m.name in bpy.data.materials}
     steps = Steps(5 + len(eevee_match.K_GRID) + 2 + 1)
-    tmp = None
+    tmp = contextlib.ExitStack()
     cache = settings.cache_dir
     if cache is None:
-        tmp = tempfile.TemporaryDirectory(prefix="sss_lab_match_")
-        cache = tmp.name
+        cache = tmp.enter_context(files.temporary_folder("sss_lab_match_"))
     done = False
     try:
         for mat in blender_mats.values():
@@ -646,8 +645,7 @@ def match_eevee_job(scene, settings: MatchSettings | None = None, *, log=print) 
         if not done:
             for mat in blender_mats.values():
                 remove_match(mat)
-        if tmp is not None:
-            tmp.cleanup()
+        tmp.close()
 
 
 def _lowest(trials: dict):

@@ -29,8 +29,7 @@ def recommend(scene, *, resolution=None, samples: int = 16, max_error: float | N
     scene's view once, small and at few samples (``resolution`` "WxH", default the scene's scaled
     so that its long side is at most 160 px), into a temporary folder; the scene is left as it
     was. Returns the lines to print."""
-    import tempfile
-
+    from ..core.base import files
     from ..core.pipeline import auto, sequence
     from ..core.scene import exr
     from .render_passes import render_passes
@@ -43,7 +42,7 @@ def recommend(scene, *, resolution=None, samples: int = 16, max_error: float | N
         k = min(1.0, 160.0 / max(w, h, 1))
         resolution = (max(int(w * k), 8), max(int(h * k), 8))
     limit = auto.DEFAULT_MAX_ERROR if max_error is None else max_error
-    with tempfile.TemporaryDirectory(prefix="sss_lab_scan_") as folder:
+    with files.temporary_folder("sss_lab_scan_") as folder:
         written = render_passes(scene, folder, samples=samples, resolution=resolution, seed=0, log=log)
         path = next(p for p in written if p.endswith(".exr"))
         plan = auto.choose(exr.read_passes(path), sequence.load_scene(path), max_error=limit)

@@ -6,6 +6,7 @@ import contextlib
 import errno
 import os
 import shutil
+import socket
 import tempfile
 import threading
 from collections.abc import Callable
@@ -41,16 +42,69 @@ def remove_pending_temporaries() -> None:
         _PENDING.discard(tmp)
 
 
+def _owner() -> str:
+    """This process as temporaries name it: host and process id (``host-pid``), the host reduced
+    to letters, digits and hyphens."""
+    host = "".join(c if c.isalnum() or c == "-" else "-" for c in socket.gethostname())[:64] or "host"
+    return f"{host}-{os.getpid()}"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def remove_stale_temporaries(path: str, prefix: str | None = None) -> list[str]:
+    """Remove the temporaries of ``path`` (``temporary_beside``'s names, or names starting with
+    ``prefix`` in ``path``'s folder: ``temporary_folder``'s) that a process of this host left when
+    it was killed without a chance to clean up (SIGKILL, a power cut): those whose process is gone.
+    A temporary of a live process, or of another host sharing the folder, is kept. Returns the
+    paths removed."""
+    folder = os.path.dirname(os.path.abspath(path)) if prefix is None else os.path.abspath(path)
+    start = ("." + os.path.basename(path) + ".") if prefix is None else prefix
+    host = _owner().rsplit("-", 1)[0]
+    removed: list[str] = []
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return removed
+    for name in names:
+        if not name.startswith(start + host + "-"):
+            continue
+        pid_text = name[len(start + host + "-") :].split(".", 1)[0].split("_", 1)[0]
+        if not pid_text.isdigit() or _alive(int(pid_text)) or int(pid_text) == os.getpid():
+            continue
+        target = os.path.join(folder, name)
+        try:
+            if os.path.isdir(target) and not os.path.islink(target):
+                shutil.rmtree(target)
+            else:
+                os.remove(target)
+            removed.append(target)
+        except OSError:
+            pass
+    return removed
+
+
 @contextlib.contextmanager
 def temporary_beside(path: str, suffix: str = ".tmp"):
     """A temporary file name beside ``path`` (same file system, so a move is atomic), removed
     when the block fails; the block moves it into place itself. For writers that need to
     choose the name (Blender's image and render savers keep the extension: pass it in
-    ``suffix``)."""
+    ``suffix``). The name carries this host and process id, so that the next writer of ``path``
+    removes what a killed process left (``remove_stale_temporaries``)."""
     folder = os.path.dirname(os.path.abspath(path))
     try:
         os.makedirs(folder, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + os.path.basename(path) + ".", suffix=suffix)
+        remove_stale_temporaries(path)
+        fd, tmp = tempfile.mkstemp(
+            dir=folder, prefix="." + os.path.basename(path) + "." + _owner() + ".", suffix=suffix
+        )
     except OSError as exc:
         raise OutputError(exc.errno, describe_os_error(exc, path)) from None
     os.close(fd)
@@ -168,3 +222,17 @@ def write_text(path: str, text: str) -> str:
             fh.write(text)
 
     return atomic_write(path, write)
+
+
+@contextlib.contextmanager
+def temporary_folder(prefix: str):
+    """A temporary folder in the system's temporary directory, removed at the end of the block;
+    its name carries this host and process id (``prefix`` + ``host-pid_``), so that a later run
+    removes the folders of runs that were killed (``remove_stale_temporaries``)."""
+    base = tempfile.gettempdir()
+    remove_stale_temporaries(base, prefix=prefix)
+    folder = tempfile.mkdtemp(prefix=f"{prefix}{_owner()}_", dir=base)
+    try:
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
