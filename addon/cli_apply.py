@@ -29,8 +29,9 @@ def add_parser(subparsers):
         description=(
             "Apply subsurface-scattering techniques to a multilayer EXR of render passes (Blender 5.2 or "
             "4.5 layout) and write a new EXR with the input layers plus SSSLab.<method>.Image and "
-            "SSSLab.<method>.SSS. Never overwrites its input. Exit status: 0 done, 1 some frames failed, "
-            "2 bad arguments or input, 3 no material scatters light (nothing written)."
+            "SSSLab.<method>.SSS. Never overwrites its input. Exit status: 0 done, 1 some frames failed to "
+            "be written or run, 2 bad arguments or input (every failed frame's input was bad), 3 no material "
+            "scatters light (nothing written)."
         ),
     )
     p.add_argument("passes", help="the passes EXR; a frame pattern like passes_####.exr for a sequence")
@@ -98,6 +99,7 @@ def _reads_whole(path: str) -> str | None:
 
 
 def run(args) -> int:
+    from ..core.base.progress import printable
     from ..core.pipeline.apply import ALBEDO_MODES
     from ..core.pipeline.sequence import apply_file, frame_path, parse_frames, sequence_frames
     from ..core.techniques.registry import parse_params
@@ -122,7 +124,7 @@ def run(args) -> int:
 
     from ..core.base.progress import Progress, saved_line
 
-    failed = nothing = 0
+    failed = nothing = bad_input = 0
     total = len(frames)
     # auto on a sequence: the first frame's choice is kept, so that no material switches technique mid-shot.
     keep = None
@@ -159,6 +161,8 @@ def run(args) -> int:
             )
         except (OSError, ValueError, KeyError) as exc:
             failed += 1
+            # A bad input (a damaged or missing file, a wrong value) rather than a failed write.
+            bad_input += isinstance(exc, (ValueError, KeyError, FileNotFoundError, IsADirectoryError))
             message = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
             if not message.startswith(path):
                 message = f"{path}: {message}"
@@ -177,7 +181,13 @@ def run(args) -> int:
             print(f"  {technique}: skipped: {reason}")
         if result.nothing_to_do:
             nothing += 1
-            print("  no material in the scene description scatters light (Subsurface Weight > 0): nothing written")
+            print(
+                "  no material in the scene description scatters light (Subsurface Weight, Scale and the"
+                " largest Radius channel must all be > 0): nothing written",
+                flush=True,
+            )
+            for line in _why_not(result):
+                print(f"  {printable(line)}", flush=True)
             progress.finish()
             continue
         for p in result.plans.values():
@@ -206,7 +216,25 @@ def run(args) -> int:
         print(f"apply: {what} done in {time.perf_counter() - started:.2f} s ({progress.finish()})", flush=True)
     if failed:
         print(f"sss_lab apply: {failed} of {total} file(s) failed", file=sys.stderr)
-        return 1
+        return 2 if bad_input == failed else 1
     if nothing:
         return EXIT_NOTHING_TO_DO
     return 0
+
+
+def _why_not(result) -> list[str]:
+    """Per material of the scene description, which of its inputs keeps it from scattering."""
+    lines = []
+    for m in getattr(result.scene, "materials", ()) or ():
+        zero = [
+            name
+            for name, value in (
+                ("subsurface_weight", m.subsurface_weight),
+                ("subsurface_scale", m.subsurface_scale),
+                ("largest subsurface_radius channel", max(m.subsurface_radius)),
+            )
+            if not value > 0
+        ]
+        if zero:
+            lines.append(f"material {m.name or m.index!r}: " + ", ".join(f"{name} = 0" for name in zero))
+    return lines

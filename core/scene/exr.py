@@ -284,6 +284,8 @@ def read_layers(path: str | os.PathLike) -> ExrContents:
     if not os.path.isfile(path):
         if os.path.isdir(path):
             raise InputError(f"{path}: is a folder; expected a multilayer EXR file")
+        if os.path.exists(path):  # a pipe, a device, a socket: reading it could block or never end
+            raise InputError(f"{path}: is not a regular file (a pipe or a device); expected a multilayer EXR file")
         raise FileNotFoundError(f"{path}: no such EXR file")
     declared = _declared_parts(OpenEXR, path)
     with _collect_stderr() as lines:

@@ -105,7 +105,7 @@ def test_frame_range_with_a_broken_frame(tmp_path):
         write_scene(str(tmp_path / f"passes_{frame:04d}.exr"), arrays, dataclasses.replace(scene, frame=frame))
     (tmp_path / "passes_0002.exr").write_bytes(b"truncated by a crashed render node")
     proc = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--frames", "1-3")
-    assert proc.returncode == 1
+    assert proc.returncode == 2  # the failed frame's input was bad (docs: 2 bad input, 1 failed write)
     assert saved_lines(proc.stdout) == [str(tmp_path / "passes_0001.sss.exr"), str(tmp_path / "passes_0003.sss.exr")]
     assert "[1/3] frame 1" in proc.stdout and "[3/3] frame 3" in proc.stdout
     assert "passes_0002.exr" in proc.stderr and "not a readable OpenEXR file" in proc.stderr
@@ -113,7 +113,7 @@ def test_frame_range_with_a_broken_frame(tmp_path):
     assert not (tmp_path / "passes_0002.sss.exr").exists()
     # Without --frames, the existing frames are found; written outputs are not overwritten.
     proc = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--out", tmp_path / "again_####.exr")
-    assert proc.returncode == 1 and len(saved_lines(proc.stdout)) == 2
+    assert proc.returncode == 2 and len(saved_lines(proc.stdout)) == 2
     assert (tmp_path / "again_0003.exr").exists()
 
 
@@ -132,16 +132,32 @@ def test_never_overwrites_the_input_or_an_existing_output(passes_file):
     assert proc.returncode == 0 and len(saved_lines(proc.stdout)) == 1
 
 
-def test_scene_without_sss_material_writes_nothing(tmp_path):
+@pytest.mark.parametrize(
+    "change", [{"subsurface_weight": 0.0}, {"subsurface_scale": 0.0}, {"subsurface_radius": (0.0, 0.0, 0.0)}]
+)
+def test_scene_without_sss_material_writes_nothing_and_names_the_input(tmp_path, change):
     arrays, scene = sphere_scene(width=32, height=24)
-    plain = tuple(dataclasses.replace(m, subsurface_weight=0.0) for m in scene.materials)
+    plain = tuple(dataclasses.replace(m, **change) for m in scene.materials)
     path = str(tmp_path / "plain.exr")
     write_scene(path, arrays, dataclasses.replace(scene, materials=plain))
     proc = run_apply(path, "--method", "all")
     assert proc.returncode == 3, proc.stderr
     assert "no material in the scene description scatters light" in proc.stdout
+    (field,) = change
+    field = "largest subsurface_radius channel" if field == "subsurface_radius" else field
+    for m in (m for m in scene.materials if m.scatters):  # each names what keeps it from scattering
+        assert f"material {m.name!r}: {field} = 0" in proc.stdout, proc.stdout
     assert saved_lines(proc.stdout) == []
     assert sorted(os.listdir(tmp_path)) == ["plain.exr", "plain.json"]
+
+
+def test_a_pipe_or_a_device_given_as_passes_is_named_at_once(tmp_path):
+    fifo = tmp_path / "passes.exr"
+    os.mkfifo(fifo)
+    for path in (fifo, "/dev/zero"):
+        proc = run_apply(path, "--method", "burley", "--out", tmp_path / "o.exr")
+        assert proc.returncode == 2, proc.stderr
+        assert "is not a regular file (a pipe or a device); expected a multilayer EXR file" in proc.stderr
 
 
 def test_unknown_method_lists_the_known_ones(passes_file):
@@ -156,7 +172,7 @@ def test_scene_from_option_and_missing_sidecar(passes_file, tmp_path):
     moved = tmp_path / "elsewhere.json"
     os.replace(os.path.splitext(path)[0] + ".json", moved)
     proc = run_apply(path, "--method", "burley")
-    assert proc.returncode == 1 and "passes.json: no scene description" in proc.stderr
+    assert proc.returncode == 2 and "passes.json: no scene description" in proc.stderr
     proc = run_apply(path, "--method", "burley", "--description", moved, "--out", tmp_path / "o.exr")
     assert proc.returncode == 0, proc.stderr
     assert SceneDescription.from_json(read_layers(tmp_path / "o.exr").header["sss_lab.scene"]) == scene

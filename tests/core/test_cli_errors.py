@@ -37,7 +37,7 @@ def test_a_damaged_input_is_one_line(passes, tmp_path, capsys):
     (tmp_path / "cut.exr").write_bytes(data[:-1])
     (tmp_path / "cut.json").write_bytes(open(sequence.sidecar_path(passes), "rb").read())
     code, _, err = _run(capsys, "apply", tmp_path / "cut.exr", "--method", "burley")
-    assert code == 1  # apply's own contract: the file failed
+    assert code == 2  # a bad input (the rule: 2 bad input, 1 a failed write or run)
     lines = err.strip().splitlines()
     assert lines[0].startswith("sss_lab apply: error: ") and "cut.exr" in lines[0] and "truncated" in lines[0]
     assert "Traceback" not in err and "Warning:" not in err  # OpenEXR's own warnings are folded in
