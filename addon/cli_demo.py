@@ -37,6 +37,8 @@ def run(args) -> int:
     name = args.sample or scenes.DEFAULT_SCENE
     if name not in scenes.SCENES:
         raise CommandError(f"unknown sample scene {name!r}; expected one of: {', '.join(scenes.SCENES)}")
+    if os.path.exists(args.out) and not os.path.isdir(args.out):
+        raise CommandError(f"--out {args.out!r} is a file; expected a folder for the demo's scene and report")
     out = os.path.abspath(os.path.join(args.out, name))
     os.makedirs(out, exist_ok=True)
     start = time.perf_counter()

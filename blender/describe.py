@@ -150,6 +150,9 @@ def read_material(material, index: int) -> MaterialReading:
                 lines.append(f"{socket_name}: {how}; read as {_fmt(value)}")
         else:
             lines.append(f"{socket_name}: {how}, {_fmt(value)}")
+        if key == "subsurface_weight" and value > 1.0:  # a mix factor: Cycles' closure clamps it to 1
+            notes.append(f"{socket_name} reads {_fmt(value)}; Cycles clamps it to 1, and so does SSS Lab")
+            value = 1.0
         values[key] = value
     base = values.pop("base_color")
     sss = MaterialSSS(

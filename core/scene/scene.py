@@ -293,6 +293,10 @@ class MaterialSSS:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"material {self.name!r} {name}: expected a finite number >= 0, got {v!r}")
+        if self.subsurface_weight > 1:  # Cycles' Subsurface Weight is a mix factor (0..1)
+            raise ValueError(
+                f"material {self.name!r} subsurface_weight: expected a number in 0..1, got {self.subsurface_weight!r}"
+            )
         object.__setattr__(self, "fit", check_fit(self.fit, f"material {self.name!r}"))
         if isinstance(self.notes, str) or not all(isinstance(n, str) for n in self.notes):
             raise ValueError(f"material {self.name!r} notes: expected a list of strings, got {self.notes!r}")

@@ -91,9 +91,14 @@ def parse_params(texts: Iterable[str], techniques: Iterable[str | Technique]) ->
         else:
             raise InputError(f"{where}several techniques run ({', '.join(out)}): name one, e.g. {_example(specs)}")
         try:
-            out[spec.name][param] = spec.param(param).parse(value, f"{spec.name}.")
+            parsed = spec.param(param).parse(value, f"{spec.name}.")
         except InputError as exc:
             raise InputError(where + str(exc)) from None
+        if param in out[spec.name] and out[spec.name][param] != parsed:
+            raise InputError(
+                f"{where}{spec.name}.{param} is given twice ({out[spec.name][param]!r} and {parsed!r}); give it once"
+            )
+        out[spec.name][param] = parsed
     return out
 
 

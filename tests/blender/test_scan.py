@@ -198,3 +198,27 @@ def test_a_principled_bsdf_on_an_inactive_output_is_not_read(addon):
     _cube_with(mat)
     _cube_with(_principled("Skin", 1.0))
     assert [m.name for m in sss_materials(scene)] == ["Skin"]
+
+
+def test_a_subsurface_weight_above_one_reads_as_cycles_clamps_it(addon):
+    """A Value node of 2 into Subsurface Weight: Cycles clamps the mix factor to 1; so does the
+    reader, and it says so."""
+    mat = _principled("Wax", 0.0)
+    nodes = mat.node_tree.nodes
+    value = nodes.new("ShaderNodeValue")
+    value.outputs[0].default_value = 2.0
+    mat.node_tree.links.new(value.outputs[0], nodes["Principled BSDF"].inputs["Subsurface Weight"])
+    _cube_with(mat)
+    (m,) = sss_materials(bpy.context.scene)
+    assert m.subsurface_weight == 1.0
+    assert any("Cycles clamps it to 1" in n for n in m.notes), m.notes
+
+
+def test_demo_names_a_file_given_as_its_folder(tmp_path, capsys):
+    from sss_lab.addon.cli import main
+
+    path = tmp_path / "afile"
+    path.write_text("x")
+    assert main(["demo", "--out", str(path)]) == 2
+    assert "is a file; expected a folder" in capsys.readouterr().err
+    assert path.read_text() == "x"

@@ -263,6 +263,10 @@ def test_param_sets_a_technique_parameter(passes_file, tmp_path):
         (["--method", "ssss,burley", "--param", "n_taps=11"], "several techniques run (ssss, burley): name one"),
         (["--method", "ssss", "--param", "sta.power=2"], "'sta' is not among the techniques that run (ssss)"),
         (["--method", "ssss", "--param", "n_taps=12"], "ssss.n_taps: expected one of 11, 17, 25, got 12"),
+        (
+            ["--method", "burley", "--param", "n_samples=16", "--param", "n_samples=8"],
+            "burley.n_samples is given twice (16 and 8); give it once",
+        ),
     ],
 )
 def test_a_bad_param_is_one_line_naming_what_is_allowed(passes_file, args, message):

@@ -93,3 +93,14 @@ def test_a_materials_notes_are_strings_kept_as_a_tuple():
         MaterialSSS(index=1, name="Skin", notes="not a list")
     with pytest.raises(ValueError, match="notes: expected a list of strings"):
         MaterialSSS(index=1, notes=(1,))
+
+
+def test_a_subsurface_weight_above_one_is_refused_by_name():
+    """Cycles' Subsurface Weight is a mix factor: a description saying 2 is damaged or hand-edited."""
+    import pytest
+
+    from sss_lab.core.scene.scene import MaterialSSS
+
+    with pytest.raises(ValueError, match=r"material 'Wax' subsurface_weight: expected a number in 0..1, got 2.0"):
+        MaterialSSS(index=1, name="Wax", subsurface_weight=2.0)
+    assert MaterialSSS(index=1, name="Wax", subsurface_weight=1.0).scatters
