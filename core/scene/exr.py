@@ -524,6 +524,10 @@ def passes_from_contents(contents: ExrContents, view_layer: str | None = None) -
         if canonical != name and canonical in raw:
             canonical = name
         _check_pass(contents, layer, canonical)
+        have = contents.channels.get(layer)
+        if PASS_CHANNELS.get(canonical) == "RGB" and have and len(have) > 3 and arr.ndim == 3:
+            # A colour pass saved with an alpha channel besides: the passes read its RGB.
+            arr = arr[..., [list(have).index(c) for c in "RGB"]]
         arrays[canonical] = arr
         if was_half:
             half.add(canonical)

@@ -295,3 +295,22 @@ def test_what_the_scene_reader_could_not_read_is_said_once_per_run(tmp_path):
     assert proc.stdout.count(f"note: material {first.name!r}: {note}") == 1, proc.stdout
     proc = run_apply(path, "--method", "burley", "--explain")
     assert proc.returncode == 0 and f"note: {note}" in proc.stdout, proc.stdout + proc.stderr
+
+
+def test_a_colour_pass_saved_with_alpha_is_read_as_its_rgb(tmp_path):
+    """Diffuse Direct with an A channel besides (a compositor or another program saved it so): the
+    techniques read its RGB, with the same result as without the alpha."""
+    arrays, scene = sphere_scene(width=32, height=24)
+    plain = str(tmp_path / "plain.exr")
+    write_scene(plain, arrays, scene)
+    with_alpha = dict(arrays)
+    direct = arrays["Diffuse Direct"]
+    with_alpha["Diffuse Direct"] = np.concatenate([direct, np.full(direct.shape[:2] + (1,), 0.5, np.float32)], -1)
+    alpha = str(tmp_path / "alpha.exr")
+    write_scene(alpha, with_alpha, scene)
+    for path in (plain, alpha):
+        proc = run_apply(path, "--method", "burley")
+        assert proc.returncode == 0, proc.stderr
+    a = read_layers(tmp_path / "plain.sss.exr").layers["SSSLab.burley.Image"]
+    b = read_layers(tmp_path / "alpha.sss.exr").layers["SSSLab.burley.Image"]
+    np.testing.assert_array_equal(a, b)
