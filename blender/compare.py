@@ -32,7 +32,7 @@ import bpy
 import numpy as np
 
 from ..core.base.errors import InputError, SSSLabError
-from ..core.base.progress import saved_line
+from ..core.base.progress import printable, saved_line
 from ..core.pipeline import apply as core_apply
 from ..core.pipeline import plan, sequence
 from ..core.scene import exr
@@ -304,6 +304,12 @@ def _scattering_mask(passes, desc: SceneDescription, ref: np.ndarray) -> np.ndar
     mask = np.isin(plan.index_map(passes), [m.index for m in desc.materials if m.scatters])
     if ref.shape[:2] != mask.shape:
         raise ValueError(f"reference {ref.shape[:2]} and passes {mask.shape} differ in size")
+    if not mask.any():
+        names = ", ".join(repr(m.name) for m in desc.materials if m.scatters)
+        raise InputError(
+            f"no pixel of a subsurface material ({printable(names)}) is on screen in the camera's"
+            f" {mask.shape[1]}x{mask.shape[0]} view: nothing to compare; point the camera at it or render larger"
+        )
     return mask
 
 

@@ -109,3 +109,17 @@ def test_every_score_is_also_measured_per_material(scene):
     one = compare_mod._Rows(ref, masks[first], settings, lambda _line: None, materials={first: masks[first]})
     one.add("off on one", "technique", image, 1.0)
     assert "by_material" not in one.entries[0]
+
+
+def test_a_scene_whose_subsurface_materials_are_off_screen_is_named_not_scored(scene):
+    """A camera turned away from every subsurface material: no pixel to score, so a clear error
+    naming the materials instead of a report of NaN."""
+    from sss_lab.core.base.errors import InputError
+
+    passes, desc = scene
+    away = dict(passes.arrays) if hasattr(passes, "arrays") else {k: passes[k] for k in passes.names}
+    away["Material Index"] = np.zeros_like(passes["Material Index"])
+    ref = passes["Combined"]
+    with pytest.raises(InputError, match=r"no pixel of a subsurface material \('Skin', 'Wax'\) is on screen"):
+        compare_mod._scattering_mask(Passes(away), desc, ref)
+    assert compare_mod._scattering_mask(passes, desc, ref).any()
