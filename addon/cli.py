@@ -13,6 +13,7 @@ import sys
 import traceback
 
 from ..core.base.errors import SSSLabError, describe_os_error
+from ..core.base.progress import GuardedOutput
 from ..core.techniques.registry import TECHNIQUES, check_technique
 from .interrupt import EXIT_INTERRUPTED, finished_summary, interrupt_guard, interrupted_by
 
@@ -124,6 +125,17 @@ def main(argv: list[str] | None = None, *, prog: str = "python -m sss_lab") -> i
     with a non-zero exit: 2 for bad input, 1 for a failure to write or run, 130 for Ctrl-C.
     Anything else is a bug and keeps its traceback. ``--debug`` shows the traceback always."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    out, err = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = GuardedOutput(out), GuardedOutput(err)
+    try:
+        return _main(argv, prog)
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()
+        sys.stdout, sys.stderr = out, err
+
+
+def _main(argv: list[str], prog: str) -> int:
     # The guard is on before anything is imported or parsed: a Ctrl-C at start-up is one too.
     command = next((a for a in argv if not a.startswith("-")), "")
     debug = "--debug" in argv

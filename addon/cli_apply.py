@@ -198,7 +198,9 @@ def run(args) -> int:
                 if p.technique == "auto":
                     for c in p.choices:
                         print(f"  auto: material {c.features.name!r}: {c.chosen} ({c.reason})")
-                names = ", ".join(m.material.name or str(m.material.index) for m in applied) or "none on screen"
+                names = (
+                    ", ".join(printable(m.material.name or str(m.material.index)) for m in applied) or "none on screen"
+                )
                 extra = f"; {p.nonfinite_pixels} NaN/Inf pixels left as they are" if p.nonfinite_pixels else ""
                 if p.overflow_pixels:
                     extra += f"; {p.overflow_pixels} pixels overflowed float32 (light near 3.4e38), left as they were"

@@ -102,7 +102,7 @@ class BakeResult:
     warnings: list = field(default_factory=list)
 
     def __str__(self) -> str:
-        text = f"{self.object}: {self.message}"
+        text = f"{printable(self.object)}: {self.message}"
         return text + "".join(f"; {w}" for w in self.warnings)
 
     def to_dict(self) -> dict:

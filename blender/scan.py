@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..core.base.progress import printable
 from .describe import read_material, scene_materials, sss_materials
 
 
@@ -16,7 +17,8 @@ def scan_report(scene) -> list[str]:
     lines = [f"Scene {scene.name!r}: {len(materials)} subsurface material(s)"]
     for m in materials:
         radius = ", ".join(f"{r:.4g}" for r in m.radius)
-        lines.append(f"  {m.name}: method {m.method}, weight {m.subsurface_weight:.3g}, radius x scale ({radius})")
+        weight = f"{m.subsurface_weight:.3g}"
+        lines.append(f"  {printable(m.name)}: method {m.method}, weight {weight}, radius x scale ({radius})")
         reading = read_material(by_name[m.name], m.index)
         lines += [f"    {line}" for line in reading.inputs]
         lines += [f"    note: {note}" for note in reading.notes]

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable
+from typing import Any, TextIO
 
 
 def printable(text: str) -> str:
@@ -21,10 +22,58 @@ def printable(text: str) -> str:
     return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
+#: Every line ``saved_line`` made in this process: the only lines the guarded output
+#: (``GuardedOutput``) lets begin with ``Saved:``.
+_SAVED_LINES: set[str] = set()
+
+
 def saved_line(path: str | os.PathLike[str]) -> str:
     """``Saved: '<absolute path>'``, the form Blender prints for every file it writes; a character
     of the path that is not printable is escaped (``printable``), so the line stays one line."""
-    return f"Saved: '{printable(os.path.abspath(os.fspath(path)))}'"
+    line = f"Saved: '{printable(os.path.abspath(os.fspath(path)))}'"
+    _SAVED_LINES.add(line)
+    return line
+
+
+def _keep_line_breaks(text: str) -> str:
+    return "".join(c if c.isprintable() or c in "\n\t" else c.encode("unicode_escape").decode("ascii") for c in text)
+
+
+class GuardedOutput:
+    """A text stream in front of the command line's stdout or stderr that keeps names read from
+    files from forging or driving anything, whichever message printed them: every character that
+    is not printable but a line break or a tab is escaped (``printable``: an ESC, a carriage
+    return, a bell), and a line that begins with ``Saved:`` but was not made by ``saved_line`` (a
+    name holding a line break followed by a forged Saved line) is written with the escaped line
+    break in front (``\\nSaved: ...``), so a farm manager never reads it as a file written."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self._stream = stream
+        self._partial = ""
+        self._line_start = True  # nothing of the current line written yet
+
+    def write(self, text: str) -> int:
+        self._partial += text
+        *lines, self._partial = self._partial.split("\n")
+        for line in lines:
+            self._stream.write(self._line(line) + "\n")
+            self._line_start = True
+        return len(text)
+
+    def _line(self, line: str) -> str:
+        if self._line_start and line.startswith("Saved:") and line not in _SAVED_LINES:
+            line = "\\n" + line
+        return _keep_line_breaks(line)
+
+    def flush(self) -> None:
+        if self._partial:  # a line without its end yet (a prompt, a progress dot)
+            self._stream.write(self._line(self._partial))
+            self._partial = ""
+            self._line_start = False
+        self._stream.flush()
+
+    def __getattr__(self, name: str) -> Any:  # fileno, isatty, encoding...: the stream's own
+        return getattr(self._stream, name)
 
 
 def format_seconds(seconds: float) -> str:

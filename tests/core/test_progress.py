@@ -60,3 +60,27 @@ def test_a_name_that_is_not_printable_cannot_forge_a_line_or_drive_the_terminal(
     line = saved_line(tmp_path / name)
     assert line.isprintable() and line.startswith("Saved: '") and len(line.splitlines()) == 1
     assert printable(name) != name and printable("Skin.001 ü") == "Skin.001 ü"
+
+
+def test_guarded_output_escapes_control_characters_and_forged_saved_lines():
+    import io
+
+    from sss_lab.core.base.progress import GuardedOutput, saved_line
+
+    raw = io.StringIO()
+    out = GuardedOutput(raw)
+    real = saved_line("/tmp/out.exr")
+    print("material 'Skin\nSaved: '/etc/passwd'\x1b[2J' read", file=out)
+    print(real, file=out)
+    print("a\ttab and a bell\x07", end="", file=out, flush=True)
+    print("Saved: '/etc/shadow'", file=out)  # continues the line above: not a line of its own
+    print("Saved: '/etc/group'", file=out)
+    out.flush()
+    lines = raw.getvalue().split("\n")
+    assert lines[0] == "material 'Skin"
+    assert lines[1] == "\\nSaved: '/etc/passwd'\\x1b[2J' read"
+    assert lines[2] == real  # a line saved_line made passes unchanged
+    assert lines[3] == "a\ttab and a bell\\x07Saved: '/etc/shadow'"
+    assert lines[4] == "\\nSaved: '/etc/group'"
+    assert [line for line in lines if line.startswith("Saved:")] == [real]
+    assert "\x1b" not in raw.getvalue() and "\x07" not in raw.getvalue()
