@@ -30,6 +30,9 @@ def add_parser(subparsers):
     )
     add_blend(p)
     p.add_argument("--out", required=True, help="report folder (metrics.json, report.md, report.html, images)")
+    p.add_argument(
+        "--overwrite", action="store_true", help="replace the report of an earlier comparison in OUT (refused without)"
+    )
     add_scene(p)
     add_resolution(p)
     add_samples(p, "--reference-samples", default=256, help="Cycles samples of the reference (default: 256)")
@@ -69,10 +72,23 @@ def add_parser(subparsers):
     p.set_defaults(run=run)
 
 
+#: The files of a finished report: their presence in --out means an earlier comparison's.
+REPORT_FILES = ("metrics.json", "report.md", "report.html")
+
+
 def run(args) -> int:
     from .cli import CommandError
     from .cli_scan import open_blend
 
+    out = os.path.abspath(args.out)
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise CommandError(f"--out {args.out!r} is a file; expected a folder for the report")
+    earlier = [n for n in REPORT_FILES if os.path.lexists(os.path.join(out, n))]
+    if earlier and not args.overwrite:
+        raise CommandError(
+            f"--out {args.out!r} holds the report of an earlier comparison ({', '.join(earlier)}); refusing to"
+            " overwrite it (pass --overwrite to replace it, or choose another folder)"
+        )
     scene = open_blend(args.blend, args.scene)
     if args.frame is not None:
         scene.frame_set(args.frame)  # the file is only read: nothing to put back

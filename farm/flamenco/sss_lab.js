@@ -17,7 +17,7 @@
 //                       --skip-existing
 //   merge-reference   NUMPY merge-reference OUT/reference --out OUT/reference/reference.exr --overwrite
 //                       (after every reference-SEED)
-//   compare           {blender} {blenderArgs} --command sss_lab compare BLENDFILE --out OUT/compare
+//   compare           {blender} {blenderArgs} --command sss_lab compare BLENDFILE --out OUT/compare --overwrite
 //                       --reference OUT/reference/reference.exr --frame F --methods M --pass-samples N
 //                       [--resolution WxH] --threads T --device D   (after merge-reference and every apply)
 //
@@ -98,7 +98,7 @@ function compileJob(job) {
   }
   job.addTask(merge);
   const compare = blenderTask("compare", "compare", settings.blendfile, [
-    "--out", path.join(out, "compare"), "--reference", merged, "--frame", String(settings.compare_frame),
+    "--out", path.join(out, "compare"), "--overwrite", "--reference", merged, "--frame", String(settings.compare_frame),
     "--methods", settings.methods,
     "--pass-samples", String(settings.pass_samples), ...common, ...(settings.compare_eevee ? [] : ["--no-eevee"]),
   ]);

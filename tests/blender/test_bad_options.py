@@ -90,3 +90,20 @@ def test_compare_warns_about_a_kernel_far_beyond_the_object_and_still_scatters(t
     assert any("Burley: warning: material 'Skin'" in x and "Subsurface Scale" in x for x in lines), lines
     rows = {e["name"]: e["metrics"]["rel_rmse"] for e in data["entries"]}
     assert rows["Burley"] != rows["no SSS"] and rows["SSSS"] != rows["no SSS"]
+
+
+def test_compare_refuses_a_folder_holding_an_earlier_report_without_overwrite(tmp_path, capsys):
+    """An earlier metrics.json was lost when compare ran again into its folder: refused before the
+    .blend is even opened, unless --overwrite says to replace it."""
+    from sss_lab.addon import cli
+
+    out = tmp_path / "report"
+    out.mkdir()
+    (out / "metrics.json").write_text("{}")
+    code = cli.main(["compare", str(tmp_path / "missing.blend"), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and "holds the report of an earlier comparison (metrics.json)" in err
+    assert (out / "metrics.json").read_text() == "{}"
+    # With --overwrite the check passes (and the missing .blend is the next error).
+    assert cli.main(["compare", str(tmp_path / "missing.blend"), "--out", str(out), "--overwrite"]) == 2
+    assert "missing.blend" in capsys.readouterr().err
