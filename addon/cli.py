@@ -88,13 +88,50 @@ def build_parser(prog: str = "python -m sss_lab") -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    debug_help = "on an error, show the Python traceback after the one-line message"
-    parser.add_argument("--debug", action="store_true", help=debug_help)
+    parser.add_argument("--version", action="version", version=f"SSS Lab {version()}")
     for name in COMMANDS:
         importlib.import_module(name, __package__).add_parser(sub)
-    for command in sub.choices.values():  # also after the command: sss_lab apply ... --debug
-        command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=debug_help)
+    for p in (parser, *sub.choices.values()):  # before or after the command: sss_lab apply ... --debug
+        _add_shared(p, suppress=p is not parser)
     return parser
+
+
+def version() -> str:
+    """SSS Lab's version, from the extension's manifest."""
+    import os
+    import tomllib
+
+    path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "blender_manifest.toml")
+    with open(path, "rb") as fh:
+        return str(tomllib.load(fh)["version"])
+
+
+#: --log-level's levels: what the command prints on stdout at each (errors always go to stderr).
+LOG_LEVELS = {
+    "info": "every progress line (the default)",
+    "warning": "warnings and notes, and the Saved lines",
+    "error": "the Saved lines only (as --quiet)",
+}
+
+
+def _add_shared(p, *, suppress: bool) -> None:
+    """The options every command takes, before or after its name: --debug, --quiet, --log-level."""
+    default = {"default": argparse.SUPPRESS} if suppress else {}
+    p.add_argument(
+        "--debug",
+        action="store_true",
+        help="on an error, show the Python traceback after the one-line message",
+        **default,
+    )
+    p.add_argument(
+        "--quiet", action="store_true", help="print only the Saved lines and errors (as --log-level error)", **default
+    )
+    p.add_argument(
+        "--log-level",
+        choices=tuple(LOG_LEVELS),
+        help="what to print: " + "; ".join(f"{k}: {v}" for k, v in LOG_LEVELS.items()),
+        **default,
+    )
 
 
 def _one_line(exc: BaseException) -> str:
@@ -143,6 +180,9 @@ def _main(argv: list[str], prog: str) -> int:
         with interrupt_guard(command):
             args = build_parser(prog).parse_args(argv)
             debug = getattr(args, "debug", False)
+            level = "error" if getattr(args, "quiet", False) else (getattr(args, "log_level", None) or "info")
+            if isinstance(sys.stdout, GuardedOutput):
+                sys.stdout.level = level
             _no_empty_paths(args)
             return int(args.run(args) or 0)
     except KeyboardInterrupt:

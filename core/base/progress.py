@@ -51,11 +51,22 @@ class GuardedOutput:
         self._stream = stream
         self._partial = ""
         self._line_start = True  # nothing of the current line written yet
+        #: "info" writes every line; "warning" only lines that warn or note and the Saved lines;
+        #: "error" only the Saved lines (the command line's --log-level and --quiet).
+        self.level = "info"
+
+    def _kept(self, line: str) -> bool:
+        if self.level == "info" or line in _SAVED_LINES:
+            return True
+        low = line.lower()
+        return self.level == "warning" and ("warning" in low or "note" in low or "error" in low)
 
     def write(self, text: str) -> int:
         self._partial += text
         *lines, self._partial = self._partial.split("\n")
         for line in lines:
+            if self._line_start and not self._kept(line):
+                continue
             self._stream.write(self._line(line) + "\n")
             self._line_start = True
         return len(text)
@@ -66,7 +77,7 @@ class GuardedOutput:
         return _keep_line_breaks(line)
 
     def flush(self) -> None:
-        if self._partial:  # a line without its end yet (a prompt, a progress dot)
+        if self._partial and self.level == "info":  # a line without its end yet (a prompt, a progress dot)
             self._stream.write(self._line(self._partial))
             self._partial = ""
             self._line_start = False

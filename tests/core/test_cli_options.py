@@ -59,3 +59,40 @@ def test_apply_help_shows_param(capsys):
         cli.main(["apply", "--help"])
     out = capsys.readouterr().out
     assert "--param KEY=VALUE" in out and "TECHNIQUE.KEY=VALUE" in out
+
+
+def test_every_command_takes_the_shared_options_with_one_help(capsys):
+    """--debug, --quiet and --log-level in every subcommand's help, worded once; --version."""
+    commands = _commands()
+    for flag in ("--debug", "--quiet", "--log-level"):
+        helps = {name: _option(p, flag).help for name, p in commands.items()}
+        assert len(set(helps.values())) == 1, (flag, helps)
+        for name, p in commands.items():
+            assert flag in p.format_help(), (name, flag)
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.startswith("SSS Lab ")
+
+
+@pytest.mark.parametrize("flags", [["--quiet"], ["--log-level", "error"], ["--log-level", "warning"]])
+def test_quiet_keeps_the_saved_lines_and_the_errors(tmp_path, capsys, flags):
+    import json
+
+    import numpy as np
+
+    from sss_lab.core.scene import exr
+
+    parts = tmp_path / "parts"
+    parts.mkdir()
+    for seed in (1, 2):
+        exr.write_layers(
+            str(parts / f"reference_seed_{seed:05d}.exr"), {"ViewLayer.Combined": np.full((4, 4, 4), 0.5, np.float32)}
+        )
+        meta = {"samples": 4, "seed": seed, "fingerprint": "f"}
+        (parts / f"reference_seed_{seed:05d}.json").write_text(json.dumps(meta))
+    out = tmp_path / "m.exr"
+    assert cli.main(["merge-reference", str(parts), "--out", str(out), *flags]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert printed == [f"Saved: '{out}'", f"Saved: '{tmp_path / 'm.json'}'"]
+    assert cli.main(["merge-reference", str(parts), "--out", str(out), *flags]) == 2  # exists: said on stderr
+    assert "refusing to overwrite" in capsys.readouterr().err
