@@ -93,7 +93,29 @@ def build_parser(prog: str = "python -m sss_lab") -> argparse.ArgumentParser:
         importlib.import_module(name, __package__).add_parser(sub)
     for p in (parser, *sub.choices.values()):  # before or after the command: sss_lab apply ... --debug
         _add_shared(p, suppress=p is not parser)
+    for name, p in sub.choices.items():
+        own = EXIT_STATUS.get(name)
+        p.epilog = (f"Exit status: {own}. " if own else "") + EXIT_COMMON
     return parser
+
+
+#: Exit statuses of the commands whose description does not give them (the others say theirs).
+EXIT_STATUS = {
+    "scan": "0 the materials listed (or the recommendation made), 2 bad arguments or input",
+    "demo": "0 the report complete, 1 the report incomplete (a technique could not run; the report says why),"
+    " 2 bad arguments",
+    "bake-thickness": "0 every object baked, 1 some failed (each named on one line), 2 bad arguments or input",
+    "compare": "0 the report complete, 1 the report incomplete (a technique could not run; the report says why),"
+    " 2 bad arguments or input (an earlier report in OUT without --overwrite included)",
+    "reference": "0 the parts written (or kept with --skip-existing), 2 bad arguments or input",
+    "merge-reference": "0 merged, 2 bad arguments or parts that are not of one render",
+    "prepare": "0 every kernel ready, 2 bad arguments or a kernel that cannot be compiled here",
+}
+#: What every command shares, after its own statuses.
+EXIT_COMMON = (
+    "Every command: 1 when a file cannot be written (a full or read-only disk), 130 when interrupted"
+    " (Ctrl-C, SIGTERM, SIGHUP); an existing output without --overwrite is refused with 2."
+)
 
 
 def version() -> str:

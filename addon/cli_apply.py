@@ -161,8 +161,9 @@ def run(args) -> int:
             )
         except (OSError, ValueError, KeyError) as exc:
             failed += 1
-            # A bad input (a damaged or missing file, a wrong value) rather than a failed write.
-            bad_input += isinstance(exc, (ValueError, KeyError, FileNotFoundError, IsADirectoryError))
+            # A bad input (a damaged or missing file, a wrong value, an existing output without
+            # --overwrite) rather than a failed write.
+            bad_input += isinstance(exc, (ValueError, KeyError, FileNotFoundError, IsADirectoryError, FileExistsError))
             message = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
             if not message.startswith(path):
                 message = f"{path}: {message}"

@@ -121,13 +121,13 @@ def test_never_overwrites_the_input_or_an_existing_output(passes_file):
     path, _, _ = passes_file
     before = digest(path)
     proc = run_apply(path, "--method", "burley", "--out", path)
-    assert proc.returncode != 0 and "refusing to overwrite" in proc.stderr
+    assert proc.returncode == 2 and "refusing to overwrite" in proc.stderr
     proc = run_apply(path, "--method", "burley", "--out", path, "--overwrite")
-    assert proc.returncode != 0 and "refusing to overwrite" in proc.stderr
+    assert proc.returncode == 2 and "refusing to overwrite" in proc.stderr
     assert digest(path) == before
     assert run_apply(path, "--method", "burley").returncode == 0
     proc = run_apply(path, "--method", "burley")
-    assert proc.returncode != 0 and "already exists" in proc.stderr
+    assert proc.returncode == 2 and "already exists" in proc.stderr  # as in every command
     proc = run_apply(path, "--method", "burley", "--overwrite")
     assert proc.returncode == 0 and len(saved_lines(proc.stdout)) == 1
 

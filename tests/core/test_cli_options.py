@@ -96,3 +96,10 @@ def test_quiet_keeps_the_saved_lines_and_the_errors(tmp_path, capsys, flags):
     assert printed == [f"Saved: '{out}'", f"Saved: '{tmp_path / 'm.json'}'"]
     assert cli.main(["merge-reference", str(parts), "--out", str(out), *flags]) == 2  # exists: said on stderr
     assert "refusing to overwrite" in capsys.readouterr().err
+
+
+def test_every_command_states_its_exit_status():
+    for name, p in _commands().items():
+        text = " ".join(p.format_help().split())
+        assert "Exit status: 0 " in text, name
+        assert "130 when interrupted" in text and "refused with 2" in text, name
