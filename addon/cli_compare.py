@@ -92,7 +92,9 @@ def run(args) -> int:
     scene = open_blend(args.blend, args.scene)
     if args.frame is not None:
         scene.frame_set(args.frame)  # the file is only read: nothing to put back
-    from ..blender.compare import CompareSettings, compare
+    from ..blender.compare import CompareSettings, compare_job
+    from ..blender.jobs import run as run_job
+    from ..core.base.progress import Progress
     from .cli import parse_methods
     from .cli_options import read_resolution
 
@@ -114,7 +116,18 @@ def run(args) -> int:
 
     try:
         with render_device(args, scene):
-            data = compare(scene, os.path.abspath(args.out), settings)
+            counter: list[Progress] = []
+
+            def progress(step) -> None:
+                """``compare: [k/N] what comes next (k-1/N, elapsed, ETA)`` before each step."""
+                if not counter:
+                    counter.append(Progress(step.total))
+                    status = "starting"
+                else:
+                    status = counter[0].finish()
+                print(f"compare: [{step.done + 1}/{step.total}] {step.message} ({status})", flush=True)
+
+            data = run_job(compare_job(scene, out, settings), progress)
     except ValueError as exc:
         raise CommandError(str(exc)) from None
     if not data["complete"]:

@@ -507,7 +507,8 @@ def _write(out_dir: str, data: dict, rows: _Rows, mask: np.ndarray, log) -> dict
         order=order,
         summary=_summary(order, entries),
     )
-    log(saved_line(os.path.join(out_dir, "report.html")))
+    for path in report.report_files(out_dir, out):  # a Saved line for every file, report.html last
+        log(saved_line(path))
     return out
 
 

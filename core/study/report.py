@@ -503,3 +503,14 @@ def write_report(
     write_text(os.path.join(out_dir, "report.md"), _markdown(data))
     write_text(os.path.join(out_dir, "report.html"), _html(data, svg))
     return data
+
+
+def report_files(out_dir: str, data: dict) -> list[str]:
+    """Every file ``write_report`` wrote for ``data`` (its return value), images first."""
+    images = [data.get("reference_image")]
+    for e in data.get("entries", []):
+        images += [e.get("image"), e.get("error_image")]
+    names = [n for n in dict.fromkeys(images) if n]
+    names += ["grid.png"] + (["summary.png"] if data.get("summary") else [])
+    names += ["pareto.svg", "metrics.json", "report.md", "report.html"]
+    return [os.path.join(out_dir, n) for n in names]

@@ -1,6 +1,7 @@
 """Options that used to end in a traceback after work had started."""
 
 import os
+import re
 
 import pytest
 
@@ -107,3 +108,21 @@ def test_compare_refuses_a_folder_holding_an_earlier_report_without_overwrite(tm
     # With --overwrite the check passes (and the missing .blend is the next error).
     assert cli.main(["compare", str(tmp_path / "missing.blend"), "--out", str(out), "--overwrite"]) == 2
     assert "missing.blend" in capsys.readouterr().err
+
+
+def test_compare_counts_its_steps_and_says_every_file_it_wrote(tmp_path, capsys):
+    from sss_lab.addon import cli
+    from sss_lab.blender.samples import load_sample_scenes
+
+    blend = load_sample_scenes().build("head_frontlit", str(tmp_path / "head.blend"))
+    out = tmp_path / "report"
+    argv = ["compare", blend, "--out", str(out), "--resolution", "24x24", "--reference-samples", "4"]
+    assert cli.main([*argv, "--pass-samples", "2", "--methods", "burley", "--no-eevee"]) == 0
+    printed = capsys.readouterr().out
+    steps = re.findall(r"^compare: \[(\d+)/(\d+)\] .+\((.+)\)$", printed, flags=re.MULTILINE)
+    assert [int(k) for k, _, _ in steps] == list(range(1, len(steps) + 1)) and steps[-1][0] == steps[-1][1]
+    assert all("ETA" in status for _, _, status in steps[1:])
+    saved = re.findall(r"^Saved: '(.+)'$", printed, flags=re.MULTILINE)
+    for name in ("metrics.json", "report.md", "report.html", "summary.png", "grid.png", "pareto.svg"):
+        assert str(out / name) in saved, name
+    assert all(os.path.isfile(p) for p in saved)

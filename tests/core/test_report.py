@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from sss_lab.core.study.report import pareto_front, write_report
+from sss_lab.core.study.report import pareto_front, report_files, write_report
 
 
 def _entry(name, t, err, kind="technique"):
@@ -55,6 +55,10 @@ def test_report_pages_carry_the_json_numbers(tmp_path):
     # The summary keeps the asked columns that exist, in that order.
     assert saved["summary"]["columns"] == ["no SSS", "Cycles reference"]
     assert (tmp_path / "summary.png").read_bytes()[:4] == b"\x89PNG"
+    # report_files names every file written (each gets its Saved line), report.html last.
+    listed = report_files(str(tmp_path), out)
+    on_disk = sorted(os.path.join(d, f) for d, _, fs in os.walk(tmp_path) for f in fs)
+    assert sorted(listed) == on_disk and listed[-1].endswith("report.html")
 
 
 def test_incomplete_report_says_so(tmp_path):
