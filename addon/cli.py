@@ -220,6 +220,11 @@ def _main(argv: list[str], prog: str) -> int:
         return 1 if failed_to_write else 2
 
 
+def script() -> int:
+    """The ``sss-lab`` console script (pyproject.toml): ``main`` with its own name in the usage."""
+    return main(prog="sss-lab")
+
+
 #: The id of the command the extension registers with Blender: ``blender --command sss_lab ...``.
 BLENDER_COMMAND = "sss_lab"
 

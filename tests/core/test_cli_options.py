@@ -2,6 +2,7 @@
 parser per option in every command that takes it (no bpy needed to build the parser)."""
 
 import argparse
+import os
 
 import pytest
 
@@ -103,3 +104,15 @@ def test_every_command_states_its_exit_status():
         text = " ".join(p.format_help().split())
         assert "Exit status: 0 " in text, name
         assert "130 when interrupted" in text and "refused with 2" in text, name
+
+
+def test_the_console_script_names_itself_in_its_usage(capsys, monkeypatch):
+    monkeypatch.setattr("sys.argv", ["sss-lab", "--help"])
+    with pytest.raises(SystemExit):
+        cli.main(prog="sss-lab")
+    assert capsys.readouterr().out.startswith("usage: sss-lab ")
+    import tomllib
+
+    with open(os.path.join(os.path.dirname(cli.__file__), "..", "pyproject.toml"), "rb") as fh:
+        scripts = tomllib.load(fh)["project"]["scripts"]
+    assert scripts["sss-lab"] == "sss_lab.addon.cli:script"
