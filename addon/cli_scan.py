@@ -21,6 +21,11 @@ def add_parser(subparsers):
     add_resolution(p, help="with --recommend: WIDTHxHEIGHT of that render (default: long side 160 px)")
     add_samples(p, default=16, help="with --recommend: samples of that render (default: 16)")
     p.add_argument("--max-error", type=float, help="with --recommend: as apply --method auto (default 0.1)")
+    p.add_argument(
+        "--json",
+        help="also write what was found (and with --recommend the choice per material) to this JSON file",
+    )
+    p.add_argument("--overwrite", action="store_true", help="allow --json to be an existing file")
     p.set_defaults(run=run)
 
 
@@ -62,12 +67,48 @@ def run(args) -> int:
 
     check_at_least(args, 1, "samples")
     resolution = read_resolution(args)
+    json_out = _json_path(args)
     scene = open_blend(args.blend, args.scene)
-    from ..blender.scan import recommend, scan_report
+    from ..blender.describe import sss_materials
+    from ..blender.scan import recommendation, scan_report
 
     for line in scan_report(scene):
         print(line)
+    plan = None
     if args.recommend:
-        for line in recommend(scene, resolution=resolution, samples=args.samples, max_error=args.max_error, log=None):
+        lines, plan = recommendation(
+            scene, resolution=resolution, samples=args.samples, max_error=args.max_error, log=None
+        )
+        for line in lines:
             print(line)
+    if json_out:
+        import dataclasses
+        import json
+
+        from ..core.base import files
+        from ..core.base.progress import saved_line
+
+        data = {
+            "scene": scene.name,
+            "materials": [dataclasses.asdict(m) for m in sss_materials(scene)],
+            "recommendation": plan.to_dict() if plan is not None else None,
+        }
+        files.write_text(json_out, json.dumps(data, indent=2, default=str))
+        print(saved_line(json_out), flush=True)
     return 0
+
+
+def _json_path(args) -> str | None:
+    """``--json`` checked before the work: a .json name, not the input, not existing without --overwrite."""
+    from .cli import CommandError
+
+    if not args.json:
+        return None
+    path = os.path.abspath(args.json)
+    if not path.endswith(".json") or os.path.isdir(path):
+        raise CommandError(f"--json {args.json!r}: expected a .json file name")
+    if os.path.exists(args.blend) and os.path.realpath(path) == os.path.realpath(args.blend):
+        raise CommandError(f"--json {args.json!r} is the input .blend; refusing to write over it")
+    if os.path.exists(path) and not args.overwrite:
+        raise CommandError(f"--json {args.json!r} exists; refusing to overwrite it (pass --overwrite to allow it)")
+    return path

@@ -26,18 +26,23 @@ def scan_report(scene) -> list[str]:
 
 
 def recommend(scene, *, resolution=None, samples: int = 16, max_error: float | None = None, log=None) -> list[str]:
+    """``recommendation``'s lines."""
+    return recommendation(scene, resolution=resolution, samples=samples, max_error=max_error, log=log)[0]
+
+
+def recommendation(scene, *, resolution=None, samples: int = 16, max_error: float | None = None, log=None):
     """Per subsurface material of ``scene``, the technique and quality (a rung of its ladder)
     ``apply --method auto`` would choose, and why (``core.pipeline.auto``): renders the passes of the
     scene's view once, small and at few samples (``resolution`` "WxH", default the scene's scaled
     so that its long side is at most 160 px), into a temporary folder; the scene is left as it
-    was. Returns the lines to print."""
+    was. Returns (the lines to print, the ``AutoPlan`` or None without a subsurface material)."""
     from ..core.base import files
     from ..core.pipeline import auto, sequence
     from ..core.scene import exr
     from .render_passes import render_passes
 
     if sss_materials(scene) == []:
-        return scan_report(scene)
+        return scan_report(scene), None
     if resolution is None:
         r = scene.render
         w, h = r.resolution_x * r.resolution_percentage // 100, r.resolution_y * r.resolution_percentage // 100
@@ -54,4 +59,4 @@ def recommend(scene, *, resolution=None, samples: int = 16, max_error: float | N
         " that size):"
     ]
     lines += plan.explain().splitlines()[1:]
-    return lines
+    return lines, plan

@@ -760,6 +760,29 @@ class AutoPlan:
         """{material name: chosen candidate}, what ``choose(keep=...)`` takes on the next frames."""
         return {c.features.name: c.chosen for c in self.choices}
 
+    def to_dict(self) -> dict:
+        """The plan as JSON-ready data: per material its features, every candidate (predicted and
+        measured error, cost, why excluded) and the choice with its reason (``explain`` in words)."""
+        h, w = self.shape
+        return {
+            "size": [w, h],
+            "max_error": self.max_error,
+            "model": self.model.command or "given",
+            "skipped": list(self.skipped_materials),
+            "materials": [
+                {
+                    "material": c.features.name,
+                    "index": c.features.index,
+                    "chosen": c.chosen,
+                    "reason": c.reason,
+                    "warning": c.warning,
+                    "features": dataclasses.asdict(c.features),
+                    "candidates": [dataclasses.asdict(k) for k in c.candidates],
+                }
+                for c in self.choices
+            ],
+        }
+
     def explain(self) -> str:
         h, w = self.shape
         lines = [

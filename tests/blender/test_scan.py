@@ -222,3 +222,24 @@ def test_demo_names_a_file_given_as_its_folder(tmp_path, capsys):
     assert main(["demo", "--out", str(path)]) == 2
     assert "is a file; expected a folder" in capsys.readouterr().err
     assert path.read_text() == "x"
+
+
+def test_scan_writes_what_it_found_and_recommends_as_json(tmp_path, capsys):
+    import json
+
+    from sss_lab.addon.cli import main
+    from sss_lab.blender.samples import load_sample_scenes
+
+    blend = load_sample_scenes().build("head_frontlit", str(tmp_path / "head.blend"))
+    out = tmp_path / "scan.json"
+    args = ["scan", blend, "--json", str(out), "--recommend", "--resolution", "24x24", "--samples", "2"]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    assert f"Saved: '{out}'" in printed
+    data = json.loads(out.read_text())
+    assert [m["name"] for m in data["materials"]] == ["Skin"]
+    (choice,) = data["recommendation"]["materials"]
+    assert choice["material"] == "Skin" and choice["chosen"] in {k["name"] for k in choice["candidates"]}
+    assert "material 'Skin' (pass index 1" in printed and choice["chosen"] in printed  # the same choice said
+    assert main(args) == 2  # an existing --json without --overwrite
+    assert "exists; refusing to overwrite it" in capsys.readouterr().err
