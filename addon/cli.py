@@ -94,6 +94,13 @@ def build_parser(prog: str = "python -m sss_lab") -> argparse.ArgumentParser:
     for p in (parser, *sub.choices.values()):  # before or after the command: sss_lab apply ... --debug
         _add_shared(p, suppress=p is not parser)
     for name, p in sub.choices.items():
+        if not any("--json" in a.option_strings for a in p._actions):
+            p.add_argument(
+                "--json",
+                metavar="FILE",
+                help="also write a summary of the run (exit status, files written, lines printed) to this JSON file",
+            )
+            p.set_defaults(summary_json=True)
         own = EXIT_STATUS.get(name)
         p.epilog = (f"Exit status: {own}. " if own else "") + EXIT_COMMON
     return parser
@@ -198,6 +205,11 @@ def _main(argv: list[str], prog: str) -> int:
     # The guard is on before anything is imported or parsed: a Ctrl-C at start-up is one too.
     command = next((a for a in argv if not a.startswith("-")), "")
     debug = "--debug" in argv
+    summary: str | None = None
+    error: str | None = None
+    from ..core.base.progress import SAVED_PATHS
+
+    SAVED_PATHS.clear()  # this run's files only (the tests run many in one process)
     try:
         with interrupt_guard(command):
             args = build_parser(prog).parse_args(argv)
@@ -206,18 +218,68 @@ def _main(argv: list[str], prog: str) -> int:
             if isinstance(sys.stdout, GuardedOutput):
                 sys.stdout.level = level
             _no_empty_paths(args)
-            return int(args.run(args) or 0)
+            summary = _summary_path(args)
+            code = int(args.run(args) or 0)
     except KeyboardInterrupt:
         if debug:
             traceback.print_exc()
-        print(f"sss_lab {command}: interrupted ({interrupted_by()}){finished_summary()}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        error = f"interrupted ({interrupted_by()}){finished_summary()}"
+        print(f"sss_lab {command}: {error}", file=sys.stderr)
+        code = EXIT_INTERRUPTED
     except (SSSLabError, ValueError, OSError) as exc:
         if debug:
             traceback.print_exc()
-        print(f"sss_lab {command}: error: {_one_line(exc)}", file=sys.stderr)
+        error = _one_line(exc)
+        print(f"sss_lab {command}: error: {error}", file=sys.stderr)
         failed_to_write = isinstance(exc, OSError) and not isinstance(exc, (FileNotFoundError, FileExistsError))
-        return 1 if failed_to_write else 2
+        code = 1 if failed_to_write else 2
+    if summary is not None:
+        _write_summary(summary, command, argv, code, error)
+    return code
+
+
+def _summary_path(args) -> str | None:
+    """The ``--json`` summary's path, checked before the command runs (commands with a ``--json``
+    of their own check theirs): a .json name, not an input, not existing without --overwrite."""
+    import os
+
+    if not getattr(args, "summary_json", False) or not args.json:
+        return None
+    path = os.path.abspath(args.json)
+    if not path.endswith(".json") or os.path.isdir(path):
+        raise CommandError(f"--json {args.json!r}: expected a .json file name")
+    inputs = [getattr(args, name, None) for name in ("blend", "passes", "description", "reference")]
+    inputs += list(getattr(args, "parts", None) or [])
+    for item in (i for i in inputs if isinstance(i, str) and os.path.exists(i)):
+        if os.path.realpath(item) == os.path.realpath(path):
+            raise CommandError(f"--json {args.json!r} is an input; refusing to write over it")
+    if os.path.lexists(path) and not getattr(args, "overwrite", False):
+        raise CommandError(f"--json {args.json!r} exists; refusing to overwrite it (pass --overwrite to allow it)")
+    return path
+
+
+def _write_summary(path: str, command: str, argv: list[str], code: int, error: str | None) -> None:
+    """The run as data: the command, its exit status and error, the files it wrote, what it printed."""
+    import json
+
+    from ..core.base import files
+    from ..core.base.progress import SAVED_PATHS, saved_line
+
+    printed = list(sys.stdout.lines) if isinstance(sys.stdout, GuardedOutput) else []
+    data = {
+        "command": command,
+        "argv": argv,
+        "exit_status": code,
+        "error": error,
+        "saved": list(SAVED_PATHS),
+        "printed": printed,
+    }
+    try:
+        files.write_text(path, json.dumps(data, indent=2))
+    except OSError as exc:
+        print(f"sss_lab {command}: error: {_one_line(exc)}", file=sys.stderr)
+        return
+    print(saved_line(path), flush=True)
 
 
 def script() -> int:

@@ -25,12 +25,16 @@ def printable(text: str) -> str:
 #: Every line ``saved_line`` made in this process: the only lines the guarded output
 #: (``GuardedOutput``) lets begin with ``Saved:``.
 _SAVED_LINES: set[str] = set()
+#: The paths of those lines, in the order they were made (a command's ``--json`` summary lists them).
+SAVED_PATHS: list[str] = []
 
 
 def saved_line(path: str | os.PathLike[str]) -> str:
     """``Saved: '<absolute path>'``, the form Blender prints for every file it writes; a character
     of the path that is not printable is escaped (``printable``), so the line stays one line."""
     line = f"Saved: '{printable(os.path.abspath(os.fspath(path)))}'"
+    if line not in _SAVED_LINES:
+        SAVED_PATHS.append(os.path.abspath(os.fspath(path)))
     _SAVED_LINES.add(line)
     return line
 
@@ -51,6 +55,8 @@ class GuardedOutput:
         self._stream = stream
         self._partial = ""
         self._line_start = True  # nothing of the current line written yet
+        #: Every whole line written (escaped), for a command's ``--json`` summary.
+        self.lines: list[str] = []
         #: "info" writes every line; "warning" only lines that warn or note and the Saved lines;
         #: "error" only the Saved lines (the command line's --log-level and --quiet).
         self.level = "info"
@@ -67,7 +73,9 @@ class GuardedOutput:
         for line in lines:
             if self._line_start and not self._kept(line):
                 continue
-            self._stream.write(self._line(line) + "\n")
+            shown = self._line(line)
+            self.lines.append(shown)
+            self._stream.write(shown + "\n")
             self._line_start = True
         return len(text)
 

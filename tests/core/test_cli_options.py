@@ -116,3 +116,37 @@ def test_the_console_script_names_itself_in_its_usage(capsys, monkeypatch):
     with open(os.path.join(os.path.dirname(cli.__file__), "..", "pyproject.toml"), "rb") as fh:
         scripts = tomllib.load(fh)["project"]["scripts"]
     assert scripts["sss-lab"] == "sss_lab.addon.cli:script"
+
+
+def test_every_command_takes_json_and_a_summary_says_what_the_run_did(tmp_path, capsys):
+    import json
+
+    import numpy as np
+
+    from sss_lab.core.scene import exr
+
+    for name, p in _commands().items():
+        assert _option(p, "--json") is not None, name
+    parts = tmp_path / "parts"
+    parts.mkdir()
+    for seed in (1, 2):
+        exr.write_layers(
+            str(parts / f"reference_seed_{seed:05d}.exr"), {"ViewLayer.Combined": np.full((4, 4, 4), 0.5, np.float32)}
+        )
+        (parts / f"reference_seed_{seed:05d}.json").write_text(
+            json.dumps({"samples": 4, "seed": seed, "fingerprint": "f"})
+        )
+    summary = tmp_path / "run.json"
+    out = tmp_path / "m.exr"
+    assert cli.main(["merge-reference", str(parts), "--out", str(out), "--json", str(summary)]) == 0
+    assert f"Saved: '{summary}'" in capsys.readouterr().out
+    data = json.loads(summary.read_text())
+    assert data["exit_status"] == 0 and data["error"] is None
+    assert data["saved"] == [str(out), str(tmp_path / "m.json")]
+    assert any("noise floor" in line for line in data["printed"])
+    # A failed run says why; an existing summary is not replaced without --overwrite.
+    assert cli.main(["merge-reference", str(parts), "--out", str(out), "--json", str(tmp_path / "two.json")]) == 2
+    failed = json.loads((tmp_path / "two.json").read_text())
+    assert failed["exit_status"] == 2 and "refusing to overwrite" in failed["error"] and failed["saved"] == []
+    assert cli.main(["merge-reference", str(parts), "--out", str(tmp_path / "n.exr"), "--json", str(summary)]) == 2
+    assert "exists; refusing to overwrite it" in capsys.readouterr().err
