@@ -22,6 +22,21 @@ def _methods(text: str) -> tuple[str, ...]:
     return tuple(names)
 
 
+def _counts(text: str, flag: str) -> tuple[int, ...]:
+    """``"4,16"`` -> (4, 16); ``none`` or empty -> (); CommandError naming ``flag`` otherwise."""
+    from .cli import CommandError
+
+    if text.strip().lower() in ("", "none"):
+        return ()
+    try:
+        values = tuple(int(t) for t in text.split(",") if t.strip())
+    except ValueError:
+        values = ()
+    if not values or any(v < 1 for v in values):
+        raise CommandError(f"{flag} {text!r}: expected sample counts >= 1, comma-separated (or none)")
+    return values
+
+
 def add_parser(subparsers):
     from .cli_options import add_blend, add_methods, add_render_device, add_resolution, add_samples, add_scene, add_seed
 
@@ -68,6 +83,13 @@ def add_parser(subparsers):
         " techniques; it needs an OpenGL context, made through EGL when headless)",
     )
     add_samples(p, "--eevee-samples", default=None, help="EEVEE's render samples (default: the scene's own)")
+    p.add_argument(
+        "--denoise-samples",
+        default="4,16",
+        metavar="N,N",
+        help="Cycles random walk at these samples denoised by OpenImageDenoise, beside the techniques, each at two"
+        " seeds so that the denoiser's bias is shown apart from its noise (default: 4,16; none: leave them out)",
+    )
     add_render_device(p)
     p.set_defaults(run=run)
 
@@ -110,6 +132,7 @@ def run(args) -> int:
         calibrate_methods=_methods(args.calibrate_methods),
         reference_file=os.path.abspath(args.reference) if args.reference else None,
         eevee=not args.no_eevee,
+        denoise_samples=_counts(args.denoise_samples, "--denoise-samples"),
         eevee_samples=args.eevee_samples,
     )
     from .cli_options import render_device

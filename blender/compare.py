@@ -58,6 +58,10 @@ class CompareSettings:
     pass_samples: int = 64
     seed: int = 0
     peer_samples: tuple[int, ...] = (16, 64)
+    #: Cycles random walk at these samples denoised by OpenImageDenoise, what a user wanting a quick
+    #: faithful picture renders; each twice (two seeds) so that the denoiser's bias is shown apart
+    #: from the noise it leaves. () leaves them out.
+    denoise_samples: tuple[int, ...] = (4, 16)
     cycles_burley: bool = True
     box: int = 2
     techniques: tuple[str, ...] = tuple(TECHNIQUES)
@@ -101,8 +105,10 @@ class CompareSettings:
         e = self.eevee_samples
         if e is not None and (not isinstance(e, int) or isinstance(e, bool) or e < 1):
             raise ValueError(f"eevee_samples: expected an integer >= 1 (or None: the scene's own), got {e!r}")
-        if any(not isinstance(s, int) or s < 1 for s in self.peer_samples):
-            raise ValueError(f"peer_samples: expected integers >= 1, got {self.peer_samples!r}")
+        for name in ("peer_samples", "denoise_samples"):
+            values = getattr(self, name)
+            if any(not isinstance(s, int) or isinstance(s, bool) or s < 1 for s in values):
+                raise ValueError(f"{name}: expected integers >= 1, got {values!r}")
         if self.resolution is not None:
             w, h = self.resolution
             if not (isinstance(w, int) and isinstance(h, int) and w >= 1 and h >= 1):
@@ -417,6 +423,17 @@ def _peers(settings: CompareSettings, reference, rows: _Rows, timings: dict, ste
         if samples == settings.pass_samples:
             rw_at_pass_samples = secs
             rows.entries[-1]["time_s"]["sss_effect"] = secs - timings["passes"]
+    for samples in sorted(set(settings.denoise_samples)):
+        if samples >= settings.reference_samples:
+            continue
+        yield steps.next(f"Cycles {samples} samples, denoised (OpenImageDenoise)")
+        img, secs, _ = reference(samples=samples, seed=settings.seed + 2, method=None, denoise=True)
+        yield steps.next(f"Cycles {samples} samples, denoised, another seed (its bias apart from its noise)")
+        other, _, _ = reference(samples=samples, seed=settings.seed + 4, method=None, denoise=True)
+        rows.add(f"Cycles {samples} spp + OIDN", "cycles", img, secs)
+        m = rows.entries[-1]["metrics"]
+        m["bias"], m["pass_noise"] = metrics.split_seeds(img, other, rows.ref, rows.mask, box=settings.box)
+        rows.entries[-1]["time_s"]["sss_effect"] = None
     if settings.cycles_burley:
         yield steps.next(f"Cycles Christensen-Burley, {settings.reference_samples} samples")
         img, secs, _ = reference(samples=settings.reference_samples, seed=settings.seed + 3, method="BURLEY")
@@ -621,6 +638,7 @@ def _step_count(settings: CompareSettings, own: set) -> int:
     passes = 1 + bool(settings.bias_pass_samples)
     runs = sum(len(settings.qualities.get(t, ({},))) for t in settings.techniques)
     peers = sum(1 for s in {*settings.peer_samples, settings.pass_samples} if s < settings.reference_samples)
+    peers += 2 * sum(1 for s in set(settings.denoise_samples) if s < settings.reference_samples)  # two seeds each
     peers += bool(settings.cycles_burley and not settings.reference_file)
     peers += 2 * bool(settings.eevee)  # with and without scattering
     return refs + passes + runs + peers + len(_calibration_methods(settings, own)) + 1

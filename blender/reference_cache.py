@@ -179,8 +179,12 @@ def _hash_node_tree(h, tree) -> None:
         )
 
 
-def render_combined(scene, *, samples: int, seed: int, resolution, path: str, state: SceneState) -> float:
-    """Render ``scene`` with Cycles to a float32 multilayer EXR at ``path``; returns seconds."""
+def render_combined(
+    scene, *, samples: int, seed: int, resolution, path: str, state: SceneState, denoise: bool = False
+) -> float:
+    """Render ``scene`` with Cycles to a float32 multilayer EXR at ``path``; returns seconds. With
+    ``denoise`` the image is denoised by OpenImageDenoise (albedo and normal as guides, prefiltered),
+    as a user wanting a quick faithful picture renders it."""
     cy = scene.cycles
     state.set(scene.render, "engine", "CYCLES")
     # Cycles' own image: no compositor (SSS Lab's node groups there would change the materials and the image).
@@ -189,7 +193,11 @@ def render_combined(scene, *, samples: int, seed: int, resolution, path: str, st
     state.set(cy, "seed", seed)
     state.set(cy, "use_adaptive_sampling", False)
     state.set(cy, "use_animated_seed", False)
-    state.set(cy, "use_denoising", False)
+    state.set(cy, "use_denoising", bool(denoise))
+    if denoise:
+        state.set(cy, "denoiser", "OPENIMAGEDENOISE")
+        state.set(cy, "denoising_input_passes", "RGB_ALBEDO_NORMAL")
+        state.set(cy, "denoising_prefilter", "ACCURATE")
     if resolution is not None:
         state.set(scene.render, "resolution_x", resolution[0])
         state.set(scene.render, "resolution_y", resolution[1])
@@ -223,6 +231,7 @@ def cached_reference(
     method: str | None,
     log=print,
     fingerprint: str | None = None,
+    denoise: bool = False,
 ) -> tuple[np.ndarray, float, bool]:
     """The Cycles image for these settings, from the cache when the scene has not changed.
 
@@ -231,23 +240,27 @@ def cached_reference(
     from cache).
     """
     fingerprint = fingerprint or scene_fingerprint(scene)
-    key = hashlib.sha256(json.dumps([fingerprint, samples, seed, list(resolution or []), method]).encode()).hexdigest()[
-        :24
-    ]
+    parts: list = [fingerprint, samples, seed, list(resolution or []), method]
+    if denoise:  # a key of its own; the undenoised entries keep theirs
+        parts.append("oidn")
+    key = hashlib.sha256(json.dumps(parts).encode()).hexdigest()[:24]
     path = os.path.join(cache_dir, f"cycles_{key}.exr")
     meta_path = path[:-4] + ".json"
     cached = read_cached_image(
         path, meta_path, log, expect={"samples": samples, "seed": seed, "method": method}, size=resolution
     )
+    what = f"Cycles {method or 'scene method'} {samples} samples seed {seed}" + (", denoised" if denoise else "")
     if cached is not None:
-        log(f"Cycles {method or 'scene method'} {samples} samples seed {seed}: cached ({os.path.basename(path)})")
+        log(f"{what}: cached ({os.path.basename(path)})")
         return cached[0], cached[1], True
-    log(f"Cycles {method or 'scene method'} {samples} samples seed {seed}: rendering")
+    log(f"{what}: rendering")
     with SceneState() as state:
         if method is not None:
             _with_method(scene, method, state)
         with files.temporary_beside(path, suffix=".exr") as tmp:
-            seconds = render_combined(scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state)
+            seconds = render_combined(
+                scene, samples=samples, seed=seed, resolution=resolution, path=tmp, state=state, denoise=denoise
+            )
             try:
                 image = exr.read_passes(tmp)["Combined"]
             except (exr.DamagedFileError, exr.MissingPassError) as exc:
@@ -256,7 +269,7 @@ def cached_reference(
                 raise
             files.move_into_place(tmp, path)
     # The metadata last, atomically: an entry without it is rendered again, never half-read.
-    meta = {"seconds": seconds, "samples": samples, "seed": seed, "method": method}
+    meta = {"seconds": seconds, "samples": samples, "seed": seed, "method": method, "denoise": bool(denoise)}
     files.write_text(meta_path, json.dumps(meta))
     return image, seconds, False
 

@@ -131,6 +131,23 @@ def split_error(error: float, error_high: float, samples: int, samples_high: int
     return math.sqrt(error**2 - noise2), math.sqrt(noise2)
 
 
+def split_seeds(image: np.ndarray, other: np.ndarray, reference: np.ndarray, mask=None, *, box: int = 1):
+    """(bias, noise) of ``image``'s rel_rmse against ``reference``, from ``other``: the same render
+    at another seed (a denoised Cycles image, whose error is not Monte Carlo noise alone). The two
+    differ by their noise only, so one image's noise is the difference over sqrt 2, measured like
+    rel_rmse; bias² = rel_rmse² − noise², clipped to [0, rel_rmse²] (the reference's own noise stays
+    in the bias, as in ``split_error``). (None, None) where nothing could be measured."""
+    error = compare_images(image, reference, mask, box=box)["rel_rmse"]
+    a = np.asarray(image, np.float64)[..., :3]
+    b = np.asarray(other, np.float64)[..., :3]
+    ref = np.asarray(reference, np.float64)[..., :3]
+    noise = compare_images(ref + (a - b) / math.sqrt(2.0), ref, mask, box=box)["rel_rmse"]
+    if error is None or noise is None:
+        return None, None
+    noise = min(noise, error)
+    return math.sqrt(error**2 - noise**2), noise
+
+
 def error_map(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """Per-pixel relative error |a - b| / (mean(b) + eps) of the luminance, float32 (H, W)."""
     a, b, _ = _check(image, reference, None)

@@ -42,7 +42,9 @@ METRIC_DEFINITIONS = {
     "bias": "the part of rel_rmse that stays with noise-free passes (the technique's own approximation plus the"
     " reference's noise), from the error with passes at two sample counts (pass noise variance falling as"
     " 1 / samples)",
-    "pass_noise": "the part of rel_rmse that the passes' Monte Carlo noise adds: rel_rmse² = bias² + pass_noise²",
+    "pass_noise": "the part of rel_rmse that the passes' Monte Carlo noise adds: rel_rmse² = bias² + pass_noise²;"
+    " for a denoised Cycles row, the noise the denoiser leaves, from a second seed (the rest, its bias, is what"
+    " denoising changes)",
 }
 
 
