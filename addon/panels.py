@@ -91,6 +91,7 @@ class SSS_LAB_PT_main(_Panel, bpy.types.Panel):
         layout = split(self.layout)
         layout.prop(context.scene.sss_lab, "technique")
         layout.operator("sss_lab.scan_scene", icon="VIEWZOOM")
+        layout.operator("sss_lab.recommend", icon="LIGHT")
 
 
 class _Step(_Panel):

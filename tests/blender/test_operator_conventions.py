@@ -6,7 +6,7 @@ import bpy
 from sss_lab.core.techniques.registry import TECHNIQUES
 
 #: Operators that change no Blender data (they read the scene, or write files only): no undo step.
-NO_DATA_CHANGE = {"scan_scene", "compare", "export_profiles"}
+NO_DATA_CHANGE = {"scan_scene", "recommend", "compare", "export_profiles"}
 
 
 def _operators(addon):

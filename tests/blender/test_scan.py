@@ -243,3 +243,20 @@ def test_scan_writes_what_it_found_and_recommends_as_json(tmp_path, capsys):
     assert "material 'Skin' (pass index 1" in printed and choice["chosen"] in printed  # the same choice said
     assert main(args) == 2  # an existing --json without --overwrite
     assert "exists; refusing to overwrite it" in capsys.readouterr().err
+
+
+def test_the_panel_recommends_per_material_and_leaves_the_scene_as_it_was(addon, tmp_path, capfd):
+    from sss_lab.blender.samples import load_sample_scenes
+
+    blend = load_sample_scenes().build("head_frontlit", str(tmp_path / "head.blend"))
+    bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
+    scene = bpy.context.scene
+    scene.render.resolution_x = scene.render.resolution_y = 32
+    nodes = {m.name: len(m.node_tree.nodes) for m in bpy.data.materials if m.node_tree}
+    engine = scene.render.engine
+    capfd.readouterr()
+    assert bpy.ops.sss_lab.recommend(max_error=0.1) == {"FINISHED"}
+    printed = capfd.readouterr()
+    assert "Skin: use " in printed.out + printed.err  # the verdict, one line per material
+    assert (scene.render.resolution_x, scene.render.engine) == (32, engine)
+    assert {m.name: len(m.node_tree.nodes) for m in bpy.data.materials if m.node_tree} == nodes
