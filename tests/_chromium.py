@@ -286,6 +286,9 @@ _REPORT_PROBE = """(() => {
     images, svgs,
     smallest_font_px: Math.min(...texts.map((el) => parseFloat(getComputedStyle(el).fontSize))),
     text: document.body.innerText,
+    // What the first screen shows, before any scrolling.
+    first_screen: texts.filter((el) => el.getBoundingClientRect().top < window.innerHeight)
+      .map((el) => el.innerText).join(" | "),
   };
 })()"""
 

@@ -221,6 +221,129 @@ def _materials_read(data: dict) -> list[str]:
     return lines
 
 
+#: The verdict's error target: the cheapest technique within this share of the best one's error
+#: (``apply --method auto``'s default margin, ``core.pipeline.auto.DEFAULT_MAX_ERROR``).
+VERDICT_MARGIN = 0.1
+
+
+def _cost(e: dict) -> float | None:
+    """What a row's SSS effect costs (its own seconds, else end to end)."""
+    t = e.get("time_s", {})
+    for key in ("sss_effect", "apply", "total"):
+        if t.get(key) is not None:
+            return float(t[key])
+    return None
+
+
+def verdict(data: dict, margin: float = VERDICT_MARGIN) -> list[dict]:
+    """Per material (the whole of the subsurface pixels when there is one): the technique to use,
+    the cheapest whose error is within ``margin`` of the best technique's; what it removes of the
+    no-SSS error and what its SSS effect costs; the next cheaper and the next better technique;
+    whether its error is inside the reference's noise floor (cannot be told from it); and the peer
+    (a Cycles or EEVEE row) with the lowest error, with its end-to-end time."""
+    entries = data.get("entries", [])
+    techniques = [e for e in entries if e.get("kind") == "technique"]
+    none = next((e for e in entries if e.get("kind") == "baseline"), None)
+    if not techniques:
+        return []
+    scopes: list[str | None] = list(sorted(techniques[0].get("by_material") or {})) or [None]
+    floor = (data.get("noise_floor") or {}).get("rel_rmse")
+    out = []
+    for scope in scopes:
+        errors = {e["name"]: _scope_error(e, scope) for e in entries}
+        base = errors.get(none["name"]) if none is not None else None
+        # name -> (error, cost) of every technique row measured on this scope.
+        rows: dict[str, tuple[float, float]] = {}
+        for e in techniques:
+            err, cost = errors[e["name"]], _cost(e)
+            if err is not None and cost is not None:
+                rows[e["name"]] = (err, cost)
+        if not rows:
+            continue
+        best = min(err for err, _ in rows.values())
+        use = min((n for n, (err, _) in rows.items() if err <= best * (1 + margin)), key=lambda n: rows[n][::-1])
+        err_use, cost_use = rows[use]
+
+        def described(name: str | None, cost: float | None = None, base=base, errors=errors, rows=rows) -> dict | None:
+            if name is None:
+                return None
+            err = errors[name]
+            return {
+                "name": name,
+                "rel_rmse": err,
+                "removed": None if not base or err is None else 1.0 - err / base,
+                "cost_s": rows[name][1] if cost is None else cost,
+            }
+
+        cheaper = [n for n, (_, c) in rows.items() if c < cost_use]
+        better = [n for n, (err, _) in rows.items() if err < err_use]
+        peers: dict[str, tuple[float, float, str]] = {}
+        for e in entries:
+            err = errors[e["name"]]
+            if e.get("kind") in ("cycles", "eevee") and err is not None:
+                peers[e["name"]] = (err, float((e.get("time_s") or {}).get("total") or 0.0), str(e.get("kind")))
+        peer = min(peers, key=lambda n: peers[n][0]) if peers else None
+        out.append(
+            {
+                "material": scope or "every subsurface material",
+                "use": described(use),
+                "margin": margin,
+                "within_noise_floor": floor is not None and err_use <= floor,
+                "next_cheaper": described(min(cheaper, key=lambda n: rows[n][0]) if cheaper else None),
+                "next_better": described(min(better, key=lambda n: rows[n][::-1]) if better else None),
+                "peer": None if peer is None else {**(described(peer, peers[peer][1]) or {}), "kind": peers[peer][2]},
+            }
+        )
+    return out
+
+
+def _scope_error(e: dict, scope: str | None) -> float | None:
+    """A row's rel_rmse over the subsurface pixels (``scope`` None) or one material's."""
+    m = (e.get("by_material") or {}).get(scope) if scope is not None else e.get("metrics")
+    value = None if m is None else m.get("rel_rmse")
+    return None if value is None else float(value)
+
+
+def _verdict_lines(data: dict) -> list[str]:
+    items = data.get("verdict") or []
+    if not items:
+        return []
+
+    def pct(v):
+        return "n/a" if v is None else f"{100 * v:.0f} %"
+
+    def ms(v):
+        return "n/a" if v is None else (f"{1000 * v:.0f} ms" if v < 1 else f"{v:.2f} s")
+
+    lines = [
+        "## Verdict",
+        "",
+        f"Per material, the cheapest technique whose error is within {100 * VERDICT_MARGIN:.0f} % of the best"
+        " technique's (what `apply --method auto` keeps), what it removes of the no-SSS error and what its SSS"
+        " effect costs:",
+        "",
+    ]
+    for v in items:
+        u = v["use"]
+        text = (
+            f"- **{v['material']}: use {u['name']}**: removes {pct(u['removed'])} of the no-SSS error"
+            f" (rel. RMSE {_fmt(u['rel_rmse'])}), its SSS effect {ms(u['cost_s'])}."
+        )
+        if v["within_noise_floor"]:
+            text += " Inside the noise floor: the reference's own noise is as large."
+        if v["next_cheaper"]:
+            c = v["next_cheaper"]
+            text += f" Cheaper: {c['name']} removes {pct(c['removed'])} in {ms(c['cost_s'])}."
+        if v["next_better"]:
+            b = v["next_better"]
+            text += f" Better: {b['name']} removes {pct(b['removed'])} in {ms(b['cost_s'])}."
+        if v["peer"]:
+            p = v["peer"]
+            text += f" Best peer: {p['name']} removes {pct(p['removed'])}, {ms(p['cost_s'])} end to end."
+        lines.append(text)
+    return lines + [""]
+
+
 def _markdown(data: dict) -> str:
     s = data.get("settings", {})
     lines = [
@@ -231,6 +354,7 @@ def _markdown(data: dict) -> str:
     ]
     if not data.get("complete", False):
         lines += ["**This report is incomplete:** " + "; ".join(data.get("notes", [])), ""]
+    lines += _verdict_lines(data)
     lines += [
         f"- Reference: Cycles {s.get('reference_method', 'RANDOM_WALK')}, {s.get('reference_samples')} samples,"
         + (
@@ -272,12 +396,17 @@ def _markdown(data: dict) -> str:
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     front = set(data.get("pareto", []))
+    floor = (data.get("noise_floor") or {}).get("rel_rmse")
     for e in data.get("entries", []):
         m, t = e["metrics"], e["time_s"]
+        inside = floor is not None and m.get("rel_rmse") is not None and m["rel_rmse"] <= floor
+        mark = "; ".join(
+            x for x in ("yes" if e["name"] in front else "", "inside the noise floor" if inside else "") if x
+        )
         lines.append(
             f"| {e['name']} | {e['kind']} | {_fmt(m.get('rel_rmse'))} | {_fmt(m.get('bias'))} |"
             f" {_fmt(m.get('pass_noise'))} | {_fmt(m.get('rmse'))} | {_fmt(m.get('ssim'))}"
-            f" | {_fmt(t.get('total'), 3)} | {_fmt(t.get('sss_effect'), 3)} | {'yes' if e['name'] in front else ''} |"
+            f" | {_fmt(t.get('total'), 3)} | {_fmt(t.get('sss_effect'), 3)} | {mark} |"
         )
     lines += _per_material(data.get("entries", []))
     lines += _materials_read(data)
@@ -455,6 +584,7 @@ def write_report(
     data["version"] = REPORT_VERSION
     data["metric_definitions"] = METRIC_DEFINITIONS
     data["pareto"] = pareto_front(data.get("entries", []))
+    data["verdict"] = verdict(data)
     img_dir = os.path.join(out_dir, "images")
     ref = images[reference]
     names = order or list(images)

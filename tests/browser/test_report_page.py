@@ -87,6 +87,13 @@ def test_report_page_loads_every_picture_and_reads_at_phone_and_desktop_widths(r
         assert len(page["images"]) == 2 * len(data["entries"]) + 2, name  # image + error map each, reference, grid
         assert page["svgs"][0]["circles"] == len(data["entries"]) == 9, name
         assert "This report is incomplete" in page["text"] and "Pareto" in page["text"], name
+        # The first screen answers which technique, at what error and cost, and what else was measured.
+        first = page["first_screen"]
+        assert "Verdict" in first and "use Burley samples=32" in first, (name, first)
+        assert "removes 74 % of the no-SSS error" in first and "Best peer: Cycles Christensen-Burley" in first, (
+            name,
+            first,
+        )
         width, height = _png_size(page["screenshot"])
         assert width == round(viewport["width"] * viewport["scale"]) and height > width / 2, (name, width, height)
 
