@@ -56,8 +56,50 @@ def end(scene) -> bool:
     return True
 
 
+#: Notes already printed per scene (a note repeats on every frame of an animation otherwise).
+_said: dict[int, set[str]] = {}
+
+
+def follow_frame(scene) -> list[str]:
+    """Bring the compositor's SSS Lab groups to ``scene`` at its current frame (lights and camera as
+    animated, ``nodes.setup.follow_scene``); returns its notes. Nothing to do without such groups."""
+    from ..blender import compat
+    from ..blender.compositor import screen_scales
+    from ..blender.describe import describe_scene, sss_materials
+    from ..blender.stored import KEPT_WEIGHT
+    from ..nodes.setup import follow_scene
+
+    if not uses_node_groups(scene):
+        return []
+    tree = compat.compositor_tree(scene)
+    if tree is None:
+        return []
+    materials = sss_materials(scene, kept_weight=lambda mat: mat.get(KEPT_WEIGHT))
+    desc = describe_scene(scene, materials)
+    return follow_scene(tree, desc, screen_scales(scene, desc))
+
+
+def _follow(scene) -> None:
+    """The groups follow the scene's animated lights and camera (``follow_frame``), each note said once."""
+    try:
+        notes = follow_frame(scene)
+    except ValueError as exc:  # a scene the description cannot be made of at this frame
+        notes = [str(exc)]
+    said = _said.setdefault(scene.as_pointer(), set())
+    for note in notes:
+        if note not in said:
+            said.add(note)
+            print(f"SSS Lab: {note}")
+
+
+@persistent
+def _on_frame_change(scene, *_args):
+    _follow(scene)
+
+
 @persistent
 def _on_render_init(scene, *_args):
+    _follow(scene)  # a light moved since the set-up, on this very frame
     try:
         changed = begin(scene)
     except ValueError as exc:  # e.g. a linked material: render as it is, and say why
@@ -75,7 +117,12 @@ def _on_render_end(scene, *_args):
     end(scene)
 
 
-_HANDLERS = (("render_init", _on_render_init), ("render_complete", _on_render_end), ("render_cancel", _on_render_end))
+_HANDLERS = (
+    ("render_init", _on_render_init),
+    ("render_complete", _on_render_end),
+    ("render_cancel", _on_render_end),
+    ("frame_change_post", _on_frame_change),
+)
 
 
 def register_handlers() -> None:

@@ -130,6 +130,18 @@ class PreparedScene:
     warnings: list = field(default_factory=list)
 
 
+def screen_scales(scene, desc: SceneDescription) -> dict[int, float]:
+    """Material pass index -> pixels per scene unit at the material's depth (its objects' centres in
+    front of the camera, ``material_depths``) for the camera of ``desc``."""
+    scale = {}
+    depths = material_depths(scene, desc.camera)
+    for m in desc.materials:
+        if m.name in depths:
+            z = np.array([[depths[m.name]]], np.float32)
+            scale[m.index] = float(desc.camera.pixels_per_unit(z)[0, 0])
+    return scale
+
+
 def prepare_scene(
     scene, *, passes: tuple[str, ...], per_material: bool, unmodelled: list[str], view_layer=None
 ) -> PreparedScene:
@@ -178,13 +190,7 @@ def prepare_scene(
         f"at render time the {len(materials)} subsurface material(s) render as plain diffuse (Subsurface Weight 0) "
         "and get their weights back after the render"
     )
-    scale = {}
-    if per_material:
-        depths = material_depths(scene, desc.camera)
-        for m in materials:
-            if m.name in depths:
-                z = np.array([[depths[m.name]]], np.float32)
-                scale[m.index] = float(desc.camera.pixels_per_unit(z)[0, 0])
+    scale = screen_scales(scene, desc) if per_material else {}
     return PreparedScene(
         layer=layer,
         desc=desc,

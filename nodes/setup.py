@@ -19,6 +19,7 @@ import numpy as np
 
 from ..blender import compat
 from ..core.pipeline import mapping
+from ..core.pipeline.fit_params import fitted
 from ..core.scene.passes import THICKNESS
 from ..core.scene.scene import SceneDescription
 from ..core.techniques.registry import TECHNIQUES, check_technique
@@ -163,6 +164,12 @@ def _add_sta(tree, source, current, scene, options, pixels_per_unit, x, y, notes
     lights = [light for light in scene.lights if light.energy > 0]
     if not lights:
         notes.append("STA: the scene has no light with energy > 0: nothing to add")
+    for m in materials:
+        if fitted(m.fit, "sta"):
+            notes.append(
+                f"{m.name}: its fitted STA scale is not applied by the node group (one scale for every material,"
+                " the panel's); Apply applies it"
+            )
     cam = scene.camera
     for k, light in enumerate(lights):
         node = tree.nodes.new(compat.COMPOSITOR_GROUP_NODE)
@@ -177,18 +184,61 @@ def _add_sta(tree, source, current, scene, options, pixels_per_unit, x, y, notes
             if socket.name in options:
                 _set(node, socket.name, float(options[socket.name]))
         node.inputs["thickness_convention"].default_value = scene.thickness_convention
-        node.inputs["light_type"].default_value = light.type
-        _set(node, "light_direction", light.direction)
-        _set(node, "light_position", light.position)
-        _set(node, "light_color", light.color)
-        _set(node, "light_energy", float(light.energy))
-        _set(node, "light_spot_size", float(light.spot_size))
-        _set(node, "light_spot_blend", float(light.spot_blend))
-        node.inputs["camera_type"].default_value = cam.type
-        _set(node, "camera_position", cam.position)
-        _set(node, "camera_forward", cam.forward)
+        node[LIGHT_KEY] = light.name  # what ``follow_scene`` updates it from, frame by frame
+        _set_light(node, light, cam)
         current = node.outputs["Image"]
     return current
+
+
+#: Custom property of an STA group node: the name of the light it models.
+LIGHT_KEY = "sss_lab_light"
+#: Custom properties of an SSSS or Burley group node: its material's pass index and the screen
+#: scale its kernel was built for (pixels per scene unit).
+MATERIAL_KEY = "sss_lab_material"
+SCALE_KEY = "sss_lab_pixels_per_unit"
+#: How far a material's screen scale may move from the one its kernel was built for before
+#: ``follow_scene`` says so (the kernel's footprint in pixels is off by as much).
+SCALE_TOLERANCE = 0.05
+
+
+def _set_light(node, light, cam) -> None:
+    node.inputs["light_type"].default_value = light.type
+    _set(node, "light_direction", light.direction)
+    _set(node, "light_position", light.position)
+    _set(node, "light_color", light.color)
+    _set(node, "light_energy", float(light.energy))
+    _set(node, "light_spot_size", float(light.spot_size))
+    _set(node, "light_spot_blend", float(light.spot_blend))
+    node.inputs["camera_type"].default_value = cam.type
+    _set(node, "camera_position", cam.position)
+    _set(node, "camera_forward", cam.forward)
+
+
+def follow_scene(tree, scene: SceneDescription, pixels_per_unit: Mapping[int, float] | None = None) -> list[str]:
+    """Bring the groups of ``tree`` to the scene as it is now (``scene``: its description at this
+    frame): each STA group takes its light's and the camera's current values (a light gone or
+    without energy adds nothing); an SSSS or Burley group's kernel is built for a screen scale,
+    so where a material's ``pixels_per_unit`` moved more than ``SCALE_TOLERANCE`` from it a note
+    says so. Returns the notes (none when everything followed)."""
+    notes = []
+    lights = {light.name: light for light in scene.lights}
+    for node in _tagged(tree):
+        if LIGHT_KEY in node.keys():
+            light = lights.get(node[LIGHT_KEY])
+            if light is None or light.energy <= 0:
+                _set(node, "light_energy", 0.0)
+                notes.append(f"STA: light {node[LIGHT_KEY]!r} is gone or has no energy at this frame: it adds nothing")
+                continue
+            _set_light(node, light, scene.camera)
+        elif SCALE_KEY in node.keys() and pixels_per_unit is not None:
+            built, now = float(node[SCALE_KEY]), pixels_per_unit.get(int(node[MATERIAL_KEY]))
+            if now is not None and built > 0 and abs(now / built - 1.0) > SCALE_TOLERANCE:
+                notes.append(
+                    f"{node.name}: its kernel was built for {built:.4g} pixels per unit, the material is at"
+                    f" {now:.4g} now (the camera or the object moved): set up the compositor again at this"
+                    " frame, or use Apply, for the right width"
+                )
+    return notes
 
 
 def _sta_unmodelled(options: Mapping) -> list[str]:
@@ -212,6 +262,18 @@ def _scatter_adder(technique: str, ensure: Callable) -> Callable:
                 notes.append(f"{material.name}: no screen scale (no visible object in front of the camera): left out")
                 continue
             d_su = mapping.burley_d(material, mapping=options.get("mapping"))
+            fit = fitted(material.fit, technique)
+            if "d_scale" in fit:
+                d_su = tuple(v * float(fit["d_scale"]) for v in d_su)
+                notes.append(
+                    f"{material.name}: the {technique} node group uses its fitted width (x{fit['d_scale']:.3g})"
+                )
+            if "gain" in fit:
+                gain = ", ".join(f"{float(g):.3g}" for g in fit["gain"])
+                notes.append(
+                    f"{material.name}: its fitted gain ({gain}) is not applied by the {technique} node group;"
+                    " Apply applies it"
+                )
             if material.per_pixel:
                 # The group's kernel is built once from numbers; the AOVs it would need per pixel
                 # are not rendered for the compositor.
@@ -231,6 +293,7 @@ def _scatter_adder(technique: str, ensure: Callable) -> Callable:
             node = tree.nodes.new(compat.COMPOSITOR_GROUP_NODE)
             node.node_tree = group
             _tag(node, technique, name, (x + 350 + 260 * k, y))
+            node[MATERIAL_KEY], node[SCALE_KEY] = material.index, float(pixels_per_unit[material.index])
             tree.links.new(current, node.inputs["Image"])
             for name_in in ("diffuse", "diffuse_indirect", "albedo"):
                 tree.links.new(_pass(source, PASS_INPUTS[name_in]), node.inputs[name_in])

@@ -19,6 +19,8 @@ from ..nodes import setup as chain
 TECHNIQUE_ITEMS = [("PANEL", "From Panel", "The technique chosen in the SSS Lab panel")] + [
     (name, t.label, t.description) for name, t in TECHNIQUES.items()
 ]
+#: Set Up Compositor offers only the techniques that have node groups (``nodes.setup.BUILDERS``).
+COMPOSITOR_ITEMS = [TECHNIQUE_ITEMS[0]] + [item for item in TECHNIQUE_ITEMS[1:] if item[0] in chain.BUILDERS]
 
 
 def setup_compositor(scene, technique: str, *, options: dict | None = None, view_layer=None) -> dict:
@@ -69,7 +71,7 @@ class SSS_LAB_OT_setup_compositor(bpy.types.Operator):
     bl_label = "Set Up Compositor"
     bl_options = {"REGISTER", "UNDO"}
 
-    technique: bpy.props.EnumProperty(name="Technique", items=TECHNIQUE_ITEMS, default="PANEL", options={"SKIP_SAVE"})
+    technique: bpy.props.EnumProperty(name="Technique", items=COMPOSITOR_ITEMS, default="PANEL", options={"SKIP_SAVE"})
 
     @classmethod
     def poll(cls, context):

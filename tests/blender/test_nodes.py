@@ -727,3 +727,80 @@ def test_the_groups_say_what_they_cannot_read_per_pixel(addon, tmp_path, techniq
     assert any(n.startswith("Skin: base color, subsurface scale linked") and "per pixel" in n for n in notes)
     assert any(n.startswith("Wax: Subsurface Weight 0.5") and "mixes it by the weight" in n for n in notes)
     assert len(notes) == 2
+
+
+def test_an_animated_lights_sta_group_follows_it_frame_by_frame(addon, tmp_path):
+    """A sun turning 120 degrees between frames 1 and 3: the STA group set up at frame 1 takes the
+    sun's frame-3 direction when the scene reaches frame 3 (the add-on's frame handler) and then
+    matches ``apply`` on frame 3 within the STA tolerance above; without following, frame 1's
+    light would be off by far more."""
+    from sss_lab.blender.describe import describe_scene
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = W, H, 100
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam  # at the origin looking down -Z, as the passes' CAMERA
+    mat = bpy.data.materials.new("Skin")
+    compat.ensure_node_tree(mat)
+    mat.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
+    mesh = bpy.data.meshes.new("Skin")
+    mesh.from_pydata([(-1, -1, -2), (1, -1, -2), (0, 1, -2)], [], [(0, 1, 2)])
+    mesh.materials.append(mat)
+    scene.collection.objects.link(bpy.data.objects.new("Skin", mesh))
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy = 3.0
+    scene.collection.objects.link(sun)
+    for frame, angle in ((1, 0.9), (3, 0.9 - 2 / 3)):  # a 120 degree turn about X
+        sun.rotation_euler = (math.pi * angle, 0.0, 0.0)
+        sun.keyframe_insert("rotation_euler", frame=frame)
+    scene.frame_set(1)
+    lights1 = describe_scene(scene).lights
+
+    arrays = _passes(_two_materials(), seed=1)
+    desc = SceneDescription(camera=describe_scene(scene).camera, lights=lights1, materials=(SKIN, WAX))
+    path = _write(tmp_path, arrays)
+    tree, result = _tree(scene)
+    src = _source(tree, path)
+    options = {"distortion": 0.3, "power": 3.0, "scale": 2.0, "ambient": 0.05}
+    out, notes = build_chain(tree, src, image=src.outputs["Combined"], technique="sta", scene=desc, options=options)
+    assert not notes
+    tree.links.new(out, result)
+
+    scene.frame_set(3)
+    lights3 = describe_scene(scene).lights
+    (node,) = [n for n in tree.nodes if n.get(NODE_TAG) == "sta" and "sss_lab_light" in n.keys()]
+    np.testing.assert_allclose(node.inputs["light_direction"].default_value, lights3[0].direction, atol=1e-6)
+    got = _render(tmp_path)
+    numpy_opts = {**options, "falloff": "map"}
+    want = apply(read_passes(path), dataclasses.replace(desc, lights=lights3), "sta", **numpy_opts)
+    want = want["SSSLab.sta.Image"][..., :3]
+    stale = apply(read_passes(path), desc, "sta", **numpy_opts)["SSSLab.sta.Image"][..., :3]
+    term = want - arrays["Combined"][..., :3]
+    on = arrays["Material Index"] > 0
+    assert term[on].max() > 0.01  # the sun reaches the surface at frame 3
+    tol = 1e-4 * np.abs(term) + 1e-6 * term.max()
+    assert np.abs(stale - want)[on].max() > 100 * tol[on].max()  # frame 1's light is far off
+    assert np.all(np.abs(got - want) <= tol), float(np.abs(got - want).max())
+
+
+def test_a_fitted_material_and_a_moved_camera_are_said_not_silently_ignored(tmp_path):
+    """The groups use a fitted width, say that the fitted gain is Apply's alone, and say when a
+    material's screen scale moved from the one its kernel was built for."""
+    from sss_lab.nodes.setup import follow_scene
+
+    fitted = dataclasses.replace(SKIN, fit={"ssss": {"d_scale": 2.0, "gain": (1.1, 1.0, 0.9)}})
+    desc = _desc(fitted, WAX)
+    tree, _ = _tree(bpy.context.scene)
+    src = _source(tree, _write(tmp_path, _passes(_two_materials())))
+    scale = {1: SCALE, 2: SCALE}
+    _, notes = build_chain(
+        tree, src, image=src.outputs["Combined"], technique="ssss", scene=desc, pixels_per_unit=scale
+    )
+    assert "Skin: the ssss node group uses its fitted width (x2)" in notes
+    assert any(n.startswith("Skin: its fitted gain (1.1, 1, 0.9) is not applied") for n in notes), notes
+    assert follow_scene(tree, desc, scale) == []
+    moved = follow_scene(tree, desc, {1: SCALE * 1.2, 2: SCALE * 1.01})
+    assert len(moved) == 1 and "SSS Lab SSSS Skin" in moved[0] and "set up the compositor again" in moved[0]

@@ -28,10 +28,14 @@ def test_every_operator_has_a_one_line_tooltip_and_undo_where_it_changes_data(ad
 
 
 def test_apply_and_set_up_take_the_technique_from_a_dropdown(addon):
-    for name in ("apply", "setup_compositor"):
+    from sss_lab.nodes.setup import BUILDERS
+
+    for name, offered in (("apply", list(TECHNIQUES)), ("setup_compositor", [t for t in TECHNIQUES if t in BUILDERS])):
         prop = getattr(bpy.ops.sss_lab, name).get_rna_type().properties["technique"]
         assert prop.type == "ENUM" and prop.default == "PANEL", name
-        assert [item.identifier for item in prop.enum_items] == ["PANEL", *TECHNIQUES], name
+        assert [item.identifier for item in prop.enum_items] == ["PANEL", *offered], name
+    # Set Up Compositor offers only what it can build (the combined technique has no node groups).
+    assert "combined" not in BUILDERS and "combined" in TECHNIQUES
 
 
 #: The Render tab's SSS Lab panels, top to bottom: the workflow's order.
