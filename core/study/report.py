@@ -428,6 +428,8 @@ def _markdown(data: dict) -> str:
         for row in costs["techniques"]:
             lines.append(f"| {row['name']} | {_fmt(row['sss_effect_s'], 3)} | {_fmt(row['end_to_end_s'], 3)} |")
     lines += ["", "![error against time](pareto.svg)", "", "![images](grid.png)", ""]
+    if data.get("summary"):
+        lines += ["![summary](summary.png)", ""]
     grid = data.get("grid")
     if grid:
         white = _fmt(grid["error_scale_white"], 3)
@@ -496,7 +498,7 @@ def _html_cell(text: str, tag: str = "td") -> str:
     m = _MD_IMAGE.fullmatch(text)
     if m:
         alt, src = (html.escape(g, quote=True) for g in m.groups())
-        return f'<{tag}><img src="{src}" alt="{alt}" width="128"></{tag}>'
+        return f'<{tag}><a href="{src}"><img src="{src}" alt="{alt}" width="128"></a></{tag}>'
     return f"<{tag}>{html.escape(text)}</{tag}>"
 
 
@@ -509,7 +511,47 @@ _STYLE = (
     "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right;vertical-align:top}"
     "th{background:#f4f4f4}td:first-child,th:first-child{text-align:left}"
     "img{image-rendering:pixelated}.wide>svg{display:block}"
+    ".stage{position:relative;display:inline-block;cursor:zoom-in}.stage img{display:block;width:256px}"
+    ".stage img.over{position:absolute;left:0;top:0}.stage.zoomed{cursor:zoom-out}.stage.zoomed img{width:1024px}"
 )
+
+
+#: The before/after viewer: one image over the reference, a slider that shows more of one or the
+#: other, and a click that zooms (pixelated) or zooms back out. Plain JavaScript, no dependency.
+_VIEWER_SCRIPT = """
+(function () {
+  const v = document.getElementById('viewer'); if (!v) return;
+  const pick = v.querySelector('select'), slider = v.querySelector('input[type=range]');
+  const top = v.querySelector('img.over'), stage = v.querySelector('.stage');
+  function show() {
+    top.src = pick.value;
+    top.style.clipPath = 'inset(0 ' + (100 - slider.value) + '% 0 0)';
+  }
+  pick.addEventListener('change', show); slider.addEventListener('input', show);
+  stage.addEventListener('click', function () { stage.classList.toggle('zoomed'); });
+  show();
+})();
+"""
+
+
+def _viewer(data: dict) -> str:
+    """The viewer's HTML (``_VIEWER_SCRIPT``): the entries with a picture against the reference."""
+    ref = data.get("reference_image")
+    pictures = [e for e in data.get("entries", []) if e.get("image")]
+    if not ref or not pictures:
+        return ""
+    options = "".join(
+        f'<option value="{html.escape(e["image"], quote=True)}">{html.escape(e["name"])}</option>' for e in pictures
+    )
+    src = html.escape(ref, quote=True)
+    return (
+        "<h2>Before and after</h2><p>Pick an image: left of the slider it, right of it the reference. Click to zoom."
+        f'</p><div id="viewer"><p><select aria-label="image">{options}</select> '
+        '<input type="range" min="0" max="100" value="50" aria-label="split"></p>'
+        f'<div class="wide"><div class="stage"><img class="under" src="{src}" alt="reference">'
+        f'<img class="over" src="{html.escape(pictures[0]["image"], quote=True)}" alt="compared"></div></div></div>'
+        f"<script>{_VIEWER_SCRIPT}</script>"
+    )
 
 
 def _html(data: dict, svg: str) -> str:
@@ -549,7 +591,10 @@ def _html(data: dict, svg: str) -> str:
         elif line.startswith("![error"):
             body.append(f'<div class="wide">{svg}</div>')
         elif line.startswith("![images]"):
-            body.append('<div class="wide"><img src="grid.png" alt="images"></div>')
+            body.append('<div class="wide"><a href="grid.png"><img src="grid.png" alt="images"></a></div>')
+            body.append(_viewer(data))
+        elif line.startswith("![summary]"):
+            body.append('<div class="wide"><a href="summary.png"><img src="summary.png" alt="summary"></a></div>')
         elif line.strip():
             body.append(f"<p>{_html_text(line)}</p>")
     open_block("")

@@ -84,7 +84,8 @@ def test_report_page_loads_every_picture_and_reads_at_phone_and_desktop_widths(r
     # The checks looked at something: every picture, a plot with a dot per measured entry, the text.
     for name, viewport in report_page.viewports.items():
         page = seen[name]
-        assert len(page["images"]) == 2 * len(data["entries"]) + 2, name  # image + error map each, reference, grid
+        # image + error map each, reference, grid, and the before/after viewer's two
+        assert len(page["images"]) == 2 * len(data["entries"]) + 4, name
         assert page["svgs"][0]["circles"] == len(data["entries"]) == 9, name
         assert "This report is incomplete" in page["text"] and "Pareto" in page["text"], name
         # The first screen answers which technique, at what error and cost, and what else was measured.
@@ -108,3 +109,30 @@ def test_a_missing_picture_is_caught(report_page, tmp_path):
     assert page["failed"] and any("grid.png" in line for line in page["console"]), page["console"]
     problems = report_page.problems(str(tmp_path / "report"), seen)
     assert "desktop: picture did not load: grid.png" in problems and "phone: picture did not load: grid.png" in problems
+
+
+def test_every_picture_links_to_its_full_size_and_the_viewer_slides_and_zooms(chromium, tmp_path):
+    folder = tmp_path / "report"
+    data = _comparison_like(folder)
+    page = chromium.open("file://" + str(folder / "report.html"), width=1280, height=900)
+    unlinked = page.evaluate(
+        "Array.from(document.images).filter((i) => !i.closest('#viewer') &&"
+        " !(i.closest('a') && i.closest('a').getAttribute('href') === i.getAttribute('src'))).length"
+    )
+    assert unlinked == 0
+    pick = data["entries"][3]
+    clip = page.evaluate(
+        f"(() => {{ const v = document.getElementById('viewer'); const s = v.querySelector('select');"
+        f" s.value = {pick['image']!r}; s.dispatchEvent(new Event('change'));"
+        " const r = v.querySelector('input[type=range]'); r.value = 30; r.dispatchEvent(new Event('input'));"
+        " const o = v.querySelector('img.over'); return [o.getAttribute('src'), o.style.clipPath]; })()"
+    )
+    assert clip == [pick["image"], "inset(0px 70% 0px 0px)"]
+    widths = page.evaluate(
+        "(() => { const st = document.querySelector('#viewer .stage'); const w0 = st.getBoundingClientRect().width;"
+        " st.click(); const w1 = st.getBoundingClientRect().width; st.click();"
+        " return [w0, w1, st.getBoundingClientRect().width]; })()"
+    )
+    assert widths[1] == 4 * widths[0] and widths[2] == widths[0]
+    assert page.console == [] and page.failed == []
+    page.send("Page.close")
