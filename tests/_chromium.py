@@ -335,6 +335,8 @@ def report_problems(folder: str, seen: dict) -> list[str]:
     with open(os.path.join(folder, "metrics.json"), encoding="utf-8") as fh:
         data = json.load(fh)
     wanted = {data["grid"]["file"], data["reference_image"]}
+    if data.get("summary"):
+        wanted.add(data["summary"]["file"])
     for e in data["entries"]:
         wanted |= {e[k] for k in ("image", "error_image") if e.get(k)}
     plotted = [e for e in data["entries"] if e["metrics"].get("rel_rmse") is not None and e["time_s"].get("total")]

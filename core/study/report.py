@@ -48,12 +48,20 @@ METRIC_DEFINITIONS = {
 }
 
 
+def pareto_cost(e: dict) -> float | None:
+    """An entry's cost on the Pareto plot: what its SSS effect costs, a technique's own run (the
+    median of its timed runs) where it is measured, else its whole render (a Cycles or EEVEE peer
+    gives its subsurface scattering only with the render)."""
+    t = e.get("time_s", {})
+    return t.get("sss_effect") if t.get("sss_effect") is not None else t.get("total")
+
+
 def pareto_front(entries: list[dict], *, error_key: str = "rel_rmse") -> list[str]:
-    """Names of the entries that no other entry beats on both time and error."""
+    """Names of the entries that no other entry beats on both cost (``pareto_cost``) and error."""
     pts = [
-        (e["time_s"]["total"], e["metrics"][error_key], e["name"])
+        (pareto_cost(e), e["metrics"][error_key], e["name"])
         for e in entries
-        if e.get("metrics", {}).get(error_key) is not None and e.get("time_s", {}).get("total") is not None
+        if e.get("metrics", {}).get(error_key) is not None and pareto_cost(e) is not None
     ]
     pts.sort()
     front, best = [], math.inf
@@ -126,12 +134,13 @@ def place_labels(points, texts, bounds) -> list[tuple[float, float, str, bool]]:
 
 
 def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, height: int = 400) -> str:
-    """Relative RMSE (y) against total time (x, log scale) as an SVG document."""
-    pts = [e for e in entries if e["metrics"].get("rel_rmse") is not None and e["time_s"].get("total")]
+    """Relative RMSE (y) against the SSS effect's cost (x, ``pareto_cost``, log scale) as an SVG
+    document; a technique's cost drawn with the spread of its timed runs."""
+    pts = [e for e in entries if e["metrics"].get("rel_rmse") is not None and pareto_cost(e)]
     left, right, top, bottom = 70, 20, 20, 50
     if not pts:
         return f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}"></svg>'
-    times = [max(e["time_s"]["total"], 1e-6) for e in pts]
+    times = [max(float(pareto_cost(e) or 0.0), 1e-6) for e in pts]
     errs = [e["metrics"]["rel_rmse"] for e in pts]
     lx0, lx1 = math.log10(min(times)) - 0.1, math.log10(max(times)) + 0.1
     y1 = max(errs) * 1.1 or 1.0
@@ -146,11 +155,12 @@ def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, heigh
     out = [
         f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {width} {height}"'
         ' font-family="sans-serif" font-size="12" role="img">',
-        "<title>Relative RMSE against time; the Pareto front is joined</title>",
+        "<title>Relative RMSE against the cost of the SSS effect; the Pareto front is joined</title>",
         f'<rect x="0" y="0" width="{width}" height="{height}" fill="white"/>',
         f'<line x1="{left}" y1="{height - bottom}" x2="{width - right}" y2="{height - bottom}" stroke="black"/>',
         f'<line x1="{left}" y1="{top}" x2="{left}" y2="{height - bottom}" stroke="black"/>',
-        f'<text x="{(left + width - right) / 2}" y="{height - 12}" text-anchor="middle">time, seconds (log)</text>',
+        f'<text x="{(left + width - right) / 2}" y="{height - 12}" text-anchor="middle">'
+        "cost of the SSS effect, seconds (log): a technique's run, a peer's render</text>",
         f'<text x="14" y="{(top + height - bottom) / 2}" text-anchor="middle" '
         f'transform="rotate(-90 14 {(top + height - bottom) / 2})">relative RMSE</text>',
     ]
@@ -171,9 +181,16 @@ def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, heigh
     by_name = {e["name"]: e for e in pts}
     chain = [by_name[n] for n in front if n in by_name]
     if len(chain) > 1:
-        path = " ".join(f"{sx(e['time_s']['total']):.1f},{sy(e['metrics']['rel_rmse']):.1f}" for e in chain)
+        path = " ".join(f"{sx(pareto_cost(e)):.1f},{sy(e['metrics']['rel_rmse']):.1f}" for e in chain)
         out.append(f'<polyline points="{path}" fill="none" stroke="#2ca02c" stroke-width="1.5"/>')
-    xy = [(sx(e["time_s"]["total"]), sy(e["metrics"]["rel_rmse"])) for e in pts]
+    xy = [(sx(pareto_cost(e)), sy(e["metrics"]["rel_rmse"])) for e in pts]
+    for e, (_, y) in zip(pts, xy, strict=True):  # the spread of a technique's timed runs
+        spread = e["time_s"].get("sss_effect_spread")
+        if spread and spread[1] > spread[0] > 0:
+            out.append(
+                f'<line x1="{sx(spread[0]):.1f}" y1="{y:.1f}" x2="{sx(spread[1]):.1f}" y2="{y:.1f}" stroke="#1f77b4"'
+                ' stroke-width="1"/>'
+            )
     labels = place_labels(xy, [e["name"] for e in pts], (left, top, width - right, height - bottom))
     for e, (x, y), (tx, ty, anchor, leader) in zip(pts, xy, labels, strict=True):
         colour = colours.get(str(e.get("kind")), "black")

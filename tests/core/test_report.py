@@ -140,3 +140,19 @@ def test_the_report_says_how_each_material_was_read(tmp_path):
     assert f"- **Skin**: {notes[0]}; {notes[1]}." in md
     assert "**Wax**" not in md
     assert "<h2>Materials as read</h2>" in (tmp_path / "report.html").read_text()
+
+
+def test_the_pareto_cost_is_the_sss_effects_own_with_its_spread(tmp_path):
+    """A technique's cost is its own run (the median of its timed runs), not the passes' render
+    that every technique shares; a peer's is its whole render."""
+    from sss_lab.core.study.report import pareto_cost, pareto_svg
+
+    fast = {"name": "Burley 8", "kind": "technique", "metrics": {"rel_rmse": 0.10}}
+    fast["time_s"] = {"total": 0.34, "sss_effect": 0.002, "sss_effect_spread": [0.0018, 0.0031]}
+    slow = {"name": "Burley 64", "kind": "technique", "metrics": {"rel_rmse": 0.09}}
+    slow["time_s"] = {"total": 0.35, "sss_effect": 0.012, "sss_effect_spread": [0.011, 0.013]}
+    peer = {"name": "Cycles 16 spp", "kind": "cycles", "metrics": {"rel_rmse": 0.05}, "time_s": {"total": 0.5}}
+    assert [pareto_cost(e) for e in (fast, slow, peer)] == [0.002, 0.012, 0.5]
+    assert pareto_front([fast, slow, peer]) == ["Burley 8", "Burley 64", "Cycles 16 spp"]
+    svg = pareto_svg([fast, slow, peer], ["Burley 8", "Burley 64", "Cycles 16 spp"])
+    assert "cost of the SSS effect" in svg and svg.count('stroke="#1f77b4"') == 2  # one spread bar each
