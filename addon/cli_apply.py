@@ -1,4 +1,4 @@
-"""``python -m sss_lab apply PASSES.exr --method ...``: apply techniques to rendered passes.
+"""``python -m sss_lab apply PASSES.exr --methods ...``: apply techniques to rendered passes.
 
 Needs only NumPy and OpenEXR (a render-farm node without Blender). Parses and reports; the
 work is ``core.pipeline.sequence.apply_file``. Prints one ``Saved: '<path>'`` line per written file (render
@@ -21,7 +21,7 @@ from ..core.techniques.registry import TECHNIQUES
 
 
 def add_parser(subparsers):
-    from .cli_options import add_existing, add_frames, add_view_layer
+    from .cli_options import add_existing, add_frames, add_view_layer, deprecated_alias
 
     p = subparsers.add_parser(
         "apply",
@@ -36,7 +36,10 @@ def add_parser(subparsers):
     )
     p.add_argument("passes", help="the passes EXR; a frame pattern like passes_####.exr for a sequence")
     p.add_argument(
-        "--method",
+        "--methods",
+        "--method",  # the old spelling, deprecated: --methods in every command
+        dest="method",
+        action=deprecated_alias("--method"),
         required=True,
         help=f"technique: {', '.join(TECHNIQUES)}, a comma-separated list, all (those whose passes are present),"
         " or auto (per material, the cheapest technique predicted to be within --max-error of the best)",
@@ -45,7 +48,7 @@ def add_parser(subparsers):
         "--max-error",
         type=float,
         default=None,
-        help="with --method auto: how much worse than the best predicted (or, with a fit, measured) error a"
+        help="with --methods auto: how much worse than the best predicted (or, with a fit, measured) error a"
         " cheaper choice may be (relative; default 0.1)",
     )
     p.add_argument(
@@ -108,11 +111,11 @@ def run(args) -> int:
     techniques = parse_methods(args.method, allow_auto=True)
     said: set = set()  # the scene description's notes already printed
     if args.max_error is not None and techniques != ["auto"]:
-        raise ValueError(f"--max-error {args.max_error}: only --method auto takes it")
+        raise ValueError(f"--max-error {args.max_error}: only --methods auto takes it")
     if args.max_error is not None and not (math.isfinite(args.max_error) and args.max_error >= 0):
         raise ValueError(f"--max-error: expected a number >= 0 (0.05 = within 5 % of the best), got {args.max_error}")
     if args.param and "auto" in techniques:
-        raise ValueError(f"--param {args.param[0]}: --method auto chooses each technique's parameters itself")
+        raise ValueError(f"--param {args.param[0]}: --methods auto chooses each technique's parameters itself")
     params = parse_params(args.param, [t for t in techniques if t in TECHNIQUES])
     if args.albedo_mode not in ALBEDO_MODES:
         raise ValueError(f"--albedo-mode: {args.albedo_mode!r} is not one of {', '.join(ALBEDO_MODES)}")

@@ -94,6 +94,21 @@ def add_view_layer(p, help: str) -> None:
     p.add_argument("--view-layer", metavar="NAME", help=help)
 
 
+def deprecated_alias(old: str):
+    """An argparse action for an option that also answers to an ``old`` spelling: the old one
+    still works and says, on stderr, which to use (one name per concept across the commands)."""
+    import argparse
+    import sys
+
+    class Alias(argparse.Action):
+        def __call__(self, parser, namespace, values, option_string=None):
+            if option_string == old:
+                print(f"sss_lab: note: {old} is deprecated; use {self.option_strings[0]}", file=sys.stderr)
+            setattr(namespace, self.dest, values)
+
+    return Alias
+
+
 def add_methods(p, *, default: str = "all", what: str = "techniques") -> None:
     """``--methods``: techniques of the registry, a comma-separated list, or all (read with
     ``cli.parse_methods``)."""

@@ -6,12 +6,17 @@ from __future__ import annotations
 
 
 def add_parser(subparsers):
+    from .cli_options import deprecated_alias
+
     p = subparsers.add_parser(
         "prepare",
         help="compile the compiled kernels into their on-disk cache ahead of the first frame (no bpy needed)",
     )
     p.add_argument(
-        "--method",
+        "--methods",
+        "--method",  # the old spelling, deprecated: --methods in every command
+        dest="method",
+        action=deprecated_alias("--method"),
         default="all",
         help="the techniques to prepare: all (default) or a comma-separated list of sta, ssss, burley, combined",
     )

@@ -1,5 +1,5 @@
 """``python -m sss_lab scan SCENE.blend [--recommend]``: list the scene's subsurface materials, and with
-``--recommend`` the technique and quality ``apply --method auto`` would choose for each (``blender/scan.py``)."""
+``--recommend`` the technique and quality ``apply --methods auto`` would choose for each (``blender/scan.py``)."""
 
 from __future__ import annotations
 
@@ -15,12 +15,12 @@ def add_parser(subparsers):
     p.add_argument(
         "--recommend",
         action="store_true",
-        help="per material, the technique and its quality (rung) `apply --method auto` would choose and why (renders"
+        help="per material, the technique and its quality (rung) `apply --methods auto` would choose and why (renders"
         " small passes once)",
     )
     add_resolution(p, help="with --recommend: WIDTHxHEIGHT of that render (default: long side 160 px)")
     add_samples(p, default=16, help="with --recommend: samples of that render (default: 16)")
-    p.add_argument("--max-error", type=float, help="with --recommend: as apply --method auto (default 0.1)")
+    p.add_argument("--max-error", type=float, help="with --recommend: as apply --methods auto (default 0.1)")
     p.add_argument(
         "--json",
         help="also write what was found (and with --recommend the choice per material) to this JSON file",

@@ -1,4 +1,4 @@
-"""``apply --method auto`` validated leave-one-scene-out: ``.venv/bin/python -m benchmarks.auto``.
+"""``apply --methods auto`` validated leave-one-scene-out: ``.venv/bin/python -m benchmarks.auto``.
 
 For every scene (the fidelity suite, ``benchmarks/fidelity``, when it is present; else the four
 sample scenes with references rendered here, ``--source samples``):
@@ -47,7 +47,7 @@ count among the choices). Its time saved is against the same unfitted most expen
 
 Nothing here knows a scene by name: every scene is scored the same way. ``--write-model`` stores
 the model learnt on all scenes but the held-out third (``benchmarks/fidelity/scenes.py``
-``held_out``) as ``core/pipeline/auto_model.json`` (what ``apply --method auto`` ships).
+``held_out``) as ``core/pipeline/auto_model.json`` (what ``apply --methods auto`` ships).
 Writes ``benchmarks/results/auto.json`` and prints a table. Timing on a loaded shared 2-core
 machine: indicative, fastest of the repeats.
 """

@@ -110,7 +110,7 @@ def _digest(path: str) -> str:
 
 
 def apply_outcome(exr_path: str, expected_layers, *, scene_path: str | None = None) -> Outcome:
-    """Run ``apply --method all`` on ``exr_path`` in-process and sort what happened."""
+    """Run ``apply --methods all`` on ``exr_path`` in-process and sort what happened."""
     folder = os.path.dirname(exr_path)
     out = os.path.join(folder, "out.sss.exr")
     inputs = [p for p in (exr_path, scene_path or sequence.sidecar_path(exr_path)) if os.path.exists(p)]
@@ -445,7 +445,7 @@ def disk_faults(folder: str, n: int, rng: random.Random):
                 stack.enter_context(contextlib.redirect_stderr(err))
                 stack.enter_context(contextlib.redirect_stdout(io.StringIO()))
                 try:
-                    code = cli.main(["apply", path, "--method", "burley", "--out", out, "--overwrite"])
+                    code = cli.main(["apply", path, "--methods", "burley", "--out", out, "--overwrite"])
                 except Exception as exc:
                     return Outcome(False, f"traceback: {type(exc).__name__}")
             lines = [x for x in err.getvalue().splitlines() if "error:" in x]
@@ -586,7 +586,7 @@ jobs = {
                                              "48x48", "--reference-samples", "50000", "--methods", "ssss,burley"],
     "bake-thickness (2048 px image, 1024 rays)": ["bake-thickness", blend, "--out", os.path.join(folder, "b.blend"),
                                                   "--target", "image", "--image-size", "2048", "--samples", "1024"],
-    "apply (1024x768, all techniques)": ["apply", big, "--method", "all", "--out", os.path.join(folder, "a.exr")],
+    "apply (1024x768, all techniques)": ["apply", big, "--methods", "all", "--out", os.path.join(folder, "a.exr")],
 }
 for label, argv in jobs.items():
     inputs = [blend, big]

@@ -32,7 +32,7 @@ def recommend(scene, *, resolution=None, samples: int = 16, max_error: float | N
 
 def recommendation(scene, *, resolution=None, samples: int = 16, max_error: float | None = None, log=None):
     """Per subsurface material of ``scene``, the technique and quality (a rung of its ladder)
-    ``apply --method auto`` would choose, and why (``core.pipeline.auto``): renders the passes of the
+    ``apply --methods auto`` would choose, and why (``core.pipeline.auto``): renders the passes of the
     scene's view once, small and at few samples (``resolution`` "WxH", default the scene's scaled
     so that its long side is at most 160 px), into a temporary folder; the scene is left as it
     was. Returns (the lines to print, the ``AutoPlan`` or None without a subsurface material)."""
@@ -55,7 +55,7 @@ def recommendation(scene, *, resolution=None, samples: int = 16, max_error: floa
         plan = auto.choose(exr.read_passes(path), sequence.load_scene(path), max_error=limit)
     w, h = plan.shape[1], plan.shape[0]
     lines = [
-        f"Recommendations (passes rendered at {w}x{h}, {samples} samples; what `apply --method auto` chooses at"
+        f"Recommendations (passes rendered at {w}x{h}, {samples} samples; what `apply --methods auto` chooses at"
         " that size):"
     ]
     lines += plan.explain().splitlines()[1:]

@@ -117,7 +117,7 @@ def _kernels():
     return backend.kernels(__package__)
 
 
-#: The name ``apply --method auto`` and the output layers (``SSSLab.auto.*``) use.
+#: The name ``apply --methods auto`` and the output layers (``SSSLab.auto.*``) use.
 AUTO = "auto"
 #: The candidate that leaves a material as it is (no SSS).
 NONE = "none"

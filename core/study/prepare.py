@@ -8,7 +8,7 @@ Burley and about as much again for the combined technique's light from behind on
 2-core machine (``first_call_s`` in ``benchmarks/results/speed.json``). ``prepare_kernels`` makes
 those first calls on a small synthetic frame (``core.study.synthetic.sphere_scene``: a Christensen-Burley
 skin sphere and a Random Walk wax one, every pass a real render gives) through ``core.pipeline.apply``,
-the path each frame takes, and measures ``apply --method auto``'s features of each material on it,
+the path each frame takes, and measures ``apply --methods auto``'s features of each material on it,
 so that the cache holds what a frame needs; a later process loads each kernel from it in a
 fraction of a second. The frame is applied twice per technique: as built
 (no thickness bake distance: the energy stage's "object" path) and with a bake distance and long
@@ -126,7 +126,7 @@ def prepare_kernels(techniques=None, *, log=None) -> dict:
             with streaming_every_region():
                 apply(passes, far, name)
         if techniques is None:
-            # ``apply --method auto`` measures each material before any technique runs.
+            # ``apply --methods auto`` measures each material before any technique runs.
             from ..pipeline.auto import features
 
             if log is not None:

@@ -239,7 +239,7 @@ def _materials_read(data: dict) -> list[str]:
 
 
 #: The verdict's error target: the cheapest technique within this share of the best one's error
-#: (``apply --method auto``'s default margin, ``core.pipeline.auto.DEFAULT_MAX_ERROR``).
+#: (``apply --methods auto``'s default margin, ``core.pipeline.auto.DEFAULT_MAX_ERROR``).
 VERDICT_MARGIN = 0.1
 
 
@@ -336,7 +336,7 @@ def _verdict_lines(data: dict) -> list[str]:
         "## Verdict",
         "",
         f"Per material, the cheapest technique whose error is within {100 * VERDICT_MARGIN:.0f} % of the best"
-        " technique's (what `apply --method auto` keeps), what it removes of the no-SSS error and what its SSS"
+        " technique's (what `apply --methods auto` keeps), what it removes of the no-SSS error and what its SSS"
         " effect costs:",
         "",
     ]

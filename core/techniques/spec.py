@@ -163,7 +163,7 @@ def profile_footprint(samples_param: str) -> Callable[[Mapping[str, Any]], Footp
 class Technique:
     """Everything SSS Lab needs to know about one technique (see the module docstring)."""
 
-    #: Identifier: the command line's ``--method``, the layer names ``SSSLab.<name>.*``.
+    #: Identifier: the command line's ``--methods``, the layer names ``SSSLab.<name>.*``.
     name: str
     label: str
     #: One line, for the panel's drop-down and ``--help``.

@@ -10,7 +10,7 @@
 //   render-CHUNK      {blender} {blenderArgs} --command sss_lab render BLENDFILE --out OUT/passes
 //                       --frames CHUNK --methods M --samples N [--resolution WxH] --threads T --device D
 //                       --skip-existing
-//   apply-CHUNK       NUMPY apply OUT/passes/passes_####.exr --frames CHUNK --method M --skip-existing
+//   apply-CHUNK       NUMPY apply OUT/passes/passes_####.exr --frames CHUNK --methods M --skip-existing
 //                       (after render-CHUNK)
 //   reference-SEED    {blender} {blenderArgs} --command sss_lab reference BLENDFILE --out OUT/reference
 //                       --seeds SEED --samples S --frame F [--resolution WxH] --threads T --device D
@@ -76,7 +76,7 @@ function compileJob(job) {
     ]);
     job.addTask(render);
     const apply = numpyTask(`apply-${chunk}`, settings, [
-      "apply", path.join(passesDir, "passes_####.exr"), "--frames", chunk, "--method", settings.methods,
+      "apply", path.join(passesDir, "passes_####.exr"), "--frames", chunk, "--methods", settings.methods,
       "--skip-existing",
     ]);
     apply.addDependency(render);

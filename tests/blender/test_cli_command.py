@@ -22,7 +22,7 @@ def test_the_callback_runs_the_commands_and_returns_their_status(capsys, tmp_pat
     assert "blender --command sss_lab" in out and "compare" in out
     assert cli.blender_command(["no-such-command"]) == 2  # a usage error, not an exit of Blender
     missing = tmp_path / "passes.exr"
-    args = ["apply", str(missing), "--method", "sta"]
+    args = ["apply", str(missing), "--methods", "sta"]
     status = cli.blender_command(args)
     assert status != 0 and str(missing) in capsys.readouterr().err
     assert status == cli.main(args)  # the same status as python -m sss_lab

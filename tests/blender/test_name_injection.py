@@ -50,7 +50,7 @@ def test_no_command_lets_a_name_forge_a_saved_line_or_reach_the_terminal(evil, c
     args = ["--resolution", "24x24", "--samples", "2"]
     assert _clean(capsys, ["render", baked, "--out", str(passes), *args])[0] == 0
     exr = str(next(passes.glob("*.exr")))
-    assert _clean(capsys, ["apply", exr, "--method", "all"])[0] == 0
-    assert _clean(capsys, ["apply", exr, "--method", "auto", "--explain"])[0] == 0
+    assert _clean(capsys, ["apply", exr, "--methods", "all"])[0] == 0
+    assert _clean(capsys, ["apply", exr, "--methods", "auto", "--explain"])[0] == 0
     assert _clean(capsys, ["export-profiles", baked, "--out", str(folder / "profiles")])[0] == 0
     assert _clean(capsys, ["scan", baked, "--recommend", *args])[0] == 0

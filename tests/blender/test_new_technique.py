@@ -1,7 +1,7 @@
 """The recipe of ``docs/adding-a-technique.md`` followed to the letter: its example technique is
 built from the page's code blocks in a temporary package (outside the source tree), registered
 with the registry line and the compositor's reason, and then every layer must pick it up with no
-other edit: the command line (apply, ``--method all``, ``--explain``, ``--param`` errors), plan and
+other edit: the command line (apply, ``--methods all``, ``--explain``, ``--param`` errors), plan and
 apply, the fidelity table, compare's sweep and grid calibration, the panel's properties, and
 ``auto``, which must decline it cleanly. Its compiled kernel is compared with its NumPy reference
 (check mode) on every call.
@@ -60,13 +60,13 @@ def run(*argv):
     return code, buf.getvalue()
 
 out["backend"] = backend.active()
-out["apply"] = run("apply", exr, "--method", "blur", "--param", "radius_px=3", "--out", sys.argv[1] + "/one.exr")
+out["apply"] = run("apply", exr, "--methods", "blur", "--param", "radius_px=3", "--out", sys.argv[1] + "/one.exr")
 out["apply_layers"] = sorted(read_layers(sys.argv[1] + "/one.exr").layers)
-out["all"] = run("apply", exr, "--method", "all", "--out", sys.argv[1] + "/all.exr")
+out["all"] = run("apply", exr, "--methods", "all", "--out", sys.argv[1] + "/all.exr")
 out["all_layers"] = sorted(read_layers(sys.argv[1] + "/all.exr").layers)
-out["explain"] = run("apply", exr, "--method", "blur", "--explain")
-out["bad_param"] = run("apply", exr, "--method", "blur", "--param", "radius_px=-3")
-out["auto"] = run("apply", exr, "--method", "auto", "--explain")
+out["explain"] = run("apply", exr, "--methods", "blur", "--explain")
+out["bad_param"] = run("apply", exr, "--methods", "blur", "--param", "radius_px=-3")
+out["auto"] = run("apply", exr, "--methods", "auto", "--explain")
 
 from sss_lab.core.study.fidelity import fidelity_table
 material = max((m for m in scene.materials if m.scatters), key=lambda m: max(m.radius))

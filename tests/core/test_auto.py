@@ -1,4 +1,4 @@
-"""core/pipeline/auto.py: the features, the choice, the composite and the learning of ``apply --method auto``.
+"""core/pipeline/auto.py: the features, the choice, the composite and the learning of ``apply --methods auto``.
 
 Expected values come from independent computations: a naive loop for the masked box average, the
 combined technique's own transmission for the light from behind, ``core.pipeline.apply.apply`` per
@@ -336,10 +336,10 @@ def test_command_line_apply_auto_writes_the_auto_layers(tmp_path, capsys):
 
     arrays, scene = _scene()
     path = write_scene(str(tmp_path / "passes.exr"), arrays, scene)
-    assert _cli(path, "--method", "auto", "--explain") == 0
+    assert _cli(path, "--methods", "auto", "--explain") == 0
     out = capsys.readouterr().out
     assert "diffusion D" in out and "=>" in out and not (tmp_path / "passes.sss.exr").exists()
-    assert _cli(path, "--method", "auto", "--max-error", "0.1") == 0
+    assert _cli(path, "--methods", "auto", "--max-error", "0.1") == 0
     out = capsys.readouterr().out
     assert "auto: material 'Skin':" in out and "Saved:" in out
     layers = read_layers(str(tmp_path / "passes.sss.exr")).layers
@@ -351,9 +351,9 @@ def test_command_line_apply_auto_writes_the_auto_layers(tmp_path, capsys):
 @pytest.mark.parametrize(
     "args, message",
     [
-        (("--method", "burley", "--max-error", "0.1"), "only --method auto"),
-        (("--method", "auto,burley"), "cannot be listed with others"),
-        (("--method", "auto", "--max-error", "-1"), "--max-error: expected a number >= 0"),
+        (("--methods", "burley", "--max-error", "0.1"), "only --methods auto"),
+        (("--methods", "auto,burley"), "cannot be listed with others"),
+        (("--methods", "auto", "--max-error", "-1"), "--max-error: expected a number >= 0"),
     ],
 )
 def test_command_line_auto_bad_arguments_are_one_line(tmp_path, capsys, args, message):
@@ -387,7 +387,7 @@ def test_command_line_auto_keeps_the_first_frames_choice_on_a_sequence(tmp_path,
     flat = dict(arrays)
     flat["Diffuse Direct"] = np.full_like(arrays["Diffuse Direct"], 1.0)  # a frame lit evenly: nothing to spread
     write_scene(str(tmp_path / "passes_0002.exr"), flat, scene)
-    assert _cli(str(tmp_path / "passes_####.exr"), "--method", "auto") == 0
+    assert _cli(str(tmp_path / "passes_####.exr"), "--methods", "auto") == 0
     first = auto.choose(Passes(arrays), scene)
     expected = auto.apply_auto(Passes(flat), scene, prepared=auto.choose(Passes(flat), scene, keep=first.chosen))
     got = read_layers(str(tmp_path / "passes_0002.sss.exr")).layers["SSSLab.auto.SSS"]

@@ -218,7 +218,7 @@ def test_command_line_explain_lists_the_rungs_and_the_chosen_one(tmp_path, capsy
 
     arrays, scene = sphere_scene(64, 48)
     path = write_scene(str(tmp_path / "passes.exr"), arrays, scene)
-    assert main(["apply", path, "--method", "auto", "--explain"]) == 0
+    assert main(["apply", path, "--methods", "auto", "--explain"]) == 0
     out = capsys.readouterr().out
     plan = auto.choose(Passes(arrays), scene)
     for c in plan.choices:

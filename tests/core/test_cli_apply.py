@@ -66,7 +66,7 @@ def test_the_blocker_blocks_bpy(tmp_path):
 def test_round_trip_all_methods_without_bpy(passes_file):
     path, arrays, scene = passes_file
     before = digest(path)
-    proc = run_apply(path, "--method", "all")
+    proc = run_apply(path, "--methods", "all")
     assert proc.returncode == 0, proc.stderr
     out = os.path.join(os.path.dirname(path), "passes.sss.exr")
     assert saved_lines(proc.stdout) == [out]
@@ -91,7 +91,7 @@ def test_round_trip_all_methods_without_bpy(passes_file):
 
 def test_explain_prints_the_plan_and_writes_nothing(passes_file):
     path, _, _ = passes_file
-    proc = run_apply(path, "--method", "burley", "--explain")
+    proc = run_apply(path, "--methods", "burley", "--explain")
     assert proc.returncode == 0, proc.stderr
     assert "'Skin'" in proc.stdout and "'Wax'" in proc.stdout and "Subsurface Weight is 0" in proc.stdout
     assert "pixels at the median depth" in proc.stdout
@@ -104,7 +104,7 @@ def test_frame_range_with_a_broken_frame(tmp_path):
     for frame in (1, 2, 3):
         write_scene(str(tmp_path / f"passes_{frame:04d}.exr"), arrays, dataclasses.replace(scene, frame=frame))
     (tmp_path / "passes_0002.exr").write_bytes(b"truncated by a crashed render node")
-    proc = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--frames", "1-3")
+    proc = run_apply(tmp_path / "passes_####.exr", "--methods", "ssss", "--frames", "1-3")
     assert proc.returncode == 2  # the failed frame's input was bad (docs: 2 bad input, 1 failed write)
     assert saved_lines(proc.stdout) == [str(tmp_path / "passes_0001.sss.exr"), str(tmp_path / "passes_0003.sss.exr")]
     assert "[1/3] frame 1" in proc.stdout and "[3/3] frame 3" in proc.stdout
@@ -112,7 +112,7 @@ def test_frame_range_with_a_broken_frame(tmp_path):
     assert "1 of 3 file(s) failed" in proc.stderr
     assert not (tmp_path / "passes_0002.sss.exr").exists()
     # Without --frames, the existing frames are found; written outputs are not overwritten.
-    proc = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--out", tmp_path / "again_####.exr")
+    proc = run_apply(tmp_path / "passes_####.exr", "--methods", "ssss", "--out", tmp_path / "again_####.exr")
     assert proc.returncode == 2 and len(saved_lines(proc.stdout)) == 2
     assert (tmp_path / "again_0003.exr").exists()
 
@@ -120,15 +120,15 @@ def test_frame_range_with_a_broken_frame(tmp_path):
 def test_never_overwrites_the_input_or_an_existing_output(passes_file):
     path, _, _ = passes_file
     before = digest(path)
-    proc = run_apply(path, "--method", "burley", "--out", path)
+    proc = run_apply(path, "--methods", "burley", "--out", path)
     assert proc.returncode == 2 and "refusing to overwrite" in proc.stderr
-    proc = run_apply(path, "--method", "burley", "--out", path, "--overwrite")
+    proc = run_apply(path, "--methods", "burley", "--out", path, "--overwrite")
     assert proc.returncode == 2 and "refusing to overwrite" in proc.stderr
     assert digest(path) == before
-    assert run_apply(path, "--method", "burley").returncode == 0
-    proc = run_apply(path, "--method", "burley")
+    assert run_apply(path, "--methods", "burley").returncode == 0
+    proc = run_apply(path, "--methods", "burley")
     assert proc.returncode == 2 and "already exists" in proc.stderr  # as in every command
-    proc = run_apply(path, "--method", "burley", "--overwrite")
+    proc = run_apply(path, "--methods", "burley", "--overwrite")
     assert proc.returncode == 0 and len(saved_lines(proc.stdout)) == 1
 
 
@@ -140,7 +140,7 @@ def test_scene_without_sss_material_writes_nothing_and_names_the_input(tmp_path,
     plain = tuple(dataclasses.replace(m, **change) for m in scene.materials)
     path = str(tmp_path / "plain.exr")
     write_scene(path, arrays, dataclasses.replace(scene, materials=plain))
-    proc = run_apply(path, "--method", "all")
+    proc = run_apply(path, "--methods", "all")
     assert proc.returncode == 3, proc.stderr
     assert "no material in the scene description scatters light" in proc.stdout
     (field,) = change
@@ -155,14 +155,14 @@ def test_a_pipe_or_a_device_given_as_passes_is_named_at_once(tmp_path):
     fifo = tmp_path / "passes.exr"
     os.mkfifo(fifo)
     for path in (fifo, "/dev/zero"):
-        proc = run_apply(path, "--method", "burley", "--out", tmp_path / "o.exr")
+        proc = run_apply(path, "--methods", "burley", "--out", tmp_path / "o.exr")
         assert proc.returncode == 2, proc.stderr
         assert "is not a regular file (a pipe or a device); expected a multilayer EXR file" in proc.stderr
 
 
 def test_unknown_method_lists_the_known_ones(passes_file):
     path, _, _ = passes_file
-    proc = run_apply(path, "--method", "gaussian")
+    proc = run_apply(path, "--methods", "gaussian")
     assert proc.returncode == 2
     assert "unknown method 'gaussian'" in proc.stderr and "sta, ssss, burley" in proc.stderr
 
@@ -171,9 +171,9 @@ def test_scene_from_option_and_missing_sidecar(passes_file, tmp_path):
     path, _, scene = passes_file
     moved = tmp_path / "elsewhere.json"
     os.replace(os.path.splitext(path)[0] + ".json", moved)
-    proc = run_apply(path, "--method", "burley")
+    proc = run_apply(path, "--methods", "burley")
     assert proc.returncode == 2 and "passes.json: no scene description" in proc.stderr
-    proc = run_apply(path, "--method", "burley", "--description", moved, "--out", tmp_path / "o.exr")
+    proc = run_apply(path, "--methods", "burley", "--description", moved, "--out", tmp_path / "o.exr")
     assert proc.returncode == 0, proc.stderr
     assert SceneDescription.from_json(read_layers(tmp_path / "o.exr").header["sss_lab.scene"]) == scene
 
@@ -201,7 +201,7 @@ def test_blender45_single_part_input(tmp_path):
     path = tmp_path / "passes45.exr"
     OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, channels).write(str(path))
     (tmp_path / "passes45.json").write_text(scene.to_json())
-    proc = run_apply(path, "--method", "burley")
+    proc = run_apply(path, "--methods", "burley")
     assert proc.returncode == 0, proc.stderr
     out = read_layers(tmp_path / "passes45.sss.exr")
     assert "ViewLayer.DiffDir" in out.layers  # input layers kept under their own names
@@ -215,23 +215,23 @@ def test_skip_existing_resumes_a_chunk_and_says_what_it_kept(tmp_path):
     arrays, scene = sphere_scene(width=32, height=24)
     for frame in (1, 2, 3):
         write_scene(str(tmp_path / f"passes_{frame:04d}.exr"), arrays, dataclasses.replace(scene, frame=frame))
-    first = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--frames", "2")
+    first = run_apply(tmp_path / "passes_####.exr", "--methods", "ssss", "--frames", "2")
     assert first.returncode == 0
     kept = tmp_path / "passes_0002.sss.exr"
     stamp = kept.stat().st_mtime_ns
-    proc = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--frames", "1-3", "--skip-existing")
+    proc = run_apply(tmp_path / "passes_####.exr", "--methods", "ssss", "--frames", "1-3", "--skip-existing")
     assert proc.returncode == 0, proc.stderr
     assert "apply: [2/3] frame 2: skipped, passes_0002.sss.exr exists" in proc.stdout
     assert saved_lines(proc.stdout) == [str(tmp_path / "passes_0001.sss.exr"), str(tmp_path / "passes_0003.sss.exr")]
     assert kept.stat().st_mtime_ns == stamp
     # Each frame done says how far the chunk is, with the elapsed time and the ETA.
     assert re.search(r"apply: frame 3 done in [\d.]+ s \(3/3, elapsed [\d.]+ s, ETA 0\.0 s\)", proc.stdout)
-    both = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--skip-existing", "--overwrite")
+    both = run_apply(tmp_path / "passes_####.exr", "--methods", "ssss", "--skip-existing", "--overwrite")
     assert both.returncode == 2 and "not allowed with" in both.stderr
     # An output cut short (a copy interrupted, a full disk elsewhere) is not kept: applied again.
     data = kept.read_bytes()
     kept.write_bytes(data[: len(data) // 2])
-    again = run_apply(tmp_path / "passes_####.exr", "--method", "ssss", "--frames", "2", "--skip-existing")
+    again = run_apply(tmp_path / "passes_####.exr", "--methods", "ssss", "--frames", "2", "--skip-existing")
     assert again.returncode == 0, again.stderr
     assert "does not read whole" in again.stdout and saved_lines(again.stdout) == [str(kept)]
     assert read_layers(kept).layers  # whole again
@@ -245,8 +245,8 @@ def test_param_sets_a_technique_parameter(passes_file, tmp_path):
 
     path, arrays, scene = passes_file
     out4, out32 = tmp_path / "n4.exr", tmp_path / "n32.exr"
-    r4 = run_apply(path, "--method", "burley", "--param", "n_samples=4", "--out", out4)
-    r32 = run_apply(path, "--method", "burley,ssss", "--param", "burley.n_samples=32", "--out", out32)
+    r4 = run_apply(path, "--methods", "burley", "--param", "n_samples=4", "--out", out4)
+    r32 = run_apply(path, "--methods", "burley,ssss", "--param", "burley.n_samples=32", "--out", out32)
     assert r4.returncode == 0 and r32.returncode == 0, r4.stderr + r32.stderr
     image4 = read_layers(str(out4)).layers["SSSLab.burley.Image"]
     image32 = read_layers(str(out32)).layers["SSSLab.burley.Image"]
@@ -258,13 +258,16 @@ def test_param_sets_a_technique_parameter(passes_file, tmp_path):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--method", "burley", "--param", "n_samples=0"], "burley.n_samples: expected an integer in [1, 1024], got 0"),
-        (["--method", "burley", "--param", "taps=3"], "its parameters: n_samples, random_rotation"),
-        (["--method", "ssss,burley", "--param", "n_taps=11"], "several techniques run (ssss, burley): name one"),
-        (["--method", "ssss", "--param", "sta.power=2"], "'sta' is not among the techniques that run (ssss)"),
-        (["--method", "ssss", "--param", "n_taps=12"], "ssss.n_taps: expected one of 11, 17, 25, got 12"),
         (
-            ["--method", "burley", "--param", "n_samples=16", "--param", "n_samples=8"],
+            ["--methods", "burley", "--param", "n_samples=0"],
+            "burley.n_samples: expected an integer in [1, 1024], got 0",
+        ),
+        (["--methods", "burley", "--param", "taps=3"], "its parameters: n_samples, random_rotation"),
+        (["--methods", "ssss,burley", "--param", "n_taps=11"], "several techniques run (ssss, burley): name one"),
+        (["--methods", "ssss", "--param", "sta.power=2"], "'sta' is not among the techniques that run (ssss)"),
+        (["--methods", "ssss", "--param", "n_taps=12"], "ssss.n_taps: expected one of 11, 17, 25, got 12"),
+        (
+            ["--methods", "burley", "--param", "n_samples=16", "--param", "n_samples=8"],
             "burley.n_samples is given twice (16 and 8); give it once",
         ),
     ],
@@ -290,10 +293,10 @@ def test_what_the_scene_reader_could_not_read_is_said_once_per_run(tmp_path):
     path = str(tmp_path / "passes.exr")
     write_scene(path, arrays, scene)
     assert SceneDescription.from_json((tmp_path / "passes.json").read_text()) == scene
-    proc = run_apply(path, "--method", "all")
+    proc = run_apply(path, "--methods", "all")
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.count(f"note: material {first.name!r}: {note}") == 1, proc.stdout
-    proc = run_apply(path, "--method", "burley", "--explain")
+    proc = run_apply(path, "--methods", "burley", "--explain")
     assert proc.returncode == 0 and f"note: {note}" in proc.stdout, proc.stdout + proc.stderr
 
 
@@ -309,7 +312,7 @@ def test_a_colour_pass_saved_with_alpha_is_read_as_its_rgb(tmp_path):
     alpha = str(tmp_path / "alpha.exr")
     write_scene(alpha, with_alpha, scene)
     for path in (plain, alpha):
-        proc = run_apply(path, "--method", "burley")
+        proc = run_apply(path, "--methods", "burley")
         assert proc.returncode == 0, proc.stderr
     a = read_layers(tmp_path / "plain.sss.exr").layers["SSSLab.burley.Image"]
     b = read_layers(tmp_path / "alpha.sss.exr").layers["SSSLab.burley.Image"]

@@ -36,7 +36,7 @@ def test_a_damaged_input_is_one_line(passes, tmp_path, capsys):
     data = open(passes, "rb").read()
     (tmp_path / "cut.exr").write_bytes(data[:-1])
     (tmp_path / "cut.json").write_bytes(open(sequence.sidecar_path(passes), "rb").read())
-    code, _, err = _run(capsys, "apply", tmp_path / "cut.exr", "--method", "burley")
+    code, _, err = _run(capsys, "apply", tmp_path / "cut.exr", "--methods", "burley")
     assert code == 2  # a bad input (the rule: 2 bad input, 1 a failed write or run)
     lines = err.strip().splitlines()
     assert lines[0].startswith("sss_lab apply: error: ") and "cut.exr" in lines[0] and "truncated" in lines[0]
@@ -45,11 +45,11 @@ def test_a_damaged_input_is_one_line(passes, tmp_path, capsys):
 
 
 def test_an_error_outside_the_frame_loop_is_one_line_and_debug_adds_the_traceback(passes, capsys):
-    code, _, err = _run(capsys, "apply", passes, "--method", "burley", "--frames", "1-100000000")
+    code, _, err = _run(capsys, "apply", passes, "--methods", "burley", "--frames", "1-100000000")
     assert code == 2 and err.count("\n") == 1 and "more than 100000 frames" in err
-    code, _, err = _run(capsys, "--debug", "apply", passes, "--method", "burley", "--frames", "1-100000000")
+    code, _, err = _run(capsys, "--debug", "apply", passes, "--methods", "burley", "--frames", "1-100000000")
     assert code == 2 and "Traceback" in err and err.strip().endswith("every existing file")
-    code, _, err = _run(capsys, "apply", passes, "--method", "burley", "--frames", "1-100000000", "--debug")
+    code, _, err = _run(capsys, "apply", passes, "--methods", "burley", "--frames", "1-100000000", "--debug")
     assert code == 2 and "Traceback" in err
 
 
@@ -69,7 +69,7 @@ def test_a_full_disk_is_one_line_and_leaves_no_temporary_file(passes, tmp_path, 
         OpenEXR, "File", lambda *a, **k: real_file(*a, **k) if a and isinstance(a[0], str) else FullDisk()
     )
     monkeypatch.setattr(shutil, "disk_usage", lambda folder: shutil._ntuple_diskusage(1 << 30, 1 << 30, 0))
-    code, out, err = _run(capsys, "apply", passes, "--method", "burley")
+    code, out, err = _run(capsys, "apply", passes, "--methods", "burley")
     assert code == 1 and "Saved" not in out
     (line,) = [x for x in err.splitlines() if "error:" in x]
     assert "passes.sss.exr: No space left on device; the disk is full" in line
@@ -83,7 +83,7 @@ def test_a_read_only_folder_is_one_line(passes, tmp_path, capsys, monkeypatch):
         raise OSError(errno.EROFS, "Read-only file system", kwargs.get("dir"))
 
     monkeypatch.setattr(tempfile, "mkstemp", refuse)
-    code, _, err = _run(capsys, "apply", passes, "--method", "burley")
+    code, _, err = _run(capsys, "apply", passes, "--methods", "burley")
     assert code == 1
     assert "passes.sss.exr: Read-only file system; the file system is read-only: write elsewhere with --out" in err
     assert "Traceback" not in err
@@ -94,7 +94,7 @@ def test_ctrl_c_exits_130_with_one_line(passes, capsys, monkeypatch):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(sequence, "apply_file", interrupted)
-    code, _, err = _run(capsys, "apply", passes, "--method", "burley")
+    code, _, err = _run(capsys, "apply", passes, "--methods", "burley")
     assert code == cli.EXIT_INTERRUPTED == 130
     assert err.strip().startswith("sss_lab apply: interrupted (Ctrl-C); ") and err.count("\n") == 1
 
@@ -105,7 +105,7 @@ def test_a_bug_keeps_its_traceback(passes, capsys, monkeypatch):
 
     monkeypatch.setattr(cli, "parse_methods", bug)
     with pytest.raises(ZeroDivisionError):
-        cli.main(["apply", passes, "--method", "burley"])
+        cli.main(["apply", passes, "--methods", "burley"])
 
 
 def test_after_ctrl_c_nothing_is_published_and_the_job_is_not_a_success(tmp_path):
@@ -145,6 +145,6 @@ def test_an_empty_path_or_frame_list_is_an_error_not_the_default(passes, capsys,
     written."""
     folder = os.path.dirname(passes)
     before = sorted(os.listdir(folder))
-    code, _, err = _run(capsys, "apply", passes, "--method", "burley", *extra)
+    code, _, err = _run(capsys, "apply", passes, "--methods", "burley", *extra)
     assert code == 2 and f"{flag}: empty" in err and err.count("\n") == 1
     assert sorted(os.listdir(folder)) == before

@@ -150,3 +150,16 @@ def test_every_command_takes_json_and_a_summary_says_what_the_run_did(tmp_path, 
     assert failed["exit_status"] == 2 and "refusing to overwrite" in failed["error"] and failed["saved"] == []
     assert cli.main(["merge-reference", str(parts), "--out", str(tmp_path / "n.exr"), "--json", str(summary)]) == 2
     assert "exists; refusing to overwrite it" in capsys.readouterr().err
+
+
+def test_one_name_per_concept_with_the_old_spelling_kept_and_said(capsys):
+    """--methods names techniques in every command; apply and prepare still take --method and say
+    which to use."""
+    commands = _commands()
+    for name in ("apply", "prepare", "render", "compare", "calibrate"):
+        assert _option(commands[name], "--methods") is not None, name
+    args = cli.build_parser().parse_args(["prepare", "--method", "sta"])
+    assert args.method == "sta"
+    assert "--method is deprecated; use --methods" in capsys.readouterr().err
+    args = cli.build_parser().parse_args(["prepare", "--methods", "sta"])
+    assert args.method == "sta" and capsys.readouterr().err == ""

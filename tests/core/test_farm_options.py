@@ -45,7 +45,7 @@ def test_overwrite_and_skip_existing_exclude_each_other(command, capsys):
     extra = ["--seeds", "1", "--samples", "2"] if command == "reference" else []
     base = [command, "x.exr" if command == "apply" else "scene.blend", "--out", "o"]
     if command == "apply":
-        base += ["--method", "ssss"]
+        base += ["--methods", "ssss"]
     assert cli.build_parser().parse_args([*base, *extra, "--skip-existing"]).skip_existing
     with pytest.raises(SystemExit):
         cli.build_parser().parse_args([*base, *extra, "--skip-existing", "--overwrite"])

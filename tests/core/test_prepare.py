@@ -12,7 +12,7 @@ from sss_lab.core.study.prepare import PrepareError, is_prepared, marker_path, p
 #: without a bake distance, the slab's with one), the light from behind's at full resolution and
 #: on the spread's reduced levels (reached only by ``core.study.prepare.FAR``'s long lengths), band by
 #: band in the combined technique's call (``finish_band``) and whole in the fit's
-#: (``finish_light``), ``core.pipeline.apply``'s compositing, and ``apply --method auto``'s features
+#: (``finish_light``), ``core.pipeline.apply``'s compositing, and ``apply --methods auto``'s features
 #: (``core.pipeline.auto``).
 EXPECTED = {
     "composite",
@@ -67,9 +67,9 @@ def test_prepare_runs_every_kernel_a_frame_needs_and_marks_the_cache(monkeypatch
 def test_the_command_line_prepares_and_names_a_bad_method(capsys):
     from sss_lab.addon.cli import main
 
-    assert main(["prepare", "--method", "nonsense"]) == 2
+    assert main(["prepare", "--methods", "nonsense"]) == 2
     assert "unknown method 'nonsense'" in capsys.readouterr().err
-    code = main(["prepare", "--method", "sta"])
+    code = main(["prepare", "--methods", "sta"])
     out, err = capsys.readouterr()
     if backend.compiled() is None:
         assert code == 2 and "Numba cannot load" in err
