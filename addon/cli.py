@@ -229,13 +229,29 @@ def _main(argv: list[str], prog: str) -> int:
     except (SSSLabError, ValueError, OSError) as exc:
         if debug:
             traceback.print_exc()
-        error = _one_line(exc)
+        error = _with_flag(_one_line(exc), argv)
         print(f"sss_lab {command}: error: {error}", file=sys.stderr)
         failed_to_write = isinstance(exc, OSError) and not isinstance(exc, (FileNotFoundError, FileExistsError))
         code = 1 if failed_to_write else 2
     if summary is not None:
         _write_summary(summary, command, argv, code, error)
     return code
+
+
+#: Settings' field names that the command line spells otherwise (a message naming the field
+#: names the flag the user typed instead).
+_FIELD_FLAGS = {"techniques": "--methods", "resolution_px": "--image-size", "cycles_samples": "--samples"}
+
+
+def _with_flag(message: str, argv: list[str]) -> str:
+    """``message`` with a leading settings field (``max_error: expected ...``) named as the flag
+    the user typed (``--max-error``), when that flag is on the command line."""
+    field, sep, rest = message.partition(": ")
+    if not sep or not field.isidentifier():
+        return message
+    flag = _FIELD_FLAGS.get(field, "--" + field.replace("_", "-"))
+    given = {a.split("=", 1)[0] for a in argv if a.startswith("--")}
+    return f"{flag}: {rest}" if flag in given else message
 
 
 def _summary_path(args) -> str | None:

@@ -163,3 +163,16 @@ def test_one_name_per_concept_with_the_old_spelling_kept_and_said(capsys):
     assert "--method is deprecated; use --methods" in capsys.readouterr().err
     args = cli.build_parser().parse_args(["prepare", "--methods", "sta"])
     assert args.method == "sta" and capsys.readouterr().err == ""
+
+
+def test_a_message_naming_a_settings_field_names_the_flag_typed():
+    assert cli._with_flag("max_error: expected a number >= 0, got -1.0", ["scan", "x", "--max-error", "-1"]) == (
+        "--max-error: expected a number >= 0, got -1.0"
+    )
+    assert cli._with_flag("techniques: expected at least one", ["calibrate", "--methods", ""]).startswith("--methods:")
+    assert cli._with_flag("resolution_px: expected 1..16384", ["bake-thickness", "--image-size=99999"]).startswith(
+        "--image-size:"
+    )
+    # Left as it is when the flag was not typed (the value came from elsewhere) or it is no field.
+    assert cli._with_flag("max_error: bad", ["scan"]) == "max_error: bad"
+    assert cli._with_flag("/tmp/a b.exr: no such file", ["apply"]) == "/tmp/a b.exr: no such file"
