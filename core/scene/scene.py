@@ -21,7 +21,7 @@ import numpy as np
 
 from ..base import arrays
 from .fit_values import check_fit
-from .passes import INPUT_AOVS
+from .passes import INPUT_AOVS, PASSES, SHORT_NAMES
 
 #: Version of the JSON layout; bump on any incompatible change.
 SCENE_DESCRIPTION_VERSION = 1
@@ -344,6 +344,11 @@ class SceneDescription:
     version: int = SCENE_DESCRIPTION_VERSION
 
     def __post_init__(self):
+        if self.thickness_aov in PASSES or self.thickness_aov in SHORT_NAMES:
+            raise ValueError(
+                f"thickness_aov: {self.thickness_aov!r} is a render pass of Blender's, not a thickness map; expected the"
+                " name of the shader AOV the bake feeds (default Thickness)"
+            )
         if self.thickness_convention not in ("translucency", "thickness"):
             raise ValueError(
                 f"thickness_convention: {self.thickness_convention!r} is not one of translucency, thickness"

@@ -104,3 +104,16 @@ def test_a_subsurface_weight_above_one_is_refused_by_name():
     with pytest.raises(ValueError, match=r"material 'Wax' subsurface_weight: expected a number in 0..1, got 2.0"):
         MaterialSSS(index=1, name="Wax", subsurface_weight=2.0)
     assert MaterialSSS(index=1, name="Wax", subsurface_weight=1.0).scatters
+
+
+def test_a_thickness_aov_naming_a_render_pass_is_refused():
+    """A description whose thickness AOV names the Depth pass would read depth as thickness."""
+    import pytest
+
+    from sss_lab.core.scene.scene import Camera, SceneDescription
+
+    camera = Camera(width_px=8, height_px=8)
+    for name in ("Depth", "Normal", "IndexMA"):
+        with pytest.raises(ValueError, match=rf"thickness_aov: '{name}' is a render pass of Blender's"):
+            SceneDescription(camera=camera, thickness_aov=name)
+    assert SceneDescription(camera=camera, thickness_aov="Thickness").thickness_aov == "Thickness"
