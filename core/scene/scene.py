@@ -346,8 +346,8 @@ class SceneDescription:
     def __post_init__(self):
         if self.thickness_aov in PASSES or self.thickness_aov in SHORT_NAMES:
             raise ValueError(
-                f"thickness_aov: {self.thickness_aov!r} is a render pass of Blender's, not a thickness map; expected the"
-                " name of the shader AOV the bake feeds (default Thickness)"
+                f"thickness_aov: {self.thickness_aov!r} is a render pass of Blender's, not a thickness map;"
+                " expected the name of the shader AOV the bake feeds (default Thickness)"
             )
         if self.thickness_convention not in ("translucency", "thickness"):
             raise ValueError(

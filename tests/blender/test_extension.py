@@ -39,14 +39,41 @@ def built_zips():
         for line in proc.stdout.splitlines()
         if line.startswith("Saved: ")
     ]
-    # One zip per platform, each validated by the builder's validator (build_extension.py fails otherwise).
-    assert len(saved) == len(PLATFORMS) == 6
-    return {p: next(z for z in saved if z.endswith(f"-{p.replace('-', '_')}.zip")) for p in PLATFORMS}
+    # One zip per platform, each validated by the builder's validator (build_extension.py fails otherwise),
+    # for every Blender, per Blender version, and NumPy-only.
+    assert len(saved) == 4 * len(PLATFORMS) == 24
+    return {
+        (variant, p): next(
+            z for z in saved if os.path.basename(z) == f"sss_lab-0.1.0{variant}-{p.replace('-', '_')}.zip"
+        )
+        for variant in ("", "-blender4.5", "-blender5.2", "-numpy")
+        for p in PLATFORMS
+    }
 
 
 @pytest.fixture(scope="module")
 def built_zip(built_zips):
-    return built_zips["linux-x64"]
+    return built_zips[("", "linux-x64")]
+
+
+def _manifest(path):
+    return tomllib.loads(zipfile.ZipFile(path).read("blender_manifest.toml").decode())
+
+
+def test_per_version_and_numpy_zips_hold_only_what_their_blender_runs(built_zips):
+    for platform in ("linux-x64", "windows-x64", "macos-arm64"):
+        for variant, py, vmin, vmax in (
+            ("-blender4.5", "cp311", "4.5.0", "5.0.0"),
+            ("-blender5.2", "cp313", "5.1.0", None),
+        ):
+            path = built_zips[(variant, platform)]
+            assert {w.split("-")[1] for w in _wheels(path)} == {py}, (variant, platform)
+            m = _manifest(path)
+            assert (m["blender_version_min"], m.get("blender_version_max")) == (vmin, vmax)
+        assert _wheels(built_zips[("-numpy", platform)]) == ["openexr-cp311", "openexr-cp313"]
+    # The issue's download goal: Blender 5.2 on Linux x64 with the compiled kernels, at most 70 MB
+    # (both Pythons' wheels made it 131 MB).
+    assert os.path.getsize(built_zips[("-blender5.2", "linux-x64")]) <= 70e6
 
 
 def _wheels(path):
@@ -60,11 +87,16 @@ def _wheels(path):
 def test_each_platform_zip_holds_its_own_wheels_for_both_pythons(built_zips):
     full = ["llvmlite-cp311", "llvmlite-cp313", "numba-cp311", "numba-cp313", "openexr-cp311", "openexr-cp313"]
     for platform in ("windows-x64", "macos-arm64", "linux-x64", "linux-arm64"):
-        assert _wheels(built_zips[platform]) == full, platform
+        assert _wheels(built_zips[("", platform)]) == full, platform
     # Numba publishes no wheels for macOS x64, nor for Windows arm64 on Python 3.11: NumPy runs there.
-    assert _wheels(built_zips["windows-arm64"]) == ["llvmlite-cp313", "numba-cp313", "openexr-cp311", "openexr-cp313"]
-    assert _wheels(built_zips["macos-x64"]) == ["openexr-cp311", "openexr-cp313"]
-    names = zipfile.ZipFile(built_zips["linux-x64"]).namelist()
+    assert _wheels(built_zips[("", "windows-arm64")]) == [
+        "llvmlite-cp313",
+        "numba-cp313",
+        "openexr-cp311",
+        "openexr-cp313",
+    ]
+    assert _wheels(built_zips[("", "macos-x64")]) == ["openexr-cp311", "openexr-cp313"]
+    names = zipfile.ZipFile(built_zips[("", "linux-x64")]).namelist()
     assert any("manylinux" in n and "x86_64" in n for n in names) and not any(
         "win_" in n or "macosx" in n for n in names
     )
