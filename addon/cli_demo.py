@@ -20,7 +20,16 @@ def add_parser(subparsers):
     # Not --scene: that names a scene of a .blend file in every command.
     p.add_argument("--sample", default=None, metavar="NAME", help="sample scene to build (default: the demo scene)")
     p.add_argument("--reference-samples", type=int, default=512, help="Cycles samples of the reference (default 512)")
-    p.add_argument("--samples", type=int, default=64, help="Cycles samples of the passes (default 64)")
+    from .cli_options import deprecated_alias
+
+    p.add_argument(
+        "--pass-samples",
+        "--samples",
+        type=int,
+        default=64,
+        action=deprecated_alias("--samples"),
+        help="Cycles samples of the passes (default 64)",
+    )
     p.set_defaults(run=run)
 
 
@@ -30,7 +39,7 @@ def run(args) -> int:
     require_bpy()
     from ..blender.samples import load_sample_scenes
 
-    for name in ("samples", "reference_samples"):
+    for name in ("pass_samples", "reference_samples"):
         if getattr(args, name) < 1:
             raise CommandError(f"--{name.replace('_', '-')}: expected an integer >= 1, got {getattr(args, name)}")
     scenes = load_sample_scenes()
@@ -57,7 +66,7 @@ def run(args) -> int:
     # reference each).
     settings = CompareSettings(
         reference_samples=args.reference_samples,
-        pass_samples=args.samples,
+        pass_samples=args.pass_samples,
         calibrate_methods=compat.subsurface_methods(),
     )
     try:

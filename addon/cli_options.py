@@ -77,9 +77,13 @@ def read_resolution(args) -> tuple[int, int] | None:
         raise CommandError(f"--resolution: {exc}") from None
 
 
-def add_samples(p, flag: str = "--samples", *, default: int | None = None, help: str) -> None:
-    """A sample count (``--samples``, ``--pass-samples`` ...); check it with ``check_at_least``."""
-    p.add_argument(flag, type=int, default=default, metavar="N", help=help)
+def add_samples(p, flag: str = "--samples", *, default: int | None = None, help: str, old: str | None = None) -> None:
+    """A sample count (``--samples``, ``--pass-samples`` ...); check it with ``check_at_least``.
+    ``old``: an earlier spelling still taken, deprecated (``deprecated_alias``)."""
+    if old is None:
+        p.add_argument(flag, type=int, default=default, metavar="N", help=help)
+    else:
+        p.add_argument(flag, old, type=int, default=default, metavar="N", help=help, action=deprecated_alias(old))
 
 
 def add_seed(p, *, default: int | None = None, help: str = "Cycles seed (default: the scene's)") -> None:

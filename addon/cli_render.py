@@ -41,7 +41,12 @@ def add_parser(subparsers):
     add_scene(p)
     add_view_layer(p, "view layer to render (default: the scene's active one)")
     add_frames(p)
-    add_samples(p, help="Cycles samples (default: the scene's); adaptive sampling is off")
+    add_samples(
+        p,
+        "--pass-samples",
+        old="--samples",
+        help="Cycles samples of the passes (default: the scene's); adaptive sampling is off",
+    )
     add_seed(p)
     add_resolution(p)
     add_methods(p, what="techniques whose passes to render")
@@ -117,7 +122,7 @@ def run(args) -> int:
     require_bpy()
     techniques = parse_methods(args.methods)
     frames = parse_frames(args.frames) if args.frames else None
-    check_at_least(args, 1, "samples")
+    check_at_least(args, 1, "pass_samples")
     check_at_least(args, 0, "seed")
     from ..blender import render_passes as rp
 
@@ -157,7 +162,7 @@ def run(args) -> int:
         job = {"scene": scene.name, "size": size, "seed": args.seed, "file": os.path.basename(args.blend)}
         todo = []
         for frame in frames:
-            kept = _finished(out_dir, frame, techniques, args.samples, job)
+            kept = _finished(out_dir, frame, techniques, args.pass_samples, job)
             if kept is None:
                 todo.append(frame)
             else:
@@ -175,7 +180,7 @@ def run(args) -> int:
                 out_dir,
                 techniques=techniques,
                 frames=todo,
-                samples=args.samples,
+                samples=args.pass_samples,
                 resolution=resolution,
                 seed=args.seed,
                 view_layer=args.view_layer,

@@ -8,7 +8,7 @@
 // commands and arguments (tests/core/test_farm_jobs.py checks that):
 //
 //   render-CHUNK      {blender} {blenderArgs} --command sss_lab render BLENDFILE --out OUT/passes
-//                       --frames CHUNK --methods M --samples N [--resolution WxH] --threads T --device D
+//                       --frames CHUNK --methods M --pass-samples N [--resolution WxH] --threads T --device D
 //                       --skip-existing
 //   apply-CHUNK       NUMPY apply OUT/passes/passes_####.exr --frames CHUNK --methods M --skip-existing
 //                       (after render-CHUNK)
@@ -71,7 +71,7 @@ function compileJob(job) {
   const applyTasks = [];
   for (const chunk of frameChunker(settings.frames, settings.chunk_size)) {
     const render = blenderTask(`render-${chunk}`, "render", settings.blendfile, [
-      "--out", passesDir, "--frames", chunk, "--methods", settings.methods, "--samples", String(settings.pass_samples),
+      "--out", passesDir, "--frames", chunk, "--methods", settings.methods, "--pass-samples", String(settings.pass_samples),
       ...common, "--skip-existing",
     ]);
     job.addTask(render);

@@ -60,7 +60,7 @@ def test_render_refuses_a_folder_where_a_sidecar_goes_before_rendering(tmp_path,
     blend = _save(tmp_path, "cube.blend", _cube_with_sss)
     out = tmp_path / "passes"
     (out / "passes_0001.json").mkdir(parents=True)
-    argv = ["render", str(blend), "--out", str(out), "--frames", "1", "--resolution", "16x16", "--samples", "2"]
+    argv = ["render", str(blend), "--out", str(out), "--frames", "1", "--resolution", "16x16", "--pass-samples", "2"]
     code = cli.main([*argv, "--methods", "ssss,burley", "--overwrite"])
     err = capsys.readouterr().err
     assert code == 2 and "passes_0001.json is a folder or not a regular file" in err

@@ -29,7 +29,7 @@ def _render(blend, out, *extra):
             str(out),
             "--frames",
             "1-3",
-            "--samples",
+            "--pass-samples",
             SAMPLES,
             "--resolution",
             "32x24",

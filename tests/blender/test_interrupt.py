@@ -81,7 +81,7 @@ def test_render_stops_and_keeps_the_finished_frame(cube_blend, tmp_path, signum,
     # finish before a 1 s interrupt), longer under load; the interrupt comes 0.2 s into frame 2,
     # so frame 2 cannot finish first, and frames 2 and 3 would take far longer than STOP_WITHIN.
     code, stopped, stdout, err = _interrupt(
-        ["render", cube_blend, "--out", out, "--frames", "1-3", "--resolution", "48x48", "--samples", "10000"]
+        ["render", cube_blend, "--out", out, "--frames", "1-3", "--resolution", "48x48", "--pass-samples", "10000"]
         + ["--methods", "ssss,burley"],
         when_line="frame 1 done",
         after=0.2,

@@ -557,7 +557,7 @@ def test_cli_render(tmp_path, capsys):
             str(out),
             "--frames",
             "1-2",
-            "--samples",
+            "--pass-samples",
             str(SAMPLES),
             "--resolution",
             "32x24",
@@ -583,7 +583,7 @@ def test_cli_render_without_subsurface_writes_nothing(tmp_path, capsys):
 
     blend = _save(tmp_path, sss=False)
     out = tmp_path / "out"
-    assert main(["render", str(blend), "--out", str(out), "--samples", str(SAMPLES)]) == EXIT_NOTHING_TO_DO
+    assert main(["render", str(blend), "--out", str(out), "--pass-samples", str(SAMPLES)]) == EXIT_NOTHING_TO_DO
     assert "no material with subsurface scattering" in capsys.readouterr().err
     assert not out.exists()
 
@@ -592,7 +592,7 @@ def test_cli_render_without_subsurface_writes_nothing(tmp_path, capsys):
     "args, message",
     [
         (["--resolution", "64"], "--resolution"),
-        (["--samples", "0"], "--samples: expected an integer >= 1"),
+        (["--pass-samples", "0"], "--pass-samples: expected an integer >= 1"),
         (["--methods", "blur"], "unknown method 'blur'"),
         (["--frames", "5-1"], "ends before it starts"),
     ],
@@ -610,7 +610,7 @@ def test_cli_render_sta_without_thickness(tmp_path, capsys):
     from sss_lab.addon.cli import main
 
     blend = _save(tmp_path, thickness=False)
-    assert main(["render", str(blend), "--out", str(tmp_path / "out"), "--samples", str(SAMPLES)]) == 2
+    assert main(["render", str(blend), "--out", str(tmp_path / "out"), "--pass-samples", str(SAMPLES)]) == 2
     assert "bake thickness first" in capsys.readouterr().err
 
 

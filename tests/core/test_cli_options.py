@@ -176,3 +176,16 @@ def test_a_message_naming_a_settings_field_names_the_flag_typed():
     # Left as it is when the flag was not typed (the value came from elsewhere) or it is no field.
     assert cli._with_flag("max_error: bad", ["scan"]) == "max_error: bad"
     assert cli._with_flag("/tmp/a b.exr: no such file", ["apply"]) == "/tmp/a b.exr: no such file"
+
+
+def test_pass_samples_is_one_name_for_the_passes_samples(capsys):
+    """--samples meant the passes' samples in render and demo, random-walk samples in calibrate:
+    render and demo now say --pass-samples, as compare does, and still take --samples with a note."""
+    commands = _commands()
+    for name in ("render", "demo", "compare"):
+        assert _option(commands[name], "--pass-samples") is not None, name
+    for name in ("render", "demo"):
+        extra = ["x.blend", "--out", "o"] if name == "render" else ["--out", "o"]
+        args = cli.build_parser().parse_args([name, *extra, "--samples", "4"])
+        assert args.pass_samples == 4
+        assert "--samples is deprecated; use --pass-samples" in capsys.readouterr().err
