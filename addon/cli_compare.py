@@ -75,7 +75,9 @@ def add_parser(subparsers):
         help="a reference merged from seed parts (sss_lab reference + merge-reference, e.g. on a farm) instead of "
         "rendering one; its halves give the noise floor",
     )
-    p.add_argument("--frame", type=int, help="frame to compare (default: the scene's current frame)")
+    from .cli_options import add_one_frame
+
+    add_one_frame(p, "compare")
     p.add_argument(
         "--no-eevee",
         action="store_true",

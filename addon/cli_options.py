@@ -94,6 +94,32 @@ def add_frames(p, help: str = "frames, e.g. 1-10, 1-3,7 or 1-9:2 (default: the s
     p.add_argument("--frames", help=help)
 
 
+def add_one_frame(p, what: str) -> None:
+    """``--frames N`` for a command that takes one frame (``what`` it does with it): the one name
+    every command gives frames; a range is refused, and the old ``--frame`` still works with a note."""
+    import argparse
+    import sys
+
+    class OneFrame(argparse.Action):
+        def __call__(self, parser, namespace, values, option_string=None):
+            if option_string == "--frame":
+                print("sss_lab: note: --frame is deprecated; use --frames", file=sys.stderr)
+            try:
+                frame = int(str(values).strip())
+            except ValueError:
+                parser.error(f"--frames {values!r}: {what} one frame; give one, e.g. --frames 3")
+            setattr(namespace, self.dest, frame)
+
+    p.add_argument(
+        "--frames",
+        "--frame",
+        dest="frame",
+        metavar="N",
+        action=OneFrame,
+        help=f"the frame to {what} (one frame; default: the scene's current frame)",
+    )
+
+
 def add_view_layer(p, help: str) -> None:
     p.add_argument("--view-layer", metavar="NAME", help=help)
 

@@ -25,7 +25,9 @@ def add_parser(subparsers):
     add_scene(p)
     p.add_argument("--seeds", required=True, help="Cycles seeds, one part each: e.g. 1-8 or 3 or 1,4")
     p.add_argument("--samples", type=int, required=True, help="Cycles samples per part")
-    p.add_argument("--frame", type=int, help="frame to render (default: the scene's current frame)")
+    from .cli_options import add_one_frame
+
+    add_one_frame(p, "render")
     add_resolution(p)
     add_existing(p, "parts")
     add_render_device(p)

@@ -554,7 +554,7 @@ def _merged_reference(
     if meta.get("frame") is not None and meta["frame"] != frame:
         raise InputError(
             f"{path} shows frame {meta['frame']}; the comparison is of frame {frame}: compare that frame "
-            f"(--frame {meta['frame']}) or render the parts at this one"
+            f"(--frames {meta['frame']}) or render the parts at this one"
         )
     if meta.get("fingerprint") and meta["fingerprint"] != fingerprint:
         raise InputError(

@@ -13,12 +13,12 @@
 //   apply-CHUNK       NUMPY apply OUT/passes/passes_####.exr --frames CHUNK --methods M --skip-existing
 //                       (after render-CHUNK)
 //   reference-SEED    {blender} {blenderArgs} --command sss_lab reference BLENDFILE --out OUT/reference
-//                       --seeds SEED --samples S --frame F [--resolution WxH] --threads T --device D
+//                       --seeds SEED --samples S --frames F [--resolution WxH] --threads T --device D
 //                       --skip-existing
 //   merge-reference   NUMPY merge-reference OUT/reference --out OUT/reference/reference.exr --overwrite
 //                       (after every reference-SEED)
 //   compare           {blender} {blenderArgs} --command sss_lab compare BLENDFILE --out OUT/compare --overwrite
-//                       --reference OUT/reference/reference.exr --frame F --methods M --pass-samples N
+//                       --reference OUT/reference/reference.exr --frames F --methods M --pass-samples N
 //                       [--resolution WxH] --threads T --device D   (after merge-reference and every apply)
 //
 // The reference, merge and compare tasks exist only with "Compare" on. NUMPY is the setting
@@ -91,14 +91,14 @@ function compileJob(job) {
   for (let seed = 1; seed <= settings.reference_tasks; seed++) {
     const part = blenderTask(`reference-${seed}`, "reference", settings.blendfile, [
       "--out", referenceDir, "--seeds", String(seed), "--samples", String(settings.reference_samples),
-      "--frame", String(settings.compare_frame), ...common, "--skip-existing",
+      "--frames", String(settings.compare_frame), ...common, "--skip-existing",
     ]);
     job.addTask(part);
     merge.addDependency(part);
   }
   job.addTask(merge);
   const compare = blenderTask("compare", "compare", settings.blendfile, [
-    "--out", path.join(out, "compare"), "--overwrite", "--reference", merged, "--frame", String(settings.compare_frame),
+    "--out", path.join(out, "compare"), "--overwrite", "--reference", merged, "--frames", String(settings.compare_frame),
     "--methods", settings.methods,
     "--pass-samples", String(settings.pass_samples), ...common, ...(settings.compare_eevee ? [] : ["--no-eevee"]),
   ]);

@@ -189,3 +189,18 @@ def test_pass_samples_is_one_name_for_the_passes_samples(capsys):
         args = cli.build_parser().parse_args([name, *extra, "--samples", "4"])
         assert args.pass_samples == 4
         assert "--samples is deprecated; use --pass-samples" in capsys.readouterr().err
+
+
+def test_frames_is_the_one_name_for_frames_and_one_frame_commands_take_one(capsys):
+    commands = _commands()
+    for name in ("render", "apply", "compare", "reference"):
+        assert _option(commands[name], "--frames") is not None, name
+    args = cli.build_parser().parse_args(["compare", "x.blend", "--out", "o", "--frames", "3"])
+    assert args.frame == 3 and capsys.readouterr().err == ""
+    args = cli.build_parser().parse_args(
+        ["reference", "x.blend", "--out", "o", "--seeds", "1", "--samples", "4", "--frame", "2"]
+    )
+    assert args.frame == 2 and "--frame is deprecated; use --frames" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.build_parser().parse_args(["compare", "x.blend", "--out", "o", "--frames", "1-3"])
+    assert "compare one frame; give one, e.g. --frames 3" in capsys.readouterr().err
