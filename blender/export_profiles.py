@@ -66,6 +66,12 @@ def export_profiles(
             gain=gain,
             source=source,
         )
+        if m.per_pixel:
+            inputs = ", ".join(k.replace("_", " ") for k in m.per_pixel)
+            notes.append(
+                f"{inputs} linked to a texture or node: the exported profile uses the sockets' values (as printed"
+                " above); give the engine the texture itself for what varies over the surface"
+            )
         out["notes"] = notes
         materials.append(out)
     return {
@@ -164,6 +170,8 @@ def write_export(
         if os.path.lexists(path) and not overwrite:
             raise InputError(f"{printable(path)!r} exists; refusing to overwrite it (pass --overwrite to allow it)")
     for material in data["materials"]:
+        for note in material["notes"]:  # what the reader could not read as Cycles renders it (a texture...)
+            log(f"{printable(material['material'])}: {printable(note)}")
         for engine in ("hdrp", "unreal"):
             for note in material[engine]["notes"]:
                 log(f"{printable(material['material'])}: {engine}: {printable(note)}")
