@@ -219,6 +219,8 @@ def _main(argv: list[str], prog: str) -> int:
                 sys.stdout.level = level
             _no_empty_paths(args)
             summary = _summary_path(args)
+            if summary is not None and isinstance(sys.stdout, GuardedOutput):
+                sys.stdout.lines = []  # what the run prints goes into the summary
             code = int(args.run(args) or 0)
     except KeyboardInterrupt:
         if debug:
@@ -254,24 +256,36 @@ def _with_flag(message: str, argv: list[str]) -> str:
     return f"{flag}: {rest}" if flag in given else message
 
 
-def _summary_path(args) -> str | None:
-    """The ``--json`` summary's path, checked before the command runs (commands with a ``--json``
-    of their own check theirs): a .json name, not an input, not existing without --overwrite."""
+def json_out_path(args, protect: dict[str, str | None]) -> str | None:
+    """The absolute path of ``--json``, checked before anything runs: a .json file name that is
+    none of the files in ``protect`` (what it is -> path, e.g. ``{"the input .blend": ...}``; links
+    resolved) and, without ``--overwrite``, no existing file; None without ``--json``."""
     import os
 
-    if not getattr(args, "summary_json", False) or not args.json:
+    if not args.json:
         return None
     path = os.path.abspath(args.json)
-    if not path.endswith(".json") or os.path.isdir(path):
+    if not path.endswith(".json"):
         raise CommandError(f"--json {args.json!r}: expected a .json file name")
-    inputs = [getattr(args, name, None) for name in ("blend", "passes", "description", "reference")]
-    inputs += list(getattr(args, "parts", None) or [])
-    for item in (i for i in inputs if isinstance(i, str) and os.path.exists(i)):
-        if os.path.realpath(item) == os.path.realpath(path):
-            raise CommandError(f"--json {args.json!r} is an input; refusing to write over it")
-    if os.path.lexists(path) and not getattr(args, "overwrite", False):
+    if os.path.isdir(path):
+        raise CommandError(f"--json {args.json!r} is a folder; expected a .json file name")
+    real = os.path.realpath(path)
+    for label, other in protect.items():
+        if other and real == os.path.realpath(os.path.abspath(other)):
+            raise CommandError(f"--json {args.json!r} is {label}; refusing to write over it")
+    if os.path.exists(path) and not getattr(args, "overwrite", False):
         raise CommandError(f"--json {args.json!r} exists; refusing to overwrite it (pass --overwrite to allow it)")
     return path
+
+
+def _summary_path(args) -> str | None:
+    """The ``--json`` summary's path, checked before the command runs like every ``--json``
+    (commands with a ``--json`` of their own check theirs)."""
+    if not getattr(args, "summary_json", False):
+        return None
+    inputs = {name: getattr(args, name, None) for name in ("blend", "passes", "description", "reference")}
+    inputs.update({f"part {i + 1}": part for i, part in enumerate(getattr(args, "parts", None) or [])})
+    return json_out_path(args, {f"an input ({k})": v for k, v in inputs.items() if isinstance(v, str)})
 
 
 def _write_summary(path: str, command: str, argv: list[str], code: int, error: str | None) -> None:
@@ -281,7 +295,7 @@ def _write_summary(path: str, command: str, argv: list[str], code: int, error: s
     from ..core.base import files
     from ..core.base.progress import SAVED_PATHS, saved_line
 
-    printed = list(sys.stdout.lines) if isinstance(sys.stdout, GuardedOutput) else []
+    printed = list(sys.stdout.lines or []) if isinstance(sys.stdout, GuardedOutput) else []
     data = {
         "command": command,
         "argv": argv,

@@ -61,34 +61,14 @@ def add_parser(subparsers):
     p.set_defaults(run=run)
 
 
-def json_out_path(args, blend_out: str) -> str | None:
-    """The absolute path of ``--json``, checked before anything runs: a .json file name that is
-    neither the input .blend nor ``--out`` (links resolved) and, without ``--overwrite``, no
-    existing file; None without ``--json``."""
-    from .cli import CommandError
-
-    if not args.json:
-        return None
-    path = os.path.abspath(args.json)
-    if not path.endswith(".json"):
-        raise CommandError(f"--json {args.json!r}: expected a .json file name")
-    if os.path.isdir(path):
-        raise CommandError(f"--json {args.json!r} is a folder; expected a .json file name")
-    real = os.path.realpath(path)
-    for flag, other in (("the input .blend", args.blend), ("--out", blend_out)):
-        if real == os.path.realpath(os.path.abspath(other)):
-            raise CommandError(f"--json {args.json!r} is {flag}; refusing to write the results over it")
-    if os.path.exists(path) and not args.overwrite:
-        raise CommandError(f"--json {args.json!r} exists; refusing to overwrite it (pass --overwrite to allow it)")
-    return path
-
-
 def run(args) -> int:
     from .cli_options import read_blend_out, read_resolution
     from .cli_scan import open_blend
 
     out = read_blend_out(args)
-    json_out = json_out_path(args, out)
+    from .cli import json_out_path
+
+    json_out = json_out_path(args, {"the input .blend": args.blend, "--out": out})
     resolution = read_resolution(args)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     scene = open_blend(args.blend, args.scene)

@@ -40,12 +40,13 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     from .cli import CommandError
-    from .cli_calibrate import json_out_path
     from .cli_options import read_blend_out, read_resolution, save_blend
     from .cli_scan import open_blend
 
     out = read_blend_out(args)
-    json_out = json_out_path(args, out)
+    from .cli import json_out_path
+
+    json_out = json_out_path(args, {"the input .blend": args.blend, "--out": out})
     resolution = read_resolution(args)
     scene = open_blend(args.blend, args.scene)
 

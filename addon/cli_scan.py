@@ -67,7 +67,9 @@ def run(args) -> int:
 
     check_at_least(args, 1, "samples")
     resolution = read_resolution(args)
-    json_out = _json_path(args)
+    from .cli import json_out_path
+
+    json_out = json_out_path(args, {"the input .blend": args.blend})
     scene = open_blend(args.blend, args.scene)
     from ..blender.describe import sss_materials
     from ..blender.scan import recommendation, scan_report
@@ -96,19 +98,3 @@ def run(args) -> int:
         files.write_text(json_out, json.dumps(data, indent=2, default=str))
         print(saved_line(json_out), flush=True)
     return 0
-
-
-def _json_path(args) -> str | None:
-    """``--json`` checked before the work: a .json name, not the input, not existing without --overwrite."""
-    from .cli import CommandError
-
-    if not args.json:
-        return None
-    path = os.path.abspath(args.json)
-    if not path.endswith(".json") or os.path.isdir(path):
-        raise CommandError(f"--json {args.json!r}: expected a .json file name")
-    if os.path.exists(args.blend) and os.path.realpath(path) == os.path.realpath(args.blend):
-        raise CommandError(f"--json {args.json!r} is the input .blend; refusing to write over it")
-    if os.path.exists(path) and not args.overwrite:
-        raise CommandError(f"--json {args.json!r} exists; refusing to overwrite it (pass --overwrite to allow it)")
-    return path

@@ -574,19 +574,22 @@ def match_eevee_job(scene, settings: MatchSettings | None = None, *, log=print) 
         # (k, with the view factor) -> (gain, error) per material.
         trials: dict[str, dict[tuple[float, bool], tuple]] = {name: {} for name in branches}
 
-        def solve(e_k, k: float, label: str) -> None:
-            for name in branches:
-                trials[name][(k, False)] = eevee_match.solve_gain(e_k, e_rest, target, keeps[name])
-                results[name].errors[label] = trials[name][(k, False)][1]
-                if views[name] is not None:
-                    one = e_rest[..., :3] + views[name] * (e_k[..., :3] - e_rest[..., :3])
-                    trials[name][(k, True)] = eevee_match.solve_gain(one, e_rest, target, keeps[name])
-                    results[name].errors[f"{label} view"] = trials[name][(k, True)][1]
+        def solve(name: str, e_k, k: float, label: str) -> None:
+            """Material ``name``'s gains for EEVEE's frame ``e_k`` at width ``k``, with and (where the
+            method has one) without the view ramp."""
+            trials[name][(k, False)] = eevee_match.solve_gain(e_k, e_rest, target, keeps[name])
+            results[name].errors[label] = trials[name][(k, False)][1]
+            if views[name] is not None:
+                one = e_rest[..., :3] + views[name] * (e_k[..., :3] - e_rest[..., :3])
+                trials[name][(k, True)] = eevee_match.solve_gain(one, e_rest, target, keeps[name])
+                results[name].errors[f"{label} view"] = trials[name][(k, True)][1]
 
         for k in eevee_match.K_GRID:
             yield steps.next(f"EEVEE with d x {k:g}")
             set_all(lambda _n, k=k: k, lambda _n: (1.0, 1.0, 1.0))
-            solve(eevee(True), k, f"{k:g}")
+            e_k = eevee(True)
+            for name in branches:
+                solve(name, e_k, k, f"{k:g}")
         best = {name: _lowest(trials[name]) for name in branches}
         # Half an octave either side of each material's best (every material at once: the i-th side).
         for side in (2**-0.5, 2**0.5):
@@ -595,11 +598,7 @@ def match_eevee_job(scene, settings: MatchSettings | None = None, *, log=print) 
             e_k = eevee(True)
             for name in branches:
                 k = best[name][0] * side
-                for view in (False, True):
-                    if views[name] is not None or not view:
-                        one = e_k if not view else e_rest[..., :3] + views[name] * (e_k[..., :3] - e_rest[..., :3])
-                        trials[name][(k, view)] = eevee_match.solve_gain(one, e_rest, target, keeps[name])
-                        results[name].errors[f"{k:.4g}" + (" view" if view else "")] = trials[name][(k, view)][1]
+                solve(name, e_k, k, f"{k:.4g}")
         best = {name: _lowest(trials[name]) for name in branches}
         yield steps.next("EEVEE with the match, to check it")
         set_all(lambda n: best[n][0], lambda n: tuple(trials[n][best[n]][0]))

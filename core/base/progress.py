@@ -17,9 +17,14 @@ def printable(text: str) -> str:
     """``text`` with every character that is not printable (a newline, a carriage return, an
     escape sequence's ESC, a backspace...) written as its Python escape (``\\n``, ``\\x1b``): a name
     read from a file can then neither start a log line of its own nor drive the terminal."""
+    return _escaped(text)
+
+
+def _escaped(text: str, keep: str = "") -> str:
+    """``text`` with every character that is neither printable nor in ``keep`` escaped."""
     if text.isprintable():
         return text
-    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+    return "".join(c if c.isprintable() or c in keep else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 #: Every line ``saved_line`` made in this process: the only lines the guarded output
@@ -40,7 +45,7 @@ def saved_line(path: str | os.PathLike[str]) -> str:
 
 
 def _keep_line_breaks(text: str) -> str:
-    return "".join(c if c.isprintable() or c in "\n\t" else c.encode("unicode_escape").decode("ascii") for c in text)
+    return _escaped(text, keep="\n\t")
 
 
 class GuardedOutput:
@@ -55,8 +60,9 @@ class GuardedOutput:
         self._stream = stream
         self._partial = ""
         self._line_start = True  # nothing of the current line written yet
-        #: Every whole line written (escaped), for a command's ``--json`` summary.
-        self.lines: list[str] = []
+        #: Every whole line written (escaped) once a command's ``--json`` summary asks for them
+        #: (a list); None: not kept.
+        self.lines: list[str] | None = None
         #: "info" writes every line; "warning" only lines that warn or note and the Saved lines;
         #: "error" only the Saved lines (the command line's --log-level and --quiet).
         self.level = "info"
@@ -74,7 +80,8 @@ class GuardedOutput:
             if self._line_start and not self._kept(line):
                 continue
             shown = self._line(line)
-            self.lines.append(shown)
+            if self.lines is not None:
+                self.lines.append(shown)
             self._stream.write(shown + "\n")
             self._line_start = True
         return len(text)

@@ -41,10 +41,7 @@ UNREAL_ALBEDO_RANGE = (0.01, 1.0)
 
 
 def _d(d_su) -> np.ndarray:
-    d = np.asarray(d_su, np.float64)
-    if d.shape != (3,) or not np.all(np.isfinite(d)) or np.any(d < 0):
-        raise ValueError(f"d_su: expected three finite lengths >= 0 (R, G, B), got {d_su!r}")
-    return d
+    return _rgb(d_su, "d_su", "lengths")
 
 
 def _metres(metres_per_unit) -> float:
@@ -54,10 +51,10 @@ def _metres(metres_per_unit) -> float:
     return m
 
 
-def _rgb(values, what: str) -> np.ndarray:
+def _rgb(values, what: str, kind: str = "numbers") -> np.ndarray:
     v = np.asarray(values, np.float64)
     if v.shape != (3,) or not np.all(np.isfinite(v)) or np.any(v < 0):
-        raise ValueError(f"{what}: expected three finite numbers >= 0 (R, G, B), got {values!r}")
+        raise ValueError(f"{what}: expected three finite {kind} >= 0 (R, G, B), got {values!r}")
     return v
 
 

@@ -243,15 +243,6 @@ def _materials_read(data: dict) -> list[str]:
 VERDICT_MARGIN = 0.1
 
 
-def _cost(e: dict) -> float | None:
-    """What a row's SSS effect costs (its own seconds, else end to end)."""
-    t = e.get("time_s", {})
-    for key in ("sss_effect", "apply", "total"):
-        if t.get(key) is not None:
-            return float(t[key])
-    return None
-
-
 def verdict(data: dict, margin: float = VERDICT_MARGIN) -> list[dict]:
     """Per material (the whole of the subsurface pixels when there is one): the technique to use,
     the cheapest whose error is within ``margin`` of the best technique's; what it removes of the
@@ -272,7 +263,7 @@ def verdict(data: dict, margin: float = VERDICT_MARGIN) -> list[dict]:
         # name -> (error, cost) of every technique row measured on this scope.
         rows: dict[str, tuple[float, float]] = {}
         for e in techniques:
-            err, cost = errors[e["name"]], _cost(e)
+            err, cost = errors[e["name"]], pareto_cost(e)
             if err is not None and cost is not None:
                 rows[e["name"]] = (err, cost)
         if not rows:
