@@ -65,11 +65,14 @@ def _note(layout, text: str) -> None:
     col.label(text=text, icon="INFO")
 
 
-def draw_setup_compositor(layout) -> None:
-    """The Set Up Compositor button; on a Blender that cannot run the node groups (4.5) it is greyed
-    out by its poll (the tooltip has the whole reason) and two lines say what that version lacks."""
+def draw_setup_compositor(layout, settings=None) -> None:
+    """The Set Up Compositor button (with the Burley route when the technique is Burley); on a
+    Blender that cannot run the node groups (4.5) it is greyed out by its poll (the tooltip has the
+    whole reason) and two lines say what that version lacks."""
     from ..blender import compat
 
+    if settings is not None and settings.technique == "burley":
+        layout.prop(settings, "compositor_route")
     layout.operator("sss_lab.setup_compositor", icon="NODE_COMPOSITING")
     if compat.compositor_groups_missing() is not None:
         _note(layout, f"Blender {bpy.app.version_string.split()[0]}: no Convolve node, no compositor groups")
@@ -150,7 +153,7 @@ class SSS_LAB_PT_compositor(_Step, bpy.types.Panel):
 
     def draw(self, context):
         layout = split(self.layout)
-        draw_setup_compositor(layout)
+        draw_setup_compositor(layout, getattr(context.scene, "sss_lab", None))
 
 
 class SSS_LAB_PT_compare(_Step, bpy.types.Panel):

@@ -80,6 +80,26 @@ class SSSLabSettings(bpy.types.PropertyGroup):
         default=ALBEDO_MODES[0],
     )
 
+    # -- compositor --------------------------------------------------------------------------
+    compositor_route: bpy.props.EnumProperty(
+        name="Burley Route",
+        description="How Set Up Compositor's Burley groups scatter",
+        items=[
+            (
+                "convolve",
+                "Convolve (exact)",
+                "The exact profile in Convolve nodes: an FFT on the CPU, even with the GPU compositor",
+            ),
+            (
+                "gaussians",
+                "Gaussians (GPU)",
+                "The profile as six Gaussians in Blur nodes: runs on the GPU compositor; within about 1 % of"
+                " the exact profile's scattering (docs/compositor.md)",
+            ),
+        ],
+        default="convolve",
+    )
+
     # -- render passes and apply -------------------------------------------------------------
     render_all: bpy.props.BoolProperty(
         name="All Techniques",

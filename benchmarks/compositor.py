@@ -14,6 +14,10 @@ Christensen-Burley materials, d = radius / (4 pi)). Per technique:
   ``bpy.ops.render.render()`` on the CPU compositor; a tree that only passes the image through
   is timed as well (loading and output, included in every compositor figure);
 - group build: ``ensure_*`` (kernel images from ``core``), a one-time cost;
+- Burley twice: its Convolve route (the exact profile) and its Blur-node route (six Gaussians,
+  ``route="gaussians"``), the second also against the first;
+- ``--devices CPU,GPU`` times every chain on each compositor device (GPU needs a GPU context;
+  without a GPU it runs on whatever OpenGL the machine has, which the results name);
 - difference: relative RMS of the SSS term (result minus Combined) over the scattering
   materials' pixels, compositor vs NumPy. The spheres vary in depth, so this is the
   depth-varying case: the groups use one screen scale per material (its median depth) and
@@ -41,22 +45,48 @@ from benchmarks._common import add_options, fastest, resolution, write_results
 from benchmarks.speed import D_SU
 
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "compositor.json")
-TECHNIQUES = ("sta", "ssss", "burley")
+#: (name in the results, technique, build options).
+VARIANTS = (
+    ("sta", "sta", {}),
+    ("ssss", "ssss", {}),
+    ("burley", "burley", {"route": "convolve"}),
+    ("burley_gaussians", "burley", {"route": "gaussians"}),
+)
 
 
 def _rel_rms(a, b) -> float:
     return round(float(np.sqrt(np.mean((a - b) ** 2) / max(np.mean(b * b), 1e-30))), 4)
 
 
+def _gpu_device() -> dict:
+    """What the GPU compositor ran on (Blender's ``gpu.platform``, initialized by the GPU composites)."""
+    import gpu
+
+    out = {}
+    for key in ("renderer", "vendor", "version", "device_type"):
+        try:
+            out[key] = str(getattr(gpu.platform, f"{key}_get")())
+        except Exception as exc:  # not initialized: the GPU composites did not run on a GPU context
+            out[key] = f"unknown ({exc})"
+    return out
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.compositor", description=__doc__.split("\n\n")[0])
     add_options(parser, repeat=3, results=RESULTS)
+    parser.add_argument("--devices", default="CPU", help="compositor devices to time, comma-separated (CPU, GPU)")
+    parser.add_argument("--only", default="", help="variants to run, comma-separated (default: all)")
     args = parser.parse_args(argv)
+    devices = [d.strip().upper() for d in args.devices.split(",") if d.strip()]
+    if not devices or any(d not in ("CPU", "GPU") for d in devices):
+        parser.error(f"--devices: expected CPU and/or GPU, got {args.devices!r}")
+    variants = [v for v in VARIANTS if not args.only or v[0] in args.only.split(",")]
     width, height = resolution(parser, args.resolution)
 
     import bpy
 
     from sss_lab.blender import compat
+    from sss_lab.core.compute.backend import active as backend_name
     from sss_lab.core.pipeline import mapping
     from sss_lab.core.pipeline.apply import apply
     from sss_lab.core.scene.exr import Passes, read_layers, read_passes
@@ -106,7 +136,7 @@ def main(argv=None) -> int:
     scene.view_settings.view_transform = "Standard"
     image = bpy.data.images.load(path)
 
-    def tree_with(technique):
+    def tree_with(technique, options=None):
         old = compat.compositor_tree(scene)
         if old is not None:
             scene.compositing_node_group = None
@@ -118,7 +148,7 @@ def main(argv=None) -> int:
         out = src.outputs["Combined"]
         if technique is not None:
             out, _ = setup.build_chain(
-                tree, src, image=out, technique=technique, scene=desc, options={}, pixels_per_unit=scale
+                tree, src, image=out, technique=technique, scene=desc, options=options or {}, pixels_per_unit=scale
             )
         tree.links.new(out, result)
         return tree
@@ -133,10 +163,14 @@ def main(argv=None) -> int:
         return np.array(layer[..., :3])
 
     tree_with(None)
-    baseline = fastest(composite, args.repeat, warm_up=True)
-    print(f"compositor overhead (a tree passing the image through): {baseline * 1e3:8.0f} ms")
+    baseline = {}
+    for device in devices:
+        compat.set_compositor_device(scene, device)
+        baseline[device] = fastest(composite, args.repeat, warm_up=True)
+        print(f"compositor overhead on {device} (a tree passing the image through): {baseline[device] * 1e3:8.0f} ms")
     results = {}
-    for technique in TECHNIQUES:
+    outputs = {}
+    for key, technique, options in variants:
         entry = {}
         kernels = {}
         t0 = time.perf_counter()
@@ -148,35 +182,51 @@ def main(argv=None) -> int:
             if technique == "ssss":
                 group = ensure_ssss_group(name=name, pixels_per_unit=scale[m.index], d_su=d)
             else:
-                group = ensure_burley_group(name=name, pixels_per_unit=scale[m.index], d_su=d)
+                group = ensure_burley_group(name=name, pixels_per_unit=scale[m.index], d_su=d, **options)
             kernels[m.name] = 2 * group["sss_lab"]["kernel_radius_px"] + 1
         entry["group_build_ms"] = round((time.perf_counter() - t0) * 1e3, 1)
         entry["kernel_size_px"] = kernels
-        tree = tree_with(technique)
-        entry["convolve_nodes"] = sum(
-            1
+        tree = tree_with(technique, options)
+        inner = [
+            node.bl_idname
             for n in tree.nodes
             if getattr(n, "node_tree", None) is not None
-            for inner in n.node_tree.nodes
-            if inner.bl_idname == "CompositorNodeConvolve"
-        )
-        seconds = fastest(composite, args.repeat, warm_up=True)
-        entry["compositor_ms"] = round(seconds * 1e3, 1)
+            for node in n.node_tree.nodes
+        ]
+        entry["convolve_nodes"] = inner.count("CompositorNodeConvolve")
+        entry["blur_nodes"] = inner.count("CompositorNodeBlur")
+        for device in devices:
+            compat.set_compositor_device(scene, device)
+            seconds = fastest(composite, args.repeat, warm_up=True)
+            entry["compositor_ms" if device == "CPU" else f"compositor_{device.lower()}_ms"] = round(seconds * 1e3, 1)
+        compat.set_compositor_device(scene, devices[0])
         numpy_s = fastest(lambda t=technique: apply(loaded, desc, t), args.repeat, warm_up=True)
         entry["numpy_ms"] = round(numpy_s * 1e3, 1)
-        got = composite_to_file(f"{technique}.exr")
+        got = composite_to_file(f"{key}.exr")
+        outputs[key] = got
         want = apply(loaded, desc, technique)[f"SSSLab.{technique}.Image"][..., :3]
         a, b = (got - combined)[on], (want - combined)[on]
         entry["rel_rms_sss_vs_numpy"] = _rel_rms(a, b)
         extra = {"n_samples": 1024} if technique == "burley" else {}
         flat = apply(flat_passes, desc, technique, **extra)[f"SSSLab.{technique}.Image"][..., :3]
         entry["rel_rms_sss_vs_numpy_median_depth"] = _rel_rms(a, (flat - combined)[on])
-        results[technique] = entry
+        if key == "burley_gaussians" and "burley" in outputs:
+            entry["rel_rms_sss_vs_convolve_route"] = _rel_rms(a, (outputs["burley"] - combined)[on])
+        results[key] = entry
+        timing = "   ".join(
+            f"compositor {d} {entry['compositor_ms' if d == 'CPU' else f'compositor_{d.lower()}_ms']:8.0f} ms"
+            for d in devices
+        )
         print(
-            f"{technique:7s} compositor {seconds * 1e3:8.0f} ms   numpy {numpy_s * 1e3:8.0f} ms   "
+            f"{key:17s} {timing}   numpy {numpy_s * 1e3:8.0f} ms   "
             f"group build {entry['group_build_ms']:6.0f} ms   kernels {kernels}   "
             f"SSS rel. RMS vs numpy {entry['rel_rms_sss_vs_numpy']:.3f} "
             f"(median depth: {entry['rel_rms_sss_vs_numpy_median_depth']:.4f})"
+            + (
+                f"   vs the Convolve route {entry['rel_rms_sss_vs_convolve_route']:.4f}"
+                if "rel_rms_sss_vs_convolve_route" in entry
+                else ""
+            )
         )
     data = {
         "resolution": [width, height],
@@ -184,8 +234,10 @@ def main(argv=None) -> int:
         "statistic": "fastest of the repeats after a warm-up",
         "scene": "core.study.synthetic.sphere_scene (Skin and Wax scatter, two sun lights)",
         "d_su": {name: [round(d * f, 6) for d in D_SU] for name, f in widths.items()},
-        "compositor_device": "CPU",
-        "compositor_image_only_ms": round(baseline * 1e3, 1),
+        "compositor_devices": devices,
+        "gpu_device": _gpu_device() if "GPU" in devices else None,
+        "compositor_image_only_ms": {d: round(t * 1e3, 1) for d, t in baseline.items()},
+        "numpy_backend": backend_name(),
         "pixels_per_unit": {m.name: round(scale[m.index], 2) for m in scattering},
         "machine": {
             "cpus": os.cpu_count(),

@@ -272,6 +272,32 @@ def new_convolve(tree, *, color_kernel: bool = True, normalize: bool = False):
     return node, node.inputs["Image"], kernel, node.outputs["Image"]
 
 
+def new_gaussian_blur(tree, size: int):
+    """A Blur node with the Gaussian filter at ``size`` pixels on both axes, separable, bounds not
+    extended. 5.x has the filter as the "Type" menu socket; 4.5 as the ``filter_type`` property.
+    Returns (node, image input, output)."""
+    node = tree.nodes.new("CompositorNodeBlur")
+    if "Type" in node.inputs:
+        node.inputs["Type"].default_value = "Gaussian"
+    else:
+        node.filter_type = "GAUSS"
+    node.inputs["Size"].default_value = (float(size), float(size))
+    if "Separable" in node.inputs:
+        node.inputs["Separable"].default_value = True
+    return node, node.inputs["Image"], node.outputs["Image"]
+
+
+def new_set_alpha(tree):
+    """A Set Alpha node that replaces the image's alpha. Returns (node, image input, alpha input,
+    output)."""
+    node = tree.nodes.new("CompositorNodeSetAlpha")
+    if "Type" in node.inputs:
+        node.inputs["Type"].default_value = "Replace Alpha"
+    else:
+        node.mode = "REPLACE_ALPHA"
+    return node, node.inputs["Image"], node.inputs["Alpha"], node.outputs["Image"]
+
+
 def new_menu_switch(tree, data_type: str, items: tuple[str, ...]):
     """A Menu Switch node with the menu entries ``items`` (5.x compositors have the Menu Switch
     of geometry nodes). Returns (node, menu input, {item: input socket}, output)."""

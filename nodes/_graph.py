@@ -318,6 +318,27 @@ class Graph:
         self.group.links.new(kernel, kernel_in)
         return output
 
+    def blur(self, value, size: int, label: str = ""):
+        """``value`` (RGBA) through a Blur node's Gaussian of integer ``size`` (all four channels)."""
+        node, image_in, output = compat.new_gaussian_blur(self.tree, size)
+        self._place(node, label)
+        self.connect(value, image_in)
+        return output
+
+    def with_alpha(self, rgb, alpha, label: str = ""):
+        """An RGBA colour from an RGB vector and a float alpha."""
+        node, image_in, alpha_in, output = compat.new_set_alpha(self.tree)
+        self._place(node, label)
+        self.connect(rgb, image_in)
+        self.connect(alpha, alpha_in)
+        return output
+
+    def alpha(self, value, label: str = ""):
+        """The alpha of an RGBA colour."""
+        node = self.node("CompositorNodeSeparateColor", label)
+        self.connect(value, node.inputs["Image"])
+        return node.outputs["Alpha"]
+
     def add_keep_alpha(self, image, rgb, label: str = "Image + SSS"):
         """``image`` + ``rgb`` with the image's alpha kept (vector math drops alpha)."""
         sep = self.node("CompositorNodeSeparateColor")

@@ -91,6 +91,8 @@ class SSS_LAB_OT_setup_compositor(bpy.types.Operator):
         if settings is not None:
             options = dict(settings.technique_options(technique))
             options["albedo_mode"] = settings.albedo_mode
+            if technique == "burley":
+                options["route"] = settings.compositor_route
         try:
             report = setup_compositor(scene, technique, options=options, view_layer=context.view_layer)
         except (ValueError, compat.MissingFeature) as exc:

@@ -38,7 +38,14 @@ import numpy as np
 import pytest
 
 from sss_lab.blender import compat
-from sss_lab.core.optics.kernel_images import burley_kernel_image, correlate_zero, separable_kernel_image
+from sss_lab.core.optics.kernel_images import (
+    blur_node_gaussian,
+    burley_gaussian_mixture,
+    burley_kernel_image,
+    correlate_zero,
+    gaussian_mixture_image,
+    separable_kernel_image,
+)
 from sss_lab.core.optics.kernels import make_kernel
 from sss_lab.core.pipeline import mapping
 from sss_lab.core.pipeline.apply import apply
@@ -138,9 +145,10 @@ def _render(tmp_path, name="out.exr"):
     return np.array(layer[..., :3])
 
 
-def _composite(tmp_path, arrays, desc, technique, options=None, scale=None, numpy_only=None):
+def _composite(tmp_path, arrays, desc, technique, options=None, scale=None, numpy_only=None, group_only=None):
     """Run ``technique``'s chain over ``arrays``; returns (Blender's RGB, NumPy's RGB).
-    ``numpy_only``: options for the NumPy technique alone (the node group has no such input)."""
+    ``numpy_only``: options for the NumPy technique alone (the node group has no such input);
+    ``group_only``: options for the node group alone (its route)."""
     path = _write(tmp_path, arrays)
     tree, result = _tree(bpy.context.scene)
     src = _source(tree, path)
@@ -152,7 +160,7 @@ def _composite(tmp_path, arrays, desc, technique, options=None, scale=None, nump
         image=src.outputs["Combined"],
         technique=technique,
         scene=desc,
-        options=options,
+        options={**(options or {}), **(group_only or {})},
         pixels_per_unit=scale,
     )
     assert not notes
@@ -400,6 +408,65 @@ def test_burley_textured_matches_the_convolution_model_and_is_measured_against_n
     print(
         "\nBurley textured, flat: relative RMS of the SSS term, group vs numpy(32) "
         f"{_rel_rms(sss_group, sss_np, on):.3f}, vs numpy(1024) {_rel_rms(sss_group, sss_many, on):.3f}"
+    )
+
+
+# -- the Blur-node route ---------------------------------------------------------------------------
+
+
+def test_blur_node_is_the_cut_gaussian_of_the_kernel_module(tmp_path):
+    """The Blur node's Gaussian at integer sizes, as ``blur_node_gaussian`` models it, on all four
+    channels (the route carries the mask in alpha)."""
+    for size in (2, 7):
+        image = np.zeros((H, W, 4), np.float32)
+        image[32, 32] = 1.0
+        tree, result = _tree(bpy.context.scene)
+        src = tree.nodes.new("CompositorNodeImage")
+        src.image = _graph.ensure_image("probe image", image, owner="probe")
+        node, image_in, output = compat.new_gaussian_blur(tree, size)
+        tree.links.new(src.outputs["Image"], image_in)
+        tree.links.new(output, result)
+        got = _render(tmp_path, f"blur{size}.exr")
+        line = blur_node_gaussian(size)
+        want = np.zeros((H, W))
+        want[32 - size : 33 + size, 32 - size : 33 + size] = np.outer(line, line)
+        np.testing.assert_allclose(got[..., 0], want, atol=1e-6)
+        (layer,) = read_layers(str(tmp_path / f"blur{size}.exr")).layers.values()
+        np.testing.assert_allclose(np.asarray(layer)[..., 3], want, atol=1e-6)  # alpha blurred alike
+
+
+def test_burley_gaussians_route_is_its_mixture_and_near_the_exact_group(tmp_path):
+    """The Blur-node route computes sum_k w_k G_k(E M) / sum_k w_k G_k(M) per material with the
+    mixture of ``burley_gaussian_mixture`` (asserted against that model in NumPy away from the
+    border, where the Blur node's own border rule applies; 1e-5 of the largest value: float32
+    sums of a few hundred taps per pass), and its SSS term is measured against the exact group's."""
+    index = _two_materials()
+    arrays = _passes(index, seed=4)
+    desc = _desc(SKIN, WAX)
+    got, _ = _composite(tmp_path, arrays, desc, "burley", numpy_only=LAMBERT, group_only={"route": "gaussians"})
+    model = arrays["Combined"][..., :3].astype(np.float64)
+    e = (arrays["Diffuse Direct"] + arrays["Diffuse Indirect"]).astype(np.float64)
+    a = arrays["Diffuse Color"].astype(np.float64)
+    radius = 0
+    for m in (SKIN, WAX):
+        mask = (index == m.index).astype(np.float64)[..., None].repeat(3, -1)
+        sizes, weights = burley_gaussian_mixture(mapping.burley_d(m), SCALE)
+        assert 1 <= len(sizes) <= 6
+        k = gaussian_mixture_image(sizes, weights)
+        radius = max(radius, k.shape[0] // 2)
+        scattered = correlate_zero(e * mask, k) / np.maximum(correlate_zero(mask, k), 1e-30)
+        model += mask * (a * scattered - a * e)
+    inner = (slice(radius, -radius), slice(radius, -radius))
+    assert np.abs(got - model)[inner].max() <= FFT_TOL * np.abs(model).max()
+    exact, _ = _composite(tmp_path, arrays, desc, "burley", numpy_only=LAMBERT)
+    on = index > 0
+    base = arrays["Combined"][..., :3]
+    inner_on = np.zeros_like(on)
+    inner_on[inner] = on[inner]
+    print(
+        "\nBurley, Blur-node route against the Convolve route: relative RMS of the SSS term "
+        f"{_rel_rms(got - base, exact - base, inner_on):.4f} inside, {_rel_rms(got - base, exact - base, on):.4f} "
+        "with the border"
     )
 
 
@@ -653,6 +720,8 @@ def test_operator_refuses_clearly(addon):
 def test_bad_builder_input_is_refused():
     with pytest.raises(ValueError, match="d_su"):
         ensure_burley_group(d_su=(-1.0, 0.0, 0.0), pixels_per_unit=SCALE)
+    with pytest.raises(ValueError, match="route: expected one of convolve, gaussians, got 'fft'"):
+        ensure_burley_group(d_su=(0.01, 0.01, 0.01), pixels_per_unit=SCALE, route="fft")
     with pytest.raises(ValueError, match="pixels_per_unit"):
         ensure_ssss_group(pixels_per_unit=0.0, d_su=(0.01, 0.01, 0.01))
     with pytest.raises(ValueError, match="n_taps"):
@@ -702,6 +771,17 @@ def test_operator_takes_the_panel_settings_and_the_panel_has_its_button(addon, d
 
     drawn = [(panel, name) for panel, _, name, _ in draw_panels("render")]
     assert ("Compositor", "sss_lab.setup_compositor") in drawn
+    assert ("Compositor", "compositor_route") not in drawn  # SSSS has one route
+
+    # Burley: the route is the panel's, and the panel shows it.
+    settings.technique, settings.compositor_route = "burley", "gaussians"
+    assert bpy.ops.sss_lab.setup_compositor() == {"FINISHED"}
+    meta = _graph.read_meta(tree.nodes[group_name("burley", "Skin")].node_tree)
+    assert meta["route"] == "gaussians" and 1 <= len(meta["blur_sizes"]) <= 6
+    assert ("Compositor", "compositor_route") in [(p, n) for p, _, n, _ in draw_panels("render")]
+    settings.compositor_route = "convolve"
+    assert bpy.ops.sss_lab.setup_compositor() == {"FINISHED"}
+    assert _graph.read_meta(tree.nodes[group_name("burley", "Skin")].node_tree)["route"] == "convolve"
 
 
 @pytest.mark.parametrize("technique", ["burley", "ssss"])
