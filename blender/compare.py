@@ -184,7 +184,11 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
             run = technique_run(passes, desc, technique, quality, high, notes, log)
             if run is not None:
                 total = timings["passes"] + run.apply_s
-                extra = {"technique": technique, "quality": quality}
+                extra = {
+                    "technique": technique,
+                    "quality": quality,
+                    "samples_per_pixel": TECHNIQUES[technique].samples_per_pixel(quality, len(desc.lights)),
+                }
                 rows.add(run.label, "technique", run.image, total, run.apply_s, extra, image_high=run.image_high)
                 rows.entries[-1]["time_s"]["sss_effect_spread"] = list(run.apply_spread)
                 rows.entries[-1]["time_s"]["sss_effect_runs"] = run.runs
@@ -208,6 +212,8 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
             # As the techniques read them: inputs linked to textures at their medians, with the notes.
             "materials": [asdict(m) for m in read_scene(passes, desc).materials],
             "fingerprint": fingerprint,
+            # Lights the techniques read (a technique that adds light evaluates each per pixel).
+            "lights": len(desc.lights),
         },
         "settings": _settings_data(settings, materials, ref, ref_seconds, merged),
         "noise_floor": noise,
@@ -432,7 +438,7 @@ def _peers(settings: CompareSettings, reference, rows: _Rows, timings: dict, ste
             continue
         yield steps.next(f"Cycles {samples} samples")
         img, secs, _ = reference(samples=samples, seed=settings.seed + 2, method=None)
-        rows.add(f"Cycles {samples} spp", "cycles", img, secs)
+        rows.add(f"Cycles {samples} spp", "cycles", img, secs, extra={"samples_per_pixel": samples})
         rows.entries[-1]["time_s"]["sss_effect"] = None
         if samples == settings.pass_samples:
             rw_at_pass_samples = secs
@@ -444,14 +450,15 @@ def _peers(settings: CompareSettings, reference, rows: _Rows, timings: dict, ste
         img, secs, _ = reference(samples=samples, seed=settings.seed + 2, method=None, denoise=True)
         yield steps.next(f"Cycles {samples} samples, denoised, another seed (its bias apart from its noise)")
         other, _, _ = reference(samples=samples, seed=settings.seed + 4, method=None, denoise=True)
-        rows.add(f"Cycles {samples} spp + OIDN", "cycles", img, secs)
+        rows.add(f"Cycles {samples} spp + OIDN", "cycles", img, secs, extra={"samples_per_pixel": samples})
         m = rows.entries[-1]["metrics"]
         m["bias"], m["pass_noise"] = metrics.split_seeds(img, other, rows.ref, rows.mask, box=settings.box)
         rows.entries[-1]["time_s"]["sss_effect"] = None
     if settings.cycles_burley:
         yield steps.next(f"Cycles Christensen-Burley, {settings.reference_samples} samples")
         img, secs, _ = reference(samples=settings.reference_samples, seed=settings.seed + 3, method="BURLEY")
-        rows.add(f"Cycles Christensen-Burley {settings.reference_samples} spp", "cycles", img, secs)
+        spp = settings.reference_samples
+        rows.add(f"Cycles Christensen-Burley {spp} spp", "cycles", img, secs, extra={"samples_per_pixel": spp})
     return rw_at_pass_samples
 
 
@@ -483,7 +490,13 @@ def _eevee(scene, settings: CompareSettings, cache_dir: str, fingerprint: str, p
         h, w = rows.ref.shape[:2]
         raise ValueError(f"EEVEE rendered {on.shape[1]}x{on.shape[0]}, the reference is {w}x{h}")
     info = {"samples": samples, "seconds_with_sss": on_s, "seconds_without_sss": off_s}
-    rows.add(f"EEVEE {samples} samples", "eevee", on, on_s, extra={"eevee": dict(info, image="as rendered")})
+    rows.add(
+        f"EEVEE {samples} samples",
+        "eevee",
+        on,
+        on_s,
+        extra={"eevee": dict(info, image="as rendered"), "samples_per_pixel": samples},
+    )
     # Its SSS effect on Cycles' image without scattering: scored like a technique's image, its share of
     # the no-SSS error removed is the share of Cycles' SSS effect it reproduces.
     effect = np.array(passes["Combined"], dtype=np.float32)
@@ -494,7 +507,10 @@ def _eevee(scene, settings: CompareSettings, cache_dir: str, fingerprint: str, p
         effect,
         on_s,
         max(on_s - off_s, 0.0),
-        extra={"eevee": dict(info, image="Cycles without SSS + (EEVEE with SSS - EEVEE without)")},
+        extra={
+            "eevee": dict(info, image="Cycles without SSS + (EEVEE with SSS - EEVEE without)"),
+            "samples_per_pixel": samples,
+        },
     )
     # What its SSS costs EEVEE: the frame with it against the frame without (no apply of its own).
     rows.entries[-1]["time_s"] = {"total": on_s, "apply": None, "sss_effect": max(on_s - off_s, 0.0)}

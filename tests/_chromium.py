@@ -309,16 +309,30 @@ def inspect_report(browser: Chromium, folder: str, screenshots: str | None = Non
             page.screenshot(info["screenshot"])
         page.send("Page.close")
         out[name] = info
-    svg = browser.open("file://" + os.path.abspath(os.path.join(folder, "pareto.svg")), width=800, height=600)
-    out["pareto.svg"] = {
-        "root": svg.evaluate("document.documentElement.localName"),
-        "parse_errors": svg.evaluate("document.getElementsByTagName('parsererror').length"),
-        "circles": svg.evaluate("document.querySelectorAll('circle').length"),
-        "console": svg.console,
-        "failed": svg.failed,
-    }
-    svg.send("Page.close")
+    for plot in PLOTS:
+        svg = browser.open("file://" + os.path.abspath(os.path.join(folder, plot)), width=800, height=600)
+        out[plot] = {
+            "root": svg.evaluate("document.documentElement.localName"),
+            "parse_errors": svg.evaluate("document.getElementsByTagName('parsererror').length"),
+            "circles": svg.evaluate("document.querySelectorAll('circle').length"),
+            "console": svg.console,
+            "failed": svg.failed,
+        }
+        svg.send("Page.close")
     return out
+
+
+#: The report's plots, in the order the page shows them inline.
+PLOTS = ("pareto.svg", "pareto_samples.svg")
+
+
+def _plotted(data: dict, plot: str) -> list[dict]:
+    """The entries a plot must draw: measured ones with a time (the seconds plot) or with samples
+    per pixel (the samples plot)."""
+    measured = [e for e in data["entries"] if e["metrics"].get("rel_rmse") is not None]
+    if plot == "pareto.svg":
+        return [e for e in measured if e["time_s"].get("total")]
+    return [e for e in measured if e.get("samples_per_pixel")]
 
 
 #: Readable sizes, in CSS pixels: text at least 14 px (browsers default to 16 px), and the plot's
@@ -339,7 +353,6 @@ def report_problems(folder: str, seen: dict) -> list[str]:
         wanted.add(data["summary"]["file"])
     for e in data["entries"]:
         wanted |= {e[k] for k in ("image", "error_image") if e.get(k)}
-    plotted = [e for e in data["entries"] if e["metrics"].get("rel_rmse") is not None and e["time_s"].get("total")]
     problems = []
     for name, viewport in VIEWPORTS.items():
         page = seen[name]
@@ -349,28 +362,30 @@ def report_problems(folder: str, seen: dict) -> list[str]:
         if srcs != wanted:
             problems.append(f"{name}: pictures shown {sorted(srcs)}, expected {sorted(wanted)}")
         problems += [f"{name}: picture did not load: {i['src']}" for i in page["images"] if not i["loaded"]]
-        if len(page["svgs"]) != 1:
-            problems.append(f"{name}: {len(page['svgs'])} inline SVG plots, expected 1")
-        for svg in page["svgs"][:1]:
+        if len(page["svgs"]) != len(PLOTS):
+            problems.append(f"{name}: {len(page['svgs'])} inline SVG plots, expected {len(PLOTS)}")
+        for plot, svg in zip(PLOTS, page["svgs"], strict=False):
+            plotted = _plotted(data, plot)
             if svg["width"] < 300 or svg["height"] < 150:
                 problems.append(f"{name}: plot drawn {svg['width']:.0f}x{svg['height']:.0f} px")
             if svg["circles"] != len(plotted):
-                problems.append(f"{name}: plot has {svg['circles']} dots for {len(plotted)} measured entries")
+                problems.append(f"{name}: {plot} has {svg['circles']} dots for {len(plotted)} measured entries")
             missing = {e["name"] for e in plotted} - set(svg["texts"])
             if missing:
-                problems.append(f"{name}: plot does not name {sorted(missing)}")
+                problems.append(f"{name}: {plot} does not name {sorted(missing)}")
             if svg["smallest_text_px"] < MIN_PLOT_TEXT_PX:
-                problems.append(f"{name}: plot text {svg['smallest_text_px']:.1f} px tall (< {MIN_PLOT_TEXT_PX})")
-            problems += [f"{name}: plot label cut off at the edge: {t}" for t in svg["texts_outside"]]
+                problems.append(f"{name}: {plot} text {svg['smallest_text_px']:.1f} px tall (< {MIN_PLOT_TEXT_PX})")
+            problems += [f"{name}: {plot} label cut off at the edge: {t}" for t in svg["texts_outside"]]
         if page["inner_width"] != viewport["width"]:
             problems.append(f"{name}: laid out {page['inner_width']} px wide on a {viewport['width']} px screen")
         if page["page_width"] > page["inner_width"]:
             problems.append(f"{name}: the page scrolls sideways ({page['page_width']} > {page['inner_width']} px)")
         if page["smallest_font_px"] < MIN_FONT_PX:
             problems.append(f"{name}: text of {page['smallest_font_px']} px (< {MIN_FONT_PX})")
-    alone = seen["pareto.svg"]
-    if alone["root"] != "svg" or alone["parse_errors"]:
-        problems.append(f"pareto.svg does not parse as SVG: {alone}")
-    if alone["circles"] != len(plotted) or alone["console"] or alone["failed"]:
-        problems.append(f"pareto.svg: {alone['circles']} dots, console {alone['console']}, failed {alone['failed']}")
+    for plot in PLOTS:
+        alone, plotted = seen[plot], _plotted(data, plot)
+        if alone["root"] != "svg" or alone["parse_errors"]:
+            problems.append(f"{plot} does not parse as SVG: {alone}")
+        if alone["circles"] != len(plotted) or alone["console"] or alone["failed"]:
+            problems.append(f"{plot}: {alone['circles']} dots, console {alone['console']}, failed {alone['failed']}")
     return problems

@@ -882,13 +882,7 @@ def _works(technique: str, material: MaterialSSS, pixels: int, lights: int, mapp
     """``_work`` of each options of ``runs``, the material's parameters read once."""
     spec = get_spec(technique)
     params = technique_params(material, technique, mapping=mapping)
-    out = []
-    for options in runs:
-        per_pixel = float(spec.footprint({**params, **options}).samples or 0)
-        if spec.adds_light:  # one evaluation per light for the light it adds
-            per_pixel += max(lights, 1)
-        out.append(pixels * max(per_pixel, 1.0))
-    return out
+    return [pixels * float(spec.samples_per_pixel({**params, **options}, lights)) for options in runs]
 
 
 def choose(

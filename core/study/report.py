@@ -8,7 +8,8 @@ one folder:
 - ``report.md`` and ``report.html`` (the HTML embeds the error-versus-time plot as SVG);
 - ``images/*.png``: each image tone mapped, and its error map against the reference;
 - ``grid.png``: no SSS / each technique / reference on the top rows, error heat maps below;
-- ``pareto.svg``: relative RMSE against time, the Pareto front joined.
+- ``pareto.svg``: relative RMSE against time, the Pareto front joined; ``pareto_samples.svg``: the
+  same against samples per pixel, a cost that does not depend on the machine.
 
 Nothing here renders or computes a technique: the caller (``blender/compare.py``) does.
 """
@@ -56,12 +57,20 @@ def pareto_cost(e: dict) -> float | None:
     return t.get("sss_effect") if t.get("sss_effect") is not None else t.get("total")
 
 
-def pareto_front(entries: list[dict], *, error_key: str = "rel_rmse") -> list[str]:
-    """Names of the entries that no other entry beats on both cost (``pareto_cost``) and error."""
+def samples_cost(e: dict) -> float | None:
+    """An entry's cost on the samples axis: its samples per pixel (a technique's samples or taps
+    and its per-light evaluations, a render's samples); None where it has none (no SSS)."""
+    n = e.get("samples_per_pixel")
+    return float(n) if n else None
+
+
+def pareto_front(entries: list[dict], *, error_key: str = "rel_rmse", cost=pareto_cost) -> list[str]:
+    """Names of the entries that no other entry beats on both cost (``cost``, by default
+    ``pareto_cost``) and error."""
     pts = [
-        (pareto_cost(e), e["metrics"][error_key], e["name"])
+        (cost(e), e["metrics"][error_key], e["name"])
         for e in entries
-        if e.get("metrics", {}).get(error_key) is not None and pareto_cost(e) is not None
+        if e.get("metrics", {}).get(error_key) is not None and cost(e) is not None
     ]
     pts.sort()
     front, best = [], math.inf
@@ -133,9 +142,28 @@ def place_labels(points, texts, bounds) -> list[tuple[float, float, str, bool]]:
     return out
 
 
-def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, height: int = 400) -> str:
-    """Relative RMSE (y) against the SSS effect's cost (x, ``pareto_cost``, log scale) as an SVG
-    document; a technique's cost drawn with the spread of its timed runs."""
+#: The x axes of the two Pareto plots: (cost function, axis label, title).
+PARETO_AXES = {
+    "pareto.svg": (
+        pareto_cost,
+        "cost of the SSS effect, seconds (log): a technique's run, a peer's render",
+        "Relative RMSE against the cost of the SSS effect; the Pareto front is joined",
+    ),
+    "pareto_samples.svg": (
+        samples_cost,
+        "samples per pixel (log): a technique's samples or taps (+1 per light it adds), a render's samples",
+        "Relative RMSE against samples per pixel; the Pareto front is joined",
+    ),
+}
+
+
+def pareto_svg(
+    entries: list[dict], front: list[str], *, width: int = 640, height: int = 400, axis: str = "pareto.svg"
+) -> str:
+    """Relative RMSE (y) against a cost (x, log scale) as an SVG document: ``axis`` names one of
+    ``PARETO_AXES`` (by default the SSS effect's seconds, ``pareto_cost``, a technique's drawn
+    with the spread of its timed runs; or samples per pixel)."""
+    pareto_cost, x_label, title = PARETO_AXES[axis]
     pts = [e for e in entries if e["metrics"].get("rel_rmse") is not None and pareto_cost(e)]
     left, right, top, bottom = 70, 20, 20, 50
     if not pts:
@@ -155,12 +183,11 @@ def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, heigh
     out = [
         f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {width} {height}"'
         ' font-family="sans-serif" font-size="12" role="img">',
-        "<title>Relative RMSE against the cost of the SSS effect; the Pareto front is joined</title>",
+        f"<title>{title}</title>",
         f'<rect x="0" y="0" width="{width}" height="{height}" fill="white"/>',
         f'<line x1="{left}" y1="{height - bottom}" x2="{width - right}" y2="{height - bottom}" stroke="black"/>',
         f'<line x1="{left}" y1="{top}" x2="{left}" y2="{height - bottom}" stroke="black"/>',
-        f'<text x="{(left + width - right) / 2}" y="{height - 12}" text-anchor="middle">'
-        "cost of the SSS effect, seconds (log): a technique's run, a peer's render</text>",
+        f'<text x="{(left + width - right) / 2}" y="{height - 12}" text-anchor="middle">{html.escape(x_label)}</text>',
         f'<text x="14" y="{(top + height - bottom) / 2}" text-anchor="middle" '
         f'transform="rotate(-90 14 {(top + height - bottom) / 2})">relative RMSE</text>',
     ]
@@ -185,7 +212,7 @@ def pareto_svg(entries: list[dict], front: list[str], *, width: int = 640, heigh
         out.append(f'<polyline points="{path}" fill="none" stroke="#2ca02c" stroke-width="1.5"/>')
     xy = [(sx(pareto_cost(e)), sy(e["metrics"]["rel_rmse"])) for e in pts]
     for e, (_, y) in zip(pts, xy, strict=True):  # the spread of a technique's timed runs
-        spread = e["time_s"].get("sss_effect_spread")
+        spread = e["time_s"].get("sss_effect_spread") if axis == "pareto.svg" else None
         if spread and spread[1] > spread[0] > 0:
             out.append(
                 f'<line x1="{sx(spread[0]):.1f}" y1="{y:.1f}" x2="{sx(spread[1]):.1f}" y2="{y:.1f}" stroke="#1f77b4"'
@@ -435,7 +462,15 @@ def _markdown(data: dict) -> str:
         ]
         for row in costs["techniques"]:
             lines.append(f"| {row['name']} | {_fmt(row['sss_effect_s'], 3)} | {_fmt(row['end_to_end_s'], 3)} |")
-    lines += ["", "![error against time](pareto.svg)", "", "![images](grid.png)", ""]
+    lines += [
+        "",
+        "![error against time](pareto.svg)",
+        "",
+        "![error against samples per pixel](pareto_samples.svg)",
+        "",
+        "![images](grid.png)",
+        "",
+    ]
     if data.get("summary"):
         lines += ["![summary](summary.png)", ""]
     grid = data.get("grid")
@@ -562,7 +597,7 @@ def _viewer(data: dict) -> str:
     )
 
 
-def _html(data: dict, svg: str) -> str:
+def _html(data: dict, svgs: dict[str, str]) -> str:
     # The Markdown is the single source of the text; the HTML shows it as tables plus the pictures.
     lines = _markdown(data).splitlines()
     body: list[str] = []
@@ -597,7 +632,7 @@ def _html(data: dict, svg: str) -> str:
         elif line.startswith("## "):
             body.append(f"<h2>{html.escape(line[3:])}</h2>")
         elif line.startswith("![error"):
-            body.append(f'<div class="wide">{svg}</div>')
+            body.append(f'<div class="wide">{svgs[line[line.rindex("(") + 1 : -1]]}</div>')
         elif line.startswith("![images]"):
             body.append('<div class="wide"><a href="grid.png"><img src="grid.png" alt="images"></a></div>')
             body.append(_viewer(data))
@@ -637,6 +672,7 @@ def write_report(
     data["version"] = REPORT_VERSION
     data["metric_definitions"] = METRIC_DEFINITIONS
     data["pareto"] = pareto_front(data.get("entries", []))
+    data["pareto_samples"] = pareto_front(data.get("entries", []), cost=samples_cost)
     data["verdict"] = verdict(data)
     img_dir = os.path.join(out_dir, "images")
     ref = images[reference]
@@ -682,11 +718,15 @@ def write_report(
         "error_scale_white": vmax,
         "rows": ["tone-mapped image", "relative luminance error (black 0, white at error_scale_white)"],
     }
-    svg = pareto_svg(data.get("entries", []), data["pareto"])
-    write_text(os.path.join(out_dir, "pareto.svg"), svg)
+    svgs = {
+        "pareto.svg": pareto_svg(data.get("entries", []), data["pareto"]),
+        "pareto_samples.svg": pareto_svg(data.get("entries", []), data["pareto_samples"], axis="pareto_samples.svg"),
+    }
+    for name, svg in svgs.items():
+        write_text(os.path.join(out_dir, name), svg)
     write_text(os.path.join(out_dir, "metrics.json"), json.dumps(data, indent=2, sort_keys=True))
     write_text(os.path.join(out_dir, "report.md"), _markdown(data))
-    write_text(os.path.join(out_dir, "report.html"), _html(data, svg))
+    write_text(os.path.join(out_dir, "report.html"), _html(data, svgs))
     return data
 
 
@@ -697,5 +737,5 @@ def report_files(out_dir: str, data: dict) -> list[str]:
         images += [e.get("image"), e.get("error_image")]
     names = [n for n in dict.fromkeys(images) if n]
     names += ["grid.png"] + (["summary.png"] if data.get("summary") else [])
-    names += ["pareto.svg", "metrics.json", "report.md", "report.html"]
+    names += [*PARETO_AXES, "metrics.json", "report.md", "report.html"]
     return [os.path.join(out_dir, n) for n in names]

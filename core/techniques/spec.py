@@ -278,6 +278,16 @@ class Technique:
         naming the first bad key or value and what is allowed."""
         return {k: self.param(k).check(v, f"{self.name}.") for k, v in values.items()}
 
+    def samples_per_pixel(self, params: Mapping[str, Any], lights: int) -> int:
+        """What one pixel costs this technique with ``params`` (missing ones at their defaults),
+        in a unit that does not depend on the machine: its samples or taps (``footprint``; SSSS:
+        taps per pass), plus one evaluation per light when it adds light from behind; at least one.
+        ``auto``'s work model and the report's samples axis count the same way."""
+        per_pixel = self.footprint({**self.defaults, **params}).samples or 0
+        if self.adds_light:
+            per_pixel += max(int(lights), 1)
+        return max(int(per_pixel), 1)
+
     def quality_label(self, quality: Mapping[str, Any]) -> str:
         """``Burley samples=16``: the label of one run of the quality ladder."""
         if not quality:

@@ -30,6 +30,7 @@ from sss_lab.blender.samples import load_sample_scenes
 from sss_lab.core.pipeline import apply as core_apply
 from sss_lab.core.pipeline import mapping
 from sss_lab.core.scene import exr
+from sss_lab.core.techniques.registry import TECHNIQUES
 
 pytestmark = pytest.mark.slow
 
@@ -138,7 +139,17 @@ def test_report_numbers_are_the_json_numbers(reports):
             entry = next(e for e in data["entries"] if e["name"] == row["name"])
             assert row["sss_effect_s"] == entry["time_s"]["apply"] < row["end_to_end_s"] == entry["time_s"]["total"]
         assert "## Two costs" in md
-        for f in ("grid.png", "pareto.svg"):
+        # The machine-independent axis: a technique's samples per pixel from its quality, a render's samples.
+        lights = data["scene"]["lights"]
+        for entry in data["entries"]:
+            if entry["kind"] == "technique":
+                spec = TECHNIQUES[entry["technique"]]
+                assert entry["samples_per_pixel"] == spec.samples_per_pixel(entry["quality"], lights), entry
+            elif entry["kind"] == "cycles":
+                assert entry["samples_per_pixel"] == int(re.search(r"(\d+) spp", entry["name"]).group(1))
+            else:
+                assert "samples_per_pixel" not in entry
+        for f in ("grid.png", "pareto.svg", "pareto_samples.svg"):
             assert os.path.getsize(os.path.join(folder, name, f)) > 0
 
 

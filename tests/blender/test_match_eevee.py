@@ -54,11 +54,14 @@ def _counts():
     return {m.name: len(m.node_tree.nodes) for m in bpy.data.materials if m.node_tree}, len(bpy.data.node_groups)
 
 
-def test_the_match_adds_an_eevee_branch_that_cycles_never_reads(blends):
+def test_the_match_adds_an_eevee_branch_that_cycles_never_reads(blends, tmp_path):
     scene = _open(blends["head_frontlit"])
     skin = bpy.data.materials["Skin"]
     before_cycles, before_counts = _cycles(scene), _counts()
-    result = match.match_eevee(scene, match.MatchSettings(**SMALL), log=None)
+    # One render cache for both matches: the second renders the scene as authored again (it removes
+    # the first branch before it renders), so it reads the first one's frames.
+    settings = match.MatchSettings(**SMALL, cache_dir=str(tmp_path / "cache"))
+    result = match.match_eevee(scene, settings, log=None)
     r = result["materials"]["Skin"]
     assert r["skipped"] is None, r
     # Kept only where it comes closer to Cycles' SSS effect than EEVEE as authored.
@@ -83,7 +86,8 @@ def test_the_match_adds_an_eevee_branch_that_cycles_never_reads(blends):
     np.testing.assert_array_equal(_cycles(scene), before_cycles)
     # A second match replaces the first; removing it leaves the material as it was.
     tagged = _tagged(skin)
-    match.match_eevee(scene, match.MatchSettings(**SMALL), log=None)
+    again = match.match_eevee(scene, settings, log=None)["materials"]["Skin"]
+    assert (again["k"], again["view"], again["removed_after"]) == (r["k"], r["view"], r["removed_after"])
     assert _tagged(skin) == tagged
     assert match.remove_match(skin) and not _tagged(skin) and match.MATCH_KEY not in skin.keys()
     assert _counts() == before_counts

@@ -4,7 +4,8 @@ The report is written by ``core.study.report.write_report`` from data shaped lik
 baseline, techniques at several qualities, Cycles peers, the reference, the fidelity and
 calibration tables, an incomplete-report note), then loaded at a phone's and a desktop's width.
 Checked: every picture the page names loads, the inline Pareto plot renders with one dot per
-measured entry, ``pareto.svg`` parses on its own, the console shows no error or warning and no
+measured entry (and the samples-per-pixel plot one per entry with samples), ``pareto.svg`` and
+``pareto_samples.svg`` parse on their own, the console shows no error or warning and no
 request fails, and the page never scrolls sideways (wide tables and pictures scroll inside
 their own boxes) with text at a readable size. Screenshots of both widths go to
 ``$SSS_LAB_SCREENSHOTS`` when set (to look at them), else to the test's temporary folder.
@@ -38,13 +39,15 @@ def _comparison_like(folder):
         )
 
     add("no SSS", "baseline", 0.31, 0.8)
-    add("STA", "technique", 0.2, 0.9, technique="sta", quality={})
+    add("STA", "technique", 0.2, 0.9, technique="sta", quality={}, samples_per_pixel=1)
     for taps, err in ((11, 0.12), (17, 0.1), (25, 0.095)):
-        add(f"SSSS taps={taps}", "technique", err, 0.8 + taps / 100, technique="ssss", quality={"n_taps": taps})
+        extra = {"technique": "ssss", "quality": {"n_taps": taps}, "samples_per_pixel": taps}
+        add(f"SSSS taps={taps}", "technique", err, 0.8 + taps / 100, **extra)
     for n, err in ((8, 0.15), (32, 0.08)):
-        add(f"Burley samples={n}", "technique", err, 1.0 + n / 50, technique="burley", quality={"n_samples": n})
-    add("Cycles 16 spp", "cycles", 0.09, 3.5)
-    add("Cycles Christensen-Burley 256 spp", "cycles", 0.06, 40.0)
+        extra = {"technique": "burley", "quality": {"n_samples": n}, "samples_per_pixel": n}
+        add(f"Burley samples={n}", "technique", err, 1.0 + n / 50, **extra)
+    add("Cycles 16 spp", "cycles", 0.09, 3.5, samples_per_pixel=16)
+    add("Cycles Christensen-Burley 256 spp", "cycles", 0.06, 40.0, samples_per_pixel=256)
     data = {
         "scene": {"name": "head_frontlit.blend / Scene"},
         "settings": {"resolution": [64, 48], "reference_samples": 256, "pass_samples": 64, "seed": 0, "box": 2},
@@ -87,6 +90,7 @@ def test_report_page_loads_every_picture_and_reads_at_phone_and_desktop_widths(r
         # image + error map each, reference, grid, and the before/after viewer's two
         assert len(page["images"]) == 2 * len(data["entries"]) + 4, name
         assert page["svgs"][0]["circles"] == len(data["entries"]) == 9, name
+        assert page["svgs"][1]["circles"] == 8, name  # every entry but "no SSS", which takes no samples
         assert "This report is incomplete" in page["text"] and "Pareto" in page["text"], name
         # The first screen answers which technique, at what error and cost, and what else was measured.
         first = page["first_screen"]

@@ -11,7 +11,7 @@ from sss_lab.core.pipeline.plan import plan
 from sss_lab.core.scene.exr import Passes
 from sss_lab.core.study import sweep
 from sss_lab.core.study.synthetic import DEFAULT_MATERIALS, sphere_scene
-from sss_lab.core.techniques.registry import TECHNIQUES, Registry
+from sss_lab.core.techniques.registry import TECHNIQUES, Registry, get_spec
 from sss_lab.core.techniques.spec import Param, Technique
 
 
@@ -111,3 +111,15 @@ def test_what_calibrate_fits_is_the_specs_fit(monkeypatch):
         replace(DIM, fit="gain")
     with pytest.raises(TypeError, match="names a parameter twice"):
         replace(DIM, fit=("gain", "gain"))
+
+
+def test_samples_per_pixel_counts_samples_or_taps_and_one_per_light_added():
+    """The machine-independent cost the report plots and ``auto`` weighs: the quality's samples or
+    taps (defaults where the quality leaves them), plus one per light for light added from behind."""
+    sta, ssss, burley, combined = (get_spec(n) for n in ("sta", "ssss", "burley", "combined"))
+    assert sta.samples_per_pixel({}, lights=2) == 2 and sta.samples_per_pixel({}, lights=0) == 1
+    assert ssss.samples_per_pixel({}, lights=3) == ssss.defaults["n_taps"] == 17
+    assert ssss.samples_per_pixel({"n_taps": 11}, lights=3) == 11
+    assert burley.samples_per_pixel({"n_samples": 8}, lights=5) == 8
+    assert combined.samples_per_pixel({"n_samples": 16}, lights=2) == 18
+    assert combined.samples_per_pixel({"diffusion": "ssss", "n_taps": 11}, lights=1) == 12

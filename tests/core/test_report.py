@@ -156,3 +156,29 @@ def test_the_pareto_cost_is_the_sss_effects_own_with_its_spread(tmp_path):
     assert pareto_front([fast, slow, peer]) == ["Burley 8", "Burley 64", "Cycles 16 spp"]
     svg = pareto_svg([fast, slow, peer], ["Burley 8", "Burley 64", "Cycles 16 spp"])
     assert "cost of the SSS effect" in svg and svg.count('stroke="#1f77b4"') == 2  # one spread bar each
+
+
+def test_the_samples_axis_plots_samples_per_pixel_and_has_its_own_front():
+    """Beside the seconds, a cost that does not depend on the machine: a technique's samples or taps
+    per pixel and a render's samples; the baseline (no samples) is left out of that plot."""
+    from sss_lab.core.study.report import pareto_svg, samples_cost
+
+    def entry(name, kind, err, n):
+        e = {"name": name, "kind": kind, "metrics": {"rel_rmse": err}, "time_s": {"total": 1.0}}
+        if n:
+            e["samples_per_pixel"] = n
+        return e
+
+    rows = [
+        entry("no SSS", "baseline", 0.3, None),
+        entry("Burley 8", "technique", 0.12, 8),
+        entry("Burley 64", "technique", 0.10, 64),
+        entry("SSSS 17", "technique", 0.15, 17),  # more samples than Burley 8 and a larger error: off the front
+        entry("Cycles 4 spp", "cycles", 0.05, 4),
+    ]
+    assert [samples_cost(e) for e in rows] == [None, 8.0, 64.0, 17.0, 4.0]
+    front = pareto_front(rows, cost=samples_cost)
+    assert front == ["Cycles 4 spp"]  # 4 samples with the smallest error beat every other row
+    svg = pareto_svg(rows, front, axis="pareto_samples.svg")
+    assert "samples per pixel (log)" in svg and svg.count("<circle") == 4
+    assert ">no SSS<" not in svg and 'stroke="#1f77b4"' not in svg  # no spread bars on this axis
