@@ -19,7 +19,8 @@ Christensen-Burley materials, d = radius / (4 pi)). Per technique:
 - ``--devices CPU,GPU`` times every chain on each compositor device (GPU needs a GPU context;
   without a GPU it runs on whatever OpenGL the machine has, which the results name);
 - difference: relative RMS of the SSS term (result minus Combined) over the scattering
-  materials' pixels, compositor vs NumPy. The spheres vary in depth, so this is the
+  materials' pixels, compositor vs NumPy with the groups' energy (``energy="lambert"``; also
+  against NumPy's defaults, whose energy model the groups do not have). The spheres vary in depth, so this is the
   depth-varying case: the groups use one screen scale per material (its median depth) and
   ignore depth. The same against NumPy on passes whose depth is flattened to each material's
   median (Burley with 1024 samples, so that the spiral's own error is left out) says how much
@@ -204,10 +205,15 @@ def main(argv=None) -> int:
         entry["numpy_ms"] = round(numpy_s * 1e3, 1)
         got = composite_to_file(f"{key}.exr")
         outputs[key] = got
-        want = apply(loaded, desc, technique)[f"SSSLab.{technique}.Image"][..., :3]
+        # The groups keep the passes' energy: the NumPy technique they are compared with does too
+        # (energy="lambert"); its default ("object") also models Cycles' energy, which no group has.
+        same = {"energy": "lambert"} if technique != "sta" else {}
+        want = apply(loaded, desc, technique, **same)[f"SSSLab.{technique}.Image"][..., :3]
         a, b = (got - combined)[on], (want - combined)[on]
         entry["rel_rms_sss_vs_numpy"] = _rel_rms(a, b)
-        extra = {"n_samples": 1024} if technique == "burley" else {}
+        default = apply(loaded, desc, technique)[f"SSSLab.{technique}.Image"][..., :3]
+        entry["rel_rms_sss_vs_numpy_default"] = _rel_rms(a, (default - combined)[on])
+        extra = {"n_samples": 1024, **same} if technique == "burley" else same
         flat = apply(flat_passes, desc, technique, **extra)[f"SSSLab.{technique}.Image"][..., :3]
         entry["rel_rms_sss_vs_numpy_median_depth"] = _rel_rms(a, (flat - combined)[on])
         if key == "burley_gaussians" and "burley" in outputs:
