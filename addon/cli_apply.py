@@ -208,6 +208,11 @@ def run(args) -> int:
                 extra = f"; {p.nonfinite_pixels} NaN/Inf pixels left as they are" if p.nonfinite_pixels else ""
                 if p.overflow_pixels:
                     extra += f"; {p.overflow_pixels} pixels overflowed float32 (light near 3.4e38), left as they were"
+                if p.negative_pixels:
+                    extra += (
+                        f"; warning: {p.negative_pixels} pixels whose diffuse passes exceed Combined (the passes"
+                        " disagree) would have gone negative: set to 0"
+                    )
                 print(f"  {p.technique}: {len(applied)} material(s) computed ({names}){extra}")
                 for m in applied:
                     name = m.material.name or m.material.index

@@ -10,16 +10,19 @@ from ..compute.jit import ZERO, f32
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def composite(result, gain, albedo, diffuse, held, zeroed, mask, image, sss, overflow):
+def composite(result, gain, albedo, diffuse, held, zeroed, mask, image, sss, overflow, negative):
     """``core.pipeline.apply``'s compositing of one material, equal to the bit to its NumPy code: on each
     pixel of ``mask`` (H, W) the technique's ``result`` (H, W, 3) times ``gain`` (3,), and where
     all three are finite the SSS term, that minus ``albedo`` x ``diffuse`` where ``held`` (0 in
     the channels ``zeroed``), written into ``sss`` (H, W, 3) and added to ``image`` (H, W, C);
-    ``overflow[y]`` counts row y's pixels of ``mask`` whose result is not finite. The same float32
-    products, differences and sums as the NumPy code (no fused multiply-add)."""
+    ``overflow[y]`` counts row y's pixels of ``mask`` whose result is not finite. A channel whose sum
+    would turn a non-negative Combined negative is set to 0 (its SSS term to minus Combined):
+    ``negative[y]`` counts row y's pixels where that happened. The same float32 products,
+    differences and sums as the NumPy code (no fused multiply-add)."""
     h, w = mask.shape
     for y in prange(h):
         bad = 0
+        clamped = 0
         for x in range(w):
             if not mask[y, x]:
                 continue
@@ -39,13 +42,35 @@ def composite(result, gain, albedo, diffuse, held, zeroed, mask, image, sss, ove
                 o1 = ZERO
             if zeroed[2]:
                 o2 = ZERO
+            i0 = image[y, x, 0]
+            i1 = image[y, x, 1]
+            i2 = image[y, x, 2]
+            t0 = i0 + o0
+            t1 = i1 + o1
+            t2 = i2 + o2
+            hit = False
+            if t0 < ZERO and i0 >= ZERO:
+                o0 = -i0
+                t0 = ZERO
+                hit = True
+            if t1 < ZERO and i1 >= ZERO:
+                o1 = -i1
+                t1 = ZERO
+                hit = True
+            if t2 < ZERO and i2 >= ZERO:
+                o2 = -i2
+                t2 = ZERO
+                hit = True
+            if hit:
+                clamped += 1
             sss[y, x, 0] = o0
             sss[y, x, 1] = o1
             sss[y, x, 2] = o2
-            image[y, x, 0] = image[y, x, 0] + o0
-            image[y, x, 1] = image[y, x, 1] + o1
-            image[y, x, 2] = image[y, x, 2] + o2
+            image[y, x, 0] = t0
+            image[y, x, 1] = t1
+            image[y, x, 2] = t2
         overflow[y] = bad
+        negative[y] = clamped
 
 
 @njit(cache=True, error_model="numpy")

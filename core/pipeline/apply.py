@@ -170,14 +170,17 @@ def _gather_inputs(spec: Technique, passes: Passes, scene: SceneDescription, alb
     return inputs, original, ok
 
 
-def _composite(image, sss, out, gain, original, mask, unchanged) -> int:
+def _composite(image, sss, out, gain, original, mask, unchanged) -> tuple[int, int]:
     """Write the technique's result ``out`` (H, W, 3) on the pixels of ``mask`` into the layers:
     ``sss`` the SSS term (``out`` times the fitted ``gain``, minus the light Combined held,
     ``original``'s albedo x diffuse light, for a technique that scatters; 0 in the channels
     ``unchanged``), ``image`` Combined plus that term. A pixel whose result is not finite (light
-    near float32's limit overflowing in the technique's sums) is left as it was: returns how
-    many. One compiled pass (``core.pipeline._kernels.composite``) where apply's kernels run, compared
-    with the NumPy code (``_composite_numpy``) to the bit in check mode."""
+    near float32's limit overflowing in the technique's sums) is left as it was; a channel that
+    the term would turn from non-negative to negative light is set to 0 (the passes' diffuse light
+    exceeded Combined there: passes that disagree, or sums near float32's limit). Returns how
+    many pixels of each: (overflowed, clamped). One compiled pass (``core.pipeline._kernels.composite``)
+    where apply's kernels run, compared with the NumPy code (``_composite_numpy``) to the bit in
+    check mode."""
     g = np.ones(3, np.float32) if gain is None else np.asarray(gain, np.float32)
     if backend.active() == "numpy" or g.shape not in ((), (3,)):
         return _composite_numpy(image, sss, out, gain, original, mask, unchanged)
@@ -193,22 +196,27 @@ def _composite(image, sss, out, gain, original, mask, unchanged) -> int:
     if held:  # as the NumPy code: a technique that adds light keeps every channel of its result
         zeroed[list(unchanged)] = True
     bad = np.empty(mask.shape[0], np.int64)
+    negative = np.empty(mask.shape[0], np.int64)
     gains = np.array(np.broadcast_to(g, (3,)))
-    backend.run_kernel(_kernels().composite, result, gains, albedo, diffuse, held, zeroed, c(mask), image, sss, bad)
-    count = int(bad.sum())
+    backend.run_kernel(
+        _kernels().composite, result, gains, albedo, diffuse, held, zeroed, c(mask), image, sss, bad, negative
+    )
+    counts = int(bad.sum()), int(negative.sum())
     if expected is not None:
         bits_equal("composite (image)", expected[0], image)
         bits_equal("composite (SSS)", expected[1], sss)
-        if count != expected[2]:
-            raise backend.BackendMismatch(f"composite: {count} pixels overflowed, the NumPy code found {expected[2]}")
-    return count
+        if counts != expected[2]:
+            raise backend.BackendMismatch(
+                f"composite: {counts} pixels overflowed and clamped, the NumPy code found {expected[2]}"
+            )
+    return counts
 
 
-def _composite_numpy(image, sss, out, gain, original, mask, unchanged) -> int:
+def _composite_numpy(image, sss, out, gain, original, mask, unchanged) -> tuple[int, int]:
     """``_composite`` in NumPy, on the mask's bounding box."""
     box = arrays.bounding_box(mask)
     if box is None:
-        return 0
+        return 0, 0
     # The diffuse light Combined holds there.
     held = None if original is None else original[0][box] * original[1][box]
     out = out[box]
@@ -239,11 +247,18 @@ def _composite_numpy(image, sss, out, gain, original, mask, unchanged) -> int:
     sss_box, image_box = sss[box], image[box]
     np.copyto(sss_box, term, where=where)
     total = np.empty(good.shape, np.float32)
+    clamped = np.zeros(good.shape, bool)
     for c in range(3):
         with np.errstate(over="ignore", invalid="ignore"):
             np.add(image_box[..., c], sss_box[..., c], out=total)  # Combined + term where good
+        # Never negative light where Combined had none: the channel goes to 0, its term to -Combined.
+        below = good & (total < 0) & (image_box[..., c] >= 0)
+        if below.any():
+            clamped |= below
+            np.copyto(sss_box[..., c], np.negative(image_box[..., c]), where=below)
+            total[below] = 0.0
         np.copyto(image_box[..., c], total, where=good)
-    return overflow
+    return overflow, int(np.count_nonzero(clamped))
 
 
 def _weighted(out, gain, original, mask, weight) -> tuple[np.ndarray, None]:
@@ -312,7 +327,7 @@ def apply(
     inputs, original, ok = _gather_inputs(spec, passes, scene, albedo_mode)
     if not arrays.all_finite(combined):
         ok = _both(ok, finite(rgb))
-    nonfinite = overflow = 0
+    nonfinite = overflow = negative = 0
     for mp in p.applied:
         # The plan's pixels of the material (it found some), or the Material Index map's.
         mask = masks.get(mp.material.index)
@@ -352,8 +367,11 @@ def apply(
                 out, gain = _weighted(out, gain, original, keep, weight)
             # The techniques only read their inputs: the diffuse light Combined holds on the
             # material (albedo x (Direct + Indirect)) is what it was before the technique ran.
-            overflow += _composite(image, sss, out, gain, original, keep, mp.unchanged_channels)
+            over, below = _composite(image, sss, out, gain, original, keep, mp.unchanged_channels)
+            overflow += over
+            negative += below
     p.nonfinite_pixels = nonfinite
     p.overflow_pixels = overflow
+    p.negative_pixels = negative
     name_image, name_sss = layer_names(spec.name)
     return {name_image: image, name_sss: sss}

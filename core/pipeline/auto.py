@@ -746,6 +746,7 @@ class AutoPlan:
     technique: str = AUTO
     nonfinite_pixels: int = 0
     overflow_pixels: int = 0
+    negative_pixels: int = 0
 
     @property
     def scattering(self) -> list[MaterialChoice]:
@@ -1102,13 +1103,14 @@ def apply_auto(passes: Passes, scene: SceneDescription, *, prepared: AutoPlan | 
         if layers:
             auto.nonfinite_pixels = p.nonfinite_pixels
             auto.overflow_pixels = p.overflow_pixels
+            auto.negative_pixels = p.negative_pixels
             image, sss = (layers[n] for n in core_apply.layer_names(t))
             return {name_image: image, name_sss: sss}
         # Nothing computed: Combined as it is, below (its apply returns at once again).
     combined = passes["Combined"]
     image = np.array(combined, dtype=np.float32)
     sss = np.zeros(combined.shape[:2] + (3,), np.float32)
-    nonfinite = overflow = 0
+    nonfinite = overflow = negative = 0
     for p in auto.plans.values():
         t = p.spec.name
         layers = core_apply.apply(passes, scene, t, albedo_mode=p.albedo_mode, prepared=p)
@@ -1116,9 +1118,13 @@ def apply_auto(passes: Passes, scene: SceneDescription, *, prepared: AutoPlan | 
             sss += layers[core_apply.layer_names(t)[1]]
         nonfinite += p.nonfinite_pixels
         overflow += p.overflow_pixels
+        negative += p.negative_pixels
     image[..., :3] += sss
+    # Each run kept its own result non-negative; their sum over several runs' pixels adds nothing
+    # negative to a pixel no run touched, and each pixel is one material's (one run's).
     auto.nonfinite_pixels = nonfinite
     auto.overflow_pixels = overflow
+    auto.negative_pixels = negative
     return {name_image: image, name_sss: sss}
 
 

@@ -87,6 +87,9 @@ class Plan:
     #: Pixels whose inputs were finite but whose result was not (light near float32's limit,
     #: 3.4e38, overflowing in the technique's sums): left as they were.
     overflow_pixels: int = 0
+    #: Pixels where the SSS term would have made a channel's light negative: set to 0 (passes whose
+    #: diffuse light exceeds Combined).
+    negative_pixels: int = 0
     options: dict = field(default_factory=dict)
     #: What ``plan`` found of each scattering material's pixels (pass index -> bool (H, W)) and the
     #: Material Index pass it read them from, held weakly: ``apply`` with this plan takes them
@@ -155,6 +158,12 @@ class Plan:
             lines.append(
                 f"  {self.overflow_pixels} pixels whose result overflowed float32 (light near 3.4e38): "
                 "left as they were"
+            )
+        if self.negative_pixels:
+            lines.append(
+                f"  warning: {self.negative_pixels} pixels where the passes' diffuse light (Diffuse Color x (Direct +"
+                " Indirect)) exceeds Combined, so the result would be negative light: set to 0 there; the passes"
+                " disagree (Combined edited or denoised apart from them, or light near float32's limit)"
             )
         applied = self.applied
         lines.append(

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from sss_lab.core.pipeline import apply as core_apply
+from sss_lab.core.pipeline import auto
 from sss_lab.core.scene.exr import Passes
 from sss_lab.core.scene.scene import Camera
 from sss_lab.core.study.synthetic import sphere_scene
@@ -146,3 +147,59 @@ def test_light_near_the_float32_limit_is_counted_as_overflow_not_as_bad_input():
     assert "overflowed float32" in plan.explain()
     # The overflowed pixels kept their (finite) Combined value instead of taking Inf.
     assert np.isfinite(layers["SSSLab.burley.Image"]).all()
+
+
+@pytest.mark.parametrize(
+    "edit",
+    [
+        pytest.param(("Diffuse Direct", 3e38), id="direct-near-float32-max"),
+        pytest.param(("Diffuse Color", 1e30), id="albedo-1e30"),
+        pytest.param(("Diffuse Indirect", 1e6), id="indirect-beyond-combined"),
+    ],
+)
+@pytest.mark.parametrize("technique", ["sta", "ssss", "burley", "combined", "auto"])
+def test_passes_whose_diffuse_light_exceeds_combined_never_give_negative_light(technique, edit):
+    """A pass edited so that albedo x diffuse light exceeds Combined on the skin (passes that
+    disagree; the extreme values also put the sums near float32's limit): the result is finite and
+    never negative where Combined is not, and the plan counts and says the clamped pixels."""
+    arrays, scene = sphere_scene(width=24, height=16)
+    on_skin = arrays["Material Index"] == 2
+    name, value = edit
+    # On the left half of the skin: the scattering carries the edited light across to the right half,
+    # so the left pixels get back less than the passes say they hold.
+    left = on_skin & (np.arange(24)[None, :] < np.flatnonzero(on_skin.any(axis=0)).mean())
+    arrays[name] = np.where(left[..., None], np.float32(value), arrays[name]).astype(np.float32)
+    passes = Passes(arrays)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no raw NumPy RuntimeWarning reaches the user
+        if technique == "auto":
+            chosen = auto.choose(passes, scene)
+            layers = auto.apply_auto(passes, scene, prepared=chosen)
+            plan = None
+            assert ("exceeds Combined" in "".join(p.explain() for p in chosen.plans.values())) == (
+                chosen.negative_pixels > 0
+            )
+        else:
+            layers = core_apply.apply(passes, scene, technique)
+            plan = core_apply.plan(passes, scene, technique)
+    image = layers[f"SSSLab.{technique}.Image"]
+    assert np.isfinite(image).all()
+    ok = arrays["Combined"] >= 0
+    assert (image[ok] >= 0).all()
+    if plan is not None:
+        core_apply.apply(passes, scene, technique, prepared=plan)
+        assert plan.negative_pixels <= on_skin.sum()
+        assert ("exceeds Combined" in plan.explain()) == (plan.negative_pixels > 0)
+        if name == "Diffuse Indirect" and technique != "sta":
+            # Finite sums (no overflow): the left half's border would have gone negative. STA adds light
+            # from behind and replaces none, so nothing it writes is negative.
+            assert plan.negative_pixels > 0 and plan.overflow_pixels == 0
+
+
+@pytest.mark.parametrize("technique", ["sta", "ssss", "burley", "combined"])
+def test_consistent_passes_clamp_nothing(technique):
+    """Where Combined holds the diffuse light the passes say, no pixel is clamped."""
+    arrays, scene = sphere_scene(width=24, height=16)
+    plan = core_apply.plan(Passes(arrays), scene, technique)
+    core_apply.apply(Passes(arrays), scene, technique, prepared=plan)
+    assert plan.negative_pixels == 0
