@@ -12,7 +12,7 @@ import importlib
 import sys
 import traceback
 
-from ..core.base.errors import SSSLabError, describe_os_error
+from ..core.base.errors import SSSLabError, describe_os_error, is_bad_input
 from ..core.base.progress import GuardedOutput
 from ..core.techniques.registry import TECHNIQUES, check_technique
 from .interrupt import EXIT_INTERRUPTED, finished_summary, interrupt_guard, interrupted_by
@@ -120,8 +120,9 @@ EXIT_STATUS = {
 }
 #: What every command shares, after its own statuses.
 EXIT_COMMON = (
-    "Every command: 1 when a file cannot be written (a full or read-only disk), 130 when interrupted"
-    " (Ctrl-C, SIGTERM, SIGHUP); an existing output without --overwrite is refused with 2."
+    "Every command: 1 when a file cannot be written (a full or read-only disk, no permission), 130 when"
+    " interrupted (Ctrl-C, SIGTERM, SIGHUP); a path naming nothing, a folder where a file was meant (or the"
+    " reverse), and an existing output without --overwrite are bad input, 2."
 )
 
 
@@ -233,8 +234,7 @@ def _main(argv: list[str], prog: str) -> int:
             traceback.print_exc()
         error = _with_flag(_one_line(exc), argv)
         print(f"sss_lab {command}: error: {error}", file=sys.stderr)
-        failed_to_write = isinstance(exc, OSError) and not isinstance(exc, (FileNotFoundError, FileExistsError))
-        code = 1 if failed_to_write else 2
+        code = 2 if is_bad_input(exc) else 1
     if summary is not None:
         _write_summary(summary, command, argv, code, error)
     return code

@@ -102,6 +102,7 @@ def _reads_whole(path: str) -> str | None:
 
 
 def run(args) -> int:
+    from ..core.base.errors import is_bad_input
     from ..core.base.progress import printable
     from ..core.pipeline.apply import ALBEDO_MODES
     from ..core.pipeline.sequence import apply_file, frame_path, parse_frames, sequence_frames
@@ -166,7 +167,7 @@ def run(args) -> int:
             failed += 1
             # A bad input (a damaged or missing file, a wrong value, an existing output without
             # --overwrite) rather than a failed write.
-            bad_input += isinstance(exc, (ValueError, KeyError, FileNotFoundError, IsADirectoryError, FileExistsError))
+            bad_input += is_bad_input(exc)
             message = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
             if not message.startswith(path):
                 message = f"{path}: {message}"

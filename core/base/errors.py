@@ -31,6 +31,24 @@ class OutputError(SSSLabError, OSError):
         return self.strerror or super().__str__()
 
 
+#: Operating-system errors that mean the user named the wrong thing (no such file, a folder where a
+#: file was meant or the reverse, an existing output), not that a write failed.
+BAD_PATH_ERRORS = (FileNotFoundError, IsADirectoryError, NotADirectoryError, FileExistsError)
+
+
+def is_bad_input(exc: BaseException) -> bool:
+    """True when ``exc`` means bad input (exit status 2), False when a write or the machine failed
+    (exit status 1): the command line's one rule, for every subcommand. A value or a file that is
+    not what was expected, a missing pass, a path naming nothing or the wrong kind of thing are bad
+    input; any other operating-system error (a full or read-only disk, no permission) is a failed
+    write."""
+    if isinstance(exc, BAD_PATH_ERRORS):
+        return True
+    if isinstance(exc, OSError):
+        return False
+    return isinstance(exc, (SSSLabError, ValueError, KeyError))
+
+
 def describe_os_error(exc: OSError, path: str | None = None) -> str:
     """One line for an operating-system error on ``path``: the file, the cause, what to do."""
     import errno

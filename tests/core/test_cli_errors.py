@@ -10,6 +10,7 @@ import OpenEXR
 import pytest
 
 from sss_lab.addon import cli
+from sss_lab.core.base import errors
 from sss_lab.core.pipeline import sequence
 from sss_lab.core.study.synthetic import sphere_scene, write_scene
 
@@ -148,3 +149,40 @@ def test_an_empty_path_or_frame_list_is_an_error_not_the_default(passes, capsys,
     code, _, err = _run(capsys, "apply", passes, "--methods", "burley", *extra)
     assert code == 2 and f"{flag}: empty" in err and err.count("\n") == 1
     assert sorted(os.listdir(folder)) == before
+
+
+# One exit rule for every way a command stops on an error: 2 bad input, 1 a failed write. The
+# errors: what each kind of fault raises (a path naming a folder, nothing, or an existing output;
+# a bad value; a missing pass; a full or read-only disk, no permission).
+EXIT_RULE = [
+    (IsADirectoryError(errno.EISDIR, "Is a directory", "x"), 2),
+    (NotADirectoryError(errno.ENOTDIR, "Not a directory", "x"), 2),
+    (FileNotFoundError(errno.ENOENT, "No such file", "x"), 2),
+    (FileExistsError(errno.EEXIST, "exists", "x"), 2),
+    (ValueError("bad value"), 2),
+    (KeyError("no such pass"), 2),
+    (OSError(errno.ENOSPC, "No space left on device", "x"), 1),
+    (PermissionError(errno.EACCES, "Permission denied", "x"), 1),
+    (OSError(errno.EROFS, "Read-only file system", "x"), 1),
+]
+
+
+@pytest.mark.parametrize("exc,code", EXIT_RULE, ids=[type(e).__name__ + str(c) for e, c in EXIT_RULE])
+def test_the_exit_rule_is_one_for_the_command_and_for_each_frame(passes, capsys, monkeypatch, exc, code):
+    """The same error gives the same status whether it stops the command (raised before the frames)
+    or fails a frame of apply (raised while one is applied)."""
+    assert errors.is_bad_input(exc) == (code == 2)
+
+    def fail(*args, **kwargs):
+        raise exc
+
+    with monkeypatch.context() as m:
+        m.setattr(sequence, "apply_file", fail)
+        in_frame, _, err = _run(capsys, "apply", passes, "--methods", "burley")
+    assert in_frame == code and "Traceback" not in err, err
+    if isinstance(exc, KeyError):
+        return  # the command's own handler takes what a command raises on purpose; a KeyError there is a bug
+    with monkeypatch.context() as m:
+        m.setattr(cli, "parse_methods", fail)
+        whole, _, err = _run(capsys, "apply", passes, "--methods", "burley")
+    assert whole == code and "Traceback" not in err, err

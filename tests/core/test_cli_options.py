@@ -103,7 +103,7 @@ def test_every_command_states_its_exit_status():
     for name, p in _commands().items():
         text = " ".join(p.format_help().split())
         assert "Exit status: 0 " in text, name
-        assert "130 when interrupted" in text and "refused with 2" in text, name
+        assert "130 when interrupted" in text and "without --overwrite are bad input, 2" in text, name
 
 
 def test_the_console_script_names_itself_in_its_usage(capsys, monkeypatch):
