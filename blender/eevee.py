@@ -31,7 +31,7 @@ import time
 import bpy
 import numpy as np
 
-from ..core.base import files
+from ..core.base import files, memory
 from ..core.scene import exr
 from . import compat
 from .reference_cache import read_cached_image
@@ -74,6 +74,12 @@ def render_eevee(scene, *, samples: int | None, resolution, sss: bool, path: str
         state.set(render, "resolution_percentage", 100)
     if not sss:
         zero_subsurface(state, scene)
+    memory.check_frame(
+        render.resolution_x * render.resolution_percentage // 100,
+        render.resolution_y * render.resolution_percentage // 100,
+        4,
+        "the EEVEE render",
+    )
     start = time.perf_counter()
     try:
         bpy.ops.render.render(scene=scene.name)

@@ -18,7 +18,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ..core.base import files
+from ..core.base import files, memory
 from ..core.scene import exr
 from . import compat
 from .describe import principled_node, scene_materials
@@ -202,6 +202,15 @@ def render_combined(
         state.set(scene.render, "resolution_x", resolution[0])
         state.set(scene.render, "resolution_y", resolution[1])
         state.set(scene.render, "resolution_percentage", 100)
+    r = scene.render
+    # The image and, when denoising, its albedo and normal guides.
+    channels = 4 + (6 if denoise else 0)
+    memory.check_frame(
+        r.resolution_x * r.resolution_percentage // 100,
+        r.resolution_y * r.resolution_percentage // 100,
+        channels,
+        "the Cycles render",
+    )
     start = time.perf_counter()
     bpy.ops.render.render(scene=scene.name)
     seconds = time.perf_counter() - start

@@ -43,7 +43,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ..core.base import files
+from ..core.base import files, memory
 from ..core.base.errors import DamagedFileError, OutputError, describe_os_error
 from ..core.base.progress import printable, saved_line
 from ..core.pipeline.plan import required_passes
@@ -316,8 +316,28 @@ def _pick_layer(scene, view_layer):
 
 
 def _render(scene) -> None:
-    """One still render of ``scene`` into the Render Result (a seam the tests wrap)."""
+    """One still render of ``scene`` into the Render Result (a seam the tests wrap), refused first
+    when its passes cannot fit in memory (``core.base.memory``)."""
+    r = scene.render
+    layer = bpy.context.view_layer if bpy.context.scene == scene else scene.view_layers[0]
+    memory.check_frame(
+        r.resolution_x * r.resolution_percentage // 100,
+        r.resolution_y * r.resolution_percentage // 100,
+        _channels(layer),
+        "the passes",
+    )
     bpy.ops.render.render(write_still=False, scene=scene.name)
+
+
+def _channels(layer) -> int:
+    """Float values per pixel the view layer's passes hold: four for Combined, three per colour or
+    vector pass, one per value pass and AOV (an estimate: what a pass switched on costs)."""
+    count = 4
+    for name in dir(layer):
+        if name.startswith("use_pass_") and getattr(layer, name, False) is True:
+            count += 3
+    count += sum(1 if aov.type == "VALUE" else 4 for aov in layer.aovs)
+    return count
 
 
 def verify_passes(path: str, names: list[str], view_layer: str, indices: Iterable[int]) -> None:

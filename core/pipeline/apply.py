@@ -184,7 +184,7 @@ def _composite(image, sss, out, gain, original, mask, unchanged) -> tuple[int, i
     g = np.ones(3, np.float32) if gain is None else np.asarray(gain, np.float32)
     if backend.active() == "numpy" or g.shape not in ((), (3,)):
         return _composite_numpy(image, sss, out, gain, original, mask, unchanged)
-    expected: tuple[np.ndarray, np.ndarray, int] | None = None
+    expected: tuple[np.ndarray, np.ndarray, tuple[int, int]] | None = None
     if backend.active() == "check":
         ref_image, ref_sss = image.copy(), sss.copy()
         expected = ref_image, ref_sss, _composite_numpy(ref_image, ref_sss, out, gain, original, mask, unchanged)

@@ -659,3 +659,49 @@ def test_a_subsurface_scattering_node_is_read_and_renders_as_diffuse_in_the_pass
     assert as_passes.keys() == as_diffuse.keys()
     for name, pixels in as_passes.items():
         np.testing.assert_array_equal(pixels, as_diffuse[name], err_msg=name)
+
+
+def test_a_frame_that_cannot_fit_in_memory_is_refused_before_it_renders(tmp_path, capsys, monkeypatch):
+    """A render whose buffers exceed the memory available is refused with the numbers (exit 2),
+    nothing written and the .blend unchanged; the same for the Cycles render a comparison takes.
+    The available memory is set small here (a 65536 x 65536 frame would need some 200 GB)."""
+    from sss_lab.addon.cli import main
+    from sss_lab.blender.reference_cache import cached_reference
+    from sss_lab.core.base import errors, memory
+
+    blend = _save(tmp_path)
+    original = blend.read_bytes()
+    # Less than the smallest frame here needs (a four-channel image) or the passes (more channels).
+    need = memory.frame_bytes(32, 24, 4)
+    monkeypatch.setattr(memory, "available_bytes", lambda: need // 2)
+    out = tmp_path / "out"
+    args = ["render", str(blend), "--out", str(out), "--pass-samples", "1", "--resolution", "32x24"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "the passes at 32x24: about" in err and "GiB of memory available" in err and "--resolution" in err
+    assert not out.exists() or not os.listdir(out)
+    assert blend.read_bytes() == original
+    bpy.ops.wm.open_mainfile(filepath=str(blend), load_ui=False)
+    scene = bpy.context.scene
+    before = (scene.render.resolution_x, scene.render.resolution_y, scene.cycles.samples)
+    with pytest.raises(errors.InputError, match="the Cycles render at 32x24"):
+        cached_reference(scene, str(tmp_path / "cache"), samples=1, seed=0, resolution=(32, 24), method=None)
+    assert (scene.render.resolution_x, scene.render.resolution_y, scene.cycles.samples) == before
+    # With the memory there, the same render runs.
+    monkeypatch.setattr(memory, "available_bytes", lambda: None)
+    assert main(args) == 0
+
+
+def test_frame_memory_estimate_and_reading():
+    from sss_lab.core.base import errors, memory
+
+    assert memory.frame_bytes(1920, 1080, 10) == 2 * 1920 * 1080 * 10 * 4
+    have = memory.available_bytes()
+    assert have is None or have > 0
+    memory.check_frame(16, 16, 4, "a tiny frame")  # fits on any machine that runs the tests
+    if have is not None:
+        need = memory.frame_bytes(65536, 65536, 10)
+        assert need / 1024**3 == 320.0  # 2 copies x 2^32 pixels x 10 values x 4 bytes
+        if need > have:
+            with pytest.raises(errors.InputError, match=r"the passes at 65536x65536: about 320\.0 GiB of frame"):
+                memory.check_frame(65536, 65536, 10, "the passes")
