@@ -68,6 +68,8 @@ def render_eevee(scene, *, samples: int | None, resolution, sss: bool, path: str
     state.set(render, "use_compositing", False)
     if samples is not None:
         state.set(scene.eevee, "taa_render_samples", samples)
+    if render.use_border:  # the whole frame, as the Cycles images it is compared with
+        state.set(render, "use_border", False)
     if resolution is not None:
         state.set(render, "resolution_x", resolution[0])
         state.set(render, "resolution_y", resolution[1])

@@ -198,6 +198,8 @@ def render_combined(
         state.set(cy, "denoiser", "OPENIMAGEDENOISE")
         state.set(cy, "denoising_input_passes", "RGB_ALBEDO_NORMAL")
         state.set(cy, "denoising_prefilter", "ACCURATE")
+    if scene.render.use_border:  # the whole frame, as the passes it is compared with
+        state.set(scene.render, "use_border", False)
     if resolution is not None:
         state.set(scene.render, "resolution_x", resolution[0])
         state.set(scene.render, "resolution_y", resolution[1])

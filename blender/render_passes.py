@@ -444,6 +444,12 @@ def _plan(scene, out_dir, *, techniques, frames, view_layer, overwrite, say) -> 
     for m in materials:  # what the reader could not read as Cycles renders it
         for note in m.notes:
             say(f"{printable(m.name)}: {printable(note)}")
+    if scene.render.use_border:
+        say(
+            "the scene's render region (Render Region, Output Properties > Format) is left out: the passes cover"
+            " the whole frame, as the techniques gather light from around each pixel and the scene"
+            " description's camera is the whole frame's"
+        )
     aov_name = thickness_aov_name(scene)
     convention = "translucency"
     needs_thickness = any(aov_name in required_passes(t, aov_name) for t in techniques)
@@ -480,7 +486,7 @@ def _set_up(st: SceneState, scene, plan: _Plan, *, samples, seed, res, say) -> d
         st.set(render, "resolution_x", res[0])
         st.set(render, "resolution_y", res[1])
         st.set(render, "resolution_percentage", 100)
-    for attr in ("use_compositing", "use_sequencer", "use_single_layer"):
+    for attr in ("use_compositing", "use_sequencer", "use_single_layer", "use_border"):
         if getattr(render, attr):
             st.set(render, attr, False)
     for vl in scene.view_layers:

@@ -705,3 +705,29 @@ def test_frame_memory_estimate_and_reading():
         if need > have:
             with pytest.raises(errors.InputError, match=r"the passes at 65536x65536: about 320\.0 GiB of frame"):
                 memory.check_frame(65536, 65536, 10, "the passes")
+
+
+def test_a_render_region_is_left_out_and_said(tmp_path, capsys):
+    """A scene with a Render Region (cropped or not): the passes, the Cycles reference and EEVEE
+    cover the whole frame (the techniques gather from around each pixel, and the description's
+    camera is the whole frame's), the passes' run says so, and the scene keeps its region."""
+    from sss_lab.addon.cli import main
+    from sss_lab.blender.reference_cache import cached_reference
+
+    build_scene()
+    r = bpy.context.scene.render
+    r.use_border, r.use_crop_to_border = True, True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.25, 0.75
+    blend = tmp_path / "border.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    out = tmp_path / "out"
+    args = ["render", str(blend), "--out", str(out), "--pass-samples", "1", "--resolution", "32x24"]
+    assert main([*args, "--methods", "ssss"]) == 0
+    assert "Render Region" in capsys.readouterr().out
+    (written,) = sorted(out.glob("passes_*.exr"))
+    assert read_passes(written).shape == (24, 32)
+    bpy.ops.wm.open_mainfile(filepath=str(blend), load_ui=False)
+    scene = bpy.context.scene
+    image, _, _ = cached_reference(scene, str(tmp_path / "cache"), samples=1, seed=0, resolution=(32, 24), method=None)
+    assert image.shape[:2] == (24, 32)
+    assert scene.render.use_border and scene.render.use_crop_to_border
