@@ -185,6 +185,10 @@ def move_into_place(tmp: str, path: str, *, overwrite: bool = True) -> None:
 
 
 def _remove(tmp: str) -> None:
+    """Remove a pending temporary: a file, or a folder (``temporary_folder``) with what it holds."""
+    if os.path.isdir(tmp) and not os.path.islink(tmp):
+        shutil.rmtree(tmp, ignore_errors=True)
+        return
     try:
         os.remove(tmp)
     except FileNotFoundError:
@@ -232,7 +236,11 @@ def temporary_folder(prefix: str):
     base = tempfile.gettempdir()
     remove_stale_temporaries(base, prefix=prefix)
     folder = tempfile.mkdtemp(prefix=f"{prefix}{_owner()}_", dir=base)
+    # Pending like a temporary file: an interrupt that ends the process at once (while Blender is
+    # busy) removes it too, not only the end of this block.
+    _PENDING.add(folder)
     try:
         yield folder
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+        _PENDING.discard(folder)

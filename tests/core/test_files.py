@@ -52,3 +52,21 @@ def test_a_killed_runs_working_folder_goes_with_the_next_run(tmp_path, monkeypat
         assert os.path.isdir(folder) and os.path.basename(folder).startswith(f"sss_lab_fit_{_host()}-{os.getpid()}_")
         assert not stale.exists() and live.exists()
     assert not os.path.exists(folder)
+
+
+def test_an_interrupt_that_ends_the_process_at_once_removes_every_temporary(tmp_path):
+    """What the forced exit after Ctrl-C, SIGTERM or SIGHUP calls (``remove_pending_temporaries``,
+    while Blender is busy and no ``finally`` will run) removes both kinds of temporaries: a
+    file beside its output and a working folder with what it holds."""
+    with files.temporary_beside(str(tmp_path / "out.exr")) as tmp_file:
+        with open(tmp_file, "w") as fh:
+            fh.write("cut short")
+        with files.temporary_folder("sss_lab_test_") as folder:
+            with open(os.path.join(folder, "reference.exr"), "w") as fh:
+                fh.write("half a render")
+            os.makedirs(os.path.join(folder, "sub"))
+            assert {tmp_file, folder} <= set(files.pending_temporaries())
+            files.remove_pending_temporaries()
+            assert not os.path.exists(tmp_file) and not os.path.exists(folder)
+            assert files.pending_temporaries() == []
+    assert not os.path.exists(tmp_path / "out.exr")
