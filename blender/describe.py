@@ -187,15 +187,41 @@ def material_sss(material, index: int) -> MaterialSSS | None:
 
 
 def scene_materials(scene) -> list:
-    """Materials used by the visible mesh objects that the scene renders, in name order."""
+    """Materials used by the visible mesh objects that the scene renders, in name order: those of
+    their material slots, and those their evaluated geometry carries (a Geometry Nodes Set
+    Material node assigns materials that no slot names; Cycles renders them). The geometry is
+    the view layer's evaluation, of the objects whose Geometry Nodes modifiers render: a modifier
+    shown in renders but hidden in the viewport is not evaluated there, and its materials are missed."""
     found = {}
+    meshes = []
     for obj in scene.objects:
         if obj.type != "MESH" or obj.hide_render:
             continue
+        meshes.append(obj)
         for slot in obj.material_slots:
             if slot.material is not None:
                 found[slot.material.name] = slot.material
+    evaluated = [obj for obj in meshes if any(m.type == "NODES" and m.show_render for m in obj.modifiers)]
+    if evaluated:
+        depsgraph = _depsgraph(scene)
+        for obj in evaluated:
+            data = getattr(obj.evaluated_get(depsgraph), "data", None)
+            for material in getattr(data, "materials", ()) or ():
+                if material is not None:
+                    original = material.original
+                    found[original.name] = original
     return [found[name] for name in sorted(found)]
+
+
+def _depsgraph(scene):
+    """The evaluated dependency graph of ``scene``'s view layer (the context's when it shows the scene)."""
+    import bpy
+
+    if bpy.context.scene == scene and bpy.context.view_layer is not None:
+        return bpy.context.evaluated_depsgraph_get()
+    layer = scene.view_layers[0]
+    layer.depsgraph.update()
+    return layer.depsgraph
 
 
 def bake_distance(scene, material) -> float:

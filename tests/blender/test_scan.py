@@ -46,6 +46,26 @@ def test_sss_materials_are_read_with_their_method_and_radius(addon):
     assert wax.radius == pytest.approx(tuple(r * 0.02 for r in (1.0, 0.5, 0.25)), rel=1e-6)
 
 
+def test_a_material_set_by_geometry_nodes_is_read_as_cycles_renders_it(addon):
+    """A Geometry Nodes Set Material puts a material on the geometry that no slot names: Cycles
+    renders it, so the reader finds it; with the modifier off for renders, Cycles does not, and
+    neither does the reader."""
+    skin = _principled("Skin", 1.0)
+    obj = _cube_with(_principled("Plain", 0.0))
+    group = bpy.data.node_groups.new("SetSkin", "GeometryNodeTree")
+    group.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    setter = group.nodes.new("GeometryNodeSetMaterial")
+    setter.inputs["Material"].default_value = skin
+    group.links.new(group.nodes.new("NodeGroupInput").outputs[0], setter.inputs["Geometry"])
+    group.links.new(setter.outputs["Geometry"], group.nodes.new("NodeGroupOutput").inputs[0])
+    modifier = obj.modifiers.new("SetSkin", "NODES")
+    modifier.node_group = group
+    assert [m.name for m in sss_materials(bpy.context.scene)] == ["Skin"]
+    modifier.show_render = False
+    assert sss_materials(bpy.context.scene) == []
+
+
 def test_describe_scene_needs_a_camera(addon):
     with pytest.raises(ValueError, match="no active camera"):
         describe_scene(bpy.context.scene)
