@@ -705,49 +705,29 @@ def _bpy_available() -> bool:
     return subprocess.run([sys.executable, "-c", "import bpy"], capture_output=True).returncode == 0
 
 
-#: What an independent probe of other classes of fault (587 cases in 24 classes, none from the
-#: table above) found, and where each stands: these classes are not generated here, so their
-#: counts are the probe's; the fixed ones have tests named beside them.
-BEYOND = [
-    "An independent probe of 24 other classes (587 cases) found 82 not handled. Fixed since, each",
-    "with a test of its class:",
-    "",
-    "- `calibrate --json` over its input or output, or an existing file: refused before anything runs",
-    "  (`tests/blender/test_calibrate.py`).",
-    "- `bake-thickness --target image` over a file it did not bake, or two meshes writing one file: refused",
-    "  (`tests/blender/test_bake.py`).",
-    "- Scripts in a .blend (registered text blocks, driver expressions) ran when Blender's preferences",
-    "  allowed it: every command opens files with scripts off and says what it blocked",
-    "  (`tests/blender/test_bad_blend.py`).",
-    "- A name holding a newline or an escape sequence forged a `Saved:` line or drove the terminal:",
-    "  Saved lines and the render's material notes escape it (`tests/core/test_progress.py`).",
-    "- A .blend written truncated on a full disk was reported saved: it is read back before it is moved",
-    "  into place (`tests/blender/test_bad_blend.py`).",
-    "- `render --skip-existing` kept a cut-short frame, or one of another size, seed, scene or .blend file",
-    "  (`tests/blender/test_cli_farm.py`); `apply --skip-existing` kept a cut-short output",
-    "  (`tests/core/test_cli_apply.py`).",
-    "- `--out ''` or `--frames ''` fell back to the default: refused (`tests/core/test_cli_errors.py`).",
-    "- A Principled BSDF wired only to an inactive Material Output was read as the material's",
-    "  (`tests/blender/test_scan.py`); one in a node group, or with a linked Weight, was missed",
-    "  (`tests/blender/test_scan.py`, `tests/blender/test_per_pixel_inputs.py`).",
-    "- SIGTERM and SIGHUP killed a command without clean-up: handled as Ctrl-C (`tests/blender/test_interrupt.py`).",
-    "- A merged reference's or a part's JSON was read without checks: each field is checked",
-    "  (`tests/core/test_reference_merge.py`).",
-    "",
-    "Not handled yet:",
-    "",
-    "- `merge-reference --overwrite` can write over its own input parts through a symlinked folder or a",
-    "  sidecar JSON whose name clashes; two runs started together can both print `Saved:` for one file.",
-    "- Names read from a file are escaped in Saved lines and render notes only, not in every message.",
-    "- The reference cache's metadata is not checked with the rules above.",
-    "- Temporaries of a process killed with SIGKILL stay until removed by hand (none is read as a",
-    "  result); `prepare` turns a pending Ctrl-C into a RuntimeError.",
-    "- Some messages name an internal field instead of the command-line flag, and some exit codes",
-    "  break the rule below; 14 inputs are accepted silently that should be refused or warned about.",
-    "- A whole scene built 1000 times larger was reported to change the SSS term; a rebuild of that",
-    "  check here (rendered at 1x and 1000x) and the analytic check (`tests/core/test_scale_invariance.py`)",
-    "  found every technique unchanged to 1e-5.",
-]
+#: The section of the page that this script does not generate: what the command-line cases
+#: (``benchmarks/reliability_cli.py``, run by hand) found and where each stands. Kept as the page
+#: has it when the page is written again.
+BEYOND_HEADING = "## Beyond these classes"
+NEXT_HEADING = "## What the outcomes mean"
+
+
+def _kept_section(path: str) -> list[str]:
+    """The lines of ``path`` between ``BEYOND_HEADING`` and ``NEXT_HEADING`` (both excluded, blank
+    lines at the ends dropped); [] when the page or the section does not exist yet."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            lines = fh.read().splitlines()
+    except FileNotFoundError:
+        return []
+    if BEYOND_HEADING not in lines or NEXT_HEADING not in lines:
+        return []
+    section = lines[lines.index(BEYOND_HEADING) + 1 : lines.index(NEXT_HEADING)]
+    while section and not section[0].strip():
+        section.pop(0)
+    while section and not section[-1].strip():
+        section.pop()
+    return section
 
 
 def markdown(results: list[ClassResult], *, size: str, seed: int, seconds: float) -> str:
@@ -784,10 +764,12 @@ def markdown(results: list[ClassResult], *, size: str, seed: int, seconds: float
         "2**63 in the scene JSON (an error that did not name the file; two cases), and Ctrl-C during",
         "a bake that Blender swallowed inside its callback (exit 0 on a cut-short bake).",
     ]
-    lines += ["", "## Beyond these classes", "", *BEYOND]
+    kept = _kept_section(DOC)
+    if kept:
+        lines += ["", BEYOND_HEADING, "", *kept]
     lines += [
         "",
-        "## What the outcomes mean",
+        NEXT_HEADING,
         "",
         "- *clear error*: one line naming the file, the part or field, and what to do; the command line",
         "  prints it on stderr and exits non-zero (2 for bad input, 1 for a failed write, 130 for Ctrl-C).",
