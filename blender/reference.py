@@ -53,7 +53,7 @@ def _unfinished(path: str, seed: int, wanted: dict) -> str | None:
     try:
         image = exr.read_passes(path)["Combined"]
     except (SSSLabError, OSError, ValueError, KeyError) as exc:  # cut short or damaged
-        return " ".join(str(exc).split())[:300]
+        return " ".join(str(exc).split())
     if list(image.shape[1::-1]) != wanted["resolution"]:
         w, h = wanted["resolution"]
         return f"it is {image.shape[1]}x{image.shape[0]} pixels, its JSON says {w}x{h}"
