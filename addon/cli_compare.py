@@ -100,6 +100,27 @@ def add_parser(subparsers):
 REPORT_FILES = ("metrics.json", "report.md", "report.html")
 
 
+def _check_cache(args, out: str) -> None:
+    """CommandError naming ``--cache`` (or ``--out``, whose ``cache`` folder is the default) when
+    the reference cache cannot be a folder: checked before anything renders."""
+    from ..core.base.files import not_a_folder
+    from ..core.base.progress import printable
+    from .cli import CommandError
+
+    cache = os.path.abspath(args.cache) if args.cache else os.path.join(out, "cache")
+    blocker = not_a_folder(cache)
+    if blocker is None:
+        return
+    flag, value = ("--cache", args.cache) if args.cache else ("--out", args.out)
+    if blocker != cache:
+        where = f"lies under {printable(blocker)!r}, which is a file"
+    elif args.cache:
+        where = "is a file"
+    else:
+        where = "holds a file named cache where the reference cache goes (pass --cache to put it elsewhere)"
+    raise CommandError(f"{flag} {printable(value)!r} {where}; expected a folder for the reference cache")
+
+
 def run(args) -> int:
     from .cli import CommandError
     from .cli_scan import open_blend
@@ -107,6 +128,7 @@ def run(args) -> int:
     out = os.path.abspath(args.out)
     if os.path.exists(out) and not os.path.isdir(out):
         raise CommandError(f"--out {args.out!r} is a file; expected a folder for the report")
+    _check_cache(args, out)
     earlier = [n for n in REPORT_FILES if os.path.lexists(os.path.join(out, n))]
     if earlier and not args.overwrite:
         raise CommandError(

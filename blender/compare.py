@@ -31,6 +31,7 @@ from dataclasses import asdict, dataclass, field
 import bpy
 import numpy as np
 
+from ..core.base import files
 from ..core.base.errors import InputError, SSSLabError
 from ..core.base.progress import printable, saved_line
 from ..core.pipeline import apply as core_apply
@@ -153,22 +154,29 @@ def compare_job(scene, out_dir: str, settings: CompareSettings | None = None, *,
     in the report, which then says it is incomplete; the other techniques are measured.
     """
     settings, materials, notes = _checked(scene, settings or CompareSettings(), log)
+    cache_dir = settings.cache_dir or os.path.join(out_dir, "cache")
+    blocker = files.not_a_folder(cache_dir)
+    if blocker is not None:  # before anything renders: a render whose result cannot be kept is lost
+        raise ValueError(
+            f"cache_dir {printable(cache_dir)!r}: {printable(blocker)!r} is not a folder; expected a folder for the"
+            " reference cache"
+        )
     steps = Steps(_step_count(settings, {m.method for m in materials}))
     spp = settings.reference_samples
     first = f"Cycles reference, {spp} samples, seed {settings.seed}"
     yield steps.next("merged reference" if settings.reference_file else first)  # checked; nothing changed yet
-    os.makedirs(out_dir, exist_ok=True)
-    cache_dir = settings.cache_dir or os.path.join(out_dir, "cache")
     timings: dict[str, float] = {}
     res = settings.resolution
 
     fingerprint = scene_fingerprint(scene)
-    # Every Cycles image of this comparison: same scene, folder and size; samples, seed and method vary.
-    reference = functools.partial(cached_reference, scene, cache_dir, resolution=res, log=log, fingerprint=fingerprint)
     merged = None
-    if settings.reference_file:
+    if settings.reference_file:  # read and checked before anything is written
         merged, ref_seconds = _merged_reference(settings.reference_file, fingerprint, res, scene.frame_current, log)
         settings = dataclasses.replace(settings, reference_samples=merged.samples, cycles_burley=False)
+    os.makedirs(out_dir, exist_ok=True)
+    # Every Cycles image of this comparison: same scene, folder and size; samples, seed and method vary.
+    reference = functools.partial(cached_reference, scene, cache_dir, resolution=res, log=log, fingerprint=fingerprint)
+    if merged is not None:
         ref, second = merged.image, None
     else:
         ref, ref_seconds, _ = reference(samples=settings.reference_samples, seed=settings.seed, method=None)

@@ -19,16 +19,45 @@ from collections.abc import Callable, Iterable
 
 import bpy
 
-from ..core.base.errors import InputError
+from ..core.base.errors import InputError, SSSLabError
 from ..core.base.files import atomic_write, write_text
 from ..core.base.progress import Progress, saved_line
-from ..core.study.reference import part_path, sidecar
+from ..core.scene import exr
+from ..core.study.reference import part_path, read_meta, sidecar
 from .reference_cache import render_combined, scene_fingerprint
 from .state import SceneState
 
 
-def _done(path: str) -> bool:
-    return os.path.isfile(path) and os.path.isfile(sidecar(path))
+def _unfinished(path: str, seed: int, wanted: dict) -> str | None:
+    """Why the part at ``path`` is not a finished part of this job and must be rendered again (a
+    file missing, a JSON that does not read, an EXR cut short or of another size than its JSON
+    says, a JSON of another seed); None when it is one and is kept. InputError when it is a
+    finished part of another job (other samples, size, frame or scene state): rendering over it
+    would destroy that job's work, and keeping it would corrupt the merge."""
+    meta_path = sidecar(path)
+    for missing, other in ((path, meta_path), (meta_path, path)):
+        if not os.path.isfile(missing):
+            return f"no {os.path.basename(missing)} beside {os.path.basename(other)}"
+    try:
+        meta = read_meta(meta_path, required=("samples", "seed"))
+    except InputError as exc:
+        return str(exc)
+    differ = {k: (meta.get(k), v) for k, v in wanted.items() if meta.get(k) != v}
+    if differ:
+        detail = "; ".join(f"{k} {old!r} there, {new!r} asked" for k, (old, new) in differ.items())
+        raise InputError(
+            f"{path} exists but was rendered differently ({detail}); render into another folder, or pass --overwrite"
+        )
+    if meta["seed"] != seed:
+        return f"{os.path.basename(meta_path)} says seed {meta['seed']}, not {seed}"
+    try:
+        image = exr.read_passes(path)["Combined"]
+    except (SSSLabError, OSError, ValueError, KeyError) as exc:  # cut short or damaged
+        return " ".join(str(exc).split())
+    if list(image.shape[1::-1]) != wanted["resolution"]:
+        w, h = wanted["resolution"]
+        return f"it is {image.shape[1]}x{image.shape[0]} pixels, its JSON says {w}x{h}"
+    return None
 
 
 def render_reference_parts(
@@ -45,9 +74,11 @@ def render_reference_parts(
 ) -> list[str]:
     """Render one reference part per seed into ``out_dir``; returns the paths written.
 
-    A part whose EXR and JSON both exist is kept with ``skip_existing`` (after checking that it
-    was rendered with the same samples, size and frame: a different one would corrupt the
-    merge), replaced with ``overwrite``, and otherwise refused before anything renders.
+    A part whose EXR and JSON both exist is kept with ``skip_existing`` when it is whole and of
+    this job (``_unfinished``: the EXR reads whole at the size asked, its JSON agrees on samples,
+    seed, size, frame and fingerprint), rendered again with a line saying why when it is not
+    finished (cut short, a file missing), and refused when it is a finished part of another job;
+    replaced with ``overwrite``; otherwise refused. All before anything renders.
     """
     say = log or (lambda _line: None)
     seeds = [int(s) for s in seeds]
@@ -80,20 +111,18 @@ def render_reference_parts(
         scene.frame_set(old_frame)
     wanted = {"samples": samples, "frame": frame, "resolution": size, "fingerprint": fingerprint}
 
-    todo, skipped = [], []
+    todo: list[tuple[int, str]] = []
+    skipped: list[tuple[int, str]] = []
+    again: dict[int, str] = {}  # seed: why its part is rendered again
     for seed in seeds:
         path = part_path(out_dir, seed)
-        if skip_existing and _done(path):
-            with open(sidecar(path), encoding="utf-8") as fh:
-                meta = json.load(fh)
-            differ = {k: (meta.get(k), v) for k, v in wanted.items() if meta.get(k) != v}
-            if differ:
-                detail = "; ".join(f"{k} {old!r} there, {new!r} asked" for k, (old, new) in differ.items())
-                raise InputError(
-                    f"{path} exists but was rendered differently ({detail}); "
-                    "render into another folder, or pass --overwrite"
-                )
-            skipped.append((seed, path))
+        if skip_existing and (os.path.lexists(path) or os.path.lexists(sidecar(path))):
+            why = _unfinished(path, seed, wanted)
+            if why is None:
+                skipped.append((seed, path))
+            else:
+                again[seed] = why
+                todo.append((seed, path))
         elif not overwrite and (os.path.exists(path) or os.path.exists(sidecar(path))):
             existing = path if os.path.exists(path) else sidecar(path)
             raise FileExistsError(
@@ -113,6 +142,8 @@ def render_reference_parts(
         state.on_restore(lambda: scene.frame_set(old_frame, subframe=old_subframe))
         scene.frame_set(frame)
         for seed, path in todo:
+            if seed in again:
+                say(f"seed {seed}: {os.path.basename(path)} is not a finished part ({again[seed]}): rendering it again")
             say(f"{progress.position()} seed {seed}: rendering {size[0]}x{size[1]}, {samples} samples, frame {frame}")
             timing: list[float] = []
 

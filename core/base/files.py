@@ -228,6 +228,20 @@ def write_text(path: str, text: str) -> str:
     return atomic_write(path, write)
 
 
+def not_a_folder(path: str) -> str | None:
+    """The first of ``path`` and the folders above it that exists but is not a folder (a file, a
+    broken link): ``path`` can then be neither used nor made as a folder. None when it can."""
+    here = os.path.abspath(path)
+    while not os.path.isdir(here):
+        if os.path.lexists(here):
+            return here
+        parent = os.path.dirname(here)
+        if parent == here:
+            return None
+        here = parent
+    return None
+
+
 @contextlib.contextmanager
 def temporary_folder(prefix: str):
     """A temporary folder in the system's temporary directory, removed at the end of the block;

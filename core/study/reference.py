@@ -43,6 +43,10 @@ HALF_LAYERS = ("SSSLab.HalfA.Combined", "SSSLab.HalfB.Combined")
 #: File name of one part: the seed decides it, so that a re-queued task writes the same file.
 PART_PATTERN = "reference_seed_{seed:05d}.exr"
 
+#: The most samples one Cycles render takes (the hard maximum of its Samples setting): a merged
+#: reference claiming more than this per part did not come from ``sss_lab reference``.
+CYCLES_MAX_SAMPLES = 1 << 24
+
 
 @dataclass(frozen=True)
 class ReferencePart:
@@ -56,7 +60,8 @@ class ReferencePart:
 
 @dataclass(frozen=True)
 class MergedReference:
-    """The merged image (float32, (H, W, C)), its total samples, the seeds, and the halves."""
+    """The merged image (float32, (H, W, C)), its total samples, the seeds, and the halves;
+    ``part_samples``: each part's samples, in the order of ``seeds`` (None when not recorded)."""
 
     image: np.ndarray
     samples: int
@@ -64,6 +69,7 @@ class MergedReference:
     halves: tuple[np.ndarray, np.ndarray] | None
     half_samples: tuple[int, int] | None
     half_seeds: tuple[tuple[int, ...], tuple[int, ...]] | None
+    part_samples: tuple[int, ...] | None = None
 
 
 def part_path(folder: str, seed: int) -> str:
@@ -133,13 +139,15 @@ def merge_parts(parts: Iterable[ReferencePart]) -> MergedReference:
         halves = (_weighted_mean(a), _weighted_mean(b))
         half_samples = (sum(p.samples for p in a), sum(p.samples for p in b))
         half_seeds = (tuple(sorted(p.seed for p in a)), tuple(sorted(p.seed for p in b)))
+    by_seed = sorted(parts, key=lambda p: p.seed)
     return MergedReference(
         image=image,
         samples=sum(p.samples for p in parts),
-        seeds=tuple(sorted(p.seed for p in parts)),
+        seeds=tuple(p.seed for p in by_seed),
         halves=halves,
         half_samples=half_samples,
         half_seeds=half_seeds,
+        part_samples=tuple(p.samples for p in by_seed),
     )
 
 
@@ -198,6 +206,10 @@ _META_FIELDS: dict = {
     "samples": ("an integer >= 1", _count),
     "seed": ("an integer >= 0", _seed),
     "seeds": ("a list of integers >= 0", lambda v: isinstance(v, list) and all(_seed(x) for x in v)),
+    "part_samples": (
+        "null or a list of integers >= 1",
+        lambda v: v is None or (isinstance(v, list) and all(_count(x) for x in v)),
+    ),
     "half_samples": (
         "null or two integers >= 1",
         lambda v: v is None or (isinstance(v, list) and len(v) == 2 and all(_count(x) for x in v)),
@@ -244,6 +256,15 @@ def read_meta(meta_path: str, required: Sequence[str] = ()) -> dict:
     return meta
 
 
+def _check_size(path: str, meta_path: str, image: np.ndarray, meta: dict, verdict: str) -> None:
+    """InputError naming both files when the JSON's resolution is not the EXR's size."""
+    if "resolution" in meta and list(image.shape[1::-1]) != meta["resolution"]:
+        raise InputError(
+            f"{path} is {image.shape[1]}x{image.shape[0]} pixels but {os.path.basename(meta_path)} says"
+            f" {meta['resolution'][0]}x{meta['resolution'][1]} (its resolution): {verdict}"
+        )
+
+
 def read_part(path: str) -> tuple[ReferencePart, dict]:
     """A part written by ``sss_lab reference`` and its description: the EXR's Combined pass,
     samples, seed (and what was rendered) from the JSON beside it."""
@@ -252,11 +273,7 @@ def read_part(path: str) -> tuple[ReferencePart, dict]:
         raise InputError(f"{path}: no {os.path.basename(meta_path)} beside it (samples and seed of the part)")
     meta = read_meta(meta_path, required=("samples", "seed"))
     image = exr.read_passes(path)["Combined"]
-    if "resolution" in meta and list(image.shape[1::-1]) != meta["resolution"]:
-        raise InputError(
-            f"{path} is {image.shape[1]}x{image.shape[0]} pixels but {os.path.basename(meta_path)} says"
-            f" {meta['resolution'][0]}x{meta['resolution'][1]}: they are not one part"
-        )
+    _check_size(path, meta_path, image, meta, "they are not one part")
     return ReferencePart(image=image, samples=meta["samples"], seed=meta["seed"], source=path), meta
 
 
@@ -298,6 +315,7 @@ def write_merged(path: str, merged: MergedReference, meta: dict | None = None, *
         {
             "samples": merged.samples,
             "seeds": list(merged.seeds),
+            "part_samples": list(merged.part_samples) if merged.part_samples else None,
             "half_samples": list(merged.half_samples) if merged.half_samples else None,
             "half_seeds": [list(s) for s in merged.half_seeds] if merged.half_seeds else None,
             "noise_floor_whole_image": noise_floor(merged),
@@ -309,13 +327,112 @@ def write_merged(path: str, merged: MergedReference, meta: dict | None = None, *
     return [path, json_path]
 
 
+def _header_record(path: str, meta_path: str, header: dict, meta: dict) -> tuple[int, tuple[int, ...] | None]:
+    """(samples, seeds) that ``write_merged`` put in the EXR's header; InputError when the file
+    has no such record (it was not written by ``merge-reference``: a passes file, typically) or
+    the JSON beside it lacks the samples and seeds a merge writes."""
+    missing = [k for k in ("samples", "seeds") if meta.get(k) is None] if os.path.isfile(meta_path) else []
+    if "sss_lab_samples" not in header or missing:
+        name = os.path.basename(meta_path)
+        if "materials" in meta and "camera" in meta:
+            why = f"{name} is the scene description of a passes file"
+        elif missing:
+            why = f"{name} has no {' or '.join(map(repr, missing))}"
+        else:
+            why = "its header has no sss_lab_samples"
+        raise InputError(
+            f"{path}: not a merged reference ({why}); expected a reference merged by sss_lab merge-reference"
+            " from the parts of sss_lab reference"
+        )
+    samples = header["sss_lab_samples"]
+    try:
+        count = int(samples)
+        text = str(header.get("sss_lab_seeds", "")).strip()
+        seeds = tuple(int(v) for v in text.split(",")) if text else None
+    except (TypeError, ValueError):
+        raise InputError(
+            f"{path}: its header's sss_lab_samples {samples!r} or sss_lab_seeds {header.get('sss_lab_seeds')!r}"
+            " is not what sss_lab merge-reference writes; merge the parts again"
+        ) from None
+    if not 1 <= count <= len(seeds or (0,)) * CYCLES_MAX_SAMPLES:
+        raise InputError(
+            f"{path}: its header records {count} samples for {len(seeds or ())} seed(s); expected 1 to"
+            f" {CYCLES_MAX_SAMPLES} per part (the most one Cycles render takes): merge the parts again"
+        )
+    return count, seeds
+
+
+def _check_merged_meta(path: str, meta_path: str, meta: dict, recorded: tuple[int, tuple[int, ...] | None]) -> None:
+    """InputError naming the JSON and the field when its samples and seeds disagree with what it
+    records of the parts (each part's samples, the halves' samples and seeds, the part files) or
+    with the EXR's own record, or claim more than the parts can hold."""
+    samples, seeds = meta["samples"], meta["seeds"]
+    if len(set(seeds)) != len(seeds) or not seeds:
+        raise InputError(f"{meta_path}: seeds: expected distinct seeds, one per part, got {seeds!r}")
+    # What the JSON records of the parts, each a sum the merged samples must equal.
+    sums = []
+    if meta.get("part_samples") is not None:
+        if len(meta["part_samples"]) != len(seeds):
+            raise InputError(
+                f"{meta_path}: part_samples holds {len(meta['part_samples'])} counts for {len(seeds)} seeds"
+                f" {seeds}; expected one per part"
+            )
+        sums.append(("part_samples " + " + ".join(map(str, meta["part_samples"])), sum(meta["part_samples"])))
+    if meta.get("half_samples") is not None:
+        sums.append(("half_samples " + " + ".join(map(str, meta["half_samples"])), sum(meta["half_samples"])))
+    for what, total in sums:
+        if samples != total:
+            raise InputError(
+                f"{meta_path}: samples {samples} disagrees with its {what} = {total}; the JSON was edited or is"
+                " another reference's: merge the parts again"
+            )
+    if samples != recorded[0]:
+        raise InputError(
+            f"{meta_path}: samples {samples} disagrees with {os.path.basename(path)}'s own record of"
+            f" {recorded[0]} samples; the JSON was edited or is another reference's: merge the parts again"
+        )
+    if samples < len(seeds) or samples > len(seeds) * CYCLES_MAX_SAMPLES:
+        raise InputError(
+            f"{meta_path}: samples {samples} for {len(seeds)} part(s): expected 1 to {CYCLES_MAX_SAMPLES} per part"
+            " (the most one Cycles render takes); merge the parts again"
+        )
+    if recorded[1] is not None and sorted(seeds) != sorted(recorded[1]):
+        raise InputError(
+            f"{meta_path}: seeds {seeds} disagree with {os.path.basename(path)}'s own record of seeds"
+            f" {list(recorded[1])}; merge the parts again"
+        )
+    if meta.get("half_seeds") is not None:
+        both = [s for half in meta["half_seeds"] for s in half]
+        if sorted(both) != sorted(seeds):
+            raise InputError(
+                f"{meta_path}: half_seeds {meta['half_seeds']} are not the seeds {seeds} split in two; merge the"
+                " parts again"
+            )
+    if isinstance(meta.get("parts"), list) and len(meta["parts"]) != len(seeds):
+        raise InputError(
+            f"{meta_path}: parts names {len(meta['parts'])} file(s) for {len(seeds)} seeds {seeds}; merge the"
+            " parts again"
+        )
+
+
 def read_merged(path: str) -> MergedReference:
-    """A merged reference written by ``write_merged`` (the halves, samples and seeds included)."""
+    """A merged reference written by ``write_merged`` (the halves, samples and seeds included).
+
+    Refused (InputError naming the file and what is wrong) when it is not one (a passes file, an
+    EXR without ``write_merged``'s record of its samples), when the JSON beside it is damaged or
+    disagrees with the EXR (its size, samples, seeds) or with itself (samples against the parts'
+    and the halves' samples): a reference of the wrong weight would make every figure wrong."""
     contents = exr.read_layers(path)
     if MERGED_LAYER not in contents.layers:
         raise InputError(f"{path}: no layer {MERGED_LAYER!r}; expected a reference merged by sss_lab merge-reference")
     meta_path = sidecar(path)
     meta = read_meta(meta_path) if os.path.isfile(meta_path) else {}
+    recorded = _header_record(path, meta_path, contents.header, meta)
+    if meta:
+        _check_merged_meta(path, meta_path, meta, recorded)
+    _check_size(
+        path, meta_path, contents.layers[MERGED_LAYER], meta, "the JSON is not this reference's; merge the parts again"
+    )
     halves = None
     if all(name in contents.layers for name in HALF_LAYERS):
         first, second = (contents.layers[name] for name in HALF_LAYERS)
@@ -323,12 +440,13 @@ def read_merged(path: str) -> MergedReference:
     half_samples = tuple(meta["half_samples"]) if halves is not None and meta.get("half_samples") else None
     if halves is not None and half_samples is None:
         raise InputError(f"{path}: the halves' sample counts are missing ({meta_path}); merge the parts again")
-    samples = int(meta.get("samples") or contents.header.get("sss_lab_samples") or 0)
-    seeds = tuple(meta.get("seeds") or ())
+    samples = int(meta.get("samples") or recorded[0])
+    seeds = tuple(meta.get("seeds") or recorded[1] or ())
     half_seeds = None
     if meta.get("half_seeds"):
         seeds_a, seeds_b = (tuple(int(v) for v in s) for s in meta["half_seeds"])
         half_seeds = (seeds_a, seeds_b)
+    part_samples = tuple(meta["part_samples"]) if meta.get("part_samples") else None
     return MergedReference(
         image=contents.layers[MERGED_LAYER],
         samples=samples,
@@ -336,4 +454,5 @@ def read_merged(path: str) -> MergedReference:
         halves=halves if half_samples else None,
         half_samples=half_samples,
         half_seeds=half_seeds,
+        part_samples=part_samples,
     )

@@ -78,3 +78,48 @@ def test_a_damaged_entry_is_rendered_again_with_a_note(cube_scene, tmp_path, dam
     assert isinstance(json.loads(meta.read_text())["seconds"], float)  # healed
     assert _reference(cube_scene, cache, notes)[2]  # and reused from then on
     assert sorted(os.listdir(cache)) == sorted([exr.name, meta.name])  # no temporary file
+
+
+#: Cache folders that cannot be folders: (the --cache given, relative to the case's folder, or
+#: None for the default OUT/cache; the file made first).
+NOT_FOLDERS = {
+    "--cache an existing file": ("afile", "afile"),
+    "--cache under a file": ("afile/sub", "afile"),
+    "--cache a broken link": ("link", None),
+    "OUT/cache a file": (None, "out/cache"),
+}
+
+
+def _blockers(root, cache, made):
+    (root / "out").mkdir()
+    if made:
+        (root / made).write_text("not a folder\n")
+    if cache == "link":
+        (root / "link").symlink_to(root / "nowhere")
+    return None if cache is None else str(root / cache)
+
+
+@pytest.mark.parametrize("case", sorted(NOT_FOLDERS))
+def test_a_cache_that_cannot_be_a_folder_is_refused_before_anything_renders(cube_scene, tmp_path, capsys, case):
+    """compare's reference cache where a file (or a broken link) stands: refused at once, naming
+    the flag and that it must be a folder, never after the first render found it cannot keep it."""
+    from sss_lab.addon.cli import main
+    from sss_lab.blender.compare import CompareSettings, compare
+
+    cache, made = NOT_FOLDERS[case]
+    cache = _blockers(tmp_path, cache, made)
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    blend = tmp_path / "cube.blend"  # never opened: the options are checked first
+    args = ["compare", str(blend), "--out", str(tmp_path / "out"), "--no-eevee", "--resolution", "16x16"]
+    assert main(args + (["--cache", cache] if cache else [])) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    flag = "--cache" if cache else "--out"
+    assert f"sss_lab compare: error: {flag} " in err and "expected a folder for the reference cache" in err, err
+    # The same through the Python API (the add-on's operator), before any Cycles render.
+    settings = CompareSettings(resolution=(16, 16), reference_samples=2, pass_samples=1, cache_dir=cache, eevee=False)
+    lines = []
+    with pytest.raises(ValueError, match="is not a folder; expected a folder for the reference cache"):
+        compare(cube_scene, str(tmp_path / "out"), settings, log=lines.append)
+    assert not any("rendering" in line for line in lines), lines
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before  # nothing written

@@ -110,6 +110,75 @@ def test_skip_existing_keeps_finished_parts_and_refuses_different_ones(rendered)
         render_reference_parts(scene, folder, seeds=[1], samples=SAMPLES, resolution=SIZE, log=None)
 
 
+def _cut(path):
+    with open(path, "r+b") as fh:
+        fh.truncate(os.path.getsize(path) // 2)
+
+
+def _rewrite(path, **values):
+    meta = json.loads(open(path, encoding="utf-8").read())
+    meta.update(values)
+    open(path, "w", encoding="utf-8").write(json.dumps(meta))
+
+
+#: What a killed task, a full disk or a copy leaves of a part: each is no finished part of the job.
+DAMAGE = {
+    "EXR cut to half": lambda exr_path, meta: _cut(exr_path),
+    "JSON missing": lambda exr_path, meta: os.remove(meta),
+    "JSON cut short": lambda exr_path, meta: open(meta, "w").write('{"samples": 3'),
+    "EXR missing": lambda exr_path, meta: os.remove(exr_path),
+    "JSON of another seed": lambda exr_path, meta: _rewrite(meta, seed=9),
+    "EXR of another size": lambda exr_path, meta: (
+        os.remove(exr_path),
+        exr.write_layers(exr_path, {"ViewLayer.Combined": np.zeros((16, 16, 4), np.float32)}),
+    ),
+}
+
+
+def test_skip_existing_renders_again_every_part_that_is_not_finished(rendered, tmp_path):
+    """--skip-existing keeps only whole parts of the same job: a part cut short, missing a file,
+    or whose EXR and JSON disagree is rendered again with a line saying so, never kept (the merge
+    would then fail on it, or weigh a wrong image)."""
+    import shutil
+
+    import bpy
+
+    from sss_lab.blender.reference import render_reference_parts
+
+    bpy.ops.wm.open_mainfile(filepath=str(rendered["work"] / "head.blend"), load_ui=False)
+    scene = bpy.context.scene
+    damages = sorted(DAMAGE)
+    for first in range(0, len(damages), TASKS - 1):
+        batch = damages[first : first + TASKS - 1]
+        folder = tmp_path / f"parts{first}"
+        shutil.copytree(rendered["work"] / "parts", folder)
+        kept = os.path.join(folder, "reference_seed_00001.exr")
+        before = os.stat(kept).st_mtime_ns
+        for seed, damage in enumerate(batch, start=2):
+            path = os.path.join(folder, f"reference_seed_{seed:05d}.exr")
+            DAMAGE[damage](path, ref.sidecar(path))
+        lines = []
+        written = render_reference_parts(
+            scene,
+            str(folder),
+            seeds=range(1, TASKS + 1),
+            samples=SAMPLES,
+            resolution=SIZE,
+            skip_existing=True,
+            log=lines.append,
+        )
+        again = list(range(2, len(batch) + 2))
+        assert [p for p in written if p.endswith(".exr")] == [
+            os.path.join(folder, f"reference_seed_{s:05d}.exr") for s in again
+        ], batch
+        assert os.stat(kept).st_mtime_ns == before and any("seed 1: skipped" in line for line in lines)
+        for seed in again:
+            said = [line for line in lines if line.startswith(f"seed {seed}: reference_seed_{seed:05d}.exr is not")]
+            assert said and said[0].endswith("rendering it again"), (batch, lines)
+        parts, _ = ref.read_parts(sorted(str(p) for p in folder.glob("*.exr")))  # whole again
+        assert [p.seed for p in parts] == list(range(1, TASKS + 1))
+
+
 def test_compare_uses_the_merged_reference_and_its_halves(rendered, capsys):
     """merge-reference (the command) then compare --reference: the report's reference is the
     merge, its noise floor comes from the halves, and a reference of another frame or another

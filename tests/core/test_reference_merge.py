@@ -258,3 +258,67 @@ def test_merge_names_a_folder_output_and_refuses_parts_it_cannot_tell_apart(tmp_
     assert not (tmp_path / "m.exr").exists()
     single = _part_folder(tmp_path / "single", seeds=(3,), fingerprint=None)  # one part: nothing to mix up
     assert main(["merge-reference", str(single), "--out", str(tmp_path / "one.exr")]) == 0
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        # The samples against what the JSON records of the parts, and against the EXR's own record.
+        ({"samples": 1_000_000_000}, r"samples 1000000000 disagrees with its part_samples 8 \+ 8 \+ 8 \+ 8 = 32"),
+        ({"samples": 33, "part_samples": None}, r"samples 33 disagrees with its half_samples 16 \+ 16 = 32"),
+        (
+            {"samples": 64, "part_samples": [16, 16, 16, 16], "half_samples": [32, 32]},
+            r"samples 64 disagrees with reference\.exr's own record of 32 samples",
+        ),
+        ({"part_samples": [8, 8, 16]}, r"part_samples holds 3 counts for 4 seeds"),
+        # Older files (no part_samples, no halves): the EXR's record still holds.
+        ({"samples": 40, "part_samples": None, "half_samples": None}, r"own record of 32 samples"),
+        ({"seeds": [0, 1, 2, 5]}, r"seeds \[0, 1, 2, 5\] disagree with reference\.exr's own record of seeds"),
+        ({"seeds": [0, 1, 1, 2]}, r"seeds: expected distinct seeds"),
+        ({"half_seeds": [[0, 1], [1, 3]]}, r"half_seeds \[\[0, 1\], \[1, 3\]\] are not the seeds"),
+        ({"parts": ["a.exr"]}, r"parts names 1 file\(s\) for 4 seeds"),
+        # The size the JSON gives against the EXR's.
+        (
+            {"resolution": [32, 32]},
+            rf"reference\.exr is {SIZE}x{SIZE} pixels but reference\.json says 32x32 \(its resolution\)",
+        ),
+    ],
+)
+def test_a_merged_references_json_must_agree_with_itself_and_its_exr(tmp_path, change, message):
+    """A hand-edited JSON whose samples, seeds or size are not those of the merge beside it: one
+    line naming the file and the field, never a reference weighted as something it is not."""
+    out = tmp_path / "reference.exr"
+    ref.write_merged(str(out), ref.merge_parts(_parts(4, 8)), {"frame": 1, "resolution": [SIZE, SIZE]})
+    meta_path = tmp_path / "reference.json"
+    meta = json.loads(meta_path.read_text())
+    assert meta["part_samples"] == [8, 8, 8, 8]
+    meta.update(change)
+    meta_path.write_text(json.dumps(meta))
+    with pytest.raises(InputError, match=message):
+        ref.read_merged(str(out))
+
+
+def test_a_file_that_is_not_a_merged_reference_is_refused(tmp_path):
+    """A passes file (its Combined layer and its scene description beside it), or any EXR not
+    written by merge-reference, is no merged reference of 0 samples: refused, naming it."""
+    from sss_lab.core.scene import exr
+
+    passes = tmp_path / "passes_0001.exr"
+    exr.write_layers(str(passes), {"ViewLayer.Combined": _truth(), "ViewLayer.Depth": _truth()[..., :1]})
+    (tmp_path / "passes_0001.json").write_text(json.dumps({"version": 1, "frame": 1, "camera": {}, "materials": []}))
+    with pytest.raises(InputError, match=r"passes_0001\.exr: not a merged reference \(passes_0001\.json is the scene"):
+        ref.read_merged(str(passes))
+    (tmp_path / "passes_0001.json").unlink()
+    with pytest.raises(InputError, match=r"passes_0001\.exr: not a merged reference \(its header has no sss_lab_"):
+        ref.read_merged(str(passes))
+    # A merged reference whose JSON lost its samples, and one without JSON but with the EXR's record
+    # (one part: no halves, whose counts only the JSON gives).
+    out = tmp_path / "reference.exr"
+    ref.write_merged(str(out), ref.merge_parts(_parts(1, 8, first_seed=3)))
+    meta = json.loads((tmp_path / "reference.json").read_text())
+    (tmp_path / "reference.json").write_text(json.dumps({k: v for k, v in meta.items() if k != "samples"}))
+    with pytest.raises(InputError, match=r"reference\.exr: not a merged reference \(reference\.json has no 'samples'"):
+        ref.read_merged(str(out))
+    (tmp_path / "reference.json").unlink()
+    back = ref.read_merged(str(out))
+    assert back.samples == 8 and back.seeds == (3,) and back.halves is None
