@@ -256,8 +256,11 @@ def _declared_parts(OpenEXR, path: str):
         try:
             exr = OpenEXR.File(path, header_only=True)
             declared = []
+            deep = []
             for index in range(len(exr.parts)):
                 header = exr.header(index)
+                if header.get("type") in (OpenEXR.deepscanline, OpenEXR.deeptile):
+                    deep.append((index, str(header.get("name", f"part {index}")), header.get("type")))
                 chans = {c.name for c in header.get("channels", ())}
                 declared.append((str(header.get("name", f"part {index}")), chans, _window(header.get("dataWindow"))))
         except (RuntimeError, ValueError, TypeError, IndexError, KeyError) as exc:
@@ -265,6 +268,15 @@ def _declared_parts(OpenEXR, path: str):
                 f"{path}: the OpenEXR header cannot be read ({_first_reason([str(exc)], 'unknown error')}); "
                 f"the file is truncated or damaged: {_REDO}"
             ) from None
+    if deep:
+        index, name, kind = deep[0]
+        kind_name = "deep tiled" if kind == OpenEXR.deeptile else "deep scanline"
+        where = f"part {index} {name!r} is" if len(declared) > 1 else "the image is"
+        more = f" ({len(deep)} of its {len(declared)} parts are deep)" if len(deep) > 1 else ""
+        raise InputError(
+            f"{path}: {where} a {kind_name} image{more}; SSS Lab reads flat (non-deep) multilayer EXRs: render the "
+            "passes again with Blender's multilayer EXR output"
+        )
     return declared
 
 
@@ -277,7 +289,8 @@ def read_layers(path: str | os.PathLike) -> ExrContents:
     damaged file would pass for one without that pass. Raises FileNotFoundError for a missing
     file and ``DamagedFileError`` (a ValueError) naming the file, the part and what to do for a
     file that is not an OpenEXR file, is truncated or damaged, or whose parts differ in size or
-    use subsampled channels.
+    use subsampled channels, and ``InputError`` for a file holding deep parts (several samples per
+    pixel: SSS Lab reads flat images only).
     """
     OpenEXR = _import_openexr()
     path = os.fspath(path)

@@ -341,3 +341,52 @@ def test_passes_are_read_only_float32_and_validated(tmp_path):
     with pytest.raises(ValueError, match="letters"):
         exr.write_layers(tmp_path / "x.exr", {"L.A": np.ones((2, 2, 3))}, channels={"L.A": "RG"})
     assert os.listdir(tmp_path) == []
+
+
+def _deep(values):
+    """Deep pixels holding one sample each, as OpenEXR's Python API writes them."""
+    out = np.empty(values.shape, dtype=object)
+    for index in np.ndindex(values.shape):
+        out[index] = np.array([values[index]], dtype=values.dtype)
+    return out
+
+
+@pytest.mark.parametrize(
+    "layout, where",
+    [
+        ("deepscanline", "the image is a deep scanline image"),
+        ("deeptile", "the image is a deep tiled image"),
+        ("one part of several", "part 1 'ViewLayer.Depth' is a deep scanline image"),
+        ("every part", r"part 0 'ViewLayer.Combined' is a deep scanline image \(2 of its 2 parts are deep\)"),
+    ],
+)
+def test_deep_images_are_refused_naming_the_file_and_the_part(tmp_path, layout, where):
+    """Deep parts (any number of samples per pixel) are not Blender's passes: every kind of deep
+    part, alone or among flat ones, is refused before any pixel is read, naming it."""
+    path = tmp_path / "passes.exr"
+    flat = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    deep = {"compression": OpenEXR.ZIPS_COMPRESSION, "type": OpenEXR.deepscanline}
+    combined = {f"ViewLayer.Combined.{c}": plane(i) for i, c in enumerate("RGBA")}
+    depth = {"ViewLayer.Depth.Z": plane(200)}
+    if layout == "deepscanline":
+        parts = [OpenEXR.Part(deep, {k: _deep(v) for k, v in combined.items()}, "ViewLayer.Combined")]
+    elif layout == "deeptile":
+        tiles = OpenEXR.TileDescription()
+        tiles.xSize = tiles.ySize = 4
+        tiled = {**deep, "type": OpenEXR.deeptile, "tiles": tiles}
+        parts = [OpenEXR.Part(tiled, {k: _deep(v) for k, v in combined.items()}, "ViewLayer.Combined")]
+    elif layout == "one part of several":
+        parts = [
+            OpenEXR.Part(flat, combined, "ViewLayer.Combined"),
+            OpenEXR.Part(deep, {k: _deep(v) for k, v in depth.items()}, "ViewLayer.Depth"),
+        ]
+    else:
+        parts = [
+            OpenEXR.Part(dict(deep), {k: _deep(v) for k, v in combined.items()}, "ViewLayer.Combined"),
+            OpenEXR.Part(dict(deep), {k: _deep(v) for k, v in depth.items()}, "ViewLayer.Depth"),  # a header each
+        ]
+    OpenEXR.File(parts).write(str(path))
+    before = path.read_bytes()
+    with pytest.raises(ValueError, match=rf"^{str(path)}: {where}; SSS Lab reads flat \(non-deep\) multilayer EXRs"):
+        read_passes(path)
+    assert path.read_bytes() == before and os.listdir(tmp_path) == ["passes.exr"]
