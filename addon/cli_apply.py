@@ -195,6 +195,10 @@ def run(args) -> int:
                 print(f"  {printable(line)}", flush=True)
             progress.finish()
             continue
+        # Said once per file (every technique's plan reads the same pass); --explain says it per plan.
+        index_warning = next((p.index_warning for p in result.plans.values() if p.index_warning), None)
+        if index_warning and not args.explain:
+            print(f"  warning: {printable(index_warning)}", flush=True)
         for p in result.plans.values():
             if args.explain:
                 print("\n".join("  " + line for line in p.explain().splitlines()))

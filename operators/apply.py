@@ -81,6 +81,8 @@ class SSS_LAB_OT_apply(bpy.types.Operator):
         applied = plan.applied
         names = ", ".join(m.material.name or str(m.material.index) for m in applied) or "none on screen"
         self.report({"INFO"}, f"{technique}: {len(applied)} material(s) computed ({names})")
+        if plan.index_warning:
+            self.report({"WARNING"}, plan.index_warning)
         if plan.nonfinite_pixels:
             self.report({"WARNING"}, f"{plan.nonfinite_pixels} pixels with NaN/Inf inputs left as they are")
         shown = _show(context, image) if image is not None else False

@@ -109,7 +109,7 @@ from ..techniques.registry import TECHNIQUES, get_spec
 from . import apply as core_apply
 from .fit_params import INFO, OFF, fitted
 from .mapping import burley_d, mean_free_path, technique_params
-from .plan import EXACT_FLOAT32, Plan, index_map, plan, required_passes
+from .plan import EXACT_FLOAT32, Plan, fractional_indices, index_map, index_warning, plan, required_passes
 
 
 def _kernels():
@@ -747,10 +747,18 @@ class AutoPlan:
     nonfinite_pixels: int = 0
     overflow_pixels: int = 0
     negative_pixels: int = 0
+    #: As ``Plan``'s: Material Index pixels that are not whole numbers, and one of their values.
+    fractional_index_pixels: int = 0
+    fractional_index_value: float | None = None
 
     @property
     def scattering(self) -> list[MaterialChoice]:
         return self.choices
+
+    @property
+    def index_warning(self) -> str | None:
+        """What a Material Index pass holding values that are not whole numbers means, or None."""
+        return index_warning(self.fractional_index_pixels, self.fractional_index_value)
 
     @property
     def applied(self) -> list[MaterialChoice]:
@@ -794,6 +802,8 @@ class AutoPlan:
         ]
         if not self.choices:
             lines.append("  no material in the scene description scatters light on screen: nothing to do")
+        if self.index_warning:
+            lines.append(f"  warning: {self.index_warning}")
         for line in self.skipped_materials:
             lines.append(f"  {line}")
         for c in self.choices:
@@ -920,6 +930,7 @@ def choose(
         if lacking:
             missing[t] = f"missing pass(es) {', '.join(lacking)}"
     auto = AutoPlan(shape=passes.shape, max_error=float(max_error), choices=[], plans={}, model=model)
+    auto.fractional_index_pixels, auto.fractional_index_value = fractional_indices(passes)
     scene = read_scene(passes, scene)  # inputs linked to textures: their medians on screen
     chosen_by: dict[str, set[int]] = {}
     shared = _Shared(passes, scene)

@@ -90,6 +90,10 @@ class Plan:
     #: Pixels where the SSS term would have made a channel's light negative: set to 0 (passes whose
     #: diffuse light exceeds Combined).
     negative_pixels: int = 0
+    #: Finite pixels of the Material Index pass that are not whole numbers, and one of their values
+    #: (``fractional_indices``): said by ``index_warning``.
+    fractional_index_pixels: int = 0
+    fractional_index_value: float | None = None
     options: dict = field(default_factory=dict)
     #: What ``plan`` found of each scattering material's pixels (pass index -> bool (H, W)) and the
     #: Material Index pass it read them from, held weakly: ``apply`` with this plan takes them
@@ -107,6 +111,11 @@ class Plan:
     @property
     def applied(self) -> list[MaterialPlan]:
         return [m for m in self.materials if m.applied]
+
+    @property
+    def index_warning(self) -> str | None:
+        """What a Material Index pass holding values that are not whole numbers means, or None."""
+        return index_warning(self.fractional_index_pixels, self.fractional_index_value)
 
     @property
     def scattering(self) -> list[MaterialPlan]:
@@ -152,6 +161,8 @@ class Plan:
             lines.append(
                 f"  pass index {index}: {count} pixels of a material the scene description does not list: left as is"
             )
+        if self.index_warning:
+            lines.append(f"  warning: {self.index_warning}")
         if self.nonfinite_pixels:
             lines.append(f"  {self.nonfinite_pixels} pixels with NaN/Inf inputs: left as they are")
         if self.overflow_pixels:
@@ -226,6 +237,36 @@ def index_map(passes: Passes) -> np.ndarray:
     out = np.full(raw.shape, -1, dtype=np.int64)
     out[finite] = np.rint(raw[finite]).astype(np.int64)
     return out
+
+
+def fractional_indices(passes: Passes, rounded: np.ndarray | None = None) -> tuple[int, float | None]:
+    """(finite pixels of the Material Index pass that are not whole numbers, one of their values),
+    (0, None) when there are none or no such pass. Blender writes whole pass indices; a fraction
+    means the pass was edited, filtered or resampled. ``rounded``: ``np.rint`` of the pass, if
+    the caller has it."""
+    raw = passes.get("Material Index")
+    if raw is None:
+        return 0, None
+    off = (np.rint(raw) if rounded is None else rounded) != raw  # NaN too, told apart below
+    if not off.any():
+        return 0, None
+    off &= np.isfinite(raw)
+    count = int(np.count_nonzero(off))
+    return count, (float(raw[off][0]) if count else None)
+
+
+def index_warning(count: int, value: float | None) -> str | None:
+    """One line on ``count`` pixels of the Material Index pass that are not whole numbers (one of
+    them ``value``), or None when there are none."""
+    if not count or value is None:
+        return None
+    nearest = int(np.rint(value))
+    return (
+        f"the Material Index pass has {count} pixels that are not whole numbers (such as {value:.6g}): Blender"
+        " writes whole pass indices, so the pass was edited, filtered or resampled; each such pixel counts as"
+        f" the nearest index ({value:.6g} as {nearest}), which may be another material's or none: render the"
+        " passes again"
+    )
 
 
 #: Integers below this are float32 values exactly (2^24).
@@ -416,4 +457,5 @@ def plan_and_masks(
         unknown_indices=unknown_indices,
         options=dict(options),
     )
+    result_plan.fractional_index_pixels, result_plan.fractional_index_value = fractional_indices(passes, rounded)
     return result_plan, index, masks

@@ -269,6 +269,47 @@ def test_nan_and_inf_pixels_are_left_as_they_are(stub, scene_passes):
     assert "3 pixels with NaN/Inf inputs: left as they are" in p.explain()
 
 
+@pytest.mark.parametrize(
+    "damage, count, value",
+    [
+        ("the whole of Skin at 2.5", None, 2.5),  # between two indices: counts as 2 (round half to even)
+        ("three pixels filtered to 1.25", 3, 1.25),  # a resampled or filtered pass: its edges
+        ("a negative fraction", 1, -0.5),
+        ("whole numbers, NaN and inf", 0, None),  # not fractions: NaN/Inf match no material, unsaid
+    ],
+)
+def test_a_material_index_that_is_not_a_whole_number_is_said(stub, scene_passes, damage, count, value):
+    """Blender writes whole pass indices: every plan counts the finite pixels of the Material Index
+    pass that are not whole numbers and its explain says how many, as a warning naming the pass."""
+    _, scene, arrays = scene_passes
+    mi = arrays["Material Index"].copy()
+    skin = mi == 2
+    if damage.startswith("the whole"):
+        mi[skin] = 2.5
+        count = int(skin.sum())
+    elif damage.startswith("three"):
+        for y, x in np.argwhere(skin)[:3]:
+            mi[y, x] = 1.25
+    elif damage.startswith("a negative"):
+        mi[0, 0] = -0.5
+    else:
+        mi[0, 0], mi[0, 1] = np.nan, np.inf
+    passes = Passes({**arrays, "Material Index": mi})
+    for technique in TECHNIQUES:
+        p = plan(passes, scene, technique)
+        assert (p.fractional_index_pixels, p.fractional_index_value) == (count, value)
+        if count:
+            line = f"warning: the Material Index pass has {count} pixels that are not whole numbers (such as {value:g})"
+            assert line in p.explain() and p.index_warning in p.explain()
+            assert f"({value:g} as {int(np.rint(value))})" in p.index_warning
+        else:
+            assert p.index_warning is None and "whole numbers" not in p.explain()
+    if damage.startswith("the whole"):
+        # 2.5 counts as 2 (np.rint rounds half to even): Skin keeps its pixels, and the warning says so.
+        skin_plan = next(m for m in plan(passes, scene, "burley").materials if m.material.index == 2)
+        assert skin_plan.pixels == count
+
+
 def test_a_plan_brings_its_pixels_to_apply_only_on_the_passes_it_read(stub, scene_passes):
     """``apply(prepared=plan(...))`` takes the pixels the plan found, instead of reading the
     Material Index pass again, only when it is given that same pass; on other passes (here the two

@@ -317,3 +317,22 @@ def test_a_colour_pass_saved_with_alpha_is_read_as_its_rgb(tmp_path):
     a = read_layers(tmp_path / "plain.sss.exr").layers["SSSLab.burley.Image"]
     b = read_layers(tmp_path / "alpha.sss.exr").layers["SSSLab.burley.Image"]
     np.testing.assert_array_equal(a, b)
+
+
+def test_a_material_index_that_is_not_a_whole_number_is_said_once_per_file(tmp_path):
+    """A Material Index of 2.5 on a whole material (edited, filtered or resampled: Blender writes
+    whole numbers): apply computes as before and says it in one warning per file, naming the pass
+    and the number of pixels; auto's --explain says it in its plan (test_apply.py: every technique's)."""
+    arrays, scene = sphere_scene(width=32, height=24)
+    mi = arrays["Material Index"].copy()
+    skin = mi == 2
+    mi[skin] = 2.5
+    path = str(tmp_path / "passes.exr")
+    write_scene(path, {**arrays, "Material Index": mi}, scene)
+    warning = f"warning: the Material Index pass has {int(skin.sum())} pixels that are not whole numbers (such as 2.5)"
+    proc = run_apply(path, "--methods", "all")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.count(warning) == 1, proc.stdout
+    proc = run_apply(path, "--methods", "auto", "--explain")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.count(warning) == 1, proc.stdout
