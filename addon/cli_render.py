@@ -11,7 +11,6 @@ material scatters light (nothing written).
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import sys
@@ -63,7 +62,8 @@ def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | No
     for. ``job``: what the frame must match besides ("scene": name, "size": (w, h), "seed": int or
     None, "file": the .blend file's name)."""
     from ..blender.render_passes import FILE_PATTERN
-    from ..core.base.errors import SSSLabError
+    from ..core.base.errors import InputError, SSSLabError
+    from ..core.base.jsonfile import read_json
     from ..core.pipeline.sequence import frame_path, sidecar_path
     from ..core.scene.exr import read_passes
     from .cli import CommandError
@@ -72,10 +72,11 @@ def _finished(out_dir: str, frame: int, techniques: list[str], samples: int | No
     if not (os.path.isfile(exr) and os.path.isfile(sidecar_path(exr))):
         return None
     try:
-        with open(sidecar_path(exr), encoding="utf-8") as fh:
-            description = json.load(fh)
+        description = read_json(sidecar_path(exr), "a scene description")
         meta = description.get("meta", {})
         camera = description.get("camera", {})
+    except InputError as exc:  # names the file and what is wrong
+        raise CommandError(f"{exc}; pass --overwrite") from None
     except (OSError, ValueError, AttributeError) as exc:
         raise CommandError(f"{sidecar_path(exr)}: not a readable scene description ({exc}); pass --overwrite") from None
     missing = [t for t in techniques if t not in meta.get("techniques", [])]

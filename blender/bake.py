@@ -57,6 +57,7 @@ import bpy
 import numpy as np
 
 from ..core.base import files
+from ..core.base.jsonfile import read_json
 from ..core.base.progress import printable
 from ..core.scene.thickness import (
     IMAGE_FORMATS,
@@ -607,8 +608,7 @@ class ThicknessBake:
             if self.settings.overwrite or not any(os.path.lexists(p) for p in (path, path + ".json")):
                 continue
             try:
-                with open(path + ".json", encoding="utf-8") as fh:
-                    ours = json.load(fh).get("mesh") == meshes[0]
+                ours = read_json(path + ".json", "the metadata of a baked image").get("mesh") == meshes[0]
             except (OSError, ValueError, AttributeError):
                 ours = False
             if not ours or not os.path.isfile(path):

@@ -19,6 +19,7 @@ import bpy
 import numpy as np
 
 from ..core.base import files, memory
+from ..core.base.jsonfile import read_json
 from ..core.scene import exr
 from . import compat
 from .describe import principled_node, scene_materials
@@ -300,8 +301,7 @@ def read_cached_image(
     if not (os.path.isfile(path) and os.path.isfile(meta_path)):
         return None
     try:
-        with open(meta_path, encoding="utf-8") as fh:
-            meta = json.load(fh)
+        meta = read_json(meta_path, "the metadata of a cached reference")
         if not isinstance(meta, dict):
             raise ValueError(f"the metadata is a {type(meta).__name__}, not an object")
         seconds = meta["seconds"]

@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
+from ..core.base.jsonfile import parse_json
 from ..core.pipeline.fit_params import FIT_PARAMETERS, INFO, OFF, PARAMETERS, check_fit
 
 #: Custom-property prefix of the fitted values on a material.
@@ -50,8 +51,12 @@ def read_fit(material) -> dict:
         if params:
             info = material.get(fit_key(technique, INFO))
             try:
-                params[INFO] = json.loads(info) if isinstance(info, str) else {}
-            except json.JSONDecodeError:
+                params[INFO] = (
+                    parse_json(info, f"material {material.name!r}", "a fit's provenance")
+                    if isinstance(info, str)
+                    else {}
+                )
+            except ValueError:
                 params[INFO] = {}
             fit[technique] = params
     return check_fit(fit, f"material {material.name!r}")

@@ -98,6 +98,7 @@ import numpy as np
 
 from ..base import arrays
 from ..base.errors import InputError
+from ..base.jsonfile import read_json
 from ..compute import backend
 from ..optics.energy import SLAB_ABOVE, entry_gain, slab_factors, unseen_light
 from ..optics.medium import medium_of
@@ -309,8 +310,7 @@ class Model:
 def load_model(path: str = MODEL_PATH) -> Model:
     """The model stored at ``path`` (default: the one shipped beside this module)."""
     try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
+        data = read_json(path, "an auto model")
     except (OSError, ValueError) as exc:
         raise InputError(f"{path}: cannot read the auto model ({exc})") from None
     return Model.from_dict(data, path)

@@ -20,6 +20,7 @@ from dataclasses import MISSING, asdict, dataclass, field, fields
 import numpy as np
 
 from ..base import arrays
+from ..base.jsonfile import parse_json
 from .fit_values import check_fit
 from .passes import INPUT_AOVS, PASSES, SHORT_NAMES
 
@@ -408,10 +409,7 @@ class SceneDescription:
 
     @classmethod
     def from_json(cls, text: str) -> SceneDescription:
-        try:
-            data = json.loads(text, parse_constant=_reject_constant)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"scene description: not valid JSON ({exc})") from None
+        data = parse_json(text, "scene description", "a scene description", parse_constant=_reject_constant)
         return cls.from_dict(data)
 
 

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..base.errors import InputError
+from ..base.jsonfile import read_json
 from ..scene import exr
 from . import metrics
 
@@ -241,8 +242,9 @@ def read_meta(meta_path: str, required: Sequence[str] = ()) -> dict:
     description is (``_META_FIELDS``): InputError naming the file, the field and what it must be
     for a file that is not JSON, not an object, lacks a ``required`` field or holds a wrong value."""
     try:
-        with open(meta_path, encoding="utf-8") as fh:
-            meta = json.load(fh)
+        meta = read_json(meta_path, "the JSON beside a reference")
+    except InputError:
+        raise
     except (OSError, ValueError) as exc:
         raise InputError(f"{meta_path}: not readable JSON ({exc})") from None
     if not isinstance(meta, dict):

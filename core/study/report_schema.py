@@ -14,6 +14,9 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..base.errors import InputError
+from ..base.jsonfile import read_json
+
 #: The kinds of row: the passes' own image, a technique run, a Cycles render, an EEVEE render (or its
 #: SSS effect on Cycles' image without scattering).
 ENTRY_KINDS = ("baseline", "technique", "cycles", "eevee")
@@ -120,8 +123,9 @@ class Report:
     def read(cls, path: str | os.PathLike[str]) -> Report:
         """The report in ``path`` (a ``metrics.json``); ValueError naming the file otherwise."""
         try:
-            with open(path, encoding="utf-8") as fh:
-                return cls.from_dict(json.load(fh))
+            return cls.from_dict(read_json(path, "a report (metrics.json)"))
+        except InputError:
+            raise
         except (ValueError, TypeError) as exc:
             raise ValueError(f"{os.fspath(path)}: {exc}") from None
 

@@ -232,6 +232,74 @@ def test_non_finite_json_numbers_are_refused(tmp_path):
         _load(text, tmp_path)
 
 
+def _nested(depth, inner="1"):
+    return "[" * depth + inner + "]" * depth
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        _nested(100000),  # beyond what Python's JSON reader takes: RecursionError
+        _nested(9000),  # reads, but repr, asdict and deepcopy would recurse past Python's limit
+        '{"a": ' * 9000 + "1" + "}" * 9000,
+        json.dumps({**_scene_dict(), "meta": {"note": "X"}}).replace('"X"', _nested(101)),
+        json.dumps({**_scene_dict(), "version": "X"}).replace('"X"', _nested(5000)),
+    ],
+    ids=["100000 arrays", "9000 arrays", "9000 objects", "101 levels in meta", "5000 levels as the version"],
+)
+def test_json_nested_too_deep_is_not_a_scene_description(tmp_path, text):
+    """However deep and wherever the nesting, one InputError naming the file: no RecursionError,
+    no line of ten thousand brackets."""
+    path = tmp_path / "scene.json"
+    path.write_text(text)
+    with pytest.raises(InputError) as err:
+        sequence.read_scene_file(str(path))
+    message = str(err.value)
+    assert (
+        message
+        == f"{path}: scene description: arrays or objects nested more than 100 levels deep; not a scene description"
+    )
+    assert path.read_text() == text
+
+
+def test_a_number_of_thousands_of_digits_is_named(tmp_path):
+    text = json.dumps(_scene_dict()).replace('"frame": 1', '"frame": ' + "1" * 5000)
+    with pytest.raises(
+        InputError, match=r"scene.json: scene description: a number of more than 4300 digits; not a scene"
+    ):
+        _load(text, tmp_path)
+
+
+def test_every_json_a_user_hands_over_is_read_by_the_one_reader(tmp_path):
+    """No module parses JSON itself (core/base/jsonfile.py handles nesting, huge numbers and bad
+    text for all), and each reader names its file for JSON nested too deep."""
+    import ast
+    import pathlib
+
+    import sss_lab
+    from sss_lab.core.base import jsonfile
+    from sss_lab.core.pipeline.auto import load_model
+    from sss_lab.core.study.reference import read_meta
+    from sss_lab.core.study.report_schema import Report
+
+    root = pathlib.Path(sss_lab.__file__).parent
+    parsing = []
+    for source in root.rglob("*.py"):
+        rel = source.relative_to(root).as_posix()
+        if rel.startswith(("tests/", "benchmarks/", ".venv/")) or rel == "core/base/jsonfile.py":
+            continue
+        for node in ast.walk(ast.parse(source.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Attribute) and node.attr in ("load", "loads", "JSONDecoder", "raw_decode"):
+                if isinstance(node.value, ast.Name) and node.value.id == "json":
+                    parsing.append(f"{rel}:{node.lineno}")
+    assert parsing == [], "parse JSON with core.base.jsonfile.read_json / parse_json"
+    deep = tmp_path / "deep.json"
+    deep.write_text(_nested(100000))
+    for read in (sequence.read_scene_file, read_meta, Report.read, load_model, lambda p: jsonfile.read_json(p, "x")):
+        with pytest.raises(InputError, match=f"^{deep}: .*nested more than 100 levels deep"):
+            read(str(deep))
+
+
 def test_a_valid_description_still_round_trips(tmp_path):
     data = _scene_dict()
     assert _load(data, tmp_path).to_dict() == SceneDescription.from_dict(data).to_dict()
