@@ -40,27 +40,31 @@ EXIT_NOTHING_TO_DO = 3
 
 def parse_methods(text: str, *, allow_auto: bool = False) -> list[str]:
     """``"burley"``, ``"sta,ssss"`` or ``"all"`` -> technique names; ValueError lists the known ones.
-    With ``allow_auto`` (``apply``), ``"auto"`` alone: a technique chosen per material (``core/pipeline/auto.py``)."""
-    names = [t.strip() for t in str(text).split(",") if t.strip()]
+    With ``allow_auto`` (``apply``), ``"auto"`` alone: a technique chosen per material (``core/pipeline/auto.py``).
+    ``all`` and ``auto`` stand alone: listed with another method they are refused, saying so."""
+    alone = ("all", "auto") if allow_auto else ("all",)
+    choices = f"{', '.join(TECHNIQUES)} (one or several, comma-separated), or {' or '.join(alone)} alone"
+    names = list(dict.fromkeys(t.strip() for t in str(text).split(",") if t.strip()))
     if not names:
-        raise ValueError(f"method: expected one of {', '.join(TECHNIQUES)} or all, got {text!r}")
+        raise ValueError(f"--methods: expected {choices}, got {text!r}")
     if names == ["all"]:
         return list(TECHNIQUES)
-    if allow_auto and "auto" in names:
-        if names != ["auto"]:
-            raise ValueError(f"method: auto chooses per material and cannot be listed with others, got {text!r}")
+    if allow_auto and names == ["auto"]:
         return names
+    for name in names:
+        if name in alone:
+            what = "runs every technique" if name == "all" else "chooses a technique per material"
+            raise ValueError(
+                f"--methods: {name!r} {what} and stands alone: it cannot be combined with other methods, got"
+                f" {text!r}; give {name} alone, or the techniques wanted ({', '.join(TECHNIQUES)})"
+            )
     out = []
     for name in names:
         try:
             check_technique(name)
         except ValueError:
-            raise ValueError(
-                f"unknown method {name!r}; expected one of: {', '.join(TECHNIQUES)}, all"
-                + (", auto" if allow_auto else "")
-            ) from None
-        if name not in out:
-            out.append(name)
+            raise ValueError(f"--methods: unknown method {name!r}; expected {choices}") from None
+        out.append(name)
     return out
 
 

@@ -9,15 +9,21 @@ def _methods(text: str) -> tuple[str, ...]:
     from ..core.scene.scene import SUBSURFACE_METHODS
     from .cli import CommandError
 
-    names = [t.strip().upper() for t in text.split(",") if t.strip()]
+    names = list(dict.fromkeys(t.strip().upper() for t in text.split(",") if t.strip()))
     if names == ["ALL"]:
         from ..blender import compat
 
         return compat.subsurface_methods()  # those this Blender renders
+    if "ALL" in names:
+        raise CommandError(
+            f"--calibrate-methods: 'all' stands for every subsurface method and stands alone: it cannot be"
+            f" combined with other methods, got {text!r}; give all alone, or the methods wanted"
+            f" ({', '.join(SUBSURFACE_METHODS)})"
+        )
     unknown = [n for n in names if n not in SUBSURFACE_METHODS]
     if unknown:
         raise CommandError(
-            f"--calibrate-methods: unknown {unknown}; expected some of {', '.join(SUBSURFACE_METHODS)} or all"
+            f"--calibrate-methods: unknown {unknown}; expected some of {', '.join(SUBSURFACE_METHODS)}, or all alone"
         )
     return tuple(names)
 
@@ -122,7 +128,7 @@ def _check_cache(args, out: str) -> None:
 
 
 def run(args) -> int:
-    from .cli import CommandError
+    from .cli import CommandError, parse_methods
     from .cli_scan import open_blend
 
     out = os.path.abspath(args.out)
@@ -135,13 +141,15 @@ def run(args) -> int:
             f"--out {args.out!r} holds the report of an earlier comparison ({', '.join(earlier)}); refusing to"
             " overwrite it (pass --overwrite to replace it, or choose another folder)"
         )
+    # The method lists are read before the .blend file is: a misspelt list is said at once.
+    techniques = tuple(parse_methods(args.methods))
+    calibrate_methods = _methods(args.calibrate_methods)
     scene = open_blend(args.blend, args.scene)
     if args.frame is not None:
         scene.frame_set(args.frame)  # the file is only read: nothing to put back
     from ..blender.compare import CompareSettings, compare_job
     from ..blender.jobs import run as run_job
     from ..core.base.progress import Progress
-    from .cli import parse_methods
     from .cli_options import read_resolution
 
     settings = CompareSettings(
@@ -151,9 +159,9 @@ def run(args) -> int:
         bias_samples=args.bias_samples,
         seed=args.seed,
         box=args.box,
-        techniques=tuple(parse_methods(args.methods)),
+        techniques=techniques,
         cache_dir=args.cache,
-        calibrate_methods=_methods(args.calibrate_methods),
+        calibrate_methods=calibrate_methods,
         reference_file=os.path.abspath(args.reference) if args.reference else None,
         eevee=not args.no_eevee,
         denoise_samples=_counts(args.denoise_samples, "--denoise-samples"),

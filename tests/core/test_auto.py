@@ -352,7 +352,7 @@ def test_command_line_apply_auto_writes_the_auto_layers(tmp_path, capsys):
     "args, message",
     [
         (("--methods", "burley", "--max-error", "0.1"), "only --methods auto"),
-        (("--methods", "auto,burley"), "cannot be listed with others"),
+        (("--methods", "auto,burley"), "stands alone: it cannot be combined with other methods"),
         (("--methods", "auto", "--max-error", "-1"), "--max-error: expected a number >= 0"),
     ],
 )

@@ -204,3 +204,42 @@ def test_frames_is_the_one_name_for_frames_and_one_frame_commands_take_one(capsy
     with pytest.raises(SystemExit):
         cli.build_parser().parse_args(["compare", "x.blend", "--out", "o", "--frames", "1-3"])
     assert "compare one frame; give one, e.g. --frames 3" in capsys.readouterr().err
+
+
+def test_all_and_auto_stand_alone_in_every_methods_list(tmp_path, capsys):
+    """``all`` (and in apply ``auto``) listed with another method, in any order: one line saying
+    it stands alone, never "unknown method 'all'" beside a list that holds all. Every command
+    whose --methods reads technique names reads them with ``cli.parse_methods``."""
+    from sss_lab.core.techniques.registry import TECHNIQUES
+
+    readers = {name for name, p in _commands().items() if _option(p, "--methods") is not None}
+    assert readers == {"apply", "render", "compare", "prepare", "calibrate"}  # calibrate: fits, not "all"
+    for allow_auto in (False, True):
+        alone = ("all", "auto") if allow_auto else ("all",)
+        for word in alone:
+            for text in [f"{word},{t}" for t in TECHNIQUES] + [f"{t},{word}" for t in TECHNIQUES] + ["all,auto"]:
+                if not allow_auto and "auto" in text:
+                    continue
+                with pytest.raises(ValueError) as err:
+                    cli.parse_methods(text, allow_auto=allow_auto)
+                message = str(err.value)
+                first = "all" if text == "all,auto" else word
+                assert message.startswith(f"--methods: {first!r} "), message
+                assert "stands alone: it cannot be combined with other methods" in message
+                assert "unknown" not in message, message
+        assert cli.parse_methods("all,all", allow_auto=allow_auto) == list(TECHNIQUES)
+        with pytest.raises(ValueError) as err:
+            cli.parse_methods("gaussian", allow_auto=allow_auto)
+        assert str(err.value).endswith(f"or {' or '.join(alone)} alone"), str(err.value)
+    with pytest.raises(ValueError, match="unknown method 'auto'"):  # render, compare, prepare take no auto
+        cli.parse_methods("auto")
+    # The commands: exit 2 (bad input), one line on stderr, nothing written.
+    for argv in (
+        ["apply", tmp_path / "p.exr", "--methods", "all,sta"],
+        ["apply", tmp_path / "p.exr", "--methods", "burley,auto"],
+        ["prepare", "--methods", "sta,all"],
+    ):
+        code = cli.main(list(map(str, argv)))
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and "cannot be combined with other methods" in err, err
+    assert os.listdir(tmp_path) == []
