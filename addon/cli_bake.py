@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import errno
 import os
+import sys
 import time
 
 from ..core.scene.thickness import CONVENTIONS, SOURCES, TARGETS, BakeSettings
@@ -137,11 +138,18 @@ def run(args) -> int:
             except ValueError:  # another drive: keep the absolute path
                 pass
     for r in results:
-        if r.status in ("skipped", "failed", "cancelled"):
+        if r.status == "failed":  # an error: one line on stderr each
+            print(f"sss_lab bake-thickness: {r}", file=sys.stderr, flush=True)
+        elif r.status in ("skipped", "cancelled"):
             print(f"bake-thickness: {r}", flush=True)
     if not counts["baked"] and not counts["shared"]:
         tally = ", ".join(f"{n} {s}" for s, n in counts.items() if n)
-        raise CommandError(f"nothing was baked ({tally}; the reasons are above); {out} not written")
+        message = f"nothing was baked ({tally}; the reasons are above); {out} not written"
+        if any(r.write_failed for r in results):  # a failed write (exit 1), not bad input (exit 2)
+            from ..core.base.errors import OutputError
+
+            raise OutputError(message)
+        raise CommandError(message)
     from ..core.base import files
 
     files.check_interrupted()  # a bake cut short by Ctrl-C is not saved

@@ -46,6 +46,7 @@ written to disk stay.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import time
@@ -57,6 +58,7 @@ import bpy
 import numpy as np
 
 from ..core.base import files
+from ..core.base.errors import SSSLabError, describe_os_error, is_bad_input
 from ..core.base.jsonfile import read_json
 from ..core.base.progress import printable
 from ..core.scene.thickness import (
@@ -101,6 +103,9 @@ class BakeResult:
     seconds: float = 0.0
     vertices: int = 0  # of the evaluated mesh
     warnings: list = field(default_factory=list)
+    #: True when it failed because a file could not be written (a full or read-only disk): a
+    #: failed write, not bad input (``core.base.errors.is_bad_input``).
+    write_failed: bool = False
 
     def __str__(self) -> str:
         text = f"{printable(self.object)}: {self.message}"
@@ -120,6 +125,21 @@ class _Item:
     uv_map: str = ""
     sharers: list = field(default_factory=list)  # (object, warning or "")
     coarse: str = ""  # a warning when the mesh is too coarse for a per-vertex map
+
+
+def _reason(exc: Exception) -> str:
+    """Why an object failed, in one readable line: SSS Lab's own message, an operating-system
+    error as ``describe_os_error`` says it, Blender's message; the repr only for anything else
+    (a bug: its class helps)."""
+    if isinstance(exc, SSSLabError):
+        text = str(exc)
+    elif isinstance(exc, OSError) and exc.strerror:
+        text = describe_os_error(exc)
+    elif isinstance(exc, RuntimeError):
+        text = str(exc).removeprefix("Error: ")
+    else:
+        text = repr(exc)
+    return " ".join(text.split()) or type(exc).__name__
 
 
 def settings_from_scene(scene) -> BakeSettings:
@@ -191,6 +211,7 @@ class ThicknessBake:
         self._material: Any = None  # the temporary bake material, while a batch runs
         self._material_images: dict[str, str] = {}
         self._image_folder = ""
+        self._made_folders: list[str] = []  # the image folder and its parents ``start`` made, deepest first
         self._started = self._finished = False
         #: The result of the object the last ``step`` baked.
         self.last: BakeResult | None = None
@@ -390,6 +411,10 @@ class ThicknessBake:
             material = self._material
             st.on_restore(lambda: bpy.data.materials.remove(material))
             if s.target == "image" and self._image_folder:  # empty when every object is skipped
+                folder = self._image_folder
+                while folder and not os.path.lexists(folder) and folder != os.path.dirname(folder):
+                    self._made_folders.append(folder)
+                    folder = os.path.dirname(folder)
                 os.makedirs(self._image_folder, exist_ok=True)
         except BaseException:
             self.finish()
@@ -418,8 +443,8 @@ class ThicknessBake:
             self._bake_item(item, result)
             result.status = "baked"
         except Exception as exc:  # one object failing does not stop the batch; the scene is restored
-            message = str(exc).removeprefix("Error: ").strip()
-            result.message = f"failed: {message}" if isinstance(exc, RuntimeError) else f"failed: {exc!r}"
+            result.message = f"failed: {_reason(exc)}"
+            result.write_failed = isinstance(exc, OSError) and not is_bad_input(exc)
         result.seconds = time.perf_counter() - t0
         if result.status == "baked":
             result.message = self._describe(item, result)
@@ -446,6 +471,11 @@ class ThicknessBake:
         self._queue.clear()
         if self._state is not None:
             self._state.restore()
+        for folder in self._made_folders:  # those no image was saved in: nothing left of a failed bake
+            try:
+                os.rmdir(folder)
+            except OSError:  # not empty (an image was saved), or gone
+                break
 
     # -- one object -------------------------------------------------------------------------
     def _bake_item(self, item: _Item, result: BakeResult) -> None:
@@ -632,7 +662,14 @@ class ThicknessBake:
                 except RuntimeError as exc:  # "Could not write image: Invalid argument" on a full disk
                     raise files.write_failure(path, exc) from None
                 files.move_into_place(tmp, path)
-            files.write_text(sidecar, json.dumps(meta, indent=2, sort_keys=True))
+            try:
+                files.write_text(sidecar, json.dumps(meta, indent=2, sort_keys=True))
+            except BaseException:
+                # An image without its sidecar is not SSS Lab's to the next run (``_image_clashes``),
+                # which would then refuse to replace it: nothing is left of this one.
+                with contextlib.suppress(OSError):
+                    os.remove(path)
+                raise
         except BaseException:
             image.filepath_raw = previous
             raise

@@ -732,6 +732,72 @@ def test_cli_refuses_to_overwrite_the_input_and_writes_a_new_file(tmp_path):
     assert "Thickness" not in bpy.data.objects["Floor"].data.color_attributes
 
 
+def _write_fails(kind, monkeypatch):
+    """Make the bake's image writes fail as ``kind`` does on a full or read-only disk."""
+    import errno
+
+    from sss_lab.core.base import files
+
+    if kind == "sidecar on a full disk":
+        write_text = files.write_text
+
+        def full(path, text):
+            if path.endswith(".exr.json"):
+                raise OSError(errno.ENOSPC, "No space left on device", path)
+            return write_text(path, text)
+
+        monkeypatch.setattr(files, "write_text", full)
+        return
+
+    def save(image, filepath, file_format):
+        open(filepath, "wb").close()  # a partial file, as a failed write leaves
+        if kind == "Blender's saver on a full disk":  # Blender's words for it: no errno
+            raise RuntimeError("Error: Could not write image: Invalid argument")
+        code = {"full disk": errno.ENOSPC, "read-only disk": errno.EROFS, "no permission": errno.EACCES}[kind]
+        raise OSError(code, os.strerror(code), filepath)
+
+    monkeypatch.setattr(compat, "save_float_image", save)
+    if kind == "Blender's saver on a full disk":
+        monkeypatch.setattr(files, "disk_full", lambda path: True)
+
+
+@pytest.mark.parametrize(
+    "kind, reason",
+    [
+        ("full disk", "No space left on device; the disk is full"),
+        ("Blender's saver on a full disk", "No space left on device; the disk is full"),
+        ("sidecar on a full disk", "No space left on device; the disk is full"),
+        ("read-only disk", "Read-only file system"),
+        ("no permission", "Permission denied"),
+    ],
+)
+def test_cli_image_target_on_a_full_or_read_only_disk_is_a_failed_write(tmp_path, monkeypatch, capsys, kind, reason):
+    """Writing the images fails however the disk refuses them: exit 1 (a failed write, not bad
+    input), the reason on stderr in one readable line per object (no Python repr), no image, no
+    sidecar, no image folder and no OUT left, the input unchanged."""
+    from sss_lab.addon import cli
+
+    wax = bpy.data.materials.new("Wax")
+    compat.ensure_node_tree(wax)
+    wax.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
+    _link("Cube", _box("Cube")).data.materials.append(wax)
+    src = tmp_path / "scene.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(src), copy=True)
+    original = src.read_bytes()
+    _write_fails(kind, monkeypatch)
+    out, images = tmp_path / "out" / "baked.blend", tmp_path / "disk" / "img"
+    argv = ["bake-thickness", src, "--out", out, "--target", "image", "--image-size", "8", "--samples", "2"]
+    code = cli.main(list(map(str, [*argv, "--image-dir", images])))
+    stdout, stderr = capsys.readouterr()
+    assert code == 1, stderr
+    failed = [line for line in stderr.splitlines() if "Cube: failed:" in line]
+    assert len(failed) == 1 and reason in failed[0], stderr
+    assert "Error(" not in stdout + stderr and "Traceback" not in stderr
+    assert stderr.splitlines()[-1].startswith("sss_lab bake-thickness: error: nothing was baked (1 failed")
+    assert not images.exists() and not (tmp_path / "disk").exists() and not out.exists()
+    assert src.read_bytes() == original
+
+
 # -- low-poly meshes ---------------------------------------------------------------------------
 def _face_centre_uv(mesh, normal):
     """UV of the centre of the face of ``mesh`` whose normal is ``normal`` (the mean of its
