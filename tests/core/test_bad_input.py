@@ -286,7 +286,10 @@ def test_every_json_a_user_hands_over_is_read_by_the_one_reader(tmp_path):
     parsing = []
     for source in root.rglob("*.py"):
         rel = source.relative_to(root).as_posix()
-        if rel.startswith(("tests/", "benchmarks/", ".venv/")) or rel == "core/base/jsonfile.py":
+        top = rel.split("/")[0]
+        # The tests and benchmarks read their own files; hidden folders hold the environments
+        # (.venv, .venv-4.5 of the set-up), whose packages are not the project's.
+        if top in ("tests", "benchmarks") or top.startswith(".") or rel == "core/base/jsonfile.py":
             continue
         for node in ast.walk(ast.parse(source.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Attribute) and node.attr in ("load", "loads", "JSONDecoder", "raw_decode"):
