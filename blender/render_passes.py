@@ -319,11 +319,10 @@ def _render(scene) -> None:
     """One still render of ``scene`` into the Render Result (a seam the tests wrap), refused first
     when its passes cannot fit in memory (``core.base.memory``)."""
     r = scene.render
-    layer = bpy.context.view_layer if bpy.context.scene == scene else scene.view_layers[0]
     memory.check_frame(
         r.resolution_x * r.resolution_percentage // 100,
         r.resolution_y * r.resolution_percentage // 100,
-        _channels(layer),
+        sum(_channels(layer) for layer in scene.view_layers if layer.use),  # the layers this render renders
         "the passes",
     )
     bpy.ops.render.render(write_still=False, scene=scene.name)
