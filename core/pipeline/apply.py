@@ -15,6 +15,12 @@ Each technique gets one call per scattering material with that material's parame
 material's pass index. ``core.pipeline.plan.plan`` decides beforehand, without computing anything,
 which materials are computed and why others are left as they are; ``core.pipeline.sequence.apply_file``
 does the same for a passes file on disk.
+
+A technique with a composite route (``Technique.composite``: STA's) runs on the compiled backend
+as one kernel per material that reads the passes as they are, finds the material's pixels and
+composites into the layers itself, without the cleaned copies, NaN scans and masks of the
+generic route; in check mode both routes run and must give the same bits. Materials it does not
+take (zones of d, a Subsurface Weight per pixel, passes of another layout) take the generic route.
 """
 
 from __future__ import annotations
