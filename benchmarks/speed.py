@@ -45,7 +45,8 @@ default backend's.
 ``--techniques combined`` (names separated by commas) and ``--backends numba`` time some of the
 cases only, for a quick check: such a run leaves out the energy stage and the first calls, and
 writes only where ``--out`` says (never over ``speed.json``); ``--apply-only`` likewise times
-``apply`` per frame alone.
+``apply`` per frame alone (of ``--techniques``' techniques, all by default), reporting each
+technique's median with its range (fastest, slowest) over the calls, on two threads and on one.
 """
 
 from __future__ import annotations
@@ -214,7 +215,7 @@ def energy_stage(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
     return out
 
 
-def whole_frame(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
+def whole_frame(width: int, height: int, repeat: int, names=BACKENDS, techniques=None) -> dict:
     """What ``core.pipeline.apply.apply`` costs per frame with each technique at its defaults, on the
     compiled backend (the default): the synthetic passes and scene description of
     ``core.study.synthetic.sphere_scene`` (a Christensen-Burley skin sphere and a Random Walk wax one
@@ -222,7 +223,9 @@ def whole_frame(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
     of one thread is the steadier figure), fastest of ``repeat`` calls and at least ``FLOOR_S``; with
     the energy stage at its default ("object": without a bake distance, the entry's and the
     convex surface's gains), the passes' checks, one call per material and the compositing.
-    ``profile``: where the time goes (each kernel, and the NumPy work around them)."""
+    ``median_ms`` and ``range_ms`` (fastest, slowest) over the same calls (and ``_1_thread``):
+    the spread a shared machine gives. ``profile``: where the time goes (each kernel, and the
+    NumPy work around them). ``techniques``: some of them only (default: all)."""
     from sss_lab.core.pipeline.apply import apply
     from sss_lab.core.scene.exr import Passes
     from sss_lab.core.study.synthetic import sphere_scene
@@ -233,21 +236,35 @@ def whole_frame(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
     passes = Passes(arrays)
     out: dict = {"resolution": [width, height], "backend": "numba", "techniques": {}}
     with backend.use("numba"):
-        for name in GOALS_MS:
+        for name in techniques or GOALS_MS:
             fn = lambda name=name: apply(passes, scene, name)  # noqa: E731
             fn()  # warm-up
-            seconds, cpu = _best(fn, repeat, FLOOR_S)
+            walls: list[float] = []
+            seconds, cpu = _best(fn, repeat, FLOOR_S, walls)
             set_threads(1)
-            one, one_cpu = _best(fn, repeat, FLOOR_S)
+            walls_1: list[float] = []
+            one, one_cpu = _best(fn, repeat, FLOOR_S, walls_1)
             set_threads(2)
             out["techniques"][name] = {
                 "ms": round(seconds * 1e3, 1),
                 "cpu_ms": round(cpu * 1e3, 1),
+                **_spread(walls, ""),
                 "ms_1_thread": round(one * 1e3, 1),
                 "cpu_ms_1_thread": round(one_cpu * 1e3, 1),
+                **_spread(walls_1, "_1_thread"),
                 "profile": _profile(fn, repeat),
             }
     return out
+
+
+def _frame_line(name: str, e: dict) -> str:
+    """One line of ``whole_frame``'s figures for technique ``name``: medians with their range."""
+    lo, hi = e["range_ms"]
+    lo1, hi1 = e["range_ms_1_thread"]
+    return (
+        f"apply   {name:8s} median {e['median_ms']:7.1f} ms per frame ({lo:.1f}-{hi:.1f}; CPU {e['cpu_ms']:.1f} ms"
+        f" fastest), 1 thread median {e['median_ms_1_thread']:7.1f} ms ({lo1:.1f}-{hi1:.1f})"
+    )
 
 
 def set_threads(n: int) -> None:
@@ -258,17 +275,29 @@ def set_threads(n: int) -> None:
     _arrays.set_workers(n)
 
 
-def _best(fn, repeat: int, floor_s: float = 0.0) -> tuple[float, float]:
+def _spread(walls: list[float], suffix: str) -> dict:
+    """{"median_ms<suffix>", "range_ms<suffix>" (fastest, slowest)} of wall times in seconds."""
+    ms = np.array(walls) * 1e3
+    return {
+        f"median_ms{suffix}": round(float(np.median(ms)), 1),
+        f"range_ms{suffix}": [round(float(ms.min()), 1), round(float(ms.max()), 1)],
+        f"calls{suffix}": len(walls),
+    }
+
+
+def _best(fn, repeat: int, floor_s: float = 0.0, walls: list[float] | None = None) -> tuple[float, float]:
     """(fastest wall-clock seconds, fewest CPU seconds of the process) over ``repeat`` calls, and
     more while the calls have taken less than ``floor_s`` in all (at most ``MAX_CALLS``): a call
     of a few milliseconds is timed as many times as fit in the floor, so that its best is not the
     luck of five draws. On a shared machine the CPU time shows the work done, the wall time what
-    a user waits."""
+    a user waits. ``walls``: each call's wall time is appended to it."""
     wall = cpu = float("inf")
     calls, start = 0, time.perf_counter()
     while calls < repeat or (time.perf_counter() - start < floor_s and calls < MAX_CALLS):
         w0, c0 = time.perf_counter(), time.process_time()
         fn()
+        if walls is not None:
+            walls.append(time.perf_counter() - w0)
         wall = min(wall, time.perf_counter() - w0)
         cpu = min(cpu, time.process_time() - c0)
         calls += 1
@@ -523,10 +552,7 @@ def run(
         log(f"energy  {b:6s} full {e['full screen']['ms']:8.1f} ms  25 % mask {e['25 % mask']['ms']:8.1f} ms")
     frame = {} if partial else whole_frame(width, height, repeat, names)
     for name, e in frame.get("techniques", {}).items():
-        log(
-            f"apply   {name:8s} {e['ms']:8.1f} ms per frame (CPU {e['cpu_ms']:8.1f} ms),"
-            f" 1 thread {e['ms_1_thread']:8.1f} ms"
-        )
+        log(_frame_line(name, e))
     default = names[0]
     _summarize(results, default, width, height, log)
     machine = {
@@ -539,7 +565,7 @@ def run(
     data = {
         "resolution": [width, height],
         "repeat": repeat,
-        "statistic": "fastest of the repeats",
+        "statistic": "fastest of the repeats (apply_per_frame: also the median and range of its calls)",
         "d_su": D_SU,
         "backends": names,
         "default_backend": default,
@@ -588,7 +614,9 @@ def main(argv=None) -> int:
         if os.path.abspath(args.out) == RESULTS:
             parser.error("--apply-only: a partial run needs --out (it does not replace speed.json)")
         load_before = os.getloadavg()
-        frame = whole_frame(width, height, args.repeat)
+        frame = whole_frame(width, height, args.repeat, techniques=techniques)
+        for name, e in frame.get("techniques", {}).items():
+            print(_frame_line(name, e))
         frame["load_average_before_after"] = [round(load_before[0], 2), round(os.getloadavg()[0], 2)]
         write_results(args.out, frame)
         return 0

@@ -15,6 +15,12 @@ Each technique gets one call per scattering material with that material's parame
 material's pass index. ``core.pipeline.plan.plan`` decides beforehand, without computing anything,
 which materials are computed and why others are left as they are; ``core.pipeline.sequence.apply_file``
 does the same for a passes file on disk.
+
+A technique with a composite route (``Technique.composite``: STA's) runs on the compiled backend
+as one kernel per material that reads the passes as they are, finds the material's pixels and
+composites into the layers itself, without the cleaned copies, NaN scans and masks of the
+generic route; in check mode both routes run and must give the same bits. Materials it does not
+take (zones of d, a Subsurface Weight per pixel, passes of another layout) take the generic route.
 """
 
 from __future__ import annotations
@@ -28,7 +34,7 @@ from ..scene.inputs import weight_map
 from ..scene.passes import THICKNESS
 from ..scene.scene import SceneDescription
 from ..techniques.spec import Technique
-from .call import call_technique
+from .call import accepted_keywords, call_technique
 from .plan import Plan, index_map, plan, plan_and_masks
 
 
@@ -286,6 +292,80 @@ def _weighted(out, gain, original, mask, weight) -> tuple[np.ndarray, None]:
     return out, None
 
 
+def _generic(spec, passes, mp, mask, inputs, original, ok, image, sss, shape) -> tuple[int, int, int]:
+    """One material on the generic route: ``spec``'s function on the pixels of ``mask`` whose
+    inputs are finite (``ok``, None: all), its result composited into ``image`` and ``sss``.
+    Returns (pixels of the mask with an input that is not finite, pixels whose result overflowed,
+    pixels clamped to no negative light)."""
+    nonfinite = overflow = negative = 0
+    if ok is not None:
+        within = mask & ok
+        left = int(np.count_nonzero(within))
+        nonfinite = int(np.count_nonzero(mask)) - left
+        if not left:
+            return nonfinite, 0, 0
+        mask = within
+    # Cycles mixes diffuse and subsurface by the Subsurface Weight, per pixel where it is linked.
+    weight: np.ndarray | float | None = weight_map(mp.material, passes, mask)
+    if weight is None and mp.material.subsurface_weight < 1.0:
+        weight = mp.material.subsurface_weight
+    # One run with the material's parameters, or one per zone of its d (core.pipeline.zones),
+    # each gathering from the whole material and kept on the zone's pixels.
+    for pixels, params in mp.zones or [(None, mp.params)]:
+        kwargs = dict(inputs)
+        kwargs.update(params)
+        # A technique that takes the fitted gain applies it itself (the combined technique, to
+        # its diffusion only); for the others it scales their result below.
+        gain = None if "gain" in spec.keywords else kwargs.pop("gain", None)
+        kwargs["mask"] = mask
+        # Light near float32's limit can overflow in a technique's sums: counted below and said
+        # (overflow_pixels), instead of NumPy's raw RuntimeWarning.
+        with np.errstate(over="ignore", invalid="ignore"):
+            out = np.asarray(call_technique(spec, **kwargs), dtype=np.float32)
+        if out.shape != shape:
+            raise ValueError(f"{spec.name} returned shape {out.shape}; expected {shape}")
+        keep = mask if pixels is None else mask & pixels
+        if weight is not None:
+            out, gain = _weighted(out, gain, original, keep, weight)
+        # The techniques only read their inputs: the diffuse light Combined holds on the
+        # material (albedo x (Direct + Indirect)) is what it was before the technique ran.
+        over, below = _composite(image, sss, out, gain, original, keep, mp.unchanged_channels)
+        overflow += over
+        negative += below
+    return nonfinite, overflow, negative
+
+
+def _routed(spec, mp, passes, scene, image, sss, generic, mask) -> tuple[int, int, int] | None:
+    """One material on its technique's compiled route (``Technique.composite``: the technique and
+    the compositing in one pass over the passes as they are), or None where the route does not
+    apply. In check mode the generic route (``generic(mp, mask)``; ``mask`` the plan's pixels of
+    the material, None: found here) runs too, into ``image`` and ``sss``, and the route, into
+    copies of them, must give the same bits and counts (``BackendMismatch`` otherwise)."""
+    params = dict(mp.params)
+    gain = None if "gain" in spec.keywords else params.pop("gain", None)
+    accepted, var_kw = accepted_keywords(spec.function)
+    if not var_kw:
+        params = {k: v for k, v in params.items() if k in accepted}
+    weight = mp.material.subsurface_weight if mp.material.subsurface_weight < 1.0 else None
+    index = mp.material.index
+    if backend.active() != "check":
+        return spec.composite(passes, scene, index, image, sss, gain, weight, params)
+    routed_image, routed_sss = image.copy(), sss.copy()
+    got = spec.composite(passes, scene, index, routed_image, routed_sss, gain, weight, params)
+    if got is None:
+        return None
+    if mask is None:
+        mask = index_map(passes) == index
+    expected = generic(mp, mask) if mask.any() else (0, 0, 0)
+    bits_equal(f"{spec.name}'s route (image)", image, routed_image)
+    bits_equal(f"{spec.name}'s route (SSS)", sss, routed_sss)
+    if got != expected:
+        raise backend.BackendMismatch(
+            f"{spec.name}'s route: (not finite, overflowed, clamped) pixels {got}, the generic route's {expected}"
+        )
+    return got
+
+
 def apply(
     passes: Passes,
     scene: SceneDescription,
@@ -324,52 +404,34 @@ def apply(
     rgb = combined[..., :3]
     image = np.array(combined, dtype=np.float32)
     sss = np.zeros(rgb.shape, dtype=np.float32)
-    inputs, original, ok = _gather_inputs(spec, passes, scene, albedo_mode)
-    if not arrays.all_finite(combined):
-        ok = _both(ok, finite(rgb))
+    gathered: list = []  # the generic route's inputs, read once when a material takes it
+
+    def generic(mp, mask) -> tuple[int, int, int]:
+        if not gathered:
+            inputs, original, ok = _gather_inputs(spec, passes, scene, albedo_mode)
+            if not arrays.all_finite(combined):
+                ok = _both(ok, finite(rgb))
+            gathered.append((inputs, original, ok))
+        inputs, original, ok = gathered[0]
+        return _generic(spec, passes, mp, mask, inputs, original, ok, image, sss, rgb.shape)
+
     nonfinite = overflow = negative = 0
     for mp in p.applied:
-        # The plan's pixels of the material (it found some), or the Material Index map's.
-        mask = masks.get(mp.material.index)
-        if mask is None:
-            index = index_map(passes) if index is None else index
-            mask = index == mp.material.index
-            if not mask.any():
-                continue
-        if ok is not None:
-            within = mask & ok
-            left = int(np.count_nonzero(within))
-            nonfinite += int(np.count_nonzero(mask)) - left
-            if not left:
-                continue
-            mask = within
-        # Cycles mixes diffuse and subsurface by the Subsurface Weight, per pixel where it is linked.
-        weight: np.ndarray | float | None = weight_map(mp.material, passes, mask)
-        if weight is None and mp.material.subsurface_weight < 1.0:
-            weight = mp.material.subsurface_weight
-        # One run with the material's parameters, or one per zone of its d (core.pipeline.zones),
-        # each gathering from the whole material and kept on the zone's pixels.
-        for pixels, params in mp.zones or [(None, mp.params)]:
-            kwargs = dict(inputs)
-            kwargs.update(params)
-            # A technique that takes the fitted gain applies it itself (the combined technique, to
-            # its diffusion only); for the others it scales their result below.
-            gain = None if "gain" in spec.keywords else kwargs.pop("gain", None)
-            kwargs["mask"] = mask
-            # Light near float32's limit can overflow in a technique's sums: counted below and said
-            # (overflow_pixels), instead of NumPy's raw RuntimeWarning.
-            with np.errstate(over="ignore", invalid="ignore"):
-                out = np.asarray(call_technique(spec, **kwargs), dtype=np.float32)
-            if out.shape != rgb.shape:
-                raise ValueError(f"{spec.name} returned shape {out.shape}; expected {rgb.shape}")
-            keep = mask if pixels is None else mask & pixels
-            if weight is not None:
-                out, gain = _weighted(out, gain, original, keep, weight)
-            # The techniques only read their inputs: the diffuse light Combined holds on the
-            # material (albedo x (Direct + Indirect)) is what it was before the technique ran.
-            over, below = _composite(image, sss, out, gain, original, keep, mp.unchanged_channels)
-            overflow += over
-            negative += below
+        counts = None
+        if spec.composite is not None and not mp.zones and "subsurface_weight" not in mp.material.per_pixel:
+            counts = _routed(spec, mp, passes, scene, image, sss, generic, masks.get(mp.material.index))
+        if counts is None:
+            # The plan's pixels of the material (it found some), or the Material Index map's.
+            mask = masks.get(mp.material.index)
+            if mask is None:
+                index = index_map(passes) if index is None else index
+                mask = index == mp.material.index
+                if not mask.any():
+                    continue
+            counts = generic(mp, mask)
+        nonfinite += counts[0]
+        overflow += counts[1]
+        negative += counts[2]
     p.nonfinite_pixels = nonfinite
     p.overflow_pixels = overflow
     p.negative_pixels = negative

@@ -42,9 +42,9 @@ class MaterialPlan:
     material: MaterialSSS
     #: Pixels whose Material Index is this material's pass index.
     pixels: int = 0
-    #: Median and nearest planar depth over those pixels (scene units), None without a Depth pass.
-    median_depth: float | None = None
-    nearest_depth: float | None = None
+    #: (median, nearest) planar depth over those pixels (scene units; ``median_depth`` and
+    #: ``nearest_depth``), None each without a Depth pass or a valid depth there.
+    depths: tuple[float | None, float | None] = (None, None)
     #: Technique parameters for this material (from core.pipeline.mapping, then the caller's options).
     params: dict = field(default_factory=dict)
     #: Kernel radius in scene units per channel (R, G, B), and in pixels at the median depth.
@@ -65,9 +65,31 @@ class MaterialPlan:
     #: empty when the material is computed once with ``params``.
     zones: list = field(default_factory=list, repr=False)
 
+    #: (Depth pass, the material's pixels) whose ``depths`` are measured when first read: a
+    #: technique without a kernel needs none of them to run (only ``Plan.explain`` says them),
+    #: and the median of a large material's depths took some 6 ms of STA's 1080p frame.
+    depth_source: tuple | None = field(default=None, repr=False, compare=False)
+
     @property
     def applied(self) -> bool:
         return self.skip is None
+
+    @property
+    def median_depth(self) -> float | None:
+        """Median planar depth over the material's pixels (scene units), None without a Depth
+        pass or a valid depth there."""
+        return self._measured()[0]
+
+    @property
+    def nearest_depth(self) -> float | None:
+        """Nearest planar depth over the material's pixels (scene units), as ``median_depth``."""
+        return self._measured()[1]
+
+    def _measured(self) -> tuple[float | None, float | None]:
+        if self.depth_source is not None:
+            self.depths = depth_stats(*self.depth_source)
+            self.depth_source = None
+        return self.depths
 
 
 @dataclass
@@ -314,6 +336,18 @@ def _changes_level(technique: Technique, params: dict, material: MaterialSSS) ->
     return energy != "lambert" and material.method in CONVEX
 
 
+def depth_stats(depth: np.ndarray, mask: np.ndarray) -> tuple[float | None, float | None]:
+    """(median, nearest) of the valid planar depths (> 0, before the background, finite) of
+    ``depth`` on ``mask``; (None, None) when there is none."""
+    z = depth[mask]
+    valid = (z > 0) & (z < arrays.BACKGROUND_DEPTH)  # NaN and +inf fail these comparisons
+    if not valid.all():
+        z = z[valid]
+    if not z.size:
+        return None, None
+    return arrays.median(z), float(z.min())  # ``z`` is a copy, without NaN
+
+
 def plan(
     passes: Passes,
     scene: SceneDescription,
@@ -413,15 +447,11 @@ def plan_and_masks(
         if found and note:
             mp.zones = [(z.pixels, _material_params(z.material, technique, mapping, options)) for z in found]
             mp.notes.append(note)
-        if depth is not None:
-            z = depth[mask]
-            valid = (z > 0) & (z < arrays.BACKGROUND_DEPTH)  # NaN and +inf fail these comparisons
-            if not valid.all():
-                z = z[valid]
-            if z.size:
-                mp.nearest_depth = float(z.min())
-                mp.median_depth = arrays.median(z)  # ``z`` is a copy, without NaN
-            elif mp.kernel_su is not None:
+        if depth is not None and mp.kernel_su is None:
+            mp.depth_source = (depth, mask)  # said by ``explain`` only: measured if it is read
+        elif depth is not None:
+            mp.depths = depth_stats(depth, mask)
+            if mp.median_depth is None:
                 # Scattering needs the depth of each pixel (its footprint): none has one here.
                 mp.skip = (
                     "none of its pixels has a valid depth (the Depth pass is 0, negative, NaN or background "

@@ -8,9 +8,10 @@ Burley and about as much again for the combined technique's light from behind on
 2-core machine (``first_call_s`` in ``benchmarks/results/speed.json``). ``prepare_kernels`` makes
 those first calls on a small synthetic frame (``core.study.synthetic.sphere_scene``: a Christensen-Burley
 skin sphere and a Random Walk wax one, every pass a real render gives) through ``core.pipeline.apply``,
-the path each frame takes, and measures ``apply --methods auto``'s features of each material on it,
-so that the cache holds what a frame needs; a later process loads each kernel from it in a
-fraction of a second. The frame is applied twice per technique: as built
+the path each frame takes (and, for a technique with a composite route, its generic route too:
+the materials the route does not take and the fit run that), and measures ``apply --methods
+auto``'s features of each material on it, so that the cache holds what a frame needs; a later
+process loads each kernel from it in a fraction of a second. The frame is applied twice per technique: as built
 (no thickness bake distance: the energy stage's "object" path) and with a bake distance and long
 lengths (``FAR``), whose light from behind is spread far enough to use the spread's reduced
 levels; the latter once more with the light from behind streamed as frames of 2^20 pixels and
@@ -105,7 +106,7 @@ def prepare_kernels(techniques=None, *, log=None) -> dict:
     before it runs. Raises ``PrepareError`` where Numba cannot load."""
     from ..pipeline.apply import apply
     from ..techniques.combined.back_light import streaming_every_region
-    from ..techniques.registry import TECHNIQUES, check_technique
+    from ..techniques.registry import TECHNIQUES, check_technique, get_spec
 
     if backend.compiled() is None:
         raise PrepareError(
@@ -120,8 +121,12 @@ def prepare_kernels(techniques=None, *, log=None) -> dict:
         for name in names:
             if log is not None:
                 log(f"{name}: compiling or loading its kernels")
+            spec = get_spec(name)
             for variant in (scene, far):
                 apply(passes, variant, name)
+                if spec.composite is not None:
+                    # Its generic route too: materials the route does not take, and the fit's calls.
+                    apply(passes, variant, dataclasses.replace(spec, composite=None))
             # Frames from ``core.techniques.combined.back_light.STREAM_FROM_PIXELS`` on stream the light from behind.
             with streaming_every_region():
                 apply(passes, far, name)

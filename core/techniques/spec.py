@@ -207,9 +207,19 @@ class Technique:
     #: True when ``auto`` (``core/pipeline/auto.py``) may choose it; False: listed there as not a candidate
     #: (its learnt model then needs no coefficients for it).
     auto: bool = True
+    #: ``core.pipeline.apply``'s route that runs it and composites its result in one compiled pass
+    #: per material, the same bits as the generic route: ``composite(passes, scene, index, image,
+    #: sss, gain, weight, params)`` -> (pixels not finite, pixels overflowed, pixels clamped), or
+    #: None where it does not apply (``core.techniques.sta.technique.composite``). None: always the
+    #: generic route (the technique's function, then the compositing). A route computes one
+    #: function, which it names as its ``computes`` attribute: a spec made with another function
+    #: (``dataclasses.replace``, a stand-in in a test) drops it and takes the generic route.
+    composite: Callable[..., tuple[int, int, int] | None] | None = None
 
     def __post_init__(self) -> None:
         where = f"technique {self.name!r}"
+        if self.composite is not None and getattr(self.composite, "computes", None) is not self.function:
+            object.__setattr__(self, "composite", None)  # the route of another function
         if not (self.scatters or self.adds_light):
             raise TypeError(f"{where}: it must scatter light, add light, or both")
         unknown = [p for p in self.passes if p != THICKNESS and p not in PASSES]

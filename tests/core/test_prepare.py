@@ -13,10 +13,11 @@ from sss_lab.core.study.prepare import PrepareError, is_prepared, marker_path, p
 #: on the spread's reduced levels (reached only by ``core.study.prepare.FAR``'s long lengths), band by
 #: band in the combined technique's call (``finish_band``) and whole in the fit's
 #: (``finish_light``), ``core.pipeline.apply``'s compositing, and ``apply --methods auto``'s features
-#: (``core.pipeline.auto``).
+#: (``core.pipeline.auto``); STA's composite route (``sta_composite``) and its generic route.
 EXPECTED = {
     "composite",
     "sta_kernel",
+    "sta_composite",
     "prepare_pixels",
     "ssss_kernel",
     "burley_pack",

@@ -25,6 +25,7 @@ nothing there; p_T = 0 gives s_T wherever V . -L_T > 0 (and nothing where it is 
 from __future__ import annotations
 
 import functools
+import inspect
 import math
 
 import numpy as np
@@ -128,24 +129,11 @@ def sta(
     STA adds light (it models light arriving from behind, not redistributed light): its sum is
     not conserved, by design. Pixels with non-finite inputs get 0.
     """
-    distortion = _checked(camera, thickness_convention, lights, distortion, falloff)
-    # Per-channel Burley transmittance through the slab the map stands for, or the paper's map.
-    d_c, distance = None, 0.0
-    if falloff == "burley":
-        d_c = arrays.rgb_lengths(d_su, "d_su")
-        distance = arrays.positive_finite(thickness_distance_su, "thickness_distance_su", allow_zero=False)
-    # Through the medium: the transmittance tabulated over thickness and view cosine, and the
-    # exit weight's per-channel factor (1 / Base Color, clipped to 1, for a walk).
-    through = None
-    if falloff == "medium":
-        through = _medium_inputs(
-            d_su if mfp_su is None else mfp_su,
-            thickness_distance_su,
-            (subsurface_method, base_color, subsurface_ior, subsurface_anisotropy),
-        )
-    power = arrays.positive_finite(power, "power")
-    scale = arrays.positive_finite(scale, "scale")
-    ambient = arrays.positive_finite(ambient, "ambient")
+    settings = _settings(
+        camera, lights, distortion, power, scale, ambient, thickness_convention, falloff, d_su,
+        thickness_distance_su, mfp_su, (subsurface_method, base_color, subsurface_ior, subsurface_anisotropy),
+    )  # fmt: skip
+    distortion, power, scale, ambient, d_c, distance, through = settings
     a = arrays.image(albedo, "albedo")
     shape = a.shape[:2]
     n = arrays.image(normal, "normal")
@@ -162,6 +150,29 @@ def sta(
         _compiled(*args, out, d_c, distance, through)
         return out
     return _reference(*args, d_c, distance, through)
+
+
+def _settings(
+    camera, lights, distortion, power, scale, ambient, convention, falloff, d_su, distance_su, mfp_su, medium_args
+):
+    """``sta``'s parameters checked (ValueError naming the one that is not valid) and as its code
+    takes them: (distortion, power, scale, ambient, the "burley" falloff's lengths per channel or
+    None, its bake distance or 0, the "medium" falloff's ``_medium_inputs`` or None)."""
+    distortion = _checked(camera, convention, lights, distortion, falloff)
+    # Per-channel Burley transmittance through the slab the map stands for, or the paper's map.
+    d_c, distance = None, 0.0
+    if falloff == "burley":
+        d_c = arrays.rgb_lengths(d_su, "d_su")
+        distance = arrays.positive_finite(distance_su, "thickness_distance_su", allow_zero=False)
+    # Through the medium: the transmittance tabulated over thickness and view cosine, and the
+    # exit weight's per-channel factor (1 / Base Color, clipped to 1, for a walk).
+    through = None
+    if falloff == "medium":
+        through = _medium_inputs(d_su if mfp_su is None else mfp_su, distance_su, medium_args)
+    power = arrays.positive_finite(power, "power")
+    scale = arrays.positive_finite(scale, "scale")
+    ambient = arrays.positive_finite(ambient, "ambient")
+    return distortion, power, scale, ambient, d_c, distance, through
 
 
 def _checked(camera, thickness_convention, lights, distortion, falloff) -> float:
@@ -420,20 +431,20 @@ def _compiled(
     a, n, p, t, m, camera, lights, distortion, power, scale, ambient, convention, out, d_c, distance, through
 ):
     """``_reference``'s per-pixel arithmetic as one compiled kernel (``core.techniques.sta._kernels.sta_kernel``)."""
-    f32 = np.float32
     c = np.ascontiguousarray
+    args = _kernel_args(camera, lights, distortion, power, scale, ambient, convention, d_c, distance, through)
+    backend.run_kernel(_kernels().sta_kernel, c(a), c(n), c(p), c(t), c(m), *args, out)
+
+
+def _kernel_args(camera, lights, distortion, power, scale, ambient, convention, d_c, distance, through) -> tuple:
+    """The arguments ``sta_kernel`` and ``sta_composite`` take after their frames, from ``_settings``'."""
+    f32 = np.float32
     if camera.type == "ORTHO":
         view = (-camera.forward).astype(f32)
     else:
         view = camera.position.astype(f32)
     three_d = np.zeros(3, f32) if d_c is None else np.array([f32(3.0 * v) if v > 0 else 0.0 for v in d_c], f32)
-    backend.run_kernel(
-        _kernels().sta_kernel,
-        c(a),
-        c(n),
-        c(p),
-        c(t),
-        c(m),
+    return (
         _optics_kernels().light_table(lights),
         camera.type == "ORTHO",
         view,
@@ -449,8 +460,101 @@ def _compiled(
         _NO_TABLE if through is None else through[0],
         np.ones(3, f32) if through is None else through[1],
         through is not None and through[2],
-        out,
     )
+
+
+#: Material Index values below this are float32 values exactly (2^24): the route finds a
+#: material's pixels by comparing the pass rounded as float32 with its index.
+_EXACT_INDEX = 1 << 24
+#: The keywords ``apply`` gives ``sta`` beside a material's parameters: frames, which the route
+#: reads from the passes itself.
+_FRAMES = frozenset({"albedo", "normal", "position", "thickness", "mask"})
+
+
+@functools.cache
+def _signature() -> inspect.Signature:
+    return inspect.signature(sta)
+
+
+def composite(passes, scene, index: int, image: np.ndarray, sss: np.ndarray, gain, weight, params: dict):
+    """STA on one material composited into ``core.pipeline.apply``'s layers in one compiled pass
+    (``core.techniques.sta._kernels.sta_composite``), the same bits as ``apply``'s generic route
+    (``sta`` on the pixels of the material whose inputs are finite, its result times ``gain``
+    and the Subsurface Weight ``weight``, composited): the passes are read as they are, without
+    cleaned copies, scans of the whole frame for NaN or the material's mask.
+
+    ``passes`` (``core.scene.exr.Passes``) and ``scene`` (``core.scene.scene.SceneDescription``)
+    as ``apply`` has them; ``index`` the material's pass index; ``image`` (H, W, C) the Image layer
+    (Combined so far) and ``sss`` (H, W, 3) the SSS layer, written on the material's pixels;
+    ``gain`` None, one number or three; ``weight`` None or one number; ``params`` the material's
+    parameters (``sta``'s keywords). Returns (pixels of the material with an input that is not
+    finite, pixels whose result is not finite, pixels clamped to no negative light), or None
+    where the route does not apply (the NumPy backend, passes of another type or layout, a
+    thickness AOV of several channels, an
+    index beyond float32's exact integers, a gain of another shape): ``apply`` runs ``sta`` then.
+    Raises ``sta``'s ValueError for a parameter that is not valid."""
+    if backend.active() == "numpy" or _FRAMES & params.keys():
+        return None
+    frames = [passes.get(name) for name in ("Diffuse Color", "Normal", "Position")]
+    thickness = passes.get(scene.thickness_aov)
+    raw_index = passes.get("Material Index")
+    h, w = passes.shape
+    if thickness is None or raw_index is None or raw_index.shape != (h, w) or not 0 < index < _EXACT_INDEX:
+        return None
+    if any(a is None or a.shape != (h, w, 3) for a in frames) or thickness.shape[2:] not in ((), (1,)):
+        return None
+    if image.ndim != 3 or image.shape[2] < 3 or sss.shape != (h, w, 3) or image.shape[:2] != (h, w):
+        return None
+    inputs = [*frames, thickness, raw_index, image, sss]
+    if any(a.dtype != np.float32 or not a.flags.c_contiguous for a in inputs):
+        return None
+    if not (image.flags.writeable and sss.flags.writeable):
+        return None
+    gains = np.ones(3, np.float32) if gain is None else np.asarray(gain, np.float32)
+    if gains.shape not in ((), (3,)) or (weight is not None and np.ndim(weight) != 0):
+        return None
+    args = (
+        _signature()
+        .bind_partial(camera=scene.camera, lights=scene.lights, thickness_convention=scene.thickness_convention)
+        .arguments
+    )
+    args.update(params)
+    bound = _signature().bind_partial(**args)
+    bound.apply_defaults()
+    k = bound.arguments
+    medium_args = (k["subsurface_method"], k["base_color"], k["subsurface_ior"], k["subsurface_anisotropy"])
+    distortion, power, scale, ambient, d_c, distance, through = _settings(
+        k["camera"], k["lights"], k["distortion"], k["power"], k["scale"], k["ambient"], k["thickness_convention"],
+        k["falloff"], k["d_su"], k["thickness_distance_su"], k["mfp_su"], medium_args,
+    )  # fmt: skip
+    lights = [light for light in k["lights"] if light.energy > 0]
+    kernel_args = _kernel_args(
+        k["camera"], lights, distortion, power, scale, ambient, k["thickness_convention"], d_c, distance, through
+    )
+    counts = np.empty((h, 3), np.int64)
+    backend.run_kernel(
+        _kernels().sta_composite,
+        *(a.reshape(-1) for a in frames),
+        thickness.reshape(-1),
+        raw_index.reshape(-1),
+        np.float32(index),
+        *kernel_args,
+        np.array(np.broadcast_to(gains, (3,))),
+        weight is not None,
+        np.float32(0.0 if weight is None else weight),
+        image.reshape(-1),
+        np.uint64(image.shape[2]),
+        sss.reshape(-1),
+        w,
+        np.empty(h * w, np.uint8),
+        True,
+        counts,
+    )
+    nonfinite, overflow, negative = (int(v) for v in counts.sum(axis=0))
+    return nonfinite, overflow, negative
+
+
+composite.computes = sta  # type: ignore[attr-defined]  # the function the route computes (Technique.composite)
 
 
 #: The compiled kernel's table argument when there is none (a typed placeholder).
@@ -523,4 +627,5 @@ TECHNIQUE = Technique(
     calibration={"falloff": FALLOFFS, "scale": (0.25, 0.5, 1.0, 2.0, 4.0)},
     prepare=_prepare,
     fit=("scale",),
+    composite=composite,
 )
