@@ -45,9 +45,8 @@ from ...optics.profiles import TRUNCATION
 BLOCK_PX = 8
 #: Target relative standard error of a pixel's gathered light (module docstring). Measured on a
 #: slanted shadow edge (tests/core/test_burley_adaptive.py's images, footprints 6 to 150 px): at
-#: 0.05 the adaptive result is as far from a 1024-sample one as the fixed 32 samples' result;
-#: at 0.1 twice as far at footprints of 6 to 30 px (the dark side's light is a twentieth of
-#: the lit side's, and its relative error counts).
+#: 0.05 the adaptive result is as far from a 1024-sample one as the fixed 32 samples' result
+#: (docs/references.md §21).
 ERROR = 0.05
 #: A channel's mean below this share of its mean over the gathered pixels counts as this share:
 #: the relative variation of a light near 0 is not that of its noise.
