@@ -37,7 +37,8 @@ kernels' time). Each case runs ``--repeat`` times, the 1080p ones also until the
 ``FLOOR_S`` (4K: fewer for NumPy; the NumPy combined technique, 10 s a call at 1080p, once per
 case, so that the whole run stays within minutes);
 the fastest run is reported (these machines are noisy), with the throughput in
-pixel-samples per second (pixels x taps x 2 passes for SSSS, pixels x samples for Burley,
+pixel-samples per second (pixels x taps x 2 passes for SSSS, pixels x the samples actually taken for
+Burley and the combined technique (their adaptive mean, ``samples_per_pixel_taken``),
 pixels x lights for STA), and the load average before and after. Writes
 ``benchmarks/results/speed.json``; the keys of each technique outside ``backends`` are the
 default backend's.
@@ -69,7 +70,7 @@ from sss_lab.core.compute import backend
 from sss_lab.core.optics import kernels
 from sss_lab.core.optics.energy import apply_energy
 from sss_lab.core.study.synthetic import PLANE_Z, sphere_scene
-from sss_lab.core.techniques.burley.technique import burley
+from sss_lab.core.techniques.burley.technique import burley, sample_counts
 from sss_lab.core.techniques.combined.technique import combined
 from sss_lab.core.techniques.ssss.technique import ssss
 from sss_lab.core.techniques.sta.technique import sta
@@ -133,10 +134,16 @@ def light_and_albedo(passes):
 
 
 def cases(width: int, height: int):
-    """{technique: (fn(mask), samples per pixel, the inputs' bytes)} and the masks."""
+    """{technique: (fn(mask), samples per pixel (a number, or of a mask: Burley's adaptive mean,
+    ``sample_counts``), the inputs' bytes)} and the masks."""
     passes, scene, depth, normal, masks = inputs(width, height)
     diffuse, albedo = light_and_albedo(passes)
     cam = scene.camera
+
+    def taken(m) -> float:
+        counts = sample_counts(diffuse=diffuse, albedo=albedo, depth=depth, mask=m, camera=cam, d_su=D_SU)
+        return float(counts[counts > 0].mean()) if (counts > 0).any() else 0.0
+
     kernel = kernels.preintegrated_kernel(17, d_su=D_SU)
     position, thickness = passes["Position"], passes["Thickness"]
     mask_bytes = masks["full screen"].nbytes
@@ -162,7 +169,7 @@ def cases(width: int, height: int):
         ),
         "burley": (
             lambda m: burley(diffuse=diffuse, albedo=albedo, depth=depth, mask=m, camera=cam, d_su=D_SU, n_samples=32),
-            32,
+            taken,
             diffuse.nbytes + albedo.nbytes + depth.nbytes + mask_bytes,
         ),
         "combined": (
@@ -181,7 +188,7 @@ def cases(width: int, height: int):
                 energy="lambert",
                 **COMBINED_MEDIUM,
             ),
-            32,
+            taken,
             sum(a.nbytes for a in (diffuse, albedo, depth, normal, position, thickness)) + mask_bytes,
         ),
     }
@@ -215,6 +222,35 @@ def energy_stage(width: int, height: int, repeat: int, names=BACKENDS) -> dict:
     return out
 
 
+def samples_taken(arrays: dict, scene, name: str) -> float | None:
+    """The samples per pixel ``apply`` takes with technique ``name`` at its defaults on the passes
+    ``arrays`` of ``scene``, over the pixels its gathers read (``core.techniques.burley.technique.sample_counts``
+    per subsurface material: Burley's adaptive counts); None for a technique that does not gather
+    with Burley's spiral."""
+    from sss_lab.core.pipeline.mapping import technique_params
+    from sss_lab.core.techniques.burley.technique import sample_counts
+    from sss_lab.core.techniques.registry import get_spec
+
+    params = get_spec(name).defaults
+    if name not in ("burley", "combined") or params.get("diffusion", "burley") != "burley":
+        return None
+    taken = pixels = 0
+    for material in scene.materials:
+        kw = technique_params(material, name)
+        counts = sample_counts(
+            diffuse=arrays["Diffuse Direct"] + arrays["Diffuse Indirect"],
+            albedo=arrays["Diffuse Color"],
+            depth=arrays["Depth"],
+            mask=np.rint(arrays["Material Index"]) == material.index,
+            camera=scene.camera,
+            object_id=arrays["Object Index"],
+            **kw,
+        )
+        taken += int(counts.sum(dtype=np.int64))
+        pixels += int((counts > 0).sum())
+    return round(taken / pixels, 2) if pixels else None
+
+
 def whole_frame(width: int, height: int, repeat: int, names=BACKENDS, techniques=None) -> dict:
     """What ``core.pipeline.apply.apply`` costs per frame with each technique at its defaults, on the
     compiled backend (the default): the synthetic passes and scene description of
@@ -224,7 +260,8 @@ def whole_frame(width: int, height: int, repeat: int, names=BACKENDS, techniques
     the energy stage at its default ("object": without a bake distance, the entry's and the
     convex surface's gains), the passes' checks, one call per material and the compositing.
     ``median_ms`` and ``range_ms`` (fastest, slowest) over the same calls (and ``_1_thread``):
-    the spread a shared machine gives. ``profile``: where the time goes (each kernel, and the
+    the spread a shared machine gives; ``samples_per_pixel_taken``: Burley's gather's adaptive mean
+    (``samples_taken``). ``profile``: where the time goes (each kernel, and the
     NumPy work around them). ``techniques``: some of them only (default: all)."""
     from sss_lab.core.pipeline.apply import apply
     from sss_lab.core.scene.exr import Passes
@@ -236,7 +273,7 @@ def whole_frame(width: int, height: int, repeat: int, names=BACKENDS, techniques
     passes = Passes(arrays)
     out: dict = {"resolution": [width, height], "backend": "numba", "techniques": {}}
     with backend.use("numba"):
-        for name in techniques or GOALS_MS:
+        for name in GOALS_MS if techniques is None else techniques:
             fn = lambda name=name: apply(passes, scene, name)  # noqa: E731
             fn()  # warm-up
             walls: list[float] = []
@@ -254,6 +291,9 @@ def whole_frame(width: int, height: int, repeat: int, names=BACKENDS, techniques
                 **_spread(walls_1, "_1_thread"),
                 "profile": _profile(fn, repeat),
             }
+            taken = samples_taken(arrays, scene, name)
+            if taken is not None:
+                out["techniques"][name]["samples_per_pixel_taken"] = taken
     return out
 
 
@@ -264,6 +304,7 @@ def _frame_line(name: str, e: dict) -> str:
     return (
         f"apply   {name:8s} median {e['median_ms']:7.1f} ms per frame ({lo:.1f}-{hi:.1f}; CPU {e['cpu_ms']:.1f} ms"
         f" fastest), 1 thread median {e['median_ms_1_thread']:7.1f} ms ({lo1:.1f}-{hi1:.1f})"
+        + (f", {e['samples_per_pixel_taken']} samples per pixel taken" if "samples_per_pixel_taken" in e else "")
     )
 
 
@@ -381,13 +422,16 @@ def first_calls() -> dict:
     return out
 
 
-def _entry(seconds: float, cpu: float, pixels: int, per_pixel: int) -> dict:
-    return {
+def _entry(seconds: float, cpu: float, pixels: int, per_pixel: float) -> dict:
+    out = {
         "ms": round(seconds * 1e3, 1),
         "cpu_ms": round(cpu * 1e3, 1),
         "pixels": pixels,
         "samples_per_s": round(pixels * per_pixel / seconds),
     }
+    if per_pixel != int(per_pixel):
+        out["samples_per_pixel_taken"] = round(per_pixel, 2)
+    return out
 
 
 def _time_case(name: str, b: str, fn, per_pixel: int, masks: dict, repeat: int, log) -> dict:
@@ -407,7 +451,8 @@ def _time_case(name: str, b: str, fn, per_pixel: int, masks: dict, repeat: int, 
                 floor = 0.0 if slow else FLOOR_S
                 seconds, cpu = _best(lambda fn=fn, mask=mask: fn(mask), runs, floor)
                 key = label if threads == 2 else "full screen, 1 thread"
-                entry[key] = _entry(seconds, cpu, int(mask.sum()), per_pixel)
+                taken = per_pixel(mask) if callable(per_pixel) else per_pixel
+                entry[key] = _entry(seconds, cpu, int(mask.sum()), taken)
     set_threads(2)
     if b == "numba":
         with backend.use(b):

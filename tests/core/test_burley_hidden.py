@@ -20,7 +20,8 @@ ROWS = slice(30, 66)  # away from the top and bottom of the frame
 def _run(strip_depth=None, *, strip_in_mask=False, ids=False, light=None):
     """A plane at depth Z facing an orthographic camera (1 px per unit) with a ramp of light
     (its column), Burley with a 48 px footprint (red; green and blue half and a quarter of it),
-    1024 samples of the fixed spiral; the columns
+    1024 samples of the fixed spiral (``adaptive=False``: every pixel the same samples, whatever
+    lies beside it); the columns
     left of EDGE at ``strip_depth`` (None: the plane continues there, on the mask)."""
     cam = Camera(type="ORTHO", width_px=N, height_px=N, ortho_scale=float(N))
     x = np.arange(N, dtype=np.float32)
@@ -44,6 +45,7 @@ def _run(strip_depth=None, *, strip_in_mask=False, ids=False, light=None):
         d_su=(d, 0.5 * d, 0.25 * d),
         object_id=object_id,
         n_samples=1024,
+        adaptive=False,
         random_rotation=False,
         smooth_px=0,
     )

@@ -13,16 +13,16 @@ from ...optics._kernels import area_at
 
 
 @njit(cache=True, error_model="numpy")
-def _burley_positions(xf, yf, s, rc, rsn, tables, g, wl, hl, py0, px0, ph, pw, js, inside):
-    """Where the spiral samples of the pixel (``xf``, ``yf``) land, as the reference computes
-    it: sample k reads the pixel js[k] of the packed pixels (``burley_pack``, flat: ``ph`` rows
+def _burley_positions(xf, yf, s, rc, rsn, tables, g, nk, wl, hl, py0, px0, ph, pw, js, inside):
+    """Where the ``nk`` spiral samples (``tables[:, g]``) of the pixel (``xf``, ``yf``) land, as
+    the reference computes it: sample k reads the pixel js[k] of the packed pixels (``burley_pack``, flat: ``ph`` rows
     from ``py0`` of ``pw`` columns from ``px0``), which the reference keeps only if ``inside[k]``
     (the rounded position is on the image). Compiled without fastmath and called from the
     kernels, never from a function with fastmath (Numba compiles a function's callees with its
     flags): the pixels read are the reference's to the bit. The loop vectorizes (no gathers).
     The packed pixels reach beyond every sample (``core.techniques.burley.technique._compiled``); the row and the
     column are clamped to them all the same, so that nothing outside them is ever read."""
-    for k in range(tables.shape[2]):
+    for k in range(nk):
         ca = rc * tables[2, g, k] - rsn * tables[3, g, k]
         sa = rsn * tables[2, g, k] + rc * tables[3, g, k]
         rad = s * tables[0, g, k]
@@ -47,8 +47,8 @@ def _burley_positions(xf, yf, s, rc, rsn, tables, g, wl, hl, py0, px0, ph, pw, j
 
 
 @njit(cache=True, error_model="numpy", fastmath={"reassoc", "contract"})
-def _burley_pixel(packed, area, ids, id_base, q, tables, g, js, inside, k0, k1, k2, sums):
-    """The spiral samples of pixel ``q``, read where ``_burley_positions`` put them, summed
+def _burley_pixel(packed, area, ids, id_base, q, tables, g, nk, js, inside, k0, k1, k2, sums):
+    """The ``nk`` spiral samples of pixel ``q``, read where ``_burley_positions`` put them, summed
     into ``sums`` (num R, G, B, den R, G, B). ``packed`` flat (R, G, B, depth key) per pixel
     of the packed rows (``burley_pack``: 0, 0, 0, +inf where pixels take no part; one 64-byte
     cache line holds a sample's four values), ``q`` and ``js`` index it, and ``area`` (the
@@ -78,7 +78,7 @@ def _burley_pixel(packed, area, ids, id_base, q, tables, g, js, inside, k0, k1, 
     d0 = ZERO
     d1 = ZERO
     d2 = ZERO
-    for k in range(js.size):
+    for k in range(nk):
         j4 = np.int32(js[k] * np.int32(4))
         zj = packed[np.int32(j4 + np.int32(3))]
         aj = area[js[k]]
@@ -188,16 +188,22 @@ STRIP_COLS = 16
 
 @njit(cache=True, error_model="numpy")
 def _burley_tile(
-    light, packed, packed_area, py0, px0, ok, cam, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d,
-    reach, ya, yb, xa, xb, buf,
+    light, packed, packed_area, py0, px0, ok, cam, ids, group, tables, counts, limit, blocks, block, fp_reach,
+    rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, ya, yb, xa, xb, buf,
 ):  # fmt: skip
     """core.techniques.burley.technique's gather (the scattered light, before the albedo) of the pixels ``ok`` of
     rows ``ya``..``yb`` - 1 and columns ``xa``..``xb`` - 1 into ``buf`` (3, from (ya, xa)),
     reading the samples from ``packed`` (``burley_pack``, rows from ``py0``, columns from ``px0``);
-    ``rot_cos``/``rot_sin`` hold rows from ``rot_y0`` and columns from ``rot_x0``."""
+    ``rot_cos``/``rot_sin`` hold rows from ``rot_y0`` and columns from ``rot_x0``. Each pixel
+    takes the samples of its level (``core.techniques.burley.adaptive.Plan.levels``): the first
+    with ``limit`` >= its footprint (float64 scale x ``fp_reach`` of its group), at most its
+    block's (``blocks``, blocks of ``block`` pixels); its spiral is row level x groups + group of
+    ``tables``, its first ``counts[level]`` entries."""
     h, w = ok.shape
     rotate = rot_cos.size > 1
     grouped = group.size > 1
+    n_groups = tables.shape[1] // counts.size
+    top = counts.size - 1
     wl = f32(w - 1)
     hl = f32(h - 1)
     k0 = -inv3d[0]
@@ -219,9 +225,17 @@ def _burley_tile(
                 rc = rot_cos[y - rot_y0, x - rot_x0] if rotate else rot_cos[0, 0]
                 rsn = rot_sin[y - rot_y0, x - rot_x0] if rotate else rot_sin[0, 0]
                 g = group[y, x] if grouped else 0
-                _burley_positions(f32(x), f32(y), s, rc, rsn, tables, g, wl, hl, py0, px0, ph, pw, js, inside)
+                footprint = np.float64(s) * fp_reach[g]
+                footprint *= footprint
+                level = 0
+                while level < top and limit[level] < footprint:
+                    level += 1
+                level = min(level, blocks[y // block, x // block])
+                row = level * n_groups + g
+                nk = counts[level]
+                _burley_positions(f32(x), f32(y), s, rc, rsn, tables, row, nk, wl, hl, py0, px0, ph, pw, js, inside)
                 q = (y - py0) * pw + x - px0
-                _burley_pixel(flat, area, ids, py0 * w, q, tables, g, js, inside, k0, k1, k2, sums)
+                _burley_pixel(flat, area, ids, py0 * w, q, tables, row, nk, js, inside, k0, k1, k2, sums)
                 for c in range(3):
                     den = sums[3 + c]
                     if reach[c] <= 0.0 or reach[c] * np.float64(s) <= 1.0 or den <= TINY:
@@ -234,8 +248,9 @@ def _burley_tile(
 @njit(cache=True, parallel=True, error_model="numpy")
 @parallel_chunks(1)
 def burley_kernel(
-    light, packed, packed_area, py0, px0, ok, cam, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0, inv3d,
-    reach, extents, depth, tol, radius, min_px, post, y_lo, y_hi, x_lo, x_hi, out,
+    light, packed, packed_area, py0, px0, ok, cam, ids, group, tables, counts, limit, blocks, block, fp_reach,
+    rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, extents, depth, tol, radius, min_px, post, y_lo, y_hi, x_lo, x_hi,
+    out,
 ):  # fmt: skip
     """core.techniques.burley.technique's gather and clean-up (``_smooth``, when ``radius`` > 0) over the pixels
     ``ok`` of rows ``y_lo``..``y_hi`` - 1 and columns ``x_lo``..``x_hi`` - 1 (which hold all
@@ -246,8 +261,11 @@ def burley_kernel(
     each of them covers over a pixel facing the camera (``core.optics.surface.surface_area``), a factor
     of its samples' weights:
     per pixel (R, G, B, depth) where ``ok``, (0, 0, 0, +inf) elsewhere; ``tables``
-    (5, G, n): per object group the spiral's radii, radii squared, cosines, sines and inverse
-    pdfs; ``group`` (H, W) each pixel's group, or (1, 1) for one group; ``reach`` (3,) float64,
+    (5, L x G, n): per count of the plan and object group (row level x G + group) the spiral's
+    radii, radii squared, cosines, sines and inverse pdfs, the first ``counts[level]`` of each
+    row; ``counts``, ``limit``, ``blocks``, ``block`` and ``fp_reach`` the plan each pixel's
+    count follows (``_burley_tile``); ``group`` (H, W) each pixel's group, or (1, 1) for one
+    group; ``reach`` (3,) float64,
     16 d_c per channel (0: the channel keeps its light; so does a channel whose reach times the
     pixel's scale is at most one pixel); ``rot_cos``/``rot_sin`` the per-pixel rotation as
     NumPy computed it for rows ``rot_y0``.. and columns ``rot_x0``.. (every pixel of ``ok`` in
@@ -283,8 +301,8 @@ def burley_kernel(
             continue
         buf = np.zeros((3, yb - ya, xb - xa), np.float32)
         _burley_tile(
-            light, packed, packed_area, py0, px0, ok, cam, ids, group, tables, rot_cos, rot_sin, rot_y0, rot_x0,
-            inv3d, reach, ya, yb, xa, xb, buf,
+            light, packed, packed_area, py0, px0, ok, cam, ids, group, tables, counts, limit, blocks, block, fp_reach,
+            rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, ya, yb, xa, xb, buf,
         )  # fmt: skip
         _burley_clean(
             ok, cam, ids, group, reach, extents, depth, tol, r, min_px, post, buf, ya, xa, y0, y1, x0, x1, out
@@ -346,3 +364,53 @@ def _burley_clean(ok, cam, ids, group, reach, extents, depth, tol, r, min_px, po
                 if ok[y, x]:
                     v = f32(total[i] / max(count[i], 1.0)) if keep[i] else buf[c, y - ya, x - xa]
                     out[y, x, c] = post[y, x, c] * v
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def burley_block_sums(light, ok, depth, y0, x0, block, s1, s2, n, nearest):
+    """core.techniques.burley.adaptive.block_sums on the compiled backend, to the bit: per block
+    of ``block`` x ``block`` pixels from frame row ``y0`` and column ``x0`` (``n``'s shape), the
+    float64 sums of the light (``s1``) and of its squares (``s2``) per channel over the pixels of
+    ``ok``, their number (``n``) and their least depth (``nearest``, +inf for none). The sums
+    take the pixels in the reference's order (row, then column, within the block) without
+    fastmath: the same roundings."""
+    h, w = ok.shape
+    ny, nx = n.shape
+    for by in prange(ny):
+        for bx in range(nx):
+            a0 = 0.0
+            a1 = 0.0
+            a2 = 0.0
+            q0 = 0.0
+            q1 = 0.0
+            q2 = 0.0
+            count = 0.0
+            least = INF
+            for dy in range(block):
+                y = y0 + by * block + dy
+                for dx in range(block):
+                    x = x0 + bx * block + dx
+                    if y < h and x < w and ok[y, x]:
+                        v0 = np.float64(light[y, x, 0])
+                        v1 = np.float64(light[y, x, 1])
+                        v2 = np.float64(light[y, x, 2])
+                        count += 1.0
+                        least = min(least, depth[y, x])
+                    else:
+                        v0 = 0.0
+                        v1 = 0.0
+                        v2 = 0.0
+                    a0 += v0
+                    a1 += v1
+                    a2 += v2
+                    q0 += v0 * v0
+                    q1 += v1 * v1
+                    q2 += v2 * v2
+            s1[by, bx, 0] = a0
+            s1[by, bx, 1] = a1
+            s1[by, bx, 2] = a2
+            s2[by, bx, 0] = q0
+            s2[by, bx, 1] = q1
+            s2[by, bx, 2] = q2
+            n[by, bx] = count
+            nearest[by, bx] = least

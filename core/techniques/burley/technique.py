@@ -22,6 +22,11 @@ the mask, n samples:
 
 A pixel whose footprint (16 d_max in pixels) is at most one pixel is left as it is, as EEVEE
 Next does; so is each channel whose own footprint is (a channel far narrower than a pixel).
+
+With ``adaptive`` (the default) n is a pixel's own: at most ``n_samples``, fewer where the light
+under its footprint hardly varies or the footprint covers few pixels, each count with its own
+stratified spiral (``core.techniques.burley.adaptive``, docs/references.md §21); ``sample_counts``
+gives each pixel's n.
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ from ...scene.passes import THICKNESS
 from ...scene.scene import Camera
 from ..params import ENERGY_PARAM
 from ..spec import CALIBRATE_MAPPING, Param, Technique, profile_footprint
+from . import adaptive as adaptive_counts
 
 
 def _kernels():
@@ -174,6 +180,7 @@ def burley(
     d_su,
     object_id=None,
     n_samples: int = 32,
+    adaptive: bool = True,
     random_rotation: bool = True,
     seed: int = 0,
     smooth_px: int = 1,
@@ -212,6 +219,7 @@ def burley(
         d_su=d_su,
         object_id=object_id,
         n_samples=n_samples,
+        adaptive=adaptive,
         random_rotation=random_rotation,
         seed=seed,
         smooth_px=smooth_px,
@@ -230,6 +238,7 @@ def _gather(
     d_su,
     object_id,
     n_samples: int,
+    adaptive: bool,
     random_rotation: bool,
     seed: int,
     smooth_px: int,
@@ -253,7 +262,8 @@ def _gather(
     dmax = float(d.max())
     if dmax > 0 and backend.active() == "numba":
         return _compiled(
-            e, a, z, m, ids, camera, int(n_samples), d, random_rotation, seed, int(smooth_px), albedo_mode
+            e, a, z, m, ids, camera, int(n_samples), bool(adaptive), d, random_rotation, seed, int(smooth_px),
+            albedo_mode,
         )  # fmt: skip
     base = a * e
     ok = m & arrays.finite_pixels(e, a, z) & (z > 0) & (z < arrays.BACKGROUND_DEPTH)
@@ -269,15 +279,73 @@ def _gather(
         return base
     pre, post = arrays.split_albedo(a, albedo_mode)
     light = e if pre is None else pre * e
-    result, idx_all, groups = _reference(light, z, ok, ids, camera, scale, d, int(n_samples), random_rotation, seed)
+    plan = _plan(light, ok, z, camera, dmax, int(n_samples), adaptive)
+    result, idx_all, groups = _reference(light, z, ok, ids, camera, scale, d, plan, random_rotation, seed)
     return _smoothed(result, idx_all, groups, shape, scale, d, z, ids, int(smooth_px), post, base)
 
 
-def _reference(light, z, ok, ids, camera, scale, d, n, random_rotation, seed):
+def _plan(light, ok, z, camera, dmax: float, n: int, adaptive: bool) -> adaptive_counts.Plan:
+    """The samples each pixel takes (``core.techniques.burley.adaptive``): the same plan for
+    both backends."""
+    if not adaptive:
+        return adaptive_counts.fixed(n)
+    return adaptive_counts.plan(light, ok, z, camera, TRUNCATION * dmax, n)
+
+
+def sample_counts(
+    *,
+    diffuse,
+    albedo,
+    depth,
+    mask,
+    camera: Camera,
+    d_su,
+    object_id=None,
+    n_samples: int = 32,
+    adaptive: bool = True,
+    albedo_mode: str = "post",
+    **_ignored,
+) -> np.ndarray:
+    """The samples ``burley`` called with these arguments takes at each pixel, int32 (H, W): its
+    count of the plan (``core.techniques.burley.adaptive``; ``n_samples`` everywhere when not
+    ``adaptive``) on the pixels it gathers, 0 on those it leaves as they are (off the mask, a
+    footprint of at most one pixel). Any other keyword (``seed``, ``energy`` ...) is accepted and
+    changes nothing: the counts depend on these inputs only. Their mean over the gathered pixels
+    is the samples per pixel actually taken (``make bench``)."""
+    d = arrays.rgb_lengths(d_su, "d_su")
+    e = arrays.image(diffuse, "diffuse")
+    a = arrays.image(albedo, "albedo")
+    z = arrays.image(depth, "depth", None)
+    ids = None if object_id is None else arrays.image(object_id, "object_id", None)
+    m = arrays.mask_array(mask, e.shape[:2])
+    counts = np.zeros(e.shape[:2], np.int32)
+    dmax = float(d.max())
+    ok = m & arrays.finite_pixels(e, a, z) & (z > 0) & (z < arrays.BACKGROUND_DEPTH)
+    if ids is not None:
+        ok &= np.isfinite(ids)
+    if dmax <= 0 or not ok.any():
+        return counts
+    scale = camera.pixels_per_unit(z)
+    with np.errstate(over="ignore"):
+        ok &= TRUNCATION * dmax * scale > 1.0
+    if not ok.any():
+        return counts
+    pre, _ = arrays.split_albedo(a, albedo_mode)
+    plan = _plan(e if pre is None else pre * e, ok, z, camera, dmax, int(n_samples), adaptive)
+    groups = group_extents(ok, scale, ids) if ids is not None else [(np.flatnonzero(ok), object_extent(ok, scale))]
+    for group, extent_su in groups:
+        reach_su = adaptive_counts.footprint_reach(dmax, extent_su)
+        level = plan.levels(group, scale.ravel()[group].astype(np.float64) * reach_su, ok.shape[1])
+        counts.ravel()[group] = plan.counts[level]
+    return counts
+
+
+def _reference(light, z, ok, ids, camera, scale, d, plan, random_rotation, seed):
     """The NumPy reference of the gather: (each pixel's scattered light before the albedo and
     the clean-up (rows in the order of ``idx_all``), ``idx_all``: the flat indices of the
     pixels that take part (``ok``), ``groups``: the (pixels, extent) of each object), the
-    pixels gathered ``_BLOCK_ELEMENTS`` samples at a time (``_gather_block``)."""
+    pixels gathered ``_BLOCK_ELEMENTS`` samples at a time (``_gather_block``), each with the
+    spiral of its count (``plan``, ``core.techniques.burley.adaptive``)."""
     h, w = ok.shape
     f32 = np.float32
     dmax = float(d.max())
@@ -298,26 +366,31 @@ def _reference(light, z, ok, ids, camera, scale, d, n, random_rotation, seed):
         d=d,
         inv3d=_inv3d(d),
         reach_c=TRUNCATION * d,  # each channel's own footprint, scene units (float64: d may be huge)
-        ones=np.ones(n, f32),
         seed=seed if random_rotation else None,
     )
-    block = max(128, _BLOCK_ELEMENTS // n)
     if groups[0][0] is None:
         groups = [(np.flatnonzero(ok), groups[0][1])]
     idx_all = np.concatenate([g for g, _ in groups])
     result = np.empty((idx_all.size, 3), f32)
     start = 0
     for group, extent_su in groups:
-        r_su64, angles, inv_pdf = spiral_su(n, dmax, min(TRUNCATION * dmax, extent_su))
-        r_su = r_su64.astype(f32)
-        tables = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
-        arrays.for_blocks(
-            group.size,
-            block,
-            lambda lo, hi, o=start, t=tables: _gather_block(
-                frame, idx_all[o + lo : o + hi], *t, result[o + lo : o + hi]
-            ),
-        )
+        reach_su = adaptive_counts.footprint_reach(dmax, extent_su)
+        level = plan.levels(group, frame.sflat[group].astype(np.float64) * reach_su, w)
+        for k, n in enumerate(plan.counts.tolist()):
+            rows = np.flatnonzero(level == k) if plan.counts.size > 1 else np.arange(group.size)
+            if not rows.size:
+                continue
+            r_su64, angles, inv_pdf = spiral_su(n, dmax, reach_su)
+            r_su = r_su64.astype(f32)
+            tables = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
+            part = np.empty((rows.size, 3), f32)
+            idx = group[rows]
+            arrays.for_blocks(
+                rows.size,
+                max(128, _BLOCK_ELEMENTS // n),
+                lambda lo, hi, t=tables, idx=idx, part=part: _gather_block(frame, idx[lo:hi], *t, part[lo:hi]),
+            )
+            result[start + rows] = part
         start += group.size
     return result, idx_all, groups
 
@@ -327,8 +400,7 @@ class _Frame(NamedTuple):
     (``_packed``; ``items``: its rows as 16-byte items) and ``zfront``; the surface each pixel
     covers (``aflat``, ``surface_area``, 0 at the sentinel); the object ids (``idflat``, or
     None); pixels per scene unit (``sflat``); the lengths ``d``, ``_inv3d(d)`` and the
-    footprints ``reach_c``; n ones (for the sums over the samples); the rotations' seed (None:
-    no rotation)."""
+    footprints ``reach_c``; the rotations' seed (None: no rotation)."""
 
     shape: tuple
     packed: np.ndarray
@@ -340,7 +412,6 @@ class _Frame(NamedTuple):
     d: np.ndarray
     inv3d: np.ndarray
     reach_c: np.ndarray
-    ones: np.ndarray
     seed: int | None
 
 
@@ -436,7 +507,8 @@ def _gather_block(frame, idx, r_su, r2, cos_a, sin_a, inv_pdf, out):
     ratio *= surface  # the surface the sample's pixel covers
     e3 = np.empty_like(rp)
     wgt = np.empty_like(rp)
-    d, inv3d, reach_c, ones = frame.d, frame.inv3d, frame.reach_c, frame.ones
+    d, inv3d, reach_c = frame.d, frame.inv3d, frame.reach_c
+    ones = np.ones(n, f32)  # for the sums over the samples
     for c in range(3):
         centre = packed[idx, c]
         if d[c] <= 0:
@@ -479,12 +551,12 @@ def _inv3d(d: np.ndarray) -> np.ndarray:
     return np.array([max(1.0 / (3.0 * v), 1e-37) if v > 0 else 0.0 for v in d], np.float32)
 
 
-def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, albedo_mode):
+def _compiled(e, a, z, m, ids, camera, n, adaptive, d, random_rotation, seed, smooth_px, albedo_mode):
     """``_gather`` on the compiled backend: the pixels that take part in one pass over the frame
     (``pixels.compiled_pixels``, with the footprint rule), then the gather and the clean-up as
     one compiled kernel (``core.techniques.burley._kernels.burley_kernel``) over their bounding box, into the
-    albedo x diffuse frame, with the NumPy code's tables: one bounded spiral per object
-    (``spiral_su``), the rotation, the object ids."""
+    albedo x diffuse frame, with the NumPy code's tables: one bounded spiral per object and
+    count of the plan (``spiral_su``, ``_plan``), the rotation, the object ids."""
     f32 = np.float32
     c = np.ascontiguousarray
     dmax = float(d.max())
@@ -506,17 +578,25 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
     light = e if pre is None else pre * e
     inv3d = _inv3d(d)
     reach_c = TRUNCATION * d
-    tables = np.empty((5, len(groups), n), f32)  # radius, radius^2, cos, sin, inverse pdf
-    extents = np.empty(len(groups), np.float64)
+    plan = _plan(light, ok, z, camera, dmax, n, adaptive)
+    n_groups = len(groups)
+    # Per count of the plan and group (row count x groups + group): radius, radius^2, cos, sin,
+    # inverse pdf, the first ``plan.counts[count]`` of each row.
+    tables = np.zeros((5, plan.counts.size * n_groups, n), f32)
+    extents = np.empty(n_groups, np.float64)
+    fp_reach = np.empty(n_groups, np.float64)
     group_map = np.zeros((1, 1), np.int32)
-    if len(groups) > 1:
+    if n_groups > 1:
         group_map = np.zeros(ok.shape, np.int32)
     for k, (group, extent_su) in enumerate(groups):
-        r_su64, angles, inv_pdf = spiral_su(n, dmax, min(TRUNCATION * dmax, extent_su))
-        r_su = r_su64.astype(f32)
-        tables[:, k] = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
+        fp_reach[k] = adaptive_counts.footprint_reach(dmax, extent_su)
+        for level, count in enumerate(plan.counts.tolist()):
+            r_su64, angles, inv_pdf = spiral_su(count, dmax, fp_reach[k])
+            r_su = r_su64.astype(f32)
+            row = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
+            tables[:, level * n_groups + k, :count] = row
         extents[k] = extent_su
-        if len(groups) > 1:
+        if n_groups > 1:
             group_map.ravel()[group] = k
     id_map = np.zeros(1, np.int32)
     if ids is not None:
@@ -596,9 +676,9 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
             rot_cos = np.cos(phi, out=phi)
         backend.run_kernel(
             _kernels().burley_kernel,
-            light, rows, rows_area, py0, px0, ok, cam, id_map, group_map, tables, rot_cos, rot_sin,
-            rot_y0, rot_x0, inv3d, reach, extents, z, tol, radius, SMOOTH_MIN_FOOTPRINT_PX, post, y_lo, y_hi, c0, c1,
-            out,
+            light, rows, rows_area, py0, px0, ok, cam, id_map, group_map, tables, plan.counts, plan.limit,
+            plan.blocks, plan.block, fp_reach, rot_cos, rot_sin, rot_y0, rot_x0, inv3d, reach, extents, z, tol, radius,
+            SMOOTH_MIN_FOOTPRINT_PX, post, y_lo, y_hi, c0, c1, out,
         )  # fmt: skip
     return out
 
@@ -607,8 +687,10 @@ def _compiled(e, a, z, m, ids, camera, n, d, random_rotation, seed, smooth_px, a
 _BAND_ROWS = 512
 
 
-#: Burley's spec (``core/techniques/spec.py``): 32 samples, the signature's default (EEVEE Next uses 16 per
-#: temporal sample, HDRP 20/40/80; docs/references.md §1).
+#: Burley's spec (``core/techniques/spec.py``): at most 32 samples, the signature's default (EEVEE Next uses 16
+#: per temporal sample, HDRP 20/40/80; docs/references.md §1), fewer where the plan allows
+#: (``adaptive``, ``core.techniques.burley.adaptive``); ``samples_per_pixel`` counts the most a pixel
+#: takes, ``sample_counts`` what each takes.
 TECHNIQUE = Technique(
     name="burley",
     label="Burley",
@@ -633,13 +715,20 @@ TECHNIQUE = Technique(
         Param(
             "n_samples",
             "Samples",
-            "Samples per pixel of the golden-angle spiral",
+            "Samples per pixel of the golden-angle spiral (the most a pixel takes when Adaptive Samples is on)",
             type=int,
             min=1,
             max=1024,
             soft_max=128,
         ),
         Param("random_rotation", "Random Rotation", "Rotate the spiral per pixel: noise instead of banding", type=bool),
+        Param(
+            "adaptive",
+            "Adaptive Samples",
+            "Fewer samples where the light under the profile hardly varies or the profile covers few pixels;"
+            " Samples is then the most a pixel takes",
+            type=bool,
+        ),
         ENERGY_PARAM,
     ),
     qualities=({"n_samples": 8}, {"n_samples": 16}, {"n_samples": 32}, {"n_samples": 64}),

@@ -537,6 +537,7 @@ def combined(
     diffusion: str = "burley",
     n_samples: int = 32,
     n_taps: int = 17,
+    adaptive: bool = True,
     random_rotation: bool = True,
     seed: int = 0,
     smooth_px: int = 1,
@@ -557,7 +558,7 @@ def combined(
     Inputs as ``core.techniques.burley.technique.burley`` (``diffuse``, ``albedo``, ``depth``, ``mask``, ``camera``,
     ``d_su``, ``object_id``) and ``transmission`` (``normal``, ``position``, ``thickness``,
     ``lights``, ``thickness_distance_su``, ``thickness_convention``). ``diffusion`` "burley"
-    (``n_samples``, ``random_rotation``, ``seed``, ``smooth_px``, Burley's defaults) or "ssss"
+    (``n_samples``, ``adaptive``, ``random_rotation``, ``seed``, ``smooth_px``, Burley's defaults) or "ssss"
     (``n_taps``, pre-integrated kernel). ``transmission_d_su`` None uses ``mfp_su``
     (the method's length, ``core.pipeline.mapping.mean_free_path``), or ``d_su`` without it;
     ``subsurface_method``, ``base_color``, ``subsurface_ior``, ``subsurface_anisotropy``: the
@@ -597,6 +598,7 @@ def combined(
             d_su=tuple(d),
             object_id=object_id,
             n_samples=n_samples,
+            adaptive=adaptive,
             random_rotation=random_rotation,
             seed=seed,
             smooth_px=smooth_px,
@@ -719,6 +721,7 @@ TECHNIQUE = Technique(
         _own(BURLEY.param("n_samples")),
         _own(SSSS.param("n_taps")),
         _own(BURLEY.param("random_rotation")),
+        _own(BURLEY.param("adaptive")),
         _own(BURLEY.param("energy")),
         Param(
             "transmission_scale",
