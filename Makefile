@@ -34,6 +34,8 @@ farm-demo: venv
 
 # Lint and type-check once (mypy in the 5.2 environment), then the whole suite in each version's
 # environment; every version runs even when an earlier one fails, and the target fails if any did.
+# Each version's kernels are compiled first, two processes side by side (`prepare --jobs 2`): the
+# tests would compile them one after another on first use.
 test: venv
 	$(PY) -m ruff check .
 	$(PY) -m ruff format --check .
@@ -43,6 +45,7 @@ test: venv
 	  bash tools/bootstrap.sh $$v || { failed="$$failed $$v"; continue; }; \
 	  venv=.venv; [ "$$v" = 4.5 ] && venv=.venv-4.5; \
 	  echo "make test: Blender $$v ($$venv)"; \
+	  $$venv/bin/python -m sss_lab prepare --jobs 2 --quiet || failed="$$failed $$v"; \
 	  $$venv/bin/python -m pytest tests || failed="$$failed $$v"; \
 	done; \
 	if [ -n "$$failed" ]; then echo "make test: failed on Blender$$failed"; exit 1; fi

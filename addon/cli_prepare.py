@@ -20,16 +20,27 @@ def add_parser(subparsers):
         default="all",
         help="the techniques to prepare: all (default) or a comma-separated list of sta, ssss, burley, combined",
     )
+    p.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        help="compile in this many processes side by side (default 1; Numba compiles on one core, so up to one "
+        "per core and per technique helps on an empty cache)",
+    )
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
-    from ..core.study.prepare import prepare_kernels
-    from .cli import parse_methods
+    from ..core.study.prepare import MAX_JOBS, prepare_kernels
+    from .cli import CommandError, parse_methods
 
+    if not 1 <= args.jobs <= MAX_JOBS:
+        raise CommandError(f"--jobs {args.jobs}: expected a whole number from 1 to {MAX_JOBS}")
     names = parse_methods(args.method)
     everything = args.method.strip() == "all"
-    result = prepare_kernels(None if everything else names, log=lambda line: print(f"prepare: {line}", flush=True))
+    result = prepare_kernels(
+        None if everything else names, log=lambda line: print(f"prepare: {line}", flush=True), jobs=args.jobs
+    )
     for name, seconds in sorted(result["kernels"].items(), key=lambda kv: -kv[1]):
         print(f"prepare: {name:24s} {seconds:7.2f} s")
     print(

@@ -44,6 +44,10 @@ SIZE = (64, 48)
 #: whose light from behind spreads over 16 pixels and more at ``SIZE`` (the spread's reduced
 #: levels, ``core.techniques.combined.technique.SPREAD_COARSE_FROM_PX``; scale 1 stays below them, 3 reaches the first).
 FAR = {"thickness_distance": 0.5, "subsurface_scale": 10.0}
+#: ``prepare_kernels``'s unit for ``apply --methods auto``'s features (beside the techniques' names).
+AUTO = "auto"
+#: The most worker processes ``prepare_kernels(jobs=...)`` starts: one per unit is all it can use.
+MAX_JOBS = 64
 
 
 class PrepareError(SSSLabError):
@@ -96,29 +100,26 @@ def synthetic_frame():
     return Passes(arrays), scene, far
 
 
-def prepare_kernels(techniques=None, *, log=None) -> dict:
-    """Compile (or load from the cache) every kernel ``core.pipeline.apply.apply`` runs for each technique of
-    ``techniques`` (default: all registered) on ``SIZE``'s synthetic frame, on the compiled
-    backend whatever ``SSS_LAB_BACKEND`` says; then write ``marker_path()`` (all techniques only).
-
-    Returns {"cache_dir", "seconds" (the whole), "kernels": {name: seconds of its first call in
-    this process: compiling, or loading from the cache}}. ``log(line)`` is told each technique
-    before it runs. Raises ``PrepareError`` where Numba cannot load."""
+def _warm(units, log=None) -> None:
+    """Make ``apply``'s first calls for each unit of ``units`` (a technique's name, or ``AUTO`` for
+    ``apply --methods auto``'s features) on the synthetic frame, on the compiled backend."""
     from ..pipeline.apply import apply
     from ..techniques.combined.back_light import streaming_every_region
-    from ..techniques.registry import TECHNIQUES, check_technique, get_spec
+    from ..techniques.registry import get_spec
 
-    if backend.compiled() is None:
-        raise PrepareError(
-            f"Numba cannot load ({backend.unavailable_reason()}): the techniques run on their NumPy "
-            "implementations, and there is nothing to compile"
-        )
-    names = list(TECHNIQUES) if techniques is None else [check_technique(t) for t in techniques]
     passes, scene, far = synthetic_frame()
-    start = time.perf_counter()
-    before = set(backend.first_call_seconds())
     with backend.use("numba"):
-        for name in names:
+        for name in units:
+            if name == AUTO:
+                # ``apply --methods auto`` measures each material before any technique runs.
+                from ..pipeline.auto import features
+
+                if log is not None:
+                    log("auto: compiling or loading its features' kernels")
+                for material in far.materials:
+                    if material.scatters:
+                        features(passes, far, material)
+                continue
             if log is not None:
                 log(f"{name}: compiling or loading its kernels")
             spec = get_spec(name)
@@ -130,15 +131,62 @@ def prepare_kernels(techniques=None, *, log=None) -> dict:
             # Frames from ``core.techniques.combined.back_light.STREAM_FROM_PIXELS`` on stream the light from behind.
             with streaming_every_region():
                 apply(passes, far, name)
-        if techniques is None:
-            # ``apply --methods auto`` measures each material before any technique runs.
-            from ..pipeline.auto import features
 
+
+def _warm_in_worker(unit: str, cache_dir: str) -> str:
+    """One unit of ``_warm`` in a worker process of ``prepare_kernels(jobs=...)``, into ``cache_dir``."""
+    backend.set_cache_dir(cache_dir)
+    _warm((unit,))
+    return unit
+
+
+def _warm_in_parallel(units: list[str], jobs: int, log=None) -> None:
+    """``_warm`` each unit in a pool of ``jobs`` fresh processes (Numba compiles on one core: the
+    units compile side by side). The processes are started afresh (spawn), so that none inherits
+    a half-loaded Numba; a kernel two units share is compiled by both, and the cache keeps one."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    cache = backend.cache_dir()
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+        pending = [pool.submit(_warm_in_worker, unit, cache) for unit in units]
+        for done in as_completed(pending):
+            unit = done.result()
             if log is not None:
-                log("auto: compiling or loading its features' kernels")
-            for material in far.materials:
-                if material.scatters:
-                    features(passes, far, material)
+                log(f"{unit}: compiled in a worker process")
+
+
+def prepare_kernels(techniques=None, *, log=None, jobs: int = 1) -> dict:
+    """Compile (or load from the cache) every kernel ``core.pipeline.apply.apply`` runs for each technique of
+    ``techniques`` (default: all registered, and ``apply --methods auto``'s features) on ``SIZE``'s
+    synthetic frame, on the compiled backend whatever ``SSS_LAB_BACKEND`` says; then write
+    ``marker_path()`` (all techniques only).
+
+    ``jobs`` > 1 compiles the techniques in that many worker processes first (``_warm_in_parallel``),
+    then loads them all here from the cache, as with one job, so that what this process returns and
+    marks is what it loaded itself.
+
+    Returns {"cache_dir", "seconds" (the whole), "kernels": {name: seconds of its first call in
+    this process: compiling, or loading from the cache}}. ``log(line)`` is told each technique
+    before it runs. Raises ``PrepareError`` where Numba cannot load, ``ValueError`` for a ``jobs``
+    that is not a whole number from 1 to ``MAX_JOBS``."""
+    from ..techniques.registry import TECHNIQUES, check_technique
+
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or not 1 <= jobs <= MAX_JOBS:
+        raise ValueError(f"jobs: expected a whole number from 1 to {MAX_JOBS}, got {jobs!r}")
+    if backend.compiled() is None:
+        raise PrepareError(
+            f"Numba cannot load ({backend.unavailable_reason()}): the techniques run on their NumPy "
+            "implementations, and there is nothing to compile"
+        )
+    names = list(TECHNIQUES) if techniques is None else [check_technique(t) for t in techniques]
+    units = names + ([AUTO] if techniques is None else [])
+    start = time.perf_counter()
+    if jobs > 1 and len(units) > 1:
+        _warm_in_parallel(units, min(jobs, len(units)), log)
+    before = set(backend.first_call_seconds())
+    _warm(units, log)
     seconds = time.perf_counter() - start
     kernels = {k: v for k, v in backend.first_call_seconds().items() if k not in before and k != "import"}
     result = {"cache_dir": backend.cache_dir(), "seconds": seconds, "kernels": kernels}

@@ -122,3 +122,36 @@ def test_ctrl_c_while_prepare_compiles_ends_as_an_interrupt(tmp_path):
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, (proc.returncode, err)
     assert "Traceback" not in err and err.strip().endswith("no file was finished"), err
+
+
+def test_jobs_compile_in_worker_processes_and_this_process_loads_what_they_cached(capsys):
+    """Two techniques in two worker processes (into the cache this process uses: earlier tests
+    have filled it, so the workers load rather than compile), then loaded here as with one job."""
+    if backend.compiled() is None:
+        pytest.skip("Numba cannot load: nothing to compile")
+    lines = []
+    result = prepare_kernels(["sta", "ssss"], log=lines.append, jobs=2)
+    assert sorted(line for line in lines if "worker" in line) == [
+        "ssss: compiled in a worker process",
+        "sta: compiled in a worker process",
+    ]
+    # Then this process runs both itself, in order, as prepare does with one job.
+    assert [line for line in lines if "worker" not in line] == [
+        "sta: compiling or loading its kernels",
+        "ssss: compiling or loading its kernels",
+    ]
+    assert result["cache_dir"] == backend.cache_dir()
+    assert {"sta_kernel", "sta_composite", "ssss_kernel"} <= set(backend.first_call_seconds())
+
+
+@pytest.mark.parametrize("jobs", [0, -1, 65, 1.5, True])
+def test_a_bad_number_of_jobs_is_named(jobs):
+    with pytest.raises(ValueError, match=rf"jobs: expected a whole number from 1 to 64, got {jobs!r}"):
+        prepare_kernels(["sta"], jobs=jobs)
+
+
+def test_the_command_line_names_a_bad_jobs_value(capsys):
+    from sss_lab.addon.cli import main
+
+    assert main(["prepare", "--jobs", "0"]) == 2
+    assert "--jobs 0: expected a whole number from 1 to 64" in capsys.readouterr().err
