@@ -4,9 +4,10 @@ Renders the scene's own view with Cycles random walk and without scattering, and
 and gives each subsurface material an EEVEE-only branch (a Material Output targeting EEVEE beside
 the one Cycles renders) whose Radius and Base Color make EEVEE's SSS effect match Cycles' on that
 view (``blender/match_eevee.py``). Cycles renders OUT.blend exactly as it rendered SCENE.blend.
-``--remove`` takes a match out of every material instead, rendering nothing. OUT may not be an
-existing file unless ``--overwrite`` says so. Exit status: 0 every material on screen matched (or
-the matches removed), 1 some kept as authored (each named on one line), 2 bad arguments or input.
+``--cache DIR`` keeps the renders for a later match of the same scene and settings. ``--remove``
+takes a match out of every material instead, rendering nothing. OUT may not be an existing file
+unless ``--overwrite`` says so. Exit status: 0 every material on screen matched (or the matches
+removed), 1 some kept as authored (each named on one line), 2 bad arguments or input.
 """
 
 from __future__ import annotations
@@ -33,9 +34,31 @@ def add_parser(subparsers):
     add_samples(p, "--eevee-samples", default=None, help="EEVEE's render samples (default: the scene's own)")
     add_resolution(p, help="render size WIDTHxHEIGHT for the match (default: the scene's)")
     add_seed(p, default=0, help="Cycles seed (default: 0)")
+    p.add_argument(
+        "--cache",
+        help="keep the renders in this folder and reuse those of an earlier match of the same scene and settings"
+        " (default: a temporary folder, removed at the end)",
+    )
     p.add_argument("--remove", action="store_true", help="remove the EEVEE branches of an earlier match instead")
     p.add_argument("--json", help="also write what was matched per material to this JSON file")
     p.set_defaults(run=run)
+
+
+def _cache_folder(value: str | None) -> str | None:
+    """``--cache`` as an absolute path, or CommandError naming it when it cannot be a folder
+    (checked before the scene opens or anything renders)."""
+    if value is None:
+        return None
+    from ..core.base.files import not_a_folder
+    from ..core.base.progress import printable
+    from .cli import CommandError
+
+    cache = os.path.abspath(value)
+    blocker = not_a_folder(cache)
+    if blocker is not None:
+        where = "is a file" if blocker == cache else f"lies under {printable(blocker)!r}, which is a file"
+        raise CommandError(f"--cache {printable(value)!r} {where}; expected a folder for the renders")
+    return cache
 
 
 def run(args) -> int:
@@ -48,6 +71,7 @@ def run(args) -> int:
 
     json_out = json_out_path(args, {"the input .blend": args.blend, "--out": out})
     resolution = read_resolution(args)
+    cache = _cache_folder(args.cache)
     scene = open_blend(args.blend, args.scene)
 
     import bpy
@@ -71,6 +95,7 @@ def run(args) -> int:
             pass_samples=args.pass_samples,
             eevee_samples=args.eevee_samples,
             seed=args.seed,
+            cache_dir=cache,
         )
         try:
             data = match.match_eevee(scene, settings, log=log)

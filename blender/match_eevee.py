@@ -36,8 +36,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
-import time
 from dataclasses import dataclass, field
 
 import bpy
@@ -506,7 +504,7 @@ def match_eevee_job(scene, settings: MatchSettings | None = None, *, log=print) 
             fingerprint=fingerprint,
         )
         yield steps.next(f"Cycles without scattering (passes), {settings.pass_samples} samples")
-        passes, desc = _passes(scene, cache, settings, say)
+        passes, desc = _passes(scene, settings, say)
         c_none = passes["Combined"]
         index = plan.index_map(passes)
         read = {m.name: m for m in read_scene(passes, desc).materials if m.scatters}
@@ -685,20 +683,22 @@ def _view_factor(passes, desc, mask: np.ndarray, material, color) -> np.ndarray 
     return factor
 
 
-def _passes(scene, cache: str, settings: MatchSettings, say):
-    """Cycles without scattering at the pass samples (``render_passes``): (passes, description)."""
+def _passes(scene, settings: MatchSettings, say):
+    """Cycles without scattering at the pass samples (``render_passes``): (passes, description),
+    rendered into a temporary folder that is removed once they are read (they are not cached: a
+    cache folder the user keeps would gather a copy per match)."""
     from .render_passes import render_passes
 
-    folder = os.path.join(cache, f"passes_{int(time.time() * 1000)}")
-    written = render_passes(
-        scene,
-        folder,
-        techniques=("burley",),
-        samples=settings.pass_samples,
-        resolution=settings.resolution,
-        seed=settings.seed,
-        overwrite=True,
-        log=None,  # a temporary file: its Saved lines would name what is removed at the end
-    )
-    path = next(p for p in written if p.endswith(".exr"))
-    return exr.read_passes(path), sequence.load_scene(path)
+    with files.temporary_folder("sss_lab_match_passes_") as folder:
+        written = render_passes(
+            scene,
+            folder,
+            techniques=("burley",),
+            samples=settings.pass_samples,
+            resolution=settings.resolution,
+            seed=settings.seed,
+            overwrite=True,
+            log=None,  # a temporary file: its Saved lines would name what is removed at the end
+        )
+        path = next(p for p in written if p.endswith(".exr"))
+        return exr.read_passes(path), sequence.load_scene(path)

@@ -33,6 +33,14 @@ def blends(tmp_path_factory):
     return {name: scenes.build(name, str(folder / f"{name}.blend")) for name in ("head_frontlit", "asset_head")}
 
 
+@pytest.fixture(scope="module")
+def renders(tmp_path_factory):
+    """One render cache for every match of head_frontlit at ``SMALL``'s settings in this module
+    (the API's and the command's): a later match renders the scene as authored again (it removes
+    the earlier branch before it renders), so it reads the earlier one's frames."""
+    return str(tmp_path_factory.mktemp("match_cache"))
+
+
 def _open(path):
     bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
     return bpy.context.scene
@@ -54,13 +62,11 @@ def _counts():
     return {m.name: len(m.node_tree.nodes) for m in bpy.data.materials if m.node_tree}, len(bpy.data.node_groups)
 
 
-def test_the_match_adds_an_eevee_branch_that_cycles_never_reads(blends, tmp_path):
+def test_the_match_adds_an_eevee_branch_that_cycles_never_reads(blends, renders):
     scene = _open(blends["head_frontlit"])
     skin = bpy.data.materials["Skin"]
     before_cycles, before_counts = _cycles(scene), _counts()
-    # One render cache for both matches: the second renders the scene as authored again (it removes
-    # the first branch before it renders), so it reads the first one's frames.
-    settings = match.MatchSettings(**SMALL, cache_dir=str(tmp_path / "cache"))
+    settings = match.MatchSettings(**SMALL, cache_dir=renders)
     result = match.match_eevee(scene, settings, log=None)
     r = result["materials"]["Skin"]
     assert r["skipped"] is None, r
@@ -140,13 +146,18 @@ def test_bad_settings_are_named():
         match.MatchSettings(eevee_samples=-2).validate()
 
 
-def test_the_command_writes_the_matched_file_and_removes_a_match(blends, tmp_path, capsys):
+def test_the_command_writes_the_matched_file_and_removes_a_match(blends, renders, tmp_path, capsys):
     src = blends["head_frontlit"]
     out = tmp_path / "matched.blend"
     args = ["match-eevee", src, "--out", str(out), "--resolution", "32x32", "--samples", "16"]
-    code = main([*args, "--pass-samples", "4", "--eevee-samples", "2", "--json", str(tmp_path / "m.json")])
+    before = sorted(os.listdir(renders))
+    more = ["--pass-samples", "4", "--eevee-samples", "2", "--cache", renders, "--json", str(tmp_path / "m.json")]
+    code = main([*args, *more])
     printed = capsys.readouterr().out
     assert code == 0 and f"Saved: '{out}'" in printed and "reproduces" in printed
+    # --cache keeps the renders there (and nothing else: the passes are not kept).
+    kept = sorted(os.listdir(renders))
+    assert kept and set(before) <= set(kept) and not any(name.startswith("passes") for name in kept)
     assert json.loads((tmp_path / "m.json").read_text())["materials"]["Skin"]["skipped"] is None
     # An existing output is refused without --overwrite, before anything renders.
     assert main([*args, "--eevee-samples", "2"]) == 2
@@ -154,6 +165,9 @@ def test_the_command_writes_the_matched_file_and_removes_a_match(blends, tmp_pat
     bare = tmp_path / "bare.blend"
     assert main(["match-eevee", str(out), "--out", str(bare), "--remove"]) == 0
     assert "removed the EEVEE branch of 1 material(s): Skin" in capsys.readouterr().out
+    # A --cache that cannot be a folder is named before anything renders.
+    assert main([*args, "--out", str(tmp_path / "other.blend"), "--cache", str(out)]) == 2
+    assert f"--cache '{out}' is a file; expected a folder for the renders" in capsys.readouterr().err
     _open(str(bare))
     assert not _tagged(bpy.data.materials["Skin"])
 
