@@ -50,6 +50,7 @@ def _inputs(kind, footprint_px, n=N):
         mask=np.ones((n, n), bool),
         camera=cam,
         d_su=(d, 0.6 * d, 0.3 * d),
+        adaptive=True,  # off by default: these tests are about the plan
     )
     return kw, dist
 
@@ -98,8 +99,8 @@ def test_counts_rise_at_a_shadow_edge_and_fall_away_from_it():
 
 def test_fixed_sampling_stays_available():
     kw, _ = _inputs("edge", 40.0)
-    assert (sample_counts(**kw, adaptive=False, n_samples=24) == 24).all()
-    fixed = burley(**kw, adaptive=False, energy="lambert")
+    assert (sample_counts(**{**kw, "adaptive": False}, n_samples=24) == 24).all()
+    fixed = burley(**{**kw, "adaptive": False}, energy="lambert")
     assert not np.array_equal(fixed, burley(**kw, energy="lambert"))
 
 
@@ -141,6 +142,7 @@ def test_numpy_and_compiled_agree_on_objects_and_combined():
         camera=scene.camera,
         d_su=(0.02, 0.01, 0.005),
         object_id=passes["Object Index"],
+        adaptive=True,
     )
     counts = sample_counts(**kw)
     assert counts.max() == 32 and 0 < counts[counts > 0].min() < 32  # the plan varies here
@@ -184,8 +186,8 @@ def test_adaptive_is_within_its_bound_of_64_fixed_samples(kind, footprint_px):
     kw, _ = _inputs(kind, footprint_px)
     kw["energy"] = "lambert"
     counts = sample_counts(**kw)
-    fixed64 = burley(**kw, n_samples=64, adaptive=False, smooth_px=0)
-    fixed32 = burley(**kw, adaptive=False, smooth_px=0)
+    fixed64 = burley(**{**kw, "adaptive": False}, n_samples=64, smooth_px=0)
+    fixed32 = burley(**{**kw, "adaptive": False}, smooth_px=0)
     ours = burley(**kw, smooth_px=0)
     most = counts == 32
     assert np.array_equal(ours[most], fixed32[most])
