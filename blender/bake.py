@@ -797,32 +797,19 @@ def ray_thickness(obj, depsgraph, distance_su: float) -> np.ndarray:
         for i in poly.vertices:
             around[i].append(n)
     out = np.full(len(mesh.vertices), float(distance_su), np.float64)
-    # The rays start a hair inside the solid, along the mean of the face normals around the
-    # vertex: a ray from a box's corner along one face's normal runs in the planes of the faces
-    # beside it, and once the box is turned float rounding makes it graze them (a 3 cm slab turned
-    # 15 degrees read 0.5 and 1.4 cm at its corners). From inside, the ray clears them; the start's
-    # depth along the ray is added back.
-    nudge = 1e-4 * max(float(distance_su), 1e-9)
+    eps = 1e-6 * max(float(distance_su), 1e-9)
     for i, v in enumerate(mesh.vertices):
         location, normal, _index, _dist = tree.find_nearest(m @ v.co)
         if location is None:
             continue
-        mean = Vector((0.0, 0.0, 0.0))
-        for n in around[i]:
-            mean += n
-        if mean.length == 0:
-            mean = Vector(normal)
-        mean = mean.normalized() if mean.length > 0 else mean
-        origin = location - mean * nudge
         best = float(distance_su)
         for n in [*around[i], Vector(normal)]:
             if n.length == 0:
                 continue
-            depth = nudge * float(mean.dot(n))  # how far inside the start is, along this ray
-            hit, _n, _j, t = tree.ray_cast(origin, -n, best)
+            hit, _n, _j, t = tree.ray_cast(location - n * eps, -n, best)
             if hit is not None and t is not None:
-                best = min(best, float(t) + depth)
-        out[i] = min(best, float(distance_su))
+                best = min(best, float(t) + eps)
+        out[i] = best
     return out
 
 
