@@ -266,22 +266,30 @@ def _gather(
             albedo_mode,
         )  # fmt: skip
     base = a * e
-    ok = m & arrays.finite_pixels(e, a, z) & (z > 0) & (z < arrays.BACKGROUND_DEPTH)
-    if ids is not None:
-        ok &= np.isfinite(ids)
-    if dmax <= 0 or not ok.any():
-        return base
-    scale = camera.pixels_per_unit(z)
-    # Footprint of at most one pixel: nothing to gather (EEVEE Next skips these pixels).
-    with np.errstate(over="ignore"):
-        ok &= TRUNCATION * dmax * scale > 1.0
-    if not ok.any():
+    ok, scale = _gathered_pixels(e, a, z, m, ids, camera, dmax)
+    if scale is None:
         return base
     pre, post = arrays.split_albedo(a, albedo_mode)
     light = e if pre is None else pre * e
     plan = _plan(light, ok, z, camera, dmax, int(n_samples), adaptive)
     result, idx_all, groups = _reference(light, z, ok, ids, camera, scale, d, plan, random_rotation, seed)
     return _smoothed(result, idx_all, groups, shape, scale, d, z, ids, int(smooth_px), post, base)
+
+
+def _gathered_pixels(e, a, z, m, ids, camera: Camera, dmax: float):
+    """(ok, scale): the pixels the NumPy gather reads (on the mask, finite inputs, in front of the
+    background, a footprint wider than one pixel) and the pixels per scene unit; scale is None
+    when there is no such pixel (nothing to gather)."""
+    ok = m & arrays.finite_pixels(e, a, z) & (z > 0) & (z < arrays.BACKGROUND_DEPTH)
+    if ids is not None:
+        ok &= np.isfinite(ids)
+    if dmax <= 0 or not ok.any():
+        return ok, None
+    scale = camera.pixels_per_unit(z)
+    # Footprint of at most one pixel: nothing to gather (EEVEE Next skips these pixels).
+    with np.errstate(over="ignore"):
+        ok &= TRUNCATION * dmax * scale > 1.0
+    return ok, (scale if ok.any() else None)
 
 
 def _plan(light, ok, z, camera, dmax: float, n: int, adaptive: bool) -> adaptive_counts.Plan:
@@ -320,15 +328,8 @@ def sample_counts(
     m = arrays.mask_array(mask, e.shape[:2])
     counts = np.zeros(e.shape[:2], np.int32)
     dmax = float(d.max())
-    ok = m & arrays.finite_pixels(e, a, z) & (z > 0) & (z < arrays.BACKGROUND_DEPTH)
-    if ids is not None:
-        ok &= np.isfinite(ids)
-    if dmax <= 0 or not ok.any():
-        return counts
-    scale = camera.pixels_per_unit(z)
-    with np.errstate(over="ignore"):
-        ok &= TRUNCATION * dmax * scale > 1.0
-    if not ok.any():
+    ok, scale = _gathered_pixels(e, a, z, m, ids, camera, dmax)
+    if scale is None:
         return counts
     pre, _ = arrays.split_albedo(a, albedo_mode)
     plan = _plan(e if pre is None else pre * e, ok, z, camera, dmax, int(n_samples), adaptive)
