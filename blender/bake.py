@@ -797,20 +797,57 @@ def ray_thickness(obj, depsgraph, distance_su: float) -> np.ndarray:
         for i in poly.vertices:
             around[i].append(n)
     out = np.full(len(mesh.vertices), float(distance_su), np.float64)
-    eps = 1e-6 * max(float(distance_su), 1e-9)
     for i, v in enumerate(mesh.vertices):
         location, normal, _index, _dist = tree.find_nearest(m @ v.co)
         if location is None:
             continue
+        # Rays start a hair inside the surface as rendered, along the mean of the normals of the
+        # faces that meet at the start (a box's corner: its three faces): a ray from the corner
+        # itself along one face's normal would run in the planes of the faces beside it, where
+        # float rounding makes it cross them or miss the far corner once the box is turned. Only
+        # rays that head inwards there count (a sheet given thickness by a modifier: its own
+        # normals point out of one side of the shell). The start's depth along each ray is added
+        # back (exact on a slab). Tolerances: far above float32 coordinates' rounding at this
+        # position, far below a thickness a bake reads (docs/references.md §14).
+        tol = 1e-5 * (float(location.length) + float(distance_su))
+        met = [Vector(n) for _loc, n, _j, _d in tree.find_nearest_range(location, tol)] or [Vector(normal)]
+        inward = -sum(met, Vector((0.0, 0.0, 0.0)))
+        if inward.length == 0:
+            inward = -Vector(normal)
+        inward.normalize()
+        nudge = 10.0 * tol
+        origin = location + inward * nudge
         best = float(distance_su)
         for n in [*around[i], Vector(normal)]:
             if n.length == 0:
                 continue
-            hit, _n, _j, t = tree.ray_cast(location - n * eps, -n, best)
-            if hit is not None and t is not None:
-                best = min(best, float(t) + eps)
-        out[i] = best
+            direction = -n.normalized()
+            ahead = float(direction.dot(inward))
+            if ahead <= 0.0:
+                continue
+            best = min(best, _far_side(tree, origin, direction, best, tol) + nudge * ahead)
+        out[i] = min(max(best, 0.0), float(distance_su))
     return out
+
+
+def _far_side(tree, origin, direction, distance: float, tol: float) -> float:
+    """The distance from ``origin`` along ``direction`` to the first face of ``tree`` that the ray
+    crosses rather than runs along (a face whose plane passes within ``tol`` of ``origin`` is run
+    along), or ``distance`` when there is none that near."""
+    travelled = 0.0
+    start = origin
+    for _ in range(16):
+        left = distance - travelled
+        if left <= 0:
+            break
+        hit, hit_normal, _j, t = tree.ray_cast(start, direction, left)
+        if hit is None or t is None:
+            break
+        if abs(float(hit_normal.dot(origin - hit))) > tol:
+            return travelled + float(t)
+        travelled += float(t) + tol
+        start = hit + direction * tol
+    return distance
 
 
 def coarse_warning(obj_eval, mesh_name: str, distance_su: float) -> str:

@@ -874,6 +874,49 @@ def test_subsurface_meshes_are_the_command_lines_default():
     assert sorted(o.name for o in bake_mod.subsurface_meshes(bpy.context.scene)) == ["Cheek", "Head", "Vase"]
 
 
+@pytest.mark.parametrize("rotation_deg", [(0.0, 0.0, 15.0), (20.0, 35.0, 15.0), (0.0, 90.0, 45.0)])
+def test_ray_source_reads_a_turned_low_poly_slab_at_every_corner(rotation_deg):
+    """An 8-vertex slab 14 x 3 x 10 cm turned in the world: every corner reads the slab's own law
+    (3 cm). A ray from a corner along one face's normal runs in the planes of the faces beside it;
+    once the box is turned, rounding made it cross them (0.5 and 1.4 cm read at the corners of the
+    15-degree slab), so hits on a face whose plane holds the ray's start are passed over. Tolerance:
+    the float32 map's rounding (as the fins' test)."""
+    slab = _link("Turned", _box("Turned", size=(0.14, 0.03, 0.10), uv=False))
+    slab.rotation_euler = [math.radians(a) for a in rotation_deg]
+    slab.location = (0.02, -0.01, 0.05)
+    bpy.context.view_layer.update()
+    distance = 0.0466
+    (r,) = bake_thickness(bpy.context, [slab], _settings(source="ray", distance_su=distance), log=_quiet)
+    assert r.status == "baked", r
+    expected = 1.0 - float(slab_unoccluded_fraction(0.03, distance))
+    np.testing.assert_allclose(_values(slab.data, "Thickness"), expected, atol=1e-4)
+
+
+@pytest.mark.parametrize("offset", [-1.0, 0.0, 1.0])
+def test_ray_source_reads_a_solidified_sheet_as_its_shell(offset):
+    """A single-sheet grid given its thickness (2.5 mm) by a Solidify modifier, turned, with the
+    sheet on either side of the shell or in its middle: the map is read from the mesh as rendered.
+    Each ray starts at the shell's surface nearest the vertex, so every interior vertex reads the
+    shell (float32 rounding of the map); no vertex reads less than half the shell (the rim of a
+    sheet in the middle of its shell: half the shell to either side) or a negative distance."""
+    sheet = _link("Sheet", _plane("Sheet", width=0.12, segments=6))
+    solid = sheet.modifiers.new("Solidify", "SOLIDIFY")
+    solid.thickness = 0.0025
+    solid.offset = offset
+    sheet.rotation_euler = (math.radians(70.0), math.radians(10.0), math.radians(25.0))
+    bpy.context.view_layer.update()
+    distance = 0.02
+    (r,) = bake_thickness(bpy.context, [sheet], _settings(source="ray", distance_su=distance), log=_quiet)
+    assert r.status == "baked", r
+    values = _values(sheet.data, "Thickness")
+    shell = 1.0 - float(slab_unoccluded_fraction(0.0025, distance))
+    half = 1.0 - float(slab_unoccluded_fraction(0.00125, distance))
+    assert np.all((values >= 0.0) & (values <= half + 1e-4)), values
+    co = _coords(sheet.data)
+    inner = np.all(np.abs(co[:, :2]) < 0.06 - 1e-6, axis=1)
+    np.testing.assert_allclose(values[inner], shell, atol=1e-4)
+
+
 def test_ray_source_reads_the_slab_law_on_low_poly_fins_and_the_diameter_of_a_tube():
     """The "ray" source: the distance to the far side along the inward normals, written as the AO
     a slab of that thickness gives. Every corner of an 8-vertex fin reads the fin's own slab law

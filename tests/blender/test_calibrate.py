@@ -132,12 +132,18 @@ def test_fit_to_cycles_runs_modal_and_esc_leaves_the_materials_unchanged(backlit
     assert window.timers == [] and window.progress[-1] == ("end",) and window.status[-1] is None
     assert "cancelled" in op.reports[-1][1]
     assert _fits(scene) == fits and _state(scene) == before
-    # Run to the end: one TIMER event per step; the fits are on the materials.
+    # Run to the end: one TIMER event per step, three; five when a fit that did not hold on 8
+    # samples renders more, four when the pilot render finds more samples over the budget. The
+    # fits are on the materials.
     op = modal.driver(SSS_LAB_OT_fit_to_cycles, samples=8, confirmed=True)
     assert op.invoke(context, modal.event("NONE")) == {"RUNNING_MODAL"}
-    assert op.modal(context, modal.event("TIMER")) == {"RUNNING_MODAL"}
-    assert op.modal(context, modal.event("TIMER")) == {"RUNNING_MODAL"}
-    assert op.modal(context, modal.event("TIMER")) == {"FINISHED"}, op.reports
+    events = 1
+    while (state := op.modal(context, modal.event("TIMER"))) == {"RUNNING_MODAL"}:
+        events += 1
+        assert events <= 5, window.progress
+    assert state == {"FINISHED"}, op.reports
+    total = [p for p in window.progress if p[0] == "begin"][-1][2]
+    assert (total, events) in ((3, 3), (5, 4), (5, 5)), (events, window.progress)
     assert any(_fits(scene).values()) and _state(scene) == before
 
 
