@@ -1,5 +1,5 @@
-"""What every compiled (Numba) kernel shares: float32 constants, e^x, clipping, spans of a row, a
-pixel's scale, unit vectors; and the rules every kernel follows.
+"""What every compiled (Numba) kernel shares: float32 constants, e^x, clipping, the compositing's
+clamp, spans of a row, a pixel's scale, unit vectors; and the rules every kernel follows.
 
 The compiled kernels: one fused loop per pixel, parallel over rows. Each owner keeps its kernels
 beside its NumPy reference, in ``_kernels.py`` (``core/techniques/<name>/_kernels.py``, the shared
@@ -126,6 +126,17 @@ def fast_exp(x):
     bits = (np.int32(k) + np.int32(127)) << np.int32(23)
     v = p * np.int32(bits).view(np.float32)
     return v if x >= _EXP_MIN else ZERO
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def add_kept_non_negative(i, o):
+    """Compositing one channel: Combined ``i`` plus the SSS term ``o``, except that a sum that
+    would turn a non-negative Combined negative is 0 and its term minus Combined
+    (``core.pipeline.apply``'s clamp). Returns (term, sum, clamped). Selects, no branches: a loop
+    that calls it still vectorizes; the same float32 sum as the NumPy code."""
+    t = i + o
+    n = (t < ZERO) & (i >= ZERO)
+    return (-i if n else o), (ZERO if n else t), n
 
 
 @njit(cache=True, inline="always", error_model="numpy")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ..compute.jit import ZERO, f32
+from ..compute.jit import ZERO, add_kept_non_negative, f32
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -42,27 +42,10 @@ def composite(result, gain, albedo, diffuse, held, zeroed, mask, image, sss, ove
                 o1 = ZERO
             if zeroed[2]:
                 o2 = ZERO
-            i0 = image[y, x, 0]
-            i1 = image[y, x, 1]
-            i2 = image[y, x, 2]
-            t0 = i0 + o0
-            t1 = i1 + o1
-            t2 = i2 + o2
-            hit = False
-            if t0 < ZERO and i0 >= ZERO:
-                o0 = -i0
-                t0 = ZERO
-                hit = True
-            if t1 < ZERO and i1 >= ZERO:
-                o1 = -i1
-                t1 = ZERO
-                hit = True
-            if t2 < ZERO and i2 >= ZERO:
-                o2 = -i2
-                t2 = ZERO
-                hit = True
-            if hit:
-                clamped += 1
+            o0, t0, n0 = add_kept_non_negative(image[y, x, 0], o0)
+            o1, t1, n1 = add_kept_non_negative(image[y, x, 1], o1)
+            o2, t2, n2 = add_kept_non_negative(image[y, x, 2], o2)
+            clamped += n0 | n1 | n2
             sss[y, x, 0] = o0
             sss[y, x, 1] = o1
             sss[y, x, 2] = o2

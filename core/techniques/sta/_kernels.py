@@ -16,6 +16,7 @@ from ...compute.jit import (
     TINY,
     TWO,
     ZERO,
+    add_kept_non_negative,
     bytes_span,
     clip,
     f32,
@@ -615,21 +616,15 @@ def _route_put(res, o3, p1, m, img, ic, keep, sf):
         o0 = res[r]
         o1 = res[r + u64(1)]
         o2 = res[r + u64(2)]
-        i0 = img[c]
-        i1 = img[c + u64(1)]
-        i2 = img[c + u64(2)]
-        t0 = i0 + o0
-        t1 = i1 + o1
-        t2 = i2 + o2
-        n0 = (t0 < ZERO) & (i0 >= ZERO)
-        n1 = (t1 < ZERO) & (i1 >= ZERO)
-        n2 = (t2 < ZERO) & (i2 >= ZERO)
-        sf[s] = -i0 if n0 else o0
-        sf[s + u64(1)] = -i1 if n1 else o1
-        sf[s + u64(2)] = -i2 if n2 else o2
-        img[c] = ZERO if n0 else t0
-        img[c + u64(1)] = ZERO if n1 else t1
-        img[c + u64(2)] = ZERO if n2 else t2
+        o0, t0, n0 = add_kept_non_negative(img[c], o0)
+        o1, t1, n1 = add_kept_non_negative(img[c + u64(1)], o1)
+        o2, t2, n2 = add_kept_non_negative(img[c + u64(2)], o2)
+        sf[s] = o0
+        sf[s + u64(1)] = o1
+        sf[s + u64(2)] = o2
+        img[c] = t0
+        img[c + u64(1)] = t1
+        img[c + u64(2)] = t2
         if ic == _FOUR:
             alpha = img[c + u64(3)]
             img[c + u64(3)] = alpha if keep else ZERO
@@ -657,26 +652,10 @@ def _route_put_some(res, o3, p1, m, mf, img, ic, sf):
             continue
         s = u64(3) * p
         c = ic * p
-        i0 = img[c]
-        i1 = img[c + u64(1)]
-        i2 = img[c + u64(2)]
-        t0 = i0 + o0
-        t1 = i1 + o1
-        t2 = i2 + o2
-        hit = False
-        if t0 < ZERO and i0 >= ZERO:
-            o0 = -i0
-            t0 = ZERO
-            hit = True
-        if t1 < ZERO and i1 >= ZERO:
-            o1 = -i1
-            t1 = ZERO
-            hit = True
-        if t2 < ZERO and i2 >= ZERO:
-            o2 = -i2
-            t2 = ZERO
-            hit = True
-        clamped += hit
+        o0, t0, n0 = add_kept_non_negative(img[c], o0)
+        o1, t1, n1 = add_kept_non_negative(img[c + u64(1)], o1)
+        o2, t2, n2 = add_kept_non_negative(img[c + u64(2)], o2)
+        clamped += n0 | n1 | n2
         sf[s] = o0
         sf[s + u64(1)] = o1
         sf[s + u64(2)] = o2
