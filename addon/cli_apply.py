@@ -49,7 +49,13 @@ def add_parser(subparsers):
         type=float,
         default=None,
         help="with --methods auto: how much worse than the best predicted (or, with a fit, measured) error a"
-        " cheaper choice may be (relative; default 0.1)",
+        " cheaper choice may be (relative; default 0.03)",
+    )
+    p.add_argument(
+        "--auto-rungs",
+        action="store_true",
+        help="with --methods auto: the cheaper rungs of each technique's quality ladder are candidates too (more time"
+        " saved, further from the best technique)",
     )
     p.add_argument(
         "--param",
@@ -113,6 +119,8 @@ def run(args) -> int:
     said: set = set()  # the scene description's notes already printed
     if args.max_error is not None and techniques != ["auto"]:
         raise ValueError(f"--max-error {args.max_error}: only --methods auto takes it")
+    if args.auto_rungs and techniques != ["auto"]:
+        raise ValueError("--auto-rungs: only --methods auto takes it")
     if args.max_error is not None and not (math.isfinite(args.max_error) and args.max_error >= 0):
         raise ValueError(f"--max-error: expected a number >= 0 (0.05 = within 5 % of the best), got {args.max_error}")
     if args.param and "auto" in techniques:
@@ -160,6 +168,7 @@ def run(args) -> int:
                 skip_missing=args.method.strip() == "all",
                 view_layer=args.view_layer,
                 max_error=args.max_error,
+                auto_rungs=args.auto_rungs,
                 auto_keep=keep,
                 params=params,
             )

@@ -20,7 +20,12 @@ def add_parser(subparsers):
     )
     add_resolution(p, help="with --recommend: WIDTHxHEIGHT of that render (default: long side 160 px)")
     add_samples(p, default=16, help="with --recommend: samples of that render (default: 16)")
-    p.add_argument("--max-error", type=float, help="with --recommend: as apply --methods auto (default 0.1)")
+    p.add_argument("--max-error", type=float, help="with --recommend: as apply --methods auto (default 0.03)")
+    p.add_argument(
+        "--auto-rungs",
+        action="store_true",
+        help="with --recommend: the rungs of the techniques' quality ladders are candidates too, as apply --auto-rungs",
+    )
     p.add_argument(
         "--json",
         help="also write what was found (and with --recommend the choice per material) to this JSON file",

@@ -16,9 +16,11 @@ sample scenes with references rendered here, ``--source samples``):
 Then, for each scene in turn, the auto model is learnt on the *other* scenes only
 (``core.pipeline.auto.train``: coefficients and a cost rate for every rung measured there) and ``auto`` runs
 on the held-out scene with it, scored the same way, and timed the same way (its features and
-choice included). In the same run, a second model learnt on no SSS and the techniques' default
-qualities only (``techniques_only``: ``auto`` as a chooser of techniques) is validated the same way,
-so that the two choosers are compared on the same measurements and machine load. Per scene:
+choice included), with every rung a candidate (``apply --methods auto --auto-rungs``). In the same
+run, a second model learnt on no SSS and the techniques' default qualities only
+(``techniques_only``: ``auto`` as a chooser of techniques, ``apply --methods auto``'s default) is
+validated the same way, so that the two choosers are compared on the same measurements and machine
+load. Per scene:
 
 - **regret** = auto's error / the error of the truly best single choice (the best of no SSS and
   every technique at default quality, known only from the reference) - 1 (``regret_any_rung``:
@@ -282,7 +284,7 @@ def measure(scene: Scene, techniques, repeat: int, time_scale: int = 1, rungs: b
     unit = auto.Model({n: (1.0, 1.0, 0.0) for n in images})
     work = {}
     ran = [t for t in techniques if t in images]
-    for c in auto.choose(big, big_desc, model=unit, techniques=ran).choices:
+    for c in auto.choose(big, big_desc, model=unit, techniques=ran, rungs=rungs).choices:
         for k in c.candidates:
             if k.excluded is None and k.name != auto.NONE:
                 work[k.name] = work.get(k.name, 0.0) + k.work
@@ -307,7 +309,8 @@ def measure(scene: Scene, techniques, repeat: int, time_scale: int = 1, rungs: b
 
 
 #: The choosers validated side by side (the same measurements, the same machine load): ``auto`` with
-#: every rung a candidate, and ``auto`` learnt on the techniques' default qualities alone.
+#: every rung a candidate (``--auto-rungs``), and ``auto`` learnt on the techniques' default qualities
+#: alone (the default of ``apply --methods auto``).
 CHOOSERS = ("auto", "techniques_only")
 
 
@@ -345,13 +348,16 @@ def _scored_and_timed(s: Scene, desc, big, choose_and_apply, m: dict, priciest: 
     return plan, s.error(image), times
 
 
-def _run_chooser(s: Scene, m: dict, model, *, techniques, max_error, repeat, priciest) -> dict:
-    """``auto`` with ``model`` on the held-out scene ``s``: its choice, error, regret and time (its
-    features and choice included), and the same with the scene's fits."""
+def _run_chooser(s: Scene, m: dict, model, *, techniques, max_error, repeat, priciest, rungs: bool) -> dict:
+    """``auto`` with ``model`` on the held-out scene ``s`` (``rungs``: the quality ladders' rungs are
+    candidates, ``--auto-rungs``): its choice, error, regret and time (its features and choice
+    included), and the same with the scene's fits."""
     from sss_lab.core.pipeline import auto
 
     def choose_and_apply(passes, desc, keep=None):
-        plan = auto.choose(passes, desc, max_error=max_error, model=model, techniques=techniques, keep=keep)
+        plan = auto.choose(
+            passes, desc, max_error=max_error, model=model, techniques=techniques, keep=keep, rungs=rungs
+        )
         return plan, auto.apply_auto(passes, desc, prepared=plan)
 
     plan, err, (t_auto, t_run, t_ref) = _scored_and_timed(s, s.desc, m["big"], choose_and_apply, m, priciest, repeat)
@@ -408,7 +414,14 @@ def run(
         for chooser in choosers:
             model = _learn(measured, others, chooser, techniques, "leave-one-scene-out")
             ran[chooser] = _run_chooser(
-                s, m, model, techniques=techniques, max_error=max_error, repeat=repeat, priciest=priciest
+                s,
+                m,
+                model,
+                techniques=techniques,
+                max_error=max_error,
+                repeat=repeat,
+                priciest=priciest,
+                rungs=rungs and chooser == "auto",
             )
         a = ran["auto"]
         rows.append(

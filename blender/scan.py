@@ -25,14 +25,18 @@ def scan_report(scene) -> list[str]:
     return lines
 
 
-def recommend(scene, *, resolution=None, samples: int = 16, max_error: float | None = None, log=None) -> list[str]:
+def recommend(
+    scene, *, resolution=None, samples: int = 16, max_error: float | None = None, rungs: bool = False, log=None
+) -> list[str]:
     """``recommendation``'s lines."""
-    return recommendation(scene, resolution=resolution, samples=samples, max_error=max_error, log=log)[0]
+    return recommendation(scene, resolution=resolution, samples=samples, max_error=max_error, rungs=rungs, log=log)[0]
 
 
-def recommendation(scene, *, resolution=None, samples: int = 16, max_error: float | None = None, log=None):
-    """Per subsurface material of ``scene``, the technique and quality (a rung of its ladder)
-    ``apply --methods auto`` would choose, and why (``core.pipeline.auto``): renders the passes of the
+def recommendation(
+    scene, *, resolution=None, samples: int = 16, max_error: float | None = None, rungs: bool = False, log=None
+):
+    """Per subsurface material of ``scene``, the technique (with ``rungs``, and the rung of its
+    quality ladder) ``apply --methods auto`` would choose, and why (``core.pipeline.auto``): renders the passes of the
     scene's view once, small and at few samples (``resolution`` "WxH", default the scene's scaled
     so that its long side is at most 160 px), into a temporary folder; the scene is left as it
     was. Returns (the lines to print, the ``AutoPlan`` or None without a subsurface material)."""
@@ -52,7 +56,7 @@ def recommendation(scene, *, resolution=None, samples: int = 16, max_error: floa
     with files.temporary_folder("sss_lab_scan_") as folder:
         written = render_passes(scene, folder, samples=samples, resolution=resolution, seed=0, log=log)
         path = next(p for p in written if p.endswith(".exr"))
-        plan = auto.choose(exr.read_passes(path), sequence.load_scene(path), max_error=limit)
+        plan = auto.choose(exr.read_passes(path), sequence.load_scene(path), max_error=limit, rungs=rungs)
     w, h = plan.shape[1], plan.shape[0]
     lines = [
         f"Recommendations (passes rendered at {w}x{h}, {samples} samples; what `apply --methods auto` chooses at"

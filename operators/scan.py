@@ -37,14 +37,19 @@ class SSS_LAB_OT_recommend(bpy.types.Operator):
         name="Error Margin",
         min=0.0,
         max=1.0,
-        default=0.1,
+        default=0.03,
         subtype="FACTOR",
         description="How much more error than the best technique the cheapest acceptable one may have",
+    )
+    rungs: bpy.props.BoolProperty(
+        name="Quality Rungs",
+        default=False,
+        description="Also consider each technique's cheaper qualities (saves more time, further from the best)",
     )
 
     def execute(self, context):
         try:
-            lines, plan = recommendation(context.scene, max_error=self.max_error, log=None)
+            lines, plan = recommendation(context.scene, max_error=self.max_error, rungs=self.rungs, log=None)
         except (SSSLabError, ValueError, OSError) as exc:
             self.report({"ERROR"}, " ".join(str(exc).split()))
             return {"CANCELLED"}

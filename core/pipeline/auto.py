@@ -47,7 +47,8 @@ technique whose spec says it adds light), times the technique's measured seconds
 (learnt with the coefficients: one sample of the separable filter and one of Burley's spiral do
 not cost the same).
 
-**Rungs.** The candidates are not only the techniques at their default quality: each rung of a
+**Rungs** (``choose(rungs=True)``; by default the candidates are the techniques at their default
+quality, which lose less against the best: ``DEFAULT_MAX_ERROR``). Each rung of a
 technique's quality ladder (its spec's ``qualities``, the runs ``compare`` sweeps: Burley at 8 to 64
 samples, SSSS at 11 to 25 taps, the combined technique with SSSS at 11 taps or Burley at 16) and
 each diffusion's rungs with its energy stage off (``ENERGY_OFF``, Lambert's energy) is a candidate
@@ -122,12 +123,15 @@ def _kernels():
 AUTO = "auto"
 #: The candidate that leaves a material as it is (no SSS).
 NONE = "none"
-#: Default ``max_error``: a technique may be predicted (or measured) up to 10 % worse than the best
-#: and still be chosen when it is cheaper: the loss against the best technique auto's goal accepts
-#: (README). Leave-one-scene-out on the fidelity suite (``benchmarks/auto.py``) 0.10 lost less than 0.05
-#: without a fit (the predictions' own error is larger than 5 %: with 0.05 the model took the costlier
-#: technique for predicted gains it did not deliver) and saved more time; with a fit the two are alike.
-DEFAULT_MAX_ERROR = 0.10
+#: Default ``max_error``: a technique may be predicted (or measured) up to 3 % worse than the best
+#: and still be chosen when it is cheaper. Leave-one-scene-out on the 17 scenes of the fidelity suite
+#: (``benchmarks/auto.py``, README *Auto*), choosing among the techniques' default qualities (the
+#: default, ``rungs=False``): mean regret against the truly best technique +2.8 % without a fit and
+#: +0.9 % with it at 0.03, +3.2 % / +1.4 % at 0.05, +3.3 % / +3.1 % at 0.10, the time saved against
+#: always running the combined technique 27 / 20 %, 25 / 19 %, 28 / 27 %. With the rungs the regret
+#: was +5.3 % / +2.8 % at 0.03 and +6.3 % / +7.5 % at 0.10 (the model does not see what 8 of Burley's
+#: samples lose at a small footprint: +18 % on the front-lit skin sphere).
+DEFAULT_MAX_ERROR = 0.03
 #: Mean distance light travels under the Burley profile of d: 2.5 d (the first moment of
 #: R(r) 2 pi r = (e^{-r/d} + e^{-r/(3d)}) / (4 d), docs/references.md §1).
 MEAN_DISTANCE = 2.5
@@ -750,6 +754,8 @@ class AutoPlan:
     #: As ``Plan``'s: Material Index pixels that are not whole numbers, and one of their values.
     fractional_index_pixels: int = 0
     fractional_index_value: float | None = None
+    #: Whether the rungs of the techniques' quality ladders were candidates (``choose(rungs=...)``).
+    rungs: bool = False
 
     @property
     def scattering(self) -> list[MaterialChoice]:
@@ -776,6 +782,7 @@ class AutoPlan:
         return {
             "size": [w, h],
             "max_error": self.max_error,
+            "rungs": self.rungs,
             "model": self.model.command or "given",
             "skipped": list(self.skipped_materials),
             "materials": [
@@ -795,8 +802,9 @@ class AutoPlan:
     def explain(self) -> str:
         h, w = self.shape
         lines = [
-            f"auto on {w}x{h} pixels: per material, the cheapest technique or rung of its quality ladder whose"
-            f" predicted error (measured, where the material's fit measured two or more techniques) is within"
+            f"auto on {w}x{h} pixels: per material, the cheapest technique"
+            f"{' or rung of its quality ladder' if self.rungs else ' at its default quality'} whose predicted"
+            " error (measured, where the material's fit measured two or more techniques) is within"
             f" {100 * self.max_error:.0f} % of the best"
             f" (model: {self.model.command or 'given'})"
         ]
@@ -906,11 +914,14 @@ def choose(
     albedo_mode: str = "post",
     mapping=None,
     keep=None,
+    rungs: bool = False,
 ) -> AutoPlan:
     """Per scattering material on screen, the technique and quality to run (or none), and why.
 
-    The candidates are no SSS and each technique's runs in ``variants`` (its quality ladder's rungs,
-    and without its energy stage) that the model has coefficients for. ``techniques``: the
+    The candidates are no SSS and each technique at its default quality; with ``rungs``, each of
+    the technique's runs in ``variants`` (its quality ladder's rungs, and without its energy stage)
+    that the model has coefficients for (cheaper, and further from the best: ``DEFAULT_MAX_ERROR``
+    says by how much on the fidelity suite). ``techniques``: the
     techniques whose runs are candidates (default: every registered technique); one whose passes
     are missing is not a candidate (said in the plan). ``max_error`` >= 0: how much worse than the
     best predicted error (relative) a cheaper choice may be. ``keep``: {material name: candidate}
@@ -929,7 +940,9 @@ def choose(
         lacking = [p for p in required_passes(t, scene.thickness_aov) if p not in passes]
         if lacking:
             missing[t] = f"missing pass(es) {', '.join(lacking)}"
-    auto = AutoPlan(shape=passes.shape, max_error=float(max_error), choices=[], plans={}, model=model)
+    auto = AutoPlan(
+        shape=passes.shape, max_error=float(max_error), choices=[], plans={}, model=model, rungs=bool(rungs)
+    )
     auto.fractional_index_pixels, auto.fractional_index_value = fractional_indices(passes)
     scene = read_scene(passes, scene)  # inputs linked to textures: their medians on screen
     chosen_by: dict[str, set[int]] = {}
@@ -950,6 +963,8 @@ def choose(
                 cands.append(Candidate(t, math.nan, math.nan, "its spec keeps it out of auto (auto=False)"))
                 continue
             every = variants(t)
+            if not rungs:
+                every = {n: o for n, o in every.items() if n == t}
             runs = {n: o for n, o in every.items() if n in model.coefficients}
             if not runs:
                 cands.append(Candidate(t, math.nan, math.nan, "the auto model has no coefficients for it"))

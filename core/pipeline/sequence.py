@@ -166,6 +166,7 @@ def apply_file(
     view_layer: str | None = None,
     mapping=None,
     max_error: float | None = None,
+    auto_rungs: bool = False,
     auto_keep: dict | None = None,
     params: Mapping[str, Mapping] | None = None,
     **options,
@@ -178,7 +179,8 @@ def apply_file(
     plans. When no material scatters, nothing is written (``nothing_to_do``). With
     ``skip_missing`` a technique whose passes are missing is skipped (reason in ``skipped``)
     instead of raising, unless every technique is. The technique ``auto`` chooses one per material
-    (``core/pipeline/auto.py``, within ``max_error`` of the best predicted error) and writes
+    (``core/pipeline/auto.py``, within ``max_error`` of the best predicted error; ``auto_rungs``: the
+    rungs of the techniques' quality ladders are candidates too) and writes
     ``SSSLab.auto.Image`` and ``SSSLab.auto.SSS``; ``auto_keep`` ({material: technique}, an
     earlier frame's ``AutoPlan.chosen``) keeps that choice. ``params``: {technique: {parameter:
     value}} (``core.techniques.registry.parse_params``), checked against each spec; ``options`` go to
@@ -218,7 +220,13 @@ def apply_file(
                 raise ValueError(f"auto chooses each technique's parameters itself; it takes no {', '.join(options)}")
             limit = _auto.DEFAULT_MAX_ERROR if max_error is None else max_error
             result.plans[technique] = _auto.choose(
-                passes, scene, max_error=limit, albedo_mode=albedo_mode, mapping=mapping, keep=auto_keep
+                passes,
+                scene,
+                max_error=limit,
+                albedo_mode=albedo_mode,
+                mapping=mapping,
+                keep=auto_keep,
+                rungs=auto_rungs,
             )
             continue
         try:

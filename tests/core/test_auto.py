@@ -573,3 +573,10 @@ def test_larger_blocks_are_read_at_the_centres_of_their_quarters(size):
 def test_block_means_take_blocks_of_whole_parts():
     with pytest.raises(AssertionError):
         auto._block_means(np.zeros((9, 9), np.float32), 3)
+
+
+def test_the_reports_verdict_uses_autos_default_margin():
+    """The report's verdict ("use ...") and ``apply --methods auto`` judge alike: one margin."""
+    from sss_lab.core.study.report import VERDICT_MARGIN
+
+    assert VERDICT_MARGIN == auto.DEFAULT_MAX_ERROR

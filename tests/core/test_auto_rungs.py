@@ -1,5 +1,6 @@
-"""core/pipeline/auto.py as a chooser of qualities: each rung of a technique's quality ladder (and each
-diffusion without its energy stage) is a candidate with its own coefficients and cost rate.
+"""core/pipeline/auto.py as a chooser of qualities (``choose(rungs=True)``, ``apply --auto-rungs``): each rung
+of a technique's quality ladder (and each diffusion without its energy stage) is a candidate with its own
+coefficients and cost rate. By default only the techniques' default qualities are candidates.
 
 Expected values come from the specs' own ladders, ``core.pipeline.apply.apply`` run with the rung's
 options for the composite, and models made up by hand so that the choice is known in advance."""
@@ -71,7 +72,7 @@ def test_the_cheapest_rung_within_the_margin_is_taken_and_run_with_its_options()
     # Burley at 8 samples predicted 4 % worse than at its default, 32 samples, with a quarter of the
     # work at the same rate: within 5 %, cheaper.
     model = _model({"burley": (0.19, 1.0, 0.0), "burley n_samples=8": (0.19 * 1.04**2, 1.0, 0.0)}, {"burley": 1.0})
-    plan = auto.choose(passes, scene, model=model, max_error=0.05, techniques=("burley",))
+    plan = auto.choose(passes, scene, model=model, max_error=0.05, techniques=("burley",), rungs=True)
     assert set(plan.chosen.values()) == {"burley n_samples=8"}, plan.explain()
     assert set(plan.plans) == {"burley n_samples=8"}
     (p,) = plan.plans.values()
@@ -90,7 +91,7 @@ def test_the_cheapest_rung_within_the_margin_is_taken_and_run_with_its_options()
     np.testing.assert_array_equal(out["SSSLab.auto.Image"], ref["SSSLab.burley.Image"])
     np.testing.assert_array_equal(out["SSSLab.auto.SSS"], ref["SSSLab.burley.SSS"])
     # With no margin the default's lower prediction wins.
-    strict = auto.choose(passes, scene, model=model, max_error=0.0, techniques=("burley",))
+    strict = auto.choose(passes, scene, model=model, max_error=0.0, techniques=("burley",), rungs=True)
     assert set(strict.chosen.values()) == {"burley"}
 
 
@@ -106,7 +107,7 @@ def test_two_rungs_of_one_technique_on_two_materials_composite_each_with_its_own
     assert math.sqrt(1.0 + eps * feats["Wax"].view ** 2 / e2["Wax"]) > 1.05
     coefficients = {"burley": (0.19, 1.0, 0.0), "burley energy=lambert": (0.19, 1.0, 0.0, 0.0, eps)}
     model = _model(coefficients, {"burley": 2.0, "burley energy=lambert": 1.0})
-    plan = auto.choose(passes, scene, model=model, max_error=0.05, techniques=("burley",))
+    plan = auto.choose(passes, scene, model=model, max_error=0.05, techniques=("burley",), rungs=True)
     assert plan.chosen == {"Skin": "burley energy=lambert", "Wax": "burley"}, plan.explain()
     skin = next(c for c in plan.choices if c.features.name == "Skin")
     assert f"the energy stage off (energy V {feats['Skin'].view:.4f}" in skin.reason
@@ -120,7 +121,7 @@ def test_two_rungs_of_one_technique_on_two_materials_composite_each_with_its_own
     # A later frame keeps the rungs (the choice of a sequence's first frame, by candidate name).
     flipped = _model(coefficients, {"burley": 1.0, "burley energy=lambert": 2.0})
     assert auto.choose(passes, scene, model=flipped, techniques=("burley",)).chosen["Skin"] == "burley"
-    kept = auto.choose(passes, scene, model=flipped, techniques=("burley",), keep=plan.chosen)
+    kept = auto.choose(passes, scene, model=flipped, techniques=("burley",), keep=plan.chosen, rungs=True)
     assert kept.chosen == plan.chosen and "kept from the first frame" in kept.choices[0].reason
 
 
@@ -133,7 +134,7 @@ def test_rungs_of_one_technique_rank_by_cost_without_the_tolerance_between_techn
     w17, w11 = (auto._work("ssss", skin, pixels, 0, None, o) for o in ({}, {"n_taps": 11}))
     rates = {"ssss": 1.0 / w17, "ssss n_taps=11": 0.95 / w11}
     model = _model({"ssss": (0.2, 1.0, 0.0), "ssss n_taps=11": (0.2 * 1.02**2, 1.0, 0.0)}, rates)
-    plan = auto.choose(passes, scene, model=model, max_error=0.05, techniques=("ssss",))
+    plan = auto.choose(passes, scene, model=model, max_error=0.05, techniques=("ssss",), rungs=True)
     assert plan.chosen["Skin"] == "ssss n_taps=11", plan.explain()
 
 
@@ -155,7 +156,7 @@ def test_a_fits_measurement_of_the_default_is_scaled_to_its_rungs_by_the_predict
         },
         {"burley": 1.0, "combined": 3.0, "ssss": 0.5},
     )
-    plan = auto.choose(passes, measured, model=model, max_error=0.05)
+    plan = auto.choose(passes, measured, model=model, max_error=0.05, rungs=True)
     for c in plan.choices:
         by = {k.name: k for k in c.candidates}
         rung = by["burley n_samples=16"]
@@ -204,7 +205,7 @@ def test_a_technique_its_spec_keeps_out_of_auto_is_not_a_candidate(monkeypatch):
     model = _model({"burley": (0.19, 1.0, 0.0), "ssss": (0.01, 0.01, 0.0)}, {"burley": 1.0, "ssss": 1.0})
     kept_out = dataclasses.replace(get_spec("ssss"), auto=False)
     monkeypatch.setattr(auto, "get_spec", lambda t: kept_out if t in ("ssss", kept_out) else get_spec(t))
-    plan = auto.choose(passes, scene, model=model, techniques=("burley", "ssss"))
+    plan = auto.choose(passes, scene, model=model, techniques=("burley", "ssss"), rungs=True)
     assert set(plan.chosen.values()) == {"burley"}, plan.explain()
     for c in plan.choices:
         (ssss,) = [k for k in c.candidates if k.technique == "ssss"]
@@ -218,9 +219,9 @@ def test_command_line_explain_lists_the_rungs_and_the_chosen_one(tmp_path, capsy
 
     arrays, scene = sphere_scene(64, 48)
     path = write_scene(str(tmp_path / "passes.exr"), arrays, scene)
-    assert main(["apply", path, "--methods", "auto", "--explain"]) == 0
+    assert main(["apply", path, "--methods", "auto", "--auto-rungs", "--explain"]) == 0
     out = capsys.readouterr().out
-    plan = auto.choose(Passes(arrays), scene)
+    plan = auto.choose(Passes(arrays), scene, rungs=True)
     for c in plan.choices:
         assert f"=> {c.chosen}: " in out
         for k in c.candidates:
@@ -241,11 +242,38 @@ def test_a_fitted_technique_keeps_its_energy_stage():
         {"burley": (0.19, 1.0, 0.0), "burley energy=lambert": off, "ssss": (0.2, 1.0, 0.0), "ssss energy=lambert": off},
         {"burley": 1.0, "burley energy=lambert": 0.5, "ssss": 1.0, "ssss energy=lambert": 0.5},
     )
-    plan = auto.choose(passes, fitted, model=model, techniques=("burley", "ssss"))
+    plan = auto.choose(passes, fitted, model=model, techniques=("burley", "ssss"), rungs=True)
     for c in plan.choices:
         by = {k.name: k for k in c.candidates}
         assert "made with its energy stage on" in by["burley energy=lambert"].excluded
         assert by["ssss energy=lambert"].excluded is None
         assert c.chosen == "ssss energy=lambert", plan.explain()
-    unfitted = auto.choose(passes, scene, model=model, techniques=("burley", "ssss"))
+    unfitted = auto.choose(passes, scene, model=model, techniques=("burley", "ssss"), rungs=True)
     assert all(k.excluded is None for c in unfitted.choices for k in c.candidates)
+
+
+def test_by_default_the_candidates_are_the_techniques_at_their_default_quality(tmp_path, capsys):
+    """Without ``rungs`` no rung is a candidate, even one the model predicts better and cheaper, and
+    the plan says so; ``apply --auto-rungs`` turns them on, and only with ``--methods auto``."""
+    from sss_lab.addon.cli import main
+    from sss_lab.core.study.synthetic import write_scene
+
+    passes, scene = _scene()
+    model = _model(
+        {"burley": (0.19, 1.0, 0.0), "burley n_samples=8": (0.01, 0.0, 0.0)},
+        {"burley": 1.0, "burley n_samples=8": 0.25},
+    )
+    plan = auto.choose(passes, scene, model=model, techniques=("burley",))
+    assert set(plan.chosen.values()) == {"burley"}, plan.explain()
+    assert {k.name for c in plan.choices for k in c.candidates} == {"none", "burley"}
+    assert "at its default quality" in plan.explain() and not plan.rungs and plan.to_dict()["rungs"] is False
+    with_rungs = auto.choose(passes, scene, model=model, techniques=("burley",), rungs=True)
+    assert set(with_rungs.chosen.values()) == {"burley n_samples=8"}, with_rungs.explain()
+    assert "or rung of its quality ladder" in with_rungs.explain()
+    arrays, described = sphere_scene(64, 48)
+    path = write_scene(str(tmp_path / "passes.exr"), arrays, described)
+    assert main(["apply", path, "--methods", "auto", "--explain"]) == 0
+    out = capsys.readouterr().out
+    assert "burley n_samples=8" not in out and "at its default quality" in out
+    assert main(["apply", path, "--methods", "burley", "--auto-rungs", "--explain"]) != 0
+    assert "--auto-rungs: only --methods auto takes it" in capsys.readouterr().err
