@@ -84,7 +84,12 @@ def run(args) -> int:
     plan = None
     if args.recommend:
         lines, plan = recommendation(
-            scene, resolution=resolution, samples=args.samples, max_error=args.max_error, log=None
+            scene,
+            resolution=resolution,
+            samples=args.samples,
+            max_error=args.max_error,
+            rungs=args.auto_rungs,
+            log=None,
         )
         for line in lines:
             print(line)

@@ -263,6 +263,14 @@ def test_scan_writes_what_it_found_and_recommends_as_json(tmp_path, capsys):
     assert "material 'Skin' (pass index 1" in printed and choice["chosen"] in printed  # the same choice said
     assert main(args) == 2  # an existing --json without --overwrite
     assert "exists; refusing to overwrite it" in capsys.readouterr().err
+    # By default the candidates are the techniques at their default quality; --auto-rungs adds the rungs.
+    assert data["recommendation"]["rungs"] is False
+    assert all(" " not in k["name"] for k in choice["candidates"])
+    assert main([*args, "--overwrite", "--auto-rungs"]) == 0
+    capsys.readouterr()
+    with_rungs = json.loads(out.read_text())["recommendation"]
+    assert with_rungs["rungs"] is True
+    assert any(" " in k["name"] for k in with_rungs["materials"][0]["candidates"])
 
 
 def test_the_panel_recommends_per_material_and_leaves_the_scene_as_it_was(addon, tmp_path, capfd):
