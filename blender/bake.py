@@ -807,15 +807,16 @@ def ray_thickness(obj, depsgraph, distance_su: float) -> np.ndarray:
         # float rounding makes it cross them or miss the far corner once the box is turned. Only
         # rays that head inwards there count (a sheet given thickness by a modifier: its own
         # normals point out of one side of the shell). The start's depth along each ray is added
-        # back (exact on a slab). Tolerances: far above float32 coordinates' rounding at this
-        # position, far below a thickness a bake reads (docs/references.md §14).
-        tol = 1e-5 * (float(location.length) + float(distance_su))
+        # back (exact on a slab). Tolerances: twice float32's rounding of a coordinate this far
+        # from the world's origin (and a millionth of D), far below a thickness a bake reads; the
+        # start eight of them inside (docs/references.md §14).
+        tol = 2.4e-7 * float(location.length) + 1e-6 * float(distance_su)
         met = [Vector(n) for _loc, n, _j, _d in tree.find_nearest_range(location, tol)] or [Vector(normal)]
         inward = -sum(met, Vector((0.0, 0.0, 0.0)))
         if inward.length == 0:
             inward = -Vector(normal)
         inward.normalize()
-        nudge = 10.0 * tol
+        nudge = 8.0 * tol
         origin = location + inward * nudge
         best = float(distance_su)
         for n in [*around[i], Vector(normal)]:

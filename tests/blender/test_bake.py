@@ -874,8 +874,16 @@ def test_subsurface_meshes_are_the_command_lines_default():
     assert sorted(o.name for o in bake_mod.subsurface_meshes(bpy.context.scene)) == ["Cheek", "Head", "Vase"]
 
 
-@pytest.mark.parametrize("rotation_deg", [(0.0, 0.0, 15.0), (20.0, 35.0, 15.0), (0.0, 90.0, 45.0)])
-def test_ray_source_reads_a_turned_low_poly_slab_at_every_corner(rotation_deg):
+@pytest.mark.parametrize(
+    ("rotation_deg", "location"),
+    [
+        ((0.0, 0.0, 15.0), (0.02, -0.01, 0.05)),
+        ((20.0, 35.0, 15.0), (0.02, -0.01, 0.05)),
+        ((0.0, 90.0, 45.0), (0.02, -0.01, 0.05)),
+        ((20.0, 35.0, 15.0), (120.0, -40.0, 15.0)),  # far from the origin: coarser float32 coordinates
+    ],
+)
+def test_ray_source_reads_a_turned_low_poly_slab_at_every_corner(rotation_deg, location):
     """An 8-vertex slab 14 x 3 x 10 cm turned in the world: every corner reads the slab's own law
     (3 cm). A ray from a corner along one face's normal runs in the planes of the faces beside it;
     once the box is turned, rounding made it cross them (0.5 and 1.4 cm read at the corners of the
@@ -883,7 +891,7 @@ def test_ray_source_reads_a_turned_low_poly_slab_at_every_corner(rotation_deg):
     the float32 map's rounding (as the fins' test)."""
     slab = _link("Turned", _box("Turned", size=(0.14, 0.03, 0.10), uv=False))
     slab.rotation_euler = [math.radians(a) for a in rotation_deg]
-    slab.location = (0.02, -0.01, 0.05)
+    slab.location = location
     bpy.context.view_layer.update()
     distance = 0.0466
     (r,) = bake_thickness(bpy.context, [slab], _settings(source="ray", distance_su=distance), log=_quiet)
