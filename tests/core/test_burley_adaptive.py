@@ -9,6 +9,7 @@ differ by the sampling noise (percents), far beyond that float32 bound, so check
 the two backends taking the same samples.
 """
 
+import inspect
 import math
 
 import numba
@@ -22,6 +23,7 @@ from sss_lab.core.study.synthetic import sphere_scene
 from sss_lab.core.techniques.burley import adaptive
 from sss_lab.core.techniques.burley.technique import burley, sample_counts
 from sss_lab.core.techniques.combined.technique import combined
+from sss_lab.core.techniques.registry import TECHNIQUES
 
 N = 192
 
@@ -50,7 +52,7 @@ def _inputs(kind, footprint_px, n=N):
         mask=np.ones((n, n), bool),
         camera=cam,
         d_su=(d, 0.6 * d, 0.3 * d),
-        adaptive=True,  # off by default: these tests are about the plan
+        adaptive=True,  # the default, named: these tests are about the plan
     )
     return kw, dist
 
@@ -95,6 +97,18 @@ def test_counts_rise_at_a_shadow_edge_and_fall_away_from_it():
     assert (counts[far] == 1).all()
     # The same counts for any seed or rotation: they depend on the inputs only.
     assert np.array_equal(counts, sample_counts(**kw, seed=9, random_rotation=False))
+
+
+def test_adaptive_counts_are_the_default():
+    for fn in (burley, sample_counts, combined):
+        assert inspect.signature(fn).parameters["adaptive"].default is True
+    assert TECHNIQUES["burley"].defaults["adaptive"] is True
+    assert TECHNIQUES["combined"].defaults["adaptive"] is True
+    kw, _ = _inputs("edge", 40.0)
+    del kw["adaptive"]
+    counts = sample_counts(**kw)
+    assert counts.max() == 32 and counts.min() == 1
+    np.testing.assert_array_equal(burley(**kw, energy="lambert"), burley(**kw, adaptive=True, energy="lambert"))
 
 
 def test_more_samples_ask_for_a_smaller_error_and_fewer_for_a_larger():

@@ -98,9 +98,9 @@ def test_the_adaptive_plan_does_not_move_with_the_d_the_fit_tries(synthetic, tec
     skin = _skin(scene)
     single = dataclasses.replace(scene, materials=(skin,))
     diffusion = fit_mod._Diffusion(passes, single, get_spec(technique), np.ones((32, 48), bool), 2)
-    kw = {**diffusion.kwargs, "adaptive": True}
+    kw = diffusion.kwargs
     own = burley_d(skin)
-    assert kw["plan_d_su"] == own
+    assert kw["adaptive"] is True and kw["plan_d_su"] == own
     planned = sample_counts(**{**kw, "d_su": own})
     assert planned.max() == 32 and 0 < planned[planned > 0].min() < 32  # the plan varies on the sphere
     moved = 0

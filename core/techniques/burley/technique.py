@@ -23,10 +23,11 @@ the mask, n samples:
 A pixel whose footprint (16 d_max in pixels) is at most one pixel is left as it is, as EEVEE
 Next does; so is each channel whose own footprint is (a channel far narrower than a pixel).
 
-With ``adaptive`` (off by default) n is a pixel's own: at most ``n_samples``, fewer where the light
+With ``adaptive`` (the default) n is a pixel's own: at most ``n_samples``, fewer where the light
 under its footprint hardly varies or the footprint covers few pixels, each count with its own
-stratified spiral (``core.techniques.burley.adaptive``, docs/references.md §21); ``sample_counts``
-gives each pixel's n.
+stratified spiral (``core.techniques.burley.adaptive``, docs/references.md §21), for the quality
+of ``n_samples`` fixed samples; ``sample_counts`` gives each pixel's n. ``adaptive=False`` takes
+``n_samples`` everywhere.
 """
 
 from __future__ import annotations
@@ -180,7 +181,7 @@ def burley(
     d_su,
     object_id=None,
     n_samples: int = 32,
-    adaptive: bool = False,
+    adaptive: bool = True,
     random_rotation: bool = True,
     seed: int = 0,
     smooth_px: int = 1,
@@ -327,7 +328,7 @@ def sample_counts(
     d_su,
     object_id=None,
     n_samples: int = 32,
-    adaptive: bool = False,
+    adaptive: bool = True,
     albedo_mode: str = "post",
     plan_d_su=None,
     **_ignored,
@@ -712,10 +713,9 @@ _BAND_ROWS = 512
 
 #: Burley's spec (``core/techniques/spec.py``): at most 32 samples, the signature's default (EEVEE Next uses 16
 #: per temporal sample, HDRP 20/40/80; docs/references.md §1), fewer where the plan allows
-#: (``adaptive``, ``core.techniques.burley.adaptive``); ``samples_per_pixel`` counts the most a pixel
-#: takes, ``sample_counts`` what each takes. Adaptive is off by default: the fit's error moves in
-#: steps with d where the counts change (a fitted transmission scale stopped at 2.9 of a bound of 4
-#: it reaches with fixed samples), and a user's 4096 samples stop at the plan's 5 % target.
+#: (``adaptive``, the default, ``core.techniques.burley.adaptive``); ``samples_per_pixel`` counts the
+#: most a pixel takes (the plan reads the frame's light, which a cost model from parameters does not
+#: have), ``sample_counts`` what each takes.
 TECHNIQUE = Technique(
     name="burley",
     label="Burley",

@@ -537,7 +537,7 @@ def combined(
     diffusion: str = "burley",
     n_samples: int = 32,
     n_taps: int = 17,
-    adaptive: bool = False,
+    adaptive: bool = True,
     random_rotation: bool = True,
     seed: int = 0,
     smooth_px: int = 1,
