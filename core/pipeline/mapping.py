@@ -168,11 +168,15 @@ def technique_params(material: MaterialSSS, technique, *, mapping=None, use_fit:
     material carries a fit for ``technique`` (``MaterialSSS.fit``, made by ``core/study/fit.py``) and
     ``use_fit`` is true, its values replace the defaults: d times ``d_scale``, the
     transmission's scale and d, STA's scale, and ``gain`` (applied by ``core.pipeline.apply`` to the
-    technique's result when its function does not take it).
+    technique's result when its function does not take it). With ``d_scale``, ``plan_d_su`` is the
+    material's own d (for a technique that takes it: Burley's adaptive plan reads its footprints
+    from it), so that the samples each pixel takes are the ones ``core/study/fit.py`` fitted with,
+    whatever the scale it found.
     """
     spec = registry.get_spec(technique)
     d = burley_d(material, mapping=mapping)
     fit = fitted(material.fit, spec.name) if use_fit else {}
+    own_d = d
     if "d_scale" in fit:
         d = tuple(v * fit["d_scale"] for v in d)
     from_material = {
@@ -185,6 +189,8 @@ def technique_params(material: MaterialSSS, technique, *, mapping=None, use_fit:
         "subsurface_ior": material.subsurface_ior,
         "subsurface_anisotropy": material.subsurface_anisotropy,
     }
+    if "d_scale" in fit:
+        from_material["plan_d_su"] = own_d
     params = dict(spec.defaults)
     params.update({k: v for k, v in from_material.items() if k in spec.keywords})
     params.update({k: v for k, v in fit.items() if k not in ("d_scale", OFF)})

@@ -37,7 +37,10 @@ For each k (one technique run) and each f the problem is linear in (g, s): its n
 come from a few dot products per channel, so the whole grid costs little more than the
 technique runs. Each k runs only the technique's light transport (``_Diffusion``: its energy
 stage does not depend on d and is applied in closed form), with the compiled kernels on one
-thread (``core.compute.backend.one_thread``).
+thread (``core.compute.backend.one_thread``). Burley's adaptive sample counts (the diffusion of
+Burley and the combined technique) are planned once, from the material's own d, for every k: the
+plan apply gives the fitted material (``plan_d_su``, ``core.pipeline.mapping.technique_params``),
+so the error does not move in steps as k changes the counts.
 """
 
 from __future__ import annotations
@@ -645,8 +648,14 @@ class _Diffusion:
             kwargs.pop("gain", None)
         if spec.adds_light:
             kwargs["transmission_scale"] = 0.0
-        self.spec, self.kwargs, self.keep, self.box = spec, kwargs, keep, box
         self.d0 = np.asarray(mp.params["d_su"], np.float64)
+        if "plan_d_su" in spec.keywords:
+            # One plan of Burley's adaptive counts for every k, the material's own d's: the one
+            # apply gives the fitted material (core.pipeline.mapping.technique_params). A plan
+            # read from each k's d would change the counts in steps as k moves, and the error
+            # with them.
+            kwargs["plan_d_su"] = mp.params["d_su"]
+        self.spec, self.kwargs, self.keep, self.box = spec, kwargs, keep, box
         own = {k: v for k, v in mp.params.items() if k in spec.keywords}
         bound = inspect.signature(spec.function).bind_partial(**own)
         bound.apply_defaults()

@@ -13,11 +13,13 @@ import numpy as np
 import pytest
 
 from sss_lab.core.pipeline import apply as core_apply
+from sss_lab.core.pipeline.mapping import burley_d, technique_params
 from sss_lab.core.scene.exr import Passes
 from sss_lab.core.scene.scene import SceneDescription
 from sss_lab.core.study import fit as fit_mod
 from sss_lab.core.study.fit import FitError, block_folds, fit_material, fit_scene, with_fits
 from sss_lab.core.study.synthetic import sphere_scene
+from sss_lab.core.techniques.burley.technique import sample_counts
 from sss_lab.core.techniques.registry import get_spec
 
 TRUTH = {
@@ -85,6 +87,34 @@ def test_the_fitted_transmission_scale_stays_within_its_bound(synthetic):
     assert r.train_after > 1e-3 * r.train_before
     by_hand = dataclasses.replace(_skin(scene), fit={"combined": truth})
     assert by_hand.fit["combined"]["transmission_scale"] == (8.0, 8.0, 8.0)
+
+
+@pytest.mark.parametrize("technique", ["burley", "combined"])
+def test_the_adaptive_plan_does_not_move_with_the_d_the_fit_tries(synthetic, technique):
+    """Burley's adaptive counts (the default) are planned from the material's own d for every k the
+    fit tries, and apply gives a fitted material that plan: the counts do not step as k moves
+    (they would, planned from each k's d), and the model stays apply's (the noise-free tests)."""
+    passes, scene = synthetic
+    skin = _skin(scene)
+    single = dataclasses.replace(scene, materials=(skin,))
+    diffusion = fit_mod._Diffusion(passes, single, get_spec(technique), np.ones((32, 48), bool), 2)
+    kw = diffusion.kwargs
+    own = burley_d(skin)
+    assert kw["adaptive"] is True and kw["plan_d_su"] == own
+    planned = sample_counts(**{**kw, "d_su": own})
+    assert planned.max() == 32 and 0 < planned[planned > 0].min() < 32  # the plan varies on the sphere
+    moved = 0
+    for k in fit_mod.GRID:
+        d = tuple(diffusion.d0 * k)
+        np.testing.assert_array_equal(sample_counts(**{**kw, "d_su": d}), planned)
+        moved += not np.array_equal(sample_counts(**{**kw, "d_su": d, "plan_d_su": None}), planned)
+    assert moved == len(fit_mod.GRID) - 1  # every k but 1 would move them, planned from its own d
+    # apply's parameters for a fitted material: the fitted d, the plan of the material's own.
+    fitted = dataclasses.replace(skin, fit={technique: {"gain": (1.0, 1.0, 1.0), "d_scale": 2.0}})
+    params = technique_params(fitted, technique)
+    assert params["plan_d_su"] == own and params["d_su"] == tuple(v * 2.0 for v in own)
+    assert "plan_d_su" not in technique_params(skin, technique)  # unfitted: the plan of d_su itself
+    assert "plan_d_su" not in technique_params(dataclasses.replace(skin, fit={"ssss": {"d_scale": 2.0}}), "ssss")
 
 
 @pytest.mark.parametrize("technique", ["burley", "ssss"])

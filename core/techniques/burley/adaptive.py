@@ -8,10 +8,11 @@ from the previous frames; a single frame has none, so here it is the light's own
 the footprint, measured on the frame:
 
 - footprint: F = s x min(16 d_max, the object's extent) pixels (s: the pixel's pixels per scene
-  unit; the spiral's reach). The pixel takes at most ceil(F^2) samples, about one per pixel of
-  the footprint's square: 1 at F = 1 px, 4 at 2 px, 9 at 3 px; from 5.7 px on it is no limit at
-  32 samples. (Fewer per pixel would not do: the estimator's variance falls as 1 / n whatever the
-  footprint, and an edge 3 px away still moves a pixel whose footprint is 6 px.)
+  unit; the spiral's reach). The pixel takes at most ceil(F^2) samples (at 32, below), about
+  one per pixel of the footprint's square: 1 at F = 1 px, 4 at 2 px, 9 at 3 px; from 5.7 px on
+  it is no limit at 32 samples. (Fewer per pixel would not do: the estimator's variance falls
+  as 1 / n whatever the footprint, and an edge 3 px away still moves a pixel whose footprint is
+  6 px.)
 - variation: per block of ``BLOCK_PX`` x ``BLOCK_PX`` pixels, the light's mean mu_c and variance
   per channel over the gathered pixels within the footprint of the block's nearest pixel
   (``WINDOW`` x F), from summed-area tables of the blocks' sums. Of that variance, the part a
@@ -19,10 +20,21 @@ the footprint, measured on the frame:
   golden-angle spiral surrounds its pixel, so a light that varies linearly across the footprint
   largely cancels: ``GRADIENT``). The estimator's relative standard error with n samples is
   about sqrt(variance) / (mu sqrt n), so the pixel takes at most ceil(max_c variance_c / mu_c^2 /
-  ``ERROR``^2) samples (mu_c at least ``DARK`` times the channel's mean over the frame).
+  ``ERROR``^2) samples (at 32, below; mu_c at least ``DARK`` times the channel's mean over the
+  frame).
 - the count is the smaller of the two, rounded up to the next count of the ladder (``ladder``:
   the maximum ``n_samples`` and its halvings by sqrt 2, down to 1): each count has its own
   stratified spiral (``spiral_su``), the same for every backend.
+
+Both limits are those of 32 samples (``REFERENCE_SAMPLES``, Burley's default), where ``ERROR``
+was measured to give the fixed 32 samples' quality. ``n_samples`` is the quality asked for:
+with n the plan aims at what n fixed samples reach, a relative error of ``ERROR`` x sqrt(32 / n)
+(a count's variance falls as 1 / count), and the footprint's limit grows likewise to
+ceil(F^2 n / 32): each pixel takes n / 32 times the samples it would at 32, up to n. So 4096
+samples converge as the fixed 4096 do instead of stopping where 32 samples' limits do (on a
+small object far inside the profile the footprint's alone held every pixel to 182 samples, 0.11
+off the limit the fixed spiral reaches within 0.0045: docs/references.md §21), and 8 take what
+8 fixed samples are worth.
 
 Both backends read the same plan (``plan``): the blocks' sums are the same to the bit
 (``block_sums``) and the rest is NumPy on the blocks; the compiled kernel finds each pixel's
@@ -48,6 +60,9 @@ BLOCK_PX = 8
 #: 0.05 the adaptive result is as far from a 1024-sample one as the fixed 32 samples' result
 #: (docs/references.md §21).
 ERROR = 0.05
+#: The ``n_samples`` ``ERROR`` was measured at (Burley's default): a user's ``n_samples`` asks for
+#: the quality of that many fixed samples, so the target is ``ERROR`` x sqrt(32 / ``n_samples``).
+REFERENCE_SAMPLES = 32
 #: A channel's mean below this share of its mean over the gathered pixels counts as this share:
 #: the relative variation of a light near 0 is not that of its noise.
 DARK = 1e-3
@@ -65,8 +80,9 @@ GRADIENT = 16.0
 
 class Plan(NamedTuple):
     """The samples each pixel takes: ``counts`` (L,) the ladder's counts, ascending (one count,
-    ``n_samples``, when not adaptive); ``limit`` the counts as float64 (a pixel of footprint F px
-    takes at most the first count with F^2 <= limit); ``blocks`` (Hb, Wb) int32 the level each
+    ``n_samples``, when not adaptive); ``limit`` (L,) float64, the largest F^2 each count serves
+    (a pixel of footprint F px takes at most the first count with F^2 <= limit: the counts times
+    32 / ``n_samples``); ``blocks`` (Hb, Wb) int32 the level each
     block's variation allows (index into ``counts``), and ``block`` its side in pixels (a block of
     the frame's size when not adaptive)."""
 
@@ -107,9 +123,13 @@ def fixed(n_samples: int) -> Plan:
 def plan(light, ok, depth, camera, reach_su: float, n_samples: int) -> Plan:
     """The adaptive plan of a frame: ``light`` (H, W, 3) the light the gather reads, ``ok`` (H, W)
     the pixels it gathers, ``depth`` and ``camera`` their scale, ``reach_su`` 16 d_max (scene
-    units), ``n_samples`` the most a pixel takes."""
+    units), ``n_samples`` the most a pixel takes and the quality asked for (its relative error
+    target ``ERROR`` x sqrt(32 / ``n_samples``), its footprint limit ``limit`` the counts times
+    32 / ``n_samples``: module docstring)."""
     counts = ladder(n_samples)
-    limit = counts.astype(np.float64)
+    # The quality of n_samples fixed samples: both limits ask for n_samples / 32 times the samples
+    # they ask for at 32 (module docstring); at 32 the factors are 1 exactly.
+    limit = counts.astype(np.float64) * (REFERENCE_SAMPLES / n_samples)
     b = BLOCK_PX
     h, w = ok.shape
     hb, wb = -(-h // b), -(-w // b)
@@ -132,7 +152,8 @@ def plan(light, ok, depth, camera, reach_su: float, n_samples: int) -> Plan:
     total = s1.sum(axis=(0, 1)) / max(float(n.sum()), 1.0)
     floor = np.maximum(DARK * np.abs(total), 1e-30)
     relative = (var / np.maximum(mean * mean, floor * floor)).max(axis=2)
-    need = relative / (ERROR * ERROR)
+    target = ERROR * math.sqrt(REFERENCE_SAMPLES / n_samples)
+    need = relative / (target * target)
     level = np.minimum(np.searchsorted(counts.astype(np.float64), need, side="left"), counts.size - 1)
     blocks[by0:by1, bx0:bx1] = np.where(n > 0, level, 0)
     return Plan(counts, limit, blocks, b)

@@ -23,10 +23,11 @@ the mask, n samples:
 A pixel whose footprint (16 d_max in pixels) is at most one pixel is left as it is, as EEVEE
 Next does; so is each channel whose own footprint is (a channel far narrower than a pixel).
 
-With ``adaptive`` (off by default) n is a pixel's own: at most ``n_samples``, fewer where the light
+With ``adaptive`` (the default) n is a pixel's own: at most ``n_samples``, fewer where the light
 under its footprint hardly varies or the footprint covers few pixels, each count with its own
-stratified spiral (``core.techniques.burley.adaptive``, docs/references.md §21); ``sample_counts``
-gives each pixel's n.
+stratified spiral (``core.techniques.burley.adaptive``, docs/references.md §21), for the quality
+of ``n_samples`` fixed samples; ``sample_counts`` gives each pixel's n. ``adaptive=False`` takes
+``n_samples`` everywhere.
 """
 
 from __future__ import annotations
@@ -180,7 +181,7 @@ def burley(
     d_su,
     object_id=None,
     n_samples: int = 32,
-    adaptive: bool = False,
+    adaptive: bool = True,
     random_rotation: bool = True,
     seed: int = 0,
     smooth_px: int = 1,
@@ -195,6 +196,7 @@ def burley(
     thickness_distance_su: float = 0.0,
     thickness_convention: str = "translucency",
     lamps_behind: bool = True,
+    plan_d_su=None,
 ) -> np.ndarray:
     """Burley normalized diffusion of the diffuse light, with the albedo applied.
 
@@ -208,6 +210,10 @@ def burley(
     ``thickness``, ``normal``, ``position``, ``lights``, ``mfp_su`` and ``thickness_distance_su``:
     what leaves through its far side and what comes through it), "view" the spread alone,
     "lambert" the passes' light as it is.
+    ``plan_d_su`` (R, G, B, scene units; None: ``d_su``): the d the adaptive plan reads its
+    footprints from (``_plan``), not a user's setting: a fitted material's own d, so that the
+    counts stay those of the material whatever d's fitted scale (``core.pipeline.mapping``, and
+    ``core/study/fit.py``, which tries many d with one plan).
     Returns float32 (H, W, 3): albedo x scattered light on the mask, albedo x diffuse elsewhere.
     """
     out = _gather(
@@ -224,6 +230,7 @@ def burley(
         seed=seed,
         smooth_px=smooth_px,
         albedo_mode=albedo_mode,
+        plan_d_su=plan_d_su,
     )
     return apply_energy(out, **energy_inputs(locals()))
 
@@ -243,6 +250,7 @@ def _gather(
     seed: int,
     smooth_px: int,
     albedo_mode: str,
+    plan_d_su=None,
 ) -> np.ndarray:
     """``burley`` without the entry energy."""
     if not isinstance(camera, Camera):
@@ -260,10 +268,11 @@ def _gather(
     m = arrays.mask_array(mask, shape)
 
     dmax = float(d.max())
+    plan_dmax = _plan_dmax(plan_d_su, dmax)
     if dmax > 0 and backend.active() == "numba":
         return _compiled(
             e, a, z, m, ids, camera, int(n_samples), bool(adaptive), d, random_rotation, seed, int(smooth_px),
-            albedo_mode,
+            albedo_mode, plan_dmax,
         )  # fmt: skip
     base = a * e
     ok, scale = _gathered_pixels(e, a, z, m, ids, camera, dmax)
@@ -271,8 +280,8 @@ def _gather(
         return base
     pre, post = arrays.split_albedo(a, albedo_mode)
     light = e if pre is None else pre * e
-    plan = _plan(light, ok, z, camera, dmax, int(n_samples), adaptive)
-    result, idx_all, groups = _reference(light, z, ok, ids, camera, scale, d, plan, random_rotation, seed)
+    plan = _plan(light, ok, z, camera, plan_dmax, int(n_samples), adaptive)
+    result, idx_all, groups = _reference(light, z, ok, ids, camera, scale, d, plan, plan_dmax, random_rotation, seed)
     return _smoothed(result, idx_all, groups, shape, scale, d, z, ids, int(smooth_px), post, base)
 
 
@@ -292,12 +301,21 @@ def _gathered_pixels(e, a, z, m, ids, camera: Camera, dmax: float):
     return ok, (scale if ok.any() else None)
 
 
-def _plan(light, ok, z, camera, dmax: float, n: int, adaptive: bool) -> adaptive_counts.Plan:
+def _plan(light, ok, z, camera, plan_dmax: float, n: int, adaptive: bool) -> adaptive_counts.Plan:
     """The samples each pixel takes (``core.techniques.burley.adaptive``): the same plan for
-    both backends."""
+    both backends. Its footprints are read from ``plan_dmax`` (``_plan_dmax``), the spiral's from
+    d: a fit tries many d with one plan, and apply gives the fitted material that plan."""
     if not adaptive:
         return adaptive_counts.fixed(n)
-    return adaptive_counts.plan(light, ok, z, camera, TRUNCATION * dmax, n)
+    return adaptive_counts.plan(light, ok, z, camera, TRUNCATION * plan_dmax, n)
+
+
+def _plan_dmax(plan_d_su, dmax: float) -> float:
+    """The largest d the adaptive plan reads its footprints from: ``plan_d_su``'s (``burley``), or
+    ``dmax`` (the gather's) when it is None."""
+    if plan_d_su is None:
+        return dmax
+    return float(arrays.rgb_lengths(plan_d_su, "plan_d_su").max())
 
 
 def sample_counts(
@@ -310,8 +328,9 @@ def sample_counts(
     d_su,
     object_id=None,
     n_samples: int = 32,
-    adaptive: bool = False,
+    adaptive: bool = True,
     albedo_mode: str = "post",
+    plan_d_su=None,
     **_ignored,
 ) -> np.ndarray:
     """The samples ``burley`` called with these arguments takes at each pixel, int32 (H, W): its
@@ -328,25 +347,27 @@ def sample_counts(
     m = arrays.mask_array(mask, e.shape[:2])
     counts = np.zeros(e.shape[:2], np.int32)
     dmax = float(d.max())
+    plan_dmax = _plan_dmax(plan_d_su, dmax)
     ok, scale = _gathered_pixels(e, a, z, m, ids, camera, dmax)
     if scale is None:
         return counts
     pre, _ = arrays.split_albedo(a, albedo_mode)
-    plan = _plan(e if pre is None else pre * e, ok, z, camera, dmax, int(n_samples), adaptive)
+    plan = _plan(e if pre is None else pre * e, ok, z, camera, plan_dmax, int(n_samples), adaptive)
     groups = group_extents(ok, scale, ids) if ids is not None else [(np.flatnonzero(ok), object_extent(ok, scale))]
     for group, extent_su in groups:
-        reach_su = adaptive_counts.footprint_reach(dmax, extent_su)
+        reach_su = adaptive_counts.footprint_reach(plan_dmax, extent_su)
         level = plan.levels(group, scale.ravel()[group].astype(np.float64) * reach_su, ok.shape[1])
         counts.ravel()[group] = plan.counts[level]
     return counts
 
 
-def _reference(light, z, ok, ids, camera, scale, d, plan, random_rotation, seed):
+def _reference(light, z, ok, ids, camera, scale, d, plan, plan_dmax, random_rotation, seed):
     """The NumPy reference of the gather: (each pixel's scattered light before the albedo and
     the clean-up (rows in the order of ``idx_all``), ``idx_all``: the flat indices of the
     pixels that take part (``ok``), ``groups``: the (pixels, extent) of each object), the
     pixels gathered ``_BLOCK_ELEMENTS`` samples at a time (``_gather_block``), each with the
-    spiral of its count (``plan``, ``core.techniques.burley.adaptive``)."""
+    spiral of its count (``plan``, ``core.techniques.burley.adaptive``; its footprints at
+    ``plan_dmax``, ``_plan``)."""
     h, w = ok.shape
     f32 = np.float32
     dmax = float(d.max())
@@ -376,7 +397,8 @@ def _reference(light, z, ok, ids, camera, scale, d, plan, random_rotation, seed)
     start = 0
     for group, extent_su in groups:
         reach_su = adaptive_counts.footprint_reach(dmax, extent_su)
-        level = plan.levels(group, frame.sflat[group].astype(np.float64) * reach_su, w)
+        plan_reach = adaptive_counts.footprint_reach(plan_dmax, extent_su)
+        level = plan.levels(group, frame.sflat[group].astype(np.float64) * plan_reach, w)
         for k, n in enumerate(plan.counts.tolist()):
             rows = np.flatnonzero(level == k) if plan.counts.size > 1 else np.arange(group.size)
             if not rows.size:
@@ -552,7 +574,7 @@ def _inv3d(d: np.ndarray) -> np.ndarray:
     return np.array([max(1.0 / (3.0 * v), 1e-37) if v > 0 else 0.0 for v in d], np.float32)
 
 
-def _compiled(e, a, z, m, ids, camera, n, adaptive, d, random_rotation, seed, smooth_px, albedo_mode):
+def _compiled(e, a, z, m, ids, camera, n, adaptive, d, random_rotation, seed, smooth_px, albedo_mode, plan_dmax):
     """``_gather`` on the compiled backend: the pixels that take part in one pass over the frame
     (``pixels.compiled_pixels``, with the footprint rule), then the gather and the clean-up as
     one compiled kernel (``core.techniques.burley._kernels.burley_kernel``) over their bounding box, into the
@@ -579,20 +601,21 @@ def _compiled(e, a, z, m, ids, camera, n, adaptive, d, random_rotation, seed, sm
     light = e if pre is None else pre * e
     inv3d = _inv3d(d)
     reach_c = TRUNCATION * d
-    plan = _plan(light, ok, z, camera, dmax, n, adaptive)
+    plan = _plan(light, ok, z, camera, plan_dmax, n, adaptive)
     n_groups = len(groups)
     # Per count of the plan and group (row count x groups + group): radius, radius^2, cos, sin,
     # inverse pdf, the first ``plan.counts[count]`` of each row.
     tables = np.zeros((5, plan.counts.size * n_groups, n), f32)
     extents = np.empty(n_groups, np.float64)
-    fp_reach = np.empty(n_groups, np.float64)
+    fp_reach = np.empty(n_groups, np.float64)  # the plan's footprint reach per group (its d)
     group_map = np.zeros((1, 1), np.int32)
     if n_groups > 1:
         group_map = np.zeros(ok.shape, np.int32)
     for k, (group, extent_su) in enumerate(groups):
-        fp_reach[k] = adaptive_counts.footprint_reach(dmax, extent_su)
+        fp_reach[k] = adaptive_counts.footprint_reach(plan_dmax, extent_su)
+        spiral_reach = adaptive_counts.footprint_reach(dmax, extent_su)
         for level, count in enumerate(plan.counts.tolist()):
-            r_su64, angles, inv_pdf = spiral_su(count, dmax, fp_reach[k])
+            r_su64, angles, inv_pdf = spiral_su(count, dmax, spiral_reach)
             r_su = r_su64.astype(f32)
             row = (r_su, r_su * r_su, np.cos(angles).astype(f32), np.sin(angles).astype(f32), inv_pdf.astype(f32))
             tables[:, level * n_groups + k, :count] = row
@@ -690,10 +713,9 @@ _BAND_ROWS = 512
 
 #: Burley's spec (``core/techniques/spec.py``): at most 32 samples, the signature's default (EEVEE Next uses 16
 #: per temporal sample, HDRP 20/40/80; docs/references.md §1), fewer where the plan allows
-#: (``adaptive``, ``core.techniques.burley.adaptive``); ``samples_per_pixel`` counts the most a pixel
-#: takes, ``sample_counts`` what each takes. Adaptive is off by default: the fit's error moves in
-#: steps with d where the counts change (a fitted transmission scale stopped at 2.9 of a bound of 4
-#: it reaches with fixed samples), and a user's 4096 samples stop at the plan's 5 % target.
+#: (``adaptive``, the default, ``core.techniques.burley.adaptive``); ``samples_per_pixel`` counts the
+#: most a pixel takes (the plan reads the frame's light, which a cost model from parameters does not
+#: have), ``sample_counts`` what each takes.
 TECHNIQUE = Technique(
     name="burley",
     label="Burley",

@@ -537,7 +537,7 @@ def combined(
     diffusion: str = "burley",
     n_samples: int = 32,
     n_taps: int = 17,
-    adaptive: bool = False,
+    adaptive: bool = True,
     random_rotation: bool = True,
     seed: int = 0,
     smooth_px: int = 1,
@@ -552,6 +552,7 @@ def combined(
     subsurface_ior: float = 1.4,
     subsurface_anisotropy: float = 0.0,
     energy: str = "object",
+    plan_d_su=None,
 ) -> np.ndarray:
     """Diffusion of the visible light plus transmission of the light from behind, float32 (H, W, 3).
 
@@ -568,7 +569,8 @@ def combined(
     Returns, like Burley and SSSS, the albedo-applied scattered light on the mask (plus the
     transmitted light) and albedo x diffuse elsewhere. Formula, sources and why nothing is
     counted twice: the module docstring. ``energy``: the diffusion's entry energy, as
-    Burley's (``core.optics.energy``).
+    Burley's (``core.optics.energy``). ``plan_d_su``: Burley's (the d its adaptive plan reads, a
+    fitted material's own; None: ``d_su``).
     """
     if diffusion not in DIFFUSIONS:
         raise ValueError(f"diffusion: {diffusion!r} is not one of {', '.join(DIFFUSIONS)}")
@@ -603,6 +605,7 @@ def combined(
             seed=seed,
             smooth_px=smooth_px,
             albedo_mode=albedo_mode,
+            plan_d_su=plan_d_su,
             **energy_kw,
         )
     else:
