@@ -126,11 +126,13 @@ NONE = "none"
 #: Default ``max_error``: a technique may be predicted (or measured) up to 3 % worse than the best
 #: and still be chosen when it is cheaper. Leave-one-scene-out on the 17 scenes of the fidelity suite
 #: (``benchmarks/auto.py``, README *Auto*), choosing among the techniques' default qualities (the
-#: default, ``rungs=False``): mean regret against the truly best technique +2.8 % without a fit and
-#: +0.9 % with it at 0.03, +3.2 % / +1.4 % at 0.05, +3.3 % / +3.1 % at 0.10, the time saved against
-#: always running the combined technique 27 / 20 %, 25 / 19 %, 28 / 27 %. With the rungs the regret
-#: was +5.3 % / +2.8 % at 0.03 and +6.3 % / +7.5 % at 0.10 (the model does not see what 8 of Burley's
-#: samples lose at a small footprint: +18 % on the front-lit skin sphere).
+#: default, ``rungs=False``): mean regret against the truly best technique without / with a fit
+#: +2.8 / +0.9 % at 0.03 (+3.2 / +0.9 % and +3.4 / +1.6 % in two later runs: the timings decide
+#: between SSSS and Burley where their costs are within ``COST_TOLERANCE``), +3.2 / +1.4 % at 0.05,
+#: +3.3 / +3.1 % at 0.10; the time saved against always running the combined technique 27 / 20 %,
+#: 25 / 19 %, 28 / 27 %. With the rungs the regret was +5.3 / +2.8 % at 0.03 and +6.3 / +7.5 % at
+#: 0.10 (the model does not see what 8 of Burley's samples lose at a small footprint: +18 % on the
+#: front-lit skin sphere).
 DEFAULT_MAX_ERROR = 0.03
 #: Mean distance light travels under the Burley profile of d: 2.5 d (the first moment of
 #: R(r) 2 pi r = (e^{-r/d} + e^{-r/(3d)}) / (4 d), docs/references.md §1).
