@@ -309,8 +309,9 @@ def test_ssss_flat_matches_numpy(tmp_path, options):
 
 
 #: core.techniques.burley.technique with the same spiral at every pixel: its gather is then one kernel, whose moments
-#: this model uses (the default turns the spiral per pixel, a different kernel at each pixel).
-FIXED_SPIRAL = {"random_rotation": False, "smooth_px": 0}
+#: this model uses (the default turns the spiral per pixel, a different kernel at each pixel, and takes fewer
+#: samples where the light varies little: adaptive counts, docs/references.md §21).
+FIXED_SPIRAL = {"random_rotation": False, "smooth_px": 0, "adaptive": False}
 
 
 def _numpy_kernel_moments(d_su, n_samples=32):
