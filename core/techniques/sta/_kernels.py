@@ -598,6 +598,23 @@ def _route_gain(res, o3, m, g0, g1, g2, weighted, weight):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _put_term(img, c, sf, s, o0, o1, o2):
+    """One pixel of the compositing: Combined (``img`` from ``c`` on) plus the term (``o0``, ``o1``,
+    ``o2``) into ``img``, the term as kept into ``sf`` from ``s`` on, each channel clamped as
+    ``core.compute.jit.add_kept_non_negative`` clamps it. Returns whether a channel was clamped."""
+    o0, t0, n0 = add_kept_non_negative(img[c], o0)
+    o1, t1, n1 = add_kept_non_negative(img[c + u64(1)], o1)
+    o2, t2, n2 = add_kept_non_negative(img[c + u64(2)], o2)
+    sf[s] = o0
+    sf[s + u64(1)] = o1
+    sf[s + u64(2)] = o2
+    img[c] = t0
+    img[c + u64(1)] = t1
+    img[c + u64(2)] = t2
+    return n0 | n1 | n2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _route_put(res, o3, p1, m, img, ic, keep, sf):
     """``core.pipeline._kernels.composite`` on a segment whose every pixel is composited and
     finite: Combined (``img``, ``ic`` values a pixel, a constant where it is called) plus the term
@@ -616,19 +633,11 @@ def _route_put(res, o3, p1, m, img, ic, keep, sf):
         o0 = res[r]
         o1 = res[r + u64(1)]
         o2 = res[r + u64(2)]
-        o0, t0, n0 = add_kept_non_negative(img[c], o0)
-        o1, t1, n1 = add_kept_non_negative(img[c + u64(1)], o1)
-        o2, t2, n2 = add_kept_non_negative(img[c + u64(2)], o2)
-        sf[s] = o0
-        sf[s + u64(1)] = o1
-        sf[s + u64(2)] = o2
-        img[c] = t0
-        img[c + u64(1)] = t1
-        img[c + u64(2)] = t2
+        hit = _put_term(img, c, sf, s, o0, o1, o2)
         if ic == _FOUR:
             alpha = img[c + u64(3)]
             img[c + u64(3)] = alpha if keep else ZERO
-        clamped += np.int32(n0 | n1 | n2)
+        clamped += np.int32(hit)
     return clamped
 
 
@@ -652,16 +661,7 @@ def _route_put_some(res, o3, p1, m, mf, img, ic, sf):
             continue
         s = u64(3) * p
         c = ic * p
-        o0, t0, n0 = add_kept_non_negative(img[c], o0)
-        o1, t1, n1 = add_kept_non_negative(img[c + u64(1)], o1)
-        o2, t2, n2 = add_kept_non_negative(img[c + u64(2)], o2)
-        clamped += n0 | n1 | n2
-        sf[s] = o0
-        sf[s + u64(1)] = o1
-        sf[s + u64(2)] = o2
-        img[c] = t0
-        img[c + u64(1)] = t1
-        img[c + u64(2)] = t2
+        clamped += _put_term(img, c, sf, s, o0, o1, o2)
     return bad, clamped
 
 
