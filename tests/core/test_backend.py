@@ -60,6 +60,37 @@ def test_scene_with_masks_rotation_and_ids_matches_the_reference(rotation, mode)
     )  # fmt: skip
 
 
+@pytest.mark.parametrize("d_su", (0.004, 0.2))
+def test_ssss_taps_read_by_runs_and_pixel_by_pixel_match_the_reference(d_su):
+    # The kernel reads a tap over runs of pixels with one shift, or one pixel at a time where
+    # the runs are short (SHORT_RUNS). Along the rows (all wider than SHORT_RUNS here: the plane
+    # is on the mask) the narrow kernel's outermost tap has long runs on every row, the wide
+    # one's short runs on some (the reference's tap positions below); the autouse fixture
+    # compares each call with the NumPy reference.
+    short = backend.kernels("sss_lab.core.techniques.ssss").SHORT_RUNS
+    passes, scene, albedo, _ = _scene(192, 128)
+    diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]
+    depth, mask = passes["Depth"], passes["Material Index"] > 0
+    kernel = kernels.preintegrated_kernel(17, d_su=(d_su, d_su / 2, d_su / 4))
+    runs_short = []
+    for y in range(depth.shape[0]):
+        xs = np.flatnonzero(mask[y])
+        if xs.size < 2:
+            continue
+        x0, x1 = xs[0], xs[-1]  # rows narrower than a chunk: one chunk each
+        s0, s1 = scene.camera.pixels_per_unit(depth[y, [x0, x1]])
+        o = np.float32(kernel.offsets_su.max())
+        shift = np.floor(np.array([s0 * o + x0, s1 * o + x1], np.float32)) - (x0, x1)
+        runs_short.append(x1 - x0 + 1 < short * (1 + abs(shift[1] - shift[0])))
+    assert any(runs_short) == (d_su > 0.1) and not all(runs_short)
+    for weighting in ("surface", "screen"):
+        out = ssss(
+            diffuse=diffuse, albedo=albedo, depth=depth, mask=mask, camera=scene.camera, kernel=kernel,
+            weighting=weighting,
+        )  # fmt: skip
+        assert np.isfinite(out).all()
+
+
 def test_check_mode_catches_a_kernel_that_differs(monkeypatch):
     passes, scene, albedo, _ = _scene(32, 24)
     diffuse = passes["Diffuse Direct"] + passes["Diffuse Indirect"]
