@@ -425,65 +425,61 @@ def curvature_pixels(normal, position, mask, unit, mean, most, valid, on):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def box_planes(planes, n, r):
-    """The first ``n`` float64 planes of ``planes`` (P, H, W) replaced, each, by its sums over the
-    square of half-width ``r`` (zero outside the frame) as ``core.optics.energy._box_sum`` computes them:
-    float64 running sums along the columns (strips of ``SPREAD_STRIP``), then along the rows,
-    each sum the difference of two of them 2 r + 1 apart (equal to the bit)."""
-    h, w = planes.shape[1], planes.shape[2]
-    n_col = (w + SPREAD_STRIP - 1) // SPREAD_STRIP
-    for item in prange(n * n_col):
-        p = item // n_col
-        x0 = (item % n_col) * SPREAD_STRIP
-        bw = min(x0 + SPREAD_STRIP, w) - x0
-        cum = np.zeros((h + 2 * r + 1, SPREAD_STRIP), np.float64)
-        for j in range(h):
-            for t in range(bw):
-                cum[r + 1 + j, t] = cum[r + j, t] + planes[p, j, x0 + t]
-        for j in range(r):
-            for t in range(bw):
-                cum[r + 1 + h + j, t] = cum[r + h + j, t]
-        for i in range(h):
-            for t in range(bw):
-                planes[p, i, x0 + t] = cum[2 * r + 1 + i, t] - cum[i, t]
-    for item in prange(n * h):
-        p = item // h
-        line = planes[p, item % h]
-        cum = np.zeros(w + 2 * r + 1, np.float64)
-        for j in range(w):
-            cum[r + 1 + j] = cum[r + j] + line[j]
-        for j in range(r):
-            cum[r + 1 + w + j] = cum[r + w + j]
-        for i in range(w):
-            line[i] = cum[2 * r + 1 + i] - cum[i]
+def smooth_curvature(mean, most, valid, on, radii, largest, out_mean, out_most):
+    """``core.optics.energy._smoothed_curvatures``: ``mean`` (float64) averaged over the pixels of
+    ``valid`` within the square of half-width ``radii[k]``, float32 into ``out_mean[k]``, for each
+    k, and with ``largest`` ``most`` averaged so at the last (widest) radius into ``out_most``;
+    on ``on`` (0 elsewhere and where no pixel of ``valid`` is near).
 
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def smooth_curvature(mean, most, valid, on, r, largest, out_mean, out_most):
-    """``core.optics.energy._smoothed_curvature``: ``mean`` and, with ``largest``, ``most`` (float64)
-    averaged over the pixels of ``valid`` within the square of half-width ``r``, float32 into
-    ``out_mean`` and ``out_most`` on ``on`` (0 elsewhere and where no pixel of ``valid`` is near).
-    The box sums are the reference's (``_box_sum``): float64 running sums along the columns, then
-    along the rows, each difference taken from them as its cumulative sums do (equal to the bit)."""
+    The box sums are the reference's (``core.optics.energy._box_sum``), equal to the bit: its
+    float64 running sums along a column, from 0, are the same whatever the radius, so they are
+    taken once for all radii (a frame per plane: the weight, and ``mean`` and ``most`` times it);
+    a column's box sum at row i is the running sum at row min(i + r, H - 1) less the one at row
+    i - r - 1 (nothing above the first row), as the reference's differences of its cumulative
+    sums of the padded column give it. Then per row and radius the running sums along the row of
+    those box sums, and their differences, as the reference's, and the division."""
     h, w = valid.shape
     n = 3 if largest else 2
     planes = np.empty((n, h, w), np.float64)
+    n_col = (w + SPREAD_STRIP - 1) // SPREAD_STRIP
+    for item in prange(n_col):
+        x0 = item * SPREAD_STRIP
+        x1 = min(x0 + SPREAD_STRIP, w)
+        run = np.zeros((3, SPREAD_STRIP), np.float64)
+        for y in range(h):
+            for x in range(x0, x1):
+                t = x - x0
+                weight = 1.0 if valid[y, x] else 0.0
+                run[0, t] = run[0, t] + weight
+                planes[0, y, x] = run[0, t]
+                run[1, t] = run[1, t] + mean[y, x] * weight
+                planes[1, y, x] = run[1, t]
+                if largest:
+                    run[2, t] = run[2, t] + most[y, x] * weight
+                    planes[2, y, x] = run[2, t]
+    widest = radii.size - 1
     for y in prange(h):
-        for x in range(w):
-            weight = 1.0 if valid[y, x] else 0.0
-            planes[0, y, x] = weight
-            planes[1, y, x] = mean[y, x] * weight
-            if largest:
-                planes[2, y, x] = most[y, x] * weight
-    box_planes(planes, n, r)
-    for y in prange(h):
-        for x in range(w):
-            near = planes[0, y, x]
-            keep = on[y, x] and near > 0.0
-            den = max(near, 1.0)
-            out_mean[y, x] = f32(planes[1, y, x] / den) if keep else ZERO
-            if largest:
-                out_most[y, x] = f32(planes[2, y, x] / den) if keep else ZERO
+        column = np.empty((3, w), np.float64)
+        for k in range(radii.size):
+            r = radii[k]
+            below = min(y + r, h - 1)
+            above = y - r - 1
+            m = 3 if largest and k == widest else 2
+            cum = np.zeros((m, w + 2 * r + 1), np.float64)
+            for p in range(m):
+                for x in range(w):
+                    column[p, x] = planes[p, below, x] - (planes[p, above, x] if above >= 0 else 0.0)
+                for x in range(w):
+                    cum[p, r + 1 + x] = cum[p, r + x] + column[p, x]
+                for x in range(r):
+                    cum[p, r + 1 + w + x] = cum[p, r + w + x]
+            for x in range(w):
+                near = cum[0, 2 * r + 1 + x] - cum[0, x]
+                keep = on[y, x] and near > 0.0
+                den = max(near, 1.0)
+                out_mean[k, y, x] = f32((cum[1, 2 * r + 1 + x] - cum[1, x]) / den) if keep else ZERO
+                if m == 3:
+                    out_most[y, x] = f32((cum[2, 2 * r + 1 + x] - cum[2, x]) / den) if keep else ZERO
 
 
 #: Columns (vertical passes) or rows (horizontal ones) per work item of ``spread_light``'s box sums.
@@ -641,7 +637,7 @@ def _unit_row(normal, position, mask, y0, x0, w, n, xa, xb, ons, units):
 def _plane_of_units(position, y0, x0, h, w, i, j, xa, ons, units):
     """``curvature_pixels``' largest curvature and validity at pixel (``i``, ``j``) of the window
     (``h``, ``w``) from frame row ``y0`` and column ``x0``, without its frames of unit normals and
-    mean curvature: (1 where valid else 0, the largest times that: ``smooth_curvature``'s planes).
+    mean curvature: (1 where valid else 0, the largest times that: the planes ``smooth_curvature`` sums).
     The same float32 and float64 operations in the same order, the unit normals of rows i - 1..
     i + 1 those ``_unit_row`` keeps; neighbours outside the window count as off the mask, as on
     the window the reference is given."""
@@ -694,7 +690,7 @@ def largest_rows(normal, position, mask, y0, x0, h, w, a, b, carry, c_n, cums, o
     ``_plane_of_units``' planes on the window (``h``, ``w``) from frame row ``y0`` and column
     ``x0``, into ``out`` (``b`` - ``a``, ``w``) float32: float32 on the pixels
     ``_curvature_unit`` finds on (0 elsewhere and where no valid pixel is near), with
-    ``box_planes``' float64 sums (equal to the bit): along
+    ``smooth_curvature``'s float64 sums (equal to the bit): along
     the columns, each box sum is the difference of the running sums of the window's planes from
     its first row, which ``carry`` (2, ``w``) float64 holds after its first ``c_n`` rows
     (``c_n`` <= max(``a`` - 1, 0); 0 and zeros to begin) and then holds after its first

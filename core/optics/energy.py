@@ -457,7 +457,8 @@ def surface_curvature(normal, position, mask, radius_px: int = 1) -> tuple[np.nd
     image axis crosses it). Each is then averaged over the pixels on the mask within
     ``radius_px`` (a square of 2 radius_px + 1; a flat-shaded mesh's edges spread over the faces
     beside them, as far as a walk reaches); 0 where no neighbour is on the mask."""
-    mean, largest = _smoothed_curvature(_curvature_per_pixel(normal, position, mask), radius_px)
+    r = max(1, int(radius_px))
+    mean, largest = _smoothed_curvatures(_curvature_per_pixel(normal, position, mask), [r])[r]
     assert largest is not None
     return mean, largest
 
@@ -522,27 +523,31 @@ def _curvature_reference(normal, position, mask):
     return np.where(valid, total / np.maximum(count, 1), 0.0), np.where(valid, most, 0.0), valid, m
 
 
-def _smoothed_curvature(parts, radius_px: int, largest: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
-    """``surface_curvature``'s average of ``_curvature_per_pixel``'s ``parts`` over ``radius_px``
-    (the largest curvature's only with ``largest``, else None); on the compiled backend
-    ``core.optics._kernels.smooth_curvature`` (equal to the bit, as above)."""
+def _smoothed_curvatures(parts, radii) -> dict[int, tuple[np.ndarray, np.ndarray | None]]:
+    """``surface_curvature``'s average of ``_curvature_per_pixel``'s ``parts`` over each radius of
+    ``radii`` (pixels, each at least 1): {radius: (mean, largest)}, the largest curvature's only
+    at the widest radius (None at the others). On the compiled backend one call of
+    ``core.optics._kernels.smooth_curvature`` for all radii (equal to the bit, as above)."""
+    rs = sorted({max(1, int(r)) for r in radii})
     mode = backend.active()
     if mode == "numpy":
-        return _smoothed_reference(parts, radius_px, largest)
+        return {r: _smoothed_reference(parts, r, largest=r == rs[-1]) for r in rs}
     c = np.ascontiguousarray
     mean, most, valid, m = (c(v) for v in parts)
-    out = (np.empty(m.shape, np.float32), np.empty(m.shape if largest else (1, 1), np.float32))
-    backend.run_kernel(_kernels().smooth_curvature, mean, most, valid, m, max(1, int(radius_px)), largest, *out)
-    result = (out[0], out[1] if largest else None)
+    means = np.empty((len(rs), *m.shape), np.float32)
+    widest = np.empty(m.shape, np.float32)
+    backend.run_kernel(_kernels().smooth_curvature, mean, most, valid, m, np.array(rs, np.int64), True, means, widest)
+    result = {r: (means[k], widest if r == rs[-1] else None) for k, r in enumerate(rs)}
     if mode == "check":
-        for ref, got in zip(_smoothed_reference(parts, radius_px, largest), result, strict=True):
-            if ref is not None and got is not None:
-                backend.compare("surface_curvature (average)", ref, got, np.zeros(m.shape))
+        for r in rs:
+            for ref, got in zip(_smoothed_reference(parts, r, r == rs[-1]), result[r], strict=True):
+                if ref is not None and got is not None:
+                    backend.compare("surface_curvature (average)", ref, got, np.zeros(m.shape))
     return result
 
 
 def _smoothed_reference(parts, radius_px: int, largest: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
-    """``_smoothed_curvature`` in NumPy: the reference."""
+    """``_smoothed_curvatures`` at one radius in NumPy: the reference."""
     mean, most, valid, m = parts
     weight = valid.astype(np.float64)
     r = max(1, int(radius_px))
@@ -944,7 +949,7 @@ def apply_energy(
     nb, pb = np.asarray(normal)[box], np.asarray(position)[box]
     parts = _curvature_per_pixel(nb, pb, mb)
     # The largest curvature is read at the widest reach only.
-    maps = {r: _smoothed_curvature(parts, r, largest=r == max(reach)) for r in sorted(set(reach))}
+    maps = _smoothed_curvatures(parts, reach)
     finite = thickness is not None and thickness_distance_su > 0 and method in SLAB_ABOVE
     unseen = None
     if finite:

@@ -499,6 +499,10 @@ def test_energy_table_reads_and_curvature_match_the_reference_to_the_bit():
     normal[9, 9] = 0.1
     for radius in (1, 4):
         energy.surface_curvature(normal, position, passes["Material Index"] > 0, radius_px=radius)
+    # Several radii in one call (the energy stage's per channel reaches), one wider than the frame.
+    parts = energy._curvature_per_pixel(normal, position, passes["Material Index"] > 0)
+    maps = energy._smoothed_curvatures(parts, [3, 1, 3, 70])
+    assert sorted(maps) == [1, 3, 70] and maps[70][1] is not None and maps[3][1] is None
 
 
 def test_vector_length_is_numpys_norm_to_the_bit():
